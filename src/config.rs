@@ -1,0 +1,305 @@
+//! Pipeline configuration: what `pipelines/*.toml` may say, with defaults.
+//!
+//! Parsed once into a checked [`PipelineConfig`] (linfa's "validated hyper-parameters" idea):
+//! unknown keys are errors, so a typo in a lab's TOML is reported instead of silently ignored.
+
+use serde::{Deserialize, Serialize};
+use sha2::{Digest, Sha256};
+use std::path::Path;
+
+#[derive(Debug, thiserror::Error)]
+pub enum ConfigError {
+    #[error("{path}: cannot read config: {source}")]
+    Read {
+        path: String,
+        source: std::io::Error,
+    },
+    #[error("{path}: {message}")]
+    Parse { path: String, message: String },
+    #[error("config: {0}")]
+    Invalid(String),
+}
+
+/// Input format, detected from the files unless forced.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "lowercase")]
+pub enum FormatChoice {
+    #[default]
+    Auto,
+    Vallen,
+    Aewin,
+    Waveexplorer,
+    Wav,
+    Csv,
+    Text,
+    Parquet,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct PipelineConfig {
+    pub ingest: IngestConfig,
+    pub pipeline: RunConfig,
+    pub validate: ValidateConfig,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct IngestConfig {
+    /// Force one format for every input file (`auto` detects per file).
+    pub format: FormatChoice,
+    /// Sampling rate for files that do not carry one (plain text, CSV without a time column).
+    /// Thesis: 10 MHz.
+    pub sample_rate_hz: f64,
+    /// Pretrigger samples for files that do not carry one.
+    pub pretrigger_samples: u32,
+    /// Preamplifier gain (dB) to divide out of text/CSV/WAV volts (0 = already at the sensor).
+    pub gain_db: f64,
+    pub vallen: VallenConfig,
+    pub aewin: AewinConfig,
+    pub waveexplorer: WaveExplorerConfig,
+}
+
+/// How Vallen parametric inputs (PA0, PA1, …) map to the test machine's load and extension.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct VallenConfig {
+    /// Parametric column carrying the load (e.g. "PA0"); empty = no load channel.
+    pub load_param: String,
+    /// Newtons per mV of that parametric input.
+    pub load_n_per_mv: f64,
+    /// Parametric column carrying the extension (e.g. "PA1"); empty = none.
+    pub extension_param: String,
+    /// Metres per mV of that parametric input.
+    pub extension_m_per_mv: f64,
+}
+
+/// MISTRAS AEwin ASCII exports carry neither rate nor pretrigger in the waveform files.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct AewinConfig {
+    pub sample_rate_hz: f64,
+    pub pretrigger_samples: u32,
+    /// The exported volts include the preamplifier (typically 40 dB); divided out on read.
+    pub preamp_gain_db: f64,
+    /// AE clock minus test-machine clock, seconds (the two systems start separately).
+    pub log_time_offset_s: f64,
+}
+
+/// Digital Wave WaveExplorer text exports give the rate in their header, not the pretrigger.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct WaveExplorerConfig {
+    pub pretrigger_samples: u32,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct RunConfig {
+    /// Records per batch handed to the worker pool.
+    pub batch_size: usize,
+    /// Batches in flight between stages (bounds memory: about
+    /// `(2·queue_batches + 2) · batch_size` waveforms at most).
+    pub queue_batches: usize,
+    /// Rows per Parquet row group.
+    pub row_group_rows: usize,
+}
+
+/// Checks that turn a hit into a reject row instead of a feature row.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct ValidateConfig {
+    /// Fewer samples than this is a reject ("too short").
+    pub min_samples: usize,
+}
+
+impl Default for PipelineConfig {
+    fn default() -> Self {
+        PipelineConfig {
+            ingest: IngestConfig::default(),
+            pipeline: RunConfig::default(),
+            validate: ValidateConfig::default(),
+        }
+    }
+}
+
+impl Default for IngestConfig {
+    fn default() -> Self {
+        IngestConfig {
+            format: FormatChoice::Auto,
+            sample_rate_hz: 10e6,
+            pretrigger_samples: 0,
+            gain_db: 0.0,
+            vallen: VallenConfig::default(),
+            aewin: AewinConfig::default(),
+            waveexplorer: WaveExplorerConfig::default(),
+        }
+    }
+}
+
+impl Default for VallenConfig {
+    fn default() -> Self {
+        VallenConfig {
+            load_param: String::new(),
+            load_n_per_mv: 1.0,
+            extension_param: String::new(),
+            extension_m_per_mv: 1e-6,
+        }
+    }
+}
+
+impl Default for AewinConfig {
+    fn default() -> Self {
+        // Values of the only AEwin export we have (aewin_cfrp_tensile: Start.m says
+        // Fs = 5 MHz, PT = 20 µs, 40 dB preamplifier).
+        AewinConfig {
+            sample_rate_hz: 5e6,
+            pretrigger_samples: 100,
+            preamp_gain_db: 40.0,
+            log_time_offset_s: 0.0,
+        }
+    }
+}
+
+impl Default for WaveExplorerConfig {
+    fn default() -> Self {
+        WaveExplorerConfig {
+            pretrigger_samples: 0,
+        }
+    }
+}
+
+impl Default for RunConfig {
+    fn default() -> Self {
+        RunConfig {
+            batch_size: 256,
+            queue_batches: 2,
+            row_group_rows: 4096,
+        }
+    }
+}
+
+impl Default for ValidateConfig {
+    fn default() -> Self {
+        ValidateConfig { min_samples: 16 }
+    }
+}
+
+impl PipelineConfig {
+    /// Read and check a pipeline TOML file.
+    pub fn from_file(path: &Path) -> Result<PipelineConfig, ConfigError> {
+        let text = std::fs::read_to_string(path).map_err(|source| ConfigError::Read {
+            path: path.display().to_string(),
+            source,
+        })?;
+        Self::from_toml(&text).map_err(|e| match e {
+            ConfigError::Parse { message, .. } => ConfigError::Parse {
+                path: path.display().to_string(),
+                message,
+            },
+            other => other,
+        })
+    }
+
+    /// Parse and check TOML text (unknown keys are errors).
+    pub fn from_toml(text: &str) -> Result<PipelineConfig, ConfigError> {
+        let cfg: PipelineConfig = toml::from_str(text).map_err(|e| ConfigError::Parse {
+            path: "<config>".into(),
+            message: e.to_string().replace('\n', " "),
+        })?;
+        cfg.validate()?;
+        Ok(cfg)
+    }
+
+    /// The checks that serde cannot express.
+    pub fn validate(&self) -> Result<(), ConfigError> {
+        let pos = |v: f64, what: &str| {
+            if v.is_finite() && v > 0.0 {
+                Ok(())
+            } else {
+                Err(ConfigError::Invalid(format!("{what} must be > 0, got {v}")))
+            }
+        };
+        pos(self.ingest.sample_rate_hz, "ingest.sample_rate_hz")?;
+        pos(
+            self.ingest.aewin.sample_rate_hz,
+            "ingest.aewin.sample_rate_hz",
+        )?;
+        if self.pipeline.batch_size == 0 {
+            return Err(ConfigError::Invalid(
+                "pipeline.batch_size must be ≥ 1".into(),
+            ));
+        }
+        if self.pipeline.queue_batches == 0 {
+            return Err(ConfigError::Invalid(
+                "pipeline.queue_batches must be ≥ 1".into(),
+            ));
+        }
+        if self.pipeline.row_group_rows == 0 {
+            return Err(ConfigError::Invalid(
+                "pipeline.row_group_rows must be ≥ 1".into(),
+            ));
+        }
+        for p in [
+            &self.ingest.vallen.load_param,
+            &self.ingest.vallen.extension_param,
+        ] {
+            if !p.is_empty() && !(p.starts_with("PA") && p[2..].parse::<u32>().is_ok()) {
+                return Err(ConfigError::Invalid(format!(
+                    "ingest.vallen: parametric input must look like PA0, PA1, …; got {p:?}"
+                )));
+            }
+        }
+        Ok(())
+    }
+
+    /// Canonical TOML of the effective configuration (what the manifest records).
+    pub fn to_toml(&self) -> String {
+        toml::to_string(self).expect("config serialises")
+    }
+
+    /// SHA-256 of the canonical TOML: the same effective settings give the same hash,
+    /// whatever the comments or key order of the file they came from.
+    pub fn hash(&self) -> String {
+        hex(&Sha256::digest(self.to_toml().as_bytes()))
+    }
+}
+
+pub(crate) fn hex(bytes: &[u8]) -> String {
+    bytes.iter().map(|b| format!("{b:02x}")).collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn empty_toml_is_the_default() {
+        assert_eq!(
+            PipelineConfig::from_toml("").unwrap(),
+            PipelineConfig::default()
+        );
+    }
+
+    #[test]
+    fn typo_is_an_error_naming_the_key() {
+        let err = PipelineConfig::from_toml("[ingest]\nsample_rate = 5e6\n").unwrap_err();
+        assert!(err.to_string().contains("sample_rate"), "{err}");
+    }
+
+    #[test]
+    fn hash_ignores_comments_but_not_values() {
+        let a = PipelineConfig::from_toml("# hi\n[ingest]\nsample_rate_hz = 5e6\n").unwrap();
+        let b = PipelineConfig::from_toml("[ingest]\nsample_rate_hz = 5000000.0\n").unwrap();
+        let c = PipelineConfig::from_toml("[ingest]\nsample_rate_hz = 2e6\n").unwrap();
+        assert_eq!(a.hash(), b.hash());
+        assert_ne!(a.hash(), c.hash());
+    }
+
+    #[test]
+    fn bad_values_are_rejected() {
+        assert!(PipelineConfig::from_toml("[ingest]\nsample_rate_hz = -1.0\n").is_err());
+        assert!(PipelineConfig::from_toml("[ingest.vallen]\nload_param = \"X7\"\n").is_err());
+        assert!(PipelineConfig::from_toml("[pipeline]\nbatch_size = 0\n").is_err());
+    }
+}

@@ -1,0 +1,388 @@
+//! CSV waveforms.
+//!
+//! * One hit per file: a value column (`voltage_v`, `voltage`, `value`, `amplitude`,
+//!   `signal`, `v`, …) and optionally a time column (`time_s`, `time`, `t`) from which the
+//!   rate (and, for negative times, the pretrigger) is taken; or a single unnamed column.
+//! * A long table: a hit column (`hit`, `hit_id`, `event`, `trai`) plus a value column,
+//!   optionally `channel`/`chan` and a time column; the rows of one hit are contiguous.
+//!
+//! Delimiter `,`, `;` or tab, detected from the header.
+
+use super::{gain_factor, Source};
+use crate::config::IngestConfig;
+use crate::model::{AeRecord, Item, Reject, Stage};
+use std::path::Path;
+
+const VALUE: &[&str] = &[
+    "voltage_v",
+    "voltage",
+    "volts",
+    "v",
+    "value",
+    "amplitude",
+    "amplitude_v",
+    "signal",
+    "sample",
+    "samples_v",
+    "u_v",
+    "u",
+];
+const TIME: &[&str] = &["time_s", "time", "t", "t_s"];
+const HIT: &[&str] = &["hit", "hit_id", "hit_no", "event", "trai", "record"];
+const CHAN: &[&str] = &["channel", "chan", "ch"];
+
+pub enum Sniff {
+    PerHit,
+    Long,
+    NotWaveform(String),
+}
+
+fn delimiter(line: &str) -> u8 {
+    let count = |c| line.matches(c).count();
+    if count('\t') > count(',') && count('\t') >= count(';') {
+        b'\t'
+    } else if count(';') > count(',') {
+        b';'
+    } else {
+        b','
+    }
+}
+
+#[derive(Debug, Clone)]
+struct Layout {
+    delim: u8,
+    has_header: bool,
+    value: usize,
+    time: Option<usize>,
+    hit: Option<usize>,
+    chan: Option<usize>,
+}
+
+fn find(header: &[String], names: &[&str]) -> Option<usize> {
+    names
+        .iter()
+        .find_map(|n| header.iter().position(|h| h == n))
+}
+
+fn layout(head: &str) -> Result<Layout, String> {
+    let first = head
+        .lines()
+        .next()
+        .unwrap_or("")
+        .trim_start_matches('\u{feff}');
+    let delim = delimiter(first);
+    let header: Vec<String> = first
+        .split(delim as char)
+        .map(|c| c.trim().trim_matches('"').to_lowercase())
+        .collect();
+    if header.iter().all(|c| c.parse::<f64>().is_ok()) {
+        return if header.len() == 1 {
+            Ok(Layout {
+                delim,
+                has_header: false,
+                value: 0,
+                time: None,
+                hit: None,
+                chan: None,
+            })
+        } else {
+            Err(format!(
+                "{} unnamed numeric columns: name the value column (e.g. voltage_v)",
+                header.len()
+            ))
+        };
+    }
+    let value = find(&header, VALUE).or(if header.len() == 1 { Some(0) } else { None });
+    let Some(value) = value else {
+        return Err(format!(
+            "no waveform column among [{}] (expected one of {})",
+            header.join(", "),
+            VALUE.join(", ")
+        ));
+    };
+    Ok(Layout {
+        delim,
+        has_header: true,
+        value,
+        time: find(&header, TIME),
+        hit: find(&header, HIT),
+        chan: find(&header, CHAN),
+    })
+}
+
+pub fn sniff(head: &str) -> Sniff {
+    match layout(head) {
+        Ok(l) if l.hit.is_some() => Sniff::Long,
+        Ok(_) => Sniff::PerHit,
+        Err(why) => Sniff::NotWaveform(format!("CSV is not a waveform: {why}")),
+    }
+}
+
+fn reader(path: &Path) -> Result<(Layout, csv::Reader<std::fs::File>), String> {
+    let head = super::head(path, 4096).map_err(|e| format!("cannot read: {e}"))?;
+    let l = layout(&head)?;
+    let r = csv::ReaderBuilder::new()
+        .delimiter(l.delim)
+        .has_headers(l.has_header)
+        .flexible(true)
+        .trim(csv::Trim::All)
+        .from_path(path)
+        .map_err(|e| format!("cannot read: {e}"))?;
+    Ok((l, r))
+}
+
+/// Rate and pretrigger from sample times: rate from the mean step, pretrigger = samples
+/// before t = 0.
+fn timing(times: &[f64], default_rate: f64, default_pre: u32) -> (f64, u32) {
+    if times.len() < 2 {
+        return (default_rate, default_pre);
+    }
+    let span = times[times.len() - 1] - times[0];
+    if !(span > 0.0) {
+        return (default_rate, default_pre);
+    }
+    let rate = (times.len() - 1) as f64 / span;
+    let pre = if times[0] < 0.0 {
+        times.iter().take_while(|t| **t < 0.0).count() as u32
+    } else {
+        default_pre
+    };
+    (rate, pre)
+}
+
+fn cell(rec: &csv::StringRecord, i: usize, line: u64, what: &str) -> Result<f64, String> {
+    let s = rec
+        .get(i)
+        .ok_or_else(|| format!("line {line}: missing {what} column"))?;
+    s.parse::<f64>()
+        .map_err(|_| format!("line {line}: {what} '{s}' is not a number"))
+}
+
+fn read_per_hit(path: &Path, cfg: &IngestConfig) -> Result<(Vec<f32>, f64, u32), String> {
+    let (l, mut r) = reader(path)?;
+    let gain = gain_factor(cfg.gain_db);
+    let mut v = Vec::new();
+    let mut t = Vec::new();
+    for rec in r.records() {
+        let rec = rec.map_err(|e| format!("{e}"))?;
+        let line = rec.position().map(|p| p.line()).unwrap_or(0);
+        v.push((cell(&rec, l.value, line, "value")? * gain) as f32);
+        if let Some(ti) = l.time {
+            t.push(cell(&rec, ti, line, "time")?);
+        }
+    }
+    let (rate, pre) = timing(&t, cfg.sample_rate_hz, cfg.pretrigger_samples);
+    Ok((v, rate, pre))
+}
+
+pub fn open_per_hit(src: &Source, cfg: &IngestConfig) -> Box<dyn Iterator<Item = Item> + Send> {
+    let experiment = src.id.clone();
+    let cfg = cfg.clone();
+    let files = src.files.clone();
+    Box::new(files.into_iter().enumerate().map(move |(i, p)| {
+        let hit = i as u64 + 1;
+        match read_per_hit(&p, &cfg) {
+            Ok((samples, rate, pre)) => Item::Record(AeRecord {
+                experiment: experiment.clone(),
+                channel: 0,
+                hit,
+                time_s: None,
+                sample_rate_hz: rate,
+                pretrigger: pre,
+                samples,
+                load_n: None,
+                extension_m: None,
+                label: None,
+                source_file: p.display().to_string(),
+            }),
+            Err(reason) => Item::Reject(Reject {
+                experiment: experiment.clone(),
+                source_file: p.display().to_string(),
+                record_id: format!("hit {hit}"),
+                stage: Stage::Read,
+                reason,
+            }),
+        }
+    }))
+}
+
+struct LongReader {
+    experiment: String,
+    path: String,
+    l: Layout,
+    records: csv::StringRecordsIntoIter<std::fs::File>,
+    /// The first row of the next hit, already read.
+    peek: Option<csv::StringRecord>,
+    seen: std::collections::HashSet<(i64, i64)>,
+    cfg: IngestConfig,
+    done: bool,
+}
+
+impl LongReader {
+    fn key(&self, rec: &csv::StringRecord) -> Result<(i64, i64), String> {
+        let line = rec.position().map(|p| p.line()).unwrap_or(0);
+        let hit = cell(rec, self.l.hit.expect("long layout"), line, "hit")?;
+        let ch = match self.l.chan {
+            Some(c) => cell(rec, c, line, "channel")?,
+            None => 0.0,
+        };
+        if hit.fract() != 0.0 || ch.fract() != 0.0 {
+            return Err(format!(
+                "line {line}: hit and channel must be whole numbers"
+            ));
+        }
+        Ok((ch as i64, hit as i64))
+    }
+
+    fn reject(&self, id: String, reason: String) -> Item {
+        Item::Reject(Reject {
+            experiment: self.experiment.clone(),
+            source_file: self.path.clone(),
+            record_id: id,
+            stage: Stage::Read,
+            reason,
+        })
+    }
+}
+
+impl Iterator for LongReader {
+    type Item = Item;
+    fn next(&mut self) -> Option<Item> {
+        if self.done {
+            return None;
+        }
+        let first = match self.peek.take() {
+            Some(r) => r,
+            None => match self.records.next() {
+                None => return None,
+                Some(Ok(r)) => r,
+                Some(Err(e)) => {
+                    self.done = true;
+                    return Some(self.reject(
+                        String::new(),
+                        format!("{e}; the rest of the file is not read"),
+                    ));
+                }
+            },
+        };
+        let key = match self.key(&first) {
+            Ok(k) => k,
+            Err(e) => return Some(self.reject(String::new(), e)),
+        };
+        let id = format!("ch{} hit {}", key.0, key.1);
+        let gain = gain_factor(self.cfg.gain_db);
+        let mut v = Vec::new();
+        let mut t = Vec::new();
+        let mut err = None;
+        let mut push = |rec: &csv::StringRecord, l: &Layout, v: &mut Vec<f32>, t: &mut Vec<f64>| {
+            let line = rec.position().map(|p| p.line()).unwrap_or(0);
+            match cell(rec, l.value, line, "value") {
+                Ok(x) => v.push((x * gain) as f32),
+                Err(e) => {
+                    err.get_or_insert(e);
+                }
+            }
+            if let Some(ti) = l.time {
+                match cell(rec, ti, line, "time") {
+                    Ok(x) => t.push(x),
+                    Err(e) => {
+                        err.get_or_insert(e);
+                    }
+                }
+            }
+        };
+        push(&first, &self.l, &mut v, &mut t);
+        loop {
+            match self.records.next() {
+                None => break,
+                Some(Ok(rec)) => {
+                    if self.key(&rec).ok() == Some(key) {
+                        push(&rec, &self.l, &mut v, &mut t);
+                    } else {
+                        self.peek = Some(rec);
+                        break;
+                    }
+                }
+                Some(Err(e)) => {
+                    err.get_or_insert(e.to_string());
+                    break;
+                }
+            }
+        }
+        if !self.seen.insert(key) {
+            return Some(self.reject(
+                id,
+                "rows of this hit are not contiguous (it appears in two separate blocks)".into(),
+            ));
+        }
+        if let Some(e) = err {
+            return Some(self.reject(id, e));
+        }
+        let (rate, pre) = timing(&t, self.cfg.sample_rate_hz, self.cfg.pretrigger_samples);
+        Some(Item::Record(AeRecord {
+            experiment: self.experiment.clone(),
+            channel: key.0.max(0) as u32,
+            hit: key.1.max(0) as u64,
+            time_s: None,
+            sample_rate_hz: rate,
+            pretrigger: pre,
+            samples: v,
+            load_n: None,
+            extension_m: None,
+            label: None,
+            source_file: self.path.clone(),
+        }))
+    }
+}
+
+pub fn open_long(src: &Source, cfg: &IngestConfig) -> Box<dyn Iterator<Item = Item> + Send> {
+    let path = src.files[0].clone();
+    match reader(&path) {
+        Ok((l, r)) => Box::new(LongReader {
+            experiment: src.id.clone(),
+            path: path.display().to_string(),
+            l,
+            records: r.into_records(),
+            peek: None,
+            seen: Default::default(),
+            cfg: cfg.clone(),
+            done: false,
+        }),
+        Err(reason) => Box::new(std::iter::once(Item::Reject(Reject {
+            experiment: src.id.clone(),
+            source_file: path.display().to_string(),
+            record_id: String::new(),
+            stage: Stage::Read,
+            reason,
+        }))),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn sniffing() {
+        assert!(matches!(sniff("voltage_v\n0.1\n"), Sniff::PerHit));
+        assert!(matches!(sniff("time_s;voltage_v\n0;0.1\n"), Sniff::PerHit));
+        assert!(matches!(sniff("0.5\n0.1\n"), Sniff::PerHit));
+        assert!(matches!(
+            sniff("hit,channel,voltage_v\n1,1,0.1\n"),
+            Sniff::Long
+        ));
+        assert!(matches!(
+            sniff("Event,Time\n1,6.519\n"),
+            Sniff::NotWaveform(_)
+        ));
+        assert!(matches!(sniff("7.69,7.69,7.69\n"), Sniff::NotWaveform(_)));
+    }
+
+    #[test]
+    fn timing_from_times() {
+        let t: Vec<f64> = (-3..7).map(|i| i as f64 * 1e-7).collect();
+        let (rate, pre) = timing(&t, 1.0, 0);
+        assert!((rate - 1e7).abs() < 1e-3);
+        assert_eq!(pre, 3);
+    }
+}

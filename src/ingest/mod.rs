@@ -1,0 +1,538 @@
+//! Sources: find the experiments in the inputs and read their hits lazily.
+//!
+//! [`discover`] walks files and folders and groups files into [`Source`]s (an experiment, or
+//! for a waveforms Parquet file, a table that may hold several). [`open`] turns a source into
+//! an iterator of [`Item`]s — records, or reject rows for what could not be read — in the
+//! order (experiment, channel, hit). Nothing here holds more than one record's samples at a
+//! time, except the small per-batch buffers of the Vallen reader.
+
+mod aewin;
+mod csvfmt;
+mod parquetfmt;
+mod text;
+pub mod vallen;
+mod waveexplorer;
+pub mod wavfmt;
+
+use crate::config::{FormatChoice, IngestConfig};
+use crate::model::{Item, Reject, Stage};
+use std::path::{Path, PathBuf};
+
+pub use aewin::MachineLog;
+
+#[derive(Debug, thiserror::Error)]
+pub enum IngestError {
+    #[error("{path}: {message}")]
+    File { path: String, message: String },
+}
+
+pub(crate) fn file_err(path: &Path, message: impl std::fmt::Display) -> IngestError {
+    IngestError::File {
+        path: path.display().to_string(),
+        message: message.to_string(),
+    }
+}
+
+/// The recording formats aepipe reads.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Format {
+    /// Vallen AMSY `.pridb` (hits, parametric) + `.tradb` (waveforms, raw or FLAC).
+    Vallen,
+    /// MISTRAS AEwin ASCII export: one waveform text file per hit (+ hit list, machine log).
+    Aewin,
+    /// Digital Wave WaveExplorer text export: many events in one file.
+    WaveExplorer,
+    /// WAV files, one hit per file (each channel a record).
+    Wav,
+    /// CSV, one hit per file.
+    CsvPerHit,
+    /// CSV long table with a hit column.
+    CsvLong,
+    /// Plain text, one value per line, one hit per file.
+    Text,
+    /// aepipe's own `waveforms.parquet`.
+    Parquet,
+}
+
+impl Format {
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Format::Vallen => "vallen",
+            Format::Aewin => "aewin",
+            Format::WaveExplorer => "waveexplorer",
+            Format::Wav => "wav",
+            Format::CsvPerHit => "csv (one hit per file)",
+            Format::CsvLong => "csv (long table)",
+            Format::Text => "text (one hit per file)",
+            Format::Parquet => "parquet (waveforms)",
+        }
+    }
+}
+
+/// One unit of reading: an experiment (or a waveforms table), with the files it needs.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Source {
+    /// Experiment id (for Parquet: the file stem; the rows carry their own experiment ids).
+    pub id: String,
+    pub format: Format,
+    /// The waveform files, in reading order.
+    pub files: Vec<PathBuf>,
+    /// Companion files: Vallen `.pridb`, AEwin hit list and machine log.
+    pub companions: Vec<PathBuf>,
+}
+
+impl Source {
+    /// Every file this source reads (for the manifest).
+    pub fn all_files(&self) -> impl Iterator<Item = &PathBuf> {
+        self.files.iter().chain(self.companions.iter())
+    }
+}
+
+/// What [`discover`] found.
+#[derive(Debug, Default)]
+pub struct Discovery {
+    /// Sources sorted by (id, first file).
+    pub sources: Vec<Source>,
+    /// Inputs that cannot be read at all (explicitly named unknown files, missing paths).
+    pub rejects: Vec<Reject>,
+    /// Files inside input folders that are not recordings (READMEs, setups, pick lists…),
+    /// with the reason they were passed over.
+    pub skipped: Vec<(PathBuf, String)>,
+}
+
+/// What one file looks like, from its name and first bytes.
+#[derive(Debug, Clone, PartialEq)]
+enum Kind {
+    Pridb,
+    Tradb,
+    Parquet,
+    Wav,
+    CsvPerHit,
+    CsvLong,
+    MachineLog,
+    AewinHitList,
+    AewinWave,
+    WaveExplorer,
+    Text,
+    Other(String),
+}
+
+fn ext_lower(p: &Path) -> String {
+    p.extension()
+        .map(|e| e.to_string_lossy().to_lowercase())
+        .unwrap_or_default()
+}
+
+/// Read up to `n` bytes of the head of a file as text (lossy).
+fn head(p: &Path, n: usize) -> std::io::Result<String> {
+    use std::io::Read;
+    let mut f = std::fs::File::open(p)?;
+    let mut buf = vec![0u8; n];
+    let mut got = 0;
+    while got < n {
+        let k = f.read(&mut buf[got..])?;
+        if k == 0 {
+            break;
+        }
+        got += k;
+    }
+    buf.truncate(got);
+    Ok(String::from_utf8_lossy(&buf).into_owned())
+}
+
+fn classify(p: &Path, forced: FormatChoice) -> std::io::Result<Kind> {
+    let ext = ext_lower(p);
+    let name = p
+        .file_name()
+        .map(|n| n.to_string_lossy().to_string())
+        .unwrap_or_default();
+    match ext.as_str() {
+        "pridb" => return Ok(Kind::Pridb),
+        "tradb" => return Ok(Kind::Tradb),
+        "parquet" => return Ok(Kind::Parquet),
+        "wav" => return Ok(Kind::Wav),
+        "csv" | "txt" | "dat" | "tsv" => {}
+        _ => return Ok(Kind::Other(format!("unknown file type '.{ext}'"))),
+    }
+    let text = head(p, 4096)?;
+    if ext == "csv" {
+        if name.starts_with("Specimen_RawData") || aewin::looks_like_machine_log(&text) {
+            return Ok(Kind::MachineLog);
+        }
+        return Ok(match csvfmt::sniff(&text) {
+            csvfmt::Sniff::Long => Kind::CsvLong,
+            csvfmt::Sniff::PerHit => Kind::CsvPerHit,
+            csvfmt::Sniff::NotWaveform(why) => Kind::Other(why),
+        });
+    }
+    if waveexplorer::parse_header(&text).is_some() || forced == FormatChoice::Waveexplorer {
+        return Ok(Kind::WaveExplorer);
+    }
+    if aewin::looks_like_hit_list(&text) {
+        return Ok(Kind::AewinHitList);
+    }
+    if text::looks_like_values(&text) {
+        if aewin::parse_wave_name(p).is_some() || forced == FormatChoice::Aewin {
+            return Ok(Kind::AewinWave);
+        }
+        return Ok(Kind::Text);
+    }
+    if ext == "csv" || ext == "tsv" {
+        return Ok(Kind::CsvPerHit);
+    }
+    Ok(Kind::Other(
+        "text that is neither one value per line nor a known export".into(),
+    ))
+}
+
+/// Natural ordering for file names: digit runs compare as numbers (`hit_2` < `hit_10`).
+pub(crate) fn natural_key(s: &str) -> Vec<(u8, u64, String)> {
+    let mut out = Vec::new();
+    let mut chars = s.chars().peekable();
+    while let Some(&c) = chars.peek() {
+        if c.is_ascii_digit() {
+            let mut n = String::new();
+            while let Some(&d) = chars.peek() {
+                if d.is_ascii_digit() {
+                    n.push(d);
+                    chars.next();
+                } else {
+                    break;
+                }
+            }
+            out.push((0, n.parse::<u64>().unwrap_or(u64::MAX), n));
+        } else {
+            let mut t = String::new();
+            while let Some(&d) = chars.peek() {
+                if d.is_ascii_digit() {
+                    break;
+                }
+                t.push(d);
+                chars.next();
+            }
+            out.push((1, 0, t));
+        }
+    }
+    out
+}
+
+fn walk(dir: &Path, out: &mut Vec<PathBuf>, errs: &mut Vec<(PathBuf, String)>) {
+    let rd = match std::fs::read_dir(dir) {
+        Ok(rd) => rd,
+        Err(e) => {
+            errs.push((dir.to_path_buf(), format!("cannot list folder: {e}")));
+            return;
+        }
+    };
+    let mut entries: Vec<PathBuf> = rd.flatten().map(|e| e.path()).collect();
+    entries.sort();
+    for p in entries {
+        let name = p
+            .file_name()
+            .map(|n| n.to_string_lossy().to_string())
+            .unwrap_or_default();
+        if name.starts_with('.') {
+            continue; // hidden files, our own temporary files, virtualenvs
+        }
+        if p.is_dir() {
+            walk(&p, out, errs);
+        } else {
+            out.push(p);
+        }
+    }
+}
+
+fn stem(p: &Path) -> String {
+    p.file_stem()
+        .map(|s| s.to_string_lossy().to_string())
+        .unwrap_or_default()
+}
+
+fn dir_name(p: &Path) -> String {
+    p.parent()
+        .and_then(|d| d.file_name())
+        .map(|s| s.to_string_lossy().to_string())
+        .unwrap_or_else(|| "experiment".into())
+}
+
+/// Find the sources in files and folders (folders searched recursively).
+pub fn discover(inputs: &[PathBuf], cfg: &IngestConfig) -> Discovery {
+    let mut d = Discovery::default();
+    // (path, explicitly named?)
+    let mut files: Vec<(PathBuf, bool)> = Vec::new();
+    for inp in inputs {
+        if inp.is_dir() {
+            let mut found = Vec::new();
+            let mut errs = Vec::new();
+            walk(inp, &mut found, &mut errs);
+            for (p, why) in errs {
+                d.rejects.push(whole_file_reject(&p, Stage::Discover, why));
+            }
+            files.extend(found.into_iter().map(|p| (p, false)));
+        } else if inp.exists() || inp.symlink_metadata().is_ok() {
+            files.push((inp.clone(), true));
+        } else {
+            d.rejects.push(whole_file_reject(
+                inp,
+                Stage::Discover,
+                "no such file or folder".into(),
+            ));
+        }
+    }
+    files.sort();
+    files.dedup_by(|a, b| a.0 == b.0);
+
+    let mut kinds: Vec<(PathBuf, Kind)> = Vec::new();
+    for (p, explicit) in files {
+        let kind = match classify(&p, cfg.format) {
+            Ok(k) => k,
+            Err(e) => {
+                d.rejects.push(whole_file_reject(
+                    &p,
+                    Stage::Discover,
+                    format!("cannot read: {e}"),
+                ));
+                continue;
+            }
+        };
+        match kind {
+            Kind::Other(why) => {
+                if explicit {
+                    d.rejects.push(whole_file_reject(
+                        &p,
+                        Stage::Discover,
+                        format!("not a recording aepipe reads: {why}"),
+                    ));
+                } else {
+                    d.skipped.push((p, why));
+                }
+            }
+            k => kinds.push((p, k)),
+        }
+    }
+
+    // Vallen pairs by (folder, stem).
+    let mut vallen: std::collections::BTreeMap<PathBuf, (Option<PathBuf>, Option<PathBuf>)> =
+        Default::default();
+    // One-hit-per-file groups by (folder, format).
+    let mut groups: std::collections::BTreeMap<(PathBuf, &'static str), Vec<PathBuf>> =
+        Default::default();
+    let mut logs = Vec::new();
+    let mut hitlists = Vec::new();
+    for (p, k) in kinds {
+        let parent = p.parent().map(Path::to_path_buf).unwrap_or_default();
+        match k {
+            Kind::Pridb => {
+                let base = p.with_extension("");
+                vallen.entry(base).or_default().0 = Some(p);
+            }
+            Kind::Tradb => {
+                let base = p.with_extension("");
+                vallen.entry(base).or_default().1 = Some(p);
+            }
+            Kind::Parquet => d.sources.push(Source {
+                id: stem(&p),
+                format: Format::Parquet,
+                files: vec![p],
+                companions: vec![],
+            }),
+            Kind::WaveExplorer => d.sources.push(Source {
+                id: stem(&p),
+                format: Format::WaveExplorer,
+                files: vec![p],
+                companions: vec![],
+            }),
+            Kind::CsvLong => d.sources.push(Source {
+                id: stem(&p),
+                format: Format::CsvLong,
+                files: vec![p],
+                companions: vec![],
+            }),
+            Kind::Wav => groups.entry((parent, "wav")).or_default().push(p),
+            Kind::CsvPerHit => groups.entry((parent, "csv")).or_default().push(p),
+            Kind::Text => groups.entry((parent, "text")).or_default().push(p),
+            Kind::AewinWave => groups.entry((parent, "aewin")).or_default().push(p),
+            Kind::MachineLog => logs.push(p),
+            Kind::AewinHitList => hitlists.push(p),
+            Kind::Other(_) => unreachable!("filtered above"),
+        }
+    }
+    for (base, (pri, tra)) in vallen {
+        let id = base
+            .file_name()
+            .map(|s| s.to_string_lossy().to_string())
+            .unwrap_or_default();
+        match (pri, tra) {
+            (pri, Some(tra)) => d.sources.push(Source {
+                id,
+                format: Format::Vallen,
+                files: vec![tra],
+                companions: pri.into_iter().collect(),
+            }),
+            // A .pridb alone: its hits' waveforms are missing. The reader turns each hit
+            // that should have a transient record into a reject row.
+            (Some(pri), None) => d.sources.push(Source {
+                id,
+                format: Format::Vallen,
+                files: vec![],
+                companions: vec![pri],
+            }),
+            (None, None) => {}
+        }
+    }
+    let mut used_logs = vec![false; logs.len()];
+    let mut used_lists = vec![false; hitlists.len()];
+    for ((dir, fmt), mut members) in groups {
+        members.sort_by_key(|p| natural_key(&p.file_name().unwrap_or_default().to_string_lossy()));
+        let id = dir
+            .file_name()
+            .map(|s| s.to_string_lossy().to_string())
+            .unwrap_or_else(|| dir_name(&members[0]));
+        let format = match fmt {
+            "wav" => Format::Wav,
+            "csv" => Format::CsvPerHit,
+            "aewin" => Format::Aewin,
+            _ => Format::Text,
+        };
+        let mut companions = Vec::new();
+        if format == Format::Aewin {
+            // Hit list `<ID>.TXT` beside the folder; machine log `Specimen_RawData_<n>.csv`
+            // whose number appears in the experiment id, in the folder or beside it.
+            for (i, h) in hitlists.iter().enumerate() {
+                if stem(h) == id && (h.parent() == dir.parent() || h.parent() == Some(&dir)) {
+                    companions.push(h.clone());
+                    used_lists[i] = true;
+                }
+            }
+            for (i, l) in logs.iter().enumerate() {
+                let digits: String = stem(l).chars().filter(|c| c.is_ascii_digit()).collect();
+                if !digits.is_empty()
+                    && id.contains(&digits)
+                    && (l.parent() == dir.parent() || l.parent() == Some(&dir))
+                {
+                    companions.push(l.clone());
+                    used_logs[i] = true;
+                }
+            }
+        }
+        d.sources.push(Source {
+            id,
+            format,
+            files: members,
+            companions,
+        });
+    }
+    for (i, l) in logs.into_iter().enumerate() {
+        if !used_logs[i] {
+            d.skipped.push((
+                l,
+                "test-machine log with no AEwin experiment to attach to".into(),
+            ));
+        }
+    }
+    for (i, h) in hitlists.into_iter().enumerate() {
+        if !used_lists[i] {
+            d.skipped
+                .push((h, "AEwin hit list with no waveform folder beside it".into()));
+        }
+    }
+    d.sources
+        .sort_by(|a, b| (&a.id, a.all_files().next()).cmp(&(&b.id, b.all_files().next())));
+    d
+}
+
+pub(crate) fn whole_file_reject(p: &Path, stage: Stage, reason: String) -> Reject {
+    Reject {
+        experiment: String::new(),
+        source_file: p.display().to_string(),
+        record_id: String::new(),
+        stage,
+        reason,
+    }
+}
+
+/// Read a source: an iterator of records and reject rows, in (experiment, channel, hit) order.
+pub fn open(src: &Source, cfg: &IngestConfig) -> Box<dyn Iterator<Item = Item> + Send> {
+    match src.format {
+        Format::Vallen => vallen::open(src, cfg),
+        Format::Aewin => aewin::open(src, cfg),
+        Format::WaveExplorer => waveexplorer::open(src, cfg),
+        Format::Wav => wavfmt::open(src, cfg),
+        Format::CsvPerHit => csvfmt::open_per_hit(src, cfg),
+        Format::CsvLong => csvfmt::open_long(src, cfg),
+        Format::Text => text::open(src, cfg),
+        Format::Parquet => parquetfmt::open(src, cfg),
+    }
+}
+
+/// A time series (test-machine load or extension) sampled at increasing times, read by
+/// linear interpolation. Outside the recorded span the value is unknown (`None`): a load
+/// extrapolated past the end of the log would be invented.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Series {
+    pub t: Vec<f64>,
+    pub v: Vec<f64>,
+}
+
+impl Series {
+    pub fn from_pairs(mut pairs: Vec<(f64, f64)>) -> Series {
+        pairs.retain(|(t, v)| t.is_finite() && v.is_finite());
+        pairs.sort_by(|a, b| a.0.total_cmp(&b.0));
+        Series {
+            t: pairs.iter().map(|p| p.0).collect(),
+            v: pairs.iter().map(|p| p.1).collect(),
+        }
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.t.is_empty()
+    }
+
+    pub fn at(&self, t: f64) -> Option<f64> {
+        let n = self.t.len();
+        if n == 0 || !(t >= self.t[0] && t <= self.t[n - 1]) {
+            return None;
+        }
+        let i = self.t.partition_point(|&x| x <= t);
+        if i == 0 {
+            return Some(self.v[0]);
+        }
+        if i >= n {
+            return Some(self.v[n - 1]);
+        }
+        let (t0, t1, v0, v1) = (self.t[i - 1], self.t[i], self.v[i - 1], self.v[i]);
+        if t1 == t0 {
+            return Some(v1);
+        }
+        Some(v0 + (v1 - v0) * (t - t0) / (t1 - t0))
+    }
+}
+
+/// Volts divided by a preamplifier gain in dB.
+pub(crate) fn gain_factor(gain_db: f64) -> f64 {
+    10f64.powf(-gain_db / 20.0)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn series_interpolates_inside_and_refuses_outside() {
+        let s = Series::from_pairs(vec![(1.0, 10.0), (0.0, 0.0), (2.0, 30.0)]);
+        assert_eq!(s.at(0.5), Some(5.0));
+        assert_eq!(s.at(1.5), Some(20.0));
+        assert_eq!(s.at(2.0), Some(30.0));
+        assert_eq!(s.at(0.0), Some(0.0));
+        assert_eq!(s.at(-0.1), None);
+        assert_eq!(s.at(2.1), None);
+        assert_eq!(Series::default().at(0.0), None);
+    }
+
+    #[test]
+    fn natural_order_of_names() {
+        let mut v = vec!["hit_10.wav", "hit_2.wav", "hit_1.wav"];
+        v.sort_by_key(|s| natural_key(s));
+        assert_eq!(v, vec!["hit_1.wav", "hit_2.wav", "hit_10.wav"]);
+    }
+}

@@ -1,0 +1,78 @@
+//! Plain text waveforms: one value per line (optionally a header line), one hit per file.
+//! The rate and pretrigger come from `[ingest]`.
+
+use super::{gain_factor, Source};
+use crate::config::IngestConfig;
+use crate::model::{AeRecord, Item, Reject, Stage};
+use std::path::Path;
+
+/// Most non-empty lines of the head parse as a single number.
+pub fn looks_like_values(head: &str) -> bool {
+    let lines: Vec<&str> = head
+        .lines()
+        .map(str::trim)
+        .filter(|l| !l.is_empty())
+        .take(20)
+        .collect();
+    let numeric = lines.iter().filter(|l| l.parse::<f64>().is_ok()).count();
+    numeric >= 2 && numeric + 1 >= lines.len()
+}
+
+/// Read one value per line; a first line that is not a number is taken as a header.
+/// Any later line that is not a number is an error naming the line.
+pub fn read_values(path: &Path) -> Result<Vec<f64>, String> {
+    let text = std::fs::read(path).map_err(|e| format!("cannot read: {e}"))?;
+    let text = String::from_utf8_lossy(&text);
+    let mut out = Vec::with_capacity(text.len() / 10);
+    for (i, l) in text.lines().enumerate() {
+        let l = l.trim();
+        if l.is_empty() {
+            continue;
+        }
+        match l.parse::<f64>() {
+            Ok(v) => out.push(v),
+            Err(_) if i == 0 => {}
+            Err(_) => {
+                return Err(format!(
+                    "line {}: '{}' is not a number",
+                    i + 1,
+                    l.chars().take(40).collect::<String>()
+                ))
+            }
+        }
+    }
+    Ok(out)
+}
+
+pub fn open(src: &Source, cfg: &IngestConfig) -> Box<dyn Iterator<Item = Item> + Send> {
+    let experiment = src.id.clone();
+    let rate = cfg.sample_rate_hz;
+    let pre = cfg.pretrigger_samples;
+    let gain = gain_factor(cfg.gain_db);
+    let files = src.files.clone();
+    Box::new(files.into_iter().enumerate().map(move |(i, p)| {
+        let hit = i as u64 + 1;
+        match read_values(&p) {
+            Ok(v) => Item::Record(AeRecord {
+                experiment: experiment.clone(),
+                channel: 0,
+                hit,
+                time_s: None,
+                sample_rate_hz: rate,
+                pretrigger: pre,
+                samples: v.into_iter().map(|x| (x * gain) as f32).collect(),
+                load_n: None,
+                extension_m: None,
+                label: None,
+                source_file: p.display().to_string(),
+            }),
+            Err(e) => Item::Reject(Reject {
+                experiment: experiment.clone(),
+                source_file: p.display().to_string(),
+                record_id: format!("hit {hit}"),
+                stage: Stage::Read,
+                reason: e,
+            }),
+        }
+    }))
+}

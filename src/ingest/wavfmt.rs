@@ -1,0 +1,90 @@
+//! WAV files, one hit per file; each channel of the file is one record (channel 1, 2, …).
+//! Integer samples are scaled to ±1 V full scale, float samples are taken as volts; then
+//! `[ingest] gain_db` is divided out. The rate comes from the header.
+
+use super::{gain_factor, Source};
+use crate::config::IngestConfig;
+use crate::model::{AeRecord, Item, Reject, Stage};
+use std::path::Path;
+
+fn read_wav(path: &Path) -> Result<(f64, Vec<Vec<f32>>), String> {
+    let mut r =
+        hound::WavReader::open(path).map_err(|e| format!("not a readable WAV file: {e}"))?;
+    let spec = r.spec();
+    let ch = spec.channels.max(1) as usize;
+    let mut chans = vec![Vec::with_capacity(r.duration() as usize); ch];
+    match spec.sample_format {
+        hound::SampleFormat::Float => {
+            for (i, s) in r.samples::<f32>().enumerate() {
+                chans[i % ch].push(s.map_err(|e| format!("sample {i}: {e}"))?);
+            }
+        }
+        hound::SampleFormat::Int => {
+            let full = 2f64.powi(spec.bits_per_sample as i32 - 1);
+            for (i, s) in r.samples::<i32>().enumerate() {
+                chans[i % ch]
+                    .push((s.map_err(|e| format!("sample {i}: {e}"))? as f64 / full) as f32);
+            }
+        }
+    }
+    Ok((spec.sample_rate as f64, chans))
+}
+
+pub fn open(src: &Source, cfg: &IngestConfig) -> Box<dyn Iterator<Item = Item> + Send> {
+    let experiment = src.id.clone();
+    let gain = gain_factor(cfg.gain_db) as f32;
+    let pre = cfg.pretrigger_samples;
+    let files = src.files.clone();
+    Box::new(files.into_iter().enumerate().flat_map(move |(i, p)| {
+        let hit = i as u64 + 1;
+        let items: Vec<Item> = match read_wav(&p) {
+            Ok((rate, chans)) => chans
+                .into_iter()
+                .enumerate()
+                .map(|(c, mut s)| {
+                    s.iter_mut().for_each(|x| *x *= gain);
+                    Item::Record(AeRecord {
+                        experiment: experiment.clone(),
+                        channel: c as u32 + 1,
+                        hit,
+                        time_s: None,
+                        sample_rate_hz: rate,
+                        pretrigger: pre,
+                        samples: s,
+                        load_n: None,
+                        extension_m: None,
+                        label: None,
+                        source_file: p.display().to_string(),
+                    })
+                })
+                .collect(),
+            Err(reason) => vec![Item::Reject(Reject {
+                experiment: experiment.clone(),
+                source_file: p.display().to_string(),
+                record_id: format!("hit {hit}"),
+                stage: Stage::Read,
+                reason,
+            })],
+        };
+        items
+    }))
+}
+
+/// Write one hit as a 32-bit float WAV (volts), e.g. for fixtures and exports.
+pub fn write_wav_f32(
+    path: &Path,
+    sample_rate_hz: u32,
+    samples: &[f32],
+) -> Result<(), hound::Error> {
+    let spec = hound::WavSpec {
+        channels: 1,
+        sample_rate: sample_rate_hz,
+        bits_per_sample: 32,
+        sample_format: hound::SampleFormat::Float,
+    };
+    let mut w = hound::WavWriter::create(path, spec)?;
+    for &s in samples {
+        w.write_sample(s)?;
+    }
+    w.finalize()
+}

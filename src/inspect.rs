@@ -1,0 +1,181 @@
+//! `aepipe inspect`: a human summary per experiment — format, channels, hits, sample rates,
+//! record lengths, time span, load/extension channels found, rejects.
+
+use crate::config::IngestConfig;
+use crate::ingest::{self, Source};
+use crate::model::Item;
+use std::collections::BTreeSet;
+use std::fmt;
+
+/// What one source holds.
+#[derive(Debug, Clone, Default)]
+pub struct Summary {
+    pub id: String,
+    pub format: String,
+    pub files: usize,
+    pub companions: Vec<String>,
+    pub channels: BTreeSet<u32>,
+    pub hits: u64,
+    pub rejects: u64,
+    pub first_reject: Option<String>,
+    pub sample_rates_hz: BTreeSet<u64>,
+    pub min_len: usize,
+    pub max_len: usize,
+    pub time_span_s: Option<(f64, f64)>,
+    pub load_n: Option<(f64, f64)>,
+    pub hits_with_load: u64,
+    pub extension_m: Option<(f64, f64)>,
+    pub labels: BTreeSet<String>,
+    /// Experiments inside (a Parquet table may hold several).
+    pub experiments: BTreeSet<String>,
+}
+
+fn widen(r: &mut Option<(f64, f64)>, v: f64) {
+    *r = Some(match *r {
+        None => (v, v),
+        Some((a, b)) => (a.min(v), b.max(v)),
+    });
+}
+
+/// Read a source fully (one record at a time) and summarise it.
+pub fn summarise(src: &Source, cfg: &IngestConfig) -> Summary {
+    let mut s = Summary {
+        id: src.id.clone(),
+        format: src.format.as_str().into(),
+        files: src.files.len(),
+        companions: src
+            .companions
+            .iter()
+            .map(|p| p.display().to_string())
+            .collect(),
+        min_len: usize::MAX,
+        ..Default::default()
+    };
+    for item in ingest::open(src, cfg) {
+        match item {
+            Item::Record(r) => {
+                s.hits += 1;
+                s.channels.insert(r.channel);
+                s.experiments.insert(r.experiment.clone());
+                s.sample_rates_hz.insert(r.sample_rate_hz.round() as u64);
+                s.min_len = s.min_len.min(r.samples.len());
+                s.max_len = s.max_len.max(r.samples.len());
+                if let Some(t) = r.time_s {
+                    widen(&mut s.time_span_s, t);
+                }
+                if let Some(l) = r.load_n {
+                    widen(&mut s.load_n, l);
+                    s.hits_with_load += 1;
+                }
+                if let Some(e) = r.extension_m {
+                    widen(&mut s.extension_m, e);
+                }
+                if let Some(l) = r.label {
+                    s.labels.insert(l);
+                }
+            }
+            Item::Reject(r) => {
+                s.rejects += 1;
+                if s.first_reject.is_none() {
+                    let id = if r.record_id.is_empty() {
+                        String::new()
+                    } else {
+                        format!(" [{}]", r.record_id)
+                    };
+                    s.first_reject = Some(format!("{}{id}: {}", r.source_file, r.reason));
+                }
+            }
+        }
+    }
+    if s.hits == 0 {
+        s.min_len = 0;
+    }
+    s
+}
+
+fn khz_list(rates: &BTreeSet<u64>) -> String {
+    rates
+        .iter()
+        .map(|r| format!("{} kHz", *r as f64 / 1e3))
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
+impl fmt::Display for Summary {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        writeln!(f, "{}  [{}]", self.id, self.format)?;
+        writeln!(
+            f,
+            "  files          {} waveform file(s){}",
+            self.files,
+            if self.companions.is_empty() {
+                String::new()
+            } else {
+                format!(" + {}", self.companions.join(", "))
+            }
+        )?;
+        if self.experiments.len() > 1 || self.experiments.iter().any(|e| e != &self.id) {
+            writeln!(
+                f,
+                "  experiments    {}",
+                self.experiments
+                    .iter()
+                    .cloned()
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            )?;
+        }
+        writeln!(f, "  hits           {}", self.hits)?;
+        writeln!(
+            f,
+            "  channels       {}",
+            self.channels
+                .iter()
+                .map(|c| c.to_string())
+                .collect::<Vec<_>>()
+                .join(", ")
+        )?;
+        writeln!(f, "  sample rate    {}", khz_list(&self.sample_rates_hz))?;
+        writeln!(
+            f,
+            "  record length  {}",
+            if self.min_len == self.max_len {
+                format!("{} samples", self.min_len)
+            } else {
+                format!("{}–{} samples", self.min_len, self.max_len)
+            }
+        )?;
+        match self.time_span_s {
+            Some((a, b)) => writeln!(f, "  time span      {a:.6} – {b:.6} s ({:.3} s)", b - a)?,
+            None => writeln!(f, "  time span      not recorded by this format")?,
+        }
+        match self.load_n {
+            Some((a, b)) => writeln!(
+                f,
+                "  load           {a:.3} – {b:.3} N ({} of {} hits)",
+                self.hits_with_load, self.hits
+            )?,
+            None => writeln!(f, "  load           no load channel")?,
+        }
+        match self.extension_m {
+            Some((a, b)) => writeln!(f, "  extension      {:.4} – {:.4} mm", a * 1e3, b * 1e3)?,
+            None => writeln!(f, "  extension      no extension channel")?,
+        }
+        if !self.labels.is_empty() {
+            writeln!(
+                f,
+                "  labels         {}",
+                self.labels.iter().cloned().collect::<Vec<_>>().join(", ")
+            )?;
+        }
+        if self.rejects > 0 {
+            writeln!(
+                f,
+                "  rejects        {} (first: {})",
+                self.rejects,
+                self.first_reject.as_deref().unwrap_or("")
+            )?;
+        }
+        Ok(())
+    }
+}

@@ -1,0 +1,18 @@
+//! aepipe: acoustic-emission recordings of paper tensile tests → Parquet feature tables,
+//! trend statistics, damage-mechanism classes and reports.
+//!
+//! Rooms (see `DESIGN.md` of the team and the README): [`model`] (the shared vocabulary),
+//! [`ingest`] (sources), [`features`] (per-record transform), [`store`] (tables on disk),
+//! [`pipeline`] (the staged streaming runner), [`inspect`] (human summaries), [`synth`]
+//! (synthetic hits for the demo, fixtures and benchmarks).
+
+pub mod bench;
+pub mod config;
+pub mod demo;
+pub mod features;
+pub mod ingest;
+pub mod inspect;
+pub mod model;
+pub mod pipeline;
+pub mod store;
+pub mod synth;

@@ -1,0 +1,294 @@
+//! The `aepipe` command: parse flags (here, in one place), call the library, print.
+//!
+//! Exit codes: 0 success; 1 usage or configuration error; 2 some inputs were rejected and
+//! `--strict` was given; 3 the run failed (an output could not be written).
+
+use aepipe::config::PipelineConfig;
+use aepipe::pipeline::{run, Job, RunOptions, RunReport};
+use clap::{Parser, Subcommand};
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+
+#[derive(Parser)]
+#[command(
+    name = "aepipe",
+    version,
+    about = "Acoustic-emission recordings of paper tensile tests -> Parquet features, trends, classes, reports"
+)]
+struct Cli {
+    #[command(subcommand)]
+    cmd: Cmd,
+}
+
+#[derive(clap::Args)]
+struct RunArgs {
+    /// Files or folders (searched recursively): Vallen .pridb/.tradb, AEwin, WaveExplorer, WAV, CSV, text, waveforms.parquet
+    #[arg(required = true)]
+    inputs: Vec<PathBuf>,
+    /// Output folder
+    #[arg(long)]
+    out: PathBuf,
+    /// Pipeline definition (TOML, see pipelines/)
+    #[arg(long)]
+    config: Option<PathBuf>,
+    /// Worker threads (0 = all cores)
+    #[arg(long, default_value_t = 0)]
+    threads: usize,
+    /// Exit with code 2 when any hit or file was rejected
+    #[arg(long)]
+    strict: bool,
+    /// No progress bar
+    #[arg(long)]
+    quiet: bool,
+}
+
+#[derive(Subcommand)]
+enum Cmd {
+    /// Convert recordings into the canonical waveform table DIR/waveforms.parquet
+    Waveforms(RunArgs),
+    /// Run the streaming feature pipeline: DIR/features.parquet, rejects.parquet, manifest.json
+    Features(RunArgs),
+    /// Summarise experiments: format, channels, hits, rates, lengths, time span, load/extension
+    Inspect {
+        #[arg(required = true)]
+        paths: Vec<PathBuf>,
+        #[arg(long)]
+        config: Option<PathBuf>,
+    },
+    /// Print the column table of an output table (features, waveforms, rejects)
+    Schema {
+        #[arg(default_value = "features")]
+        table: String,
+        #[arg(long)]
+        config: Option<PathBuf>,
+    },
+    /// Make a synthetic experiment and run the pipeline on it (the README's first command)
+    Demo {
+        /// Folder for the demo's data and outputs
+        #[arg(long, default_value = "aepipe-demo")]
+        out: PathBuf,
+        #[arg(long, default_value_t = 651)]
+        hits: usize,
+        #[arg(long, default_value_t = 2026)]
+        seed: u64,
+        #[arg(long, default_value_t = 0)]
+        threads: usize,
+    },
+    /// Benchmarks (print numbers, never pass/fail)
+    Bench {
+        #[command(subcommand)]
+        which: BenchCmd,
+    },
+}
+
+#[derive(Subcommand)]
+enum BenchCmd {
+    /// Stream synthetic hits through the feature pipeline: hits/s and peak RSS at growing hit counts
+    Stream {
+        /// Largest number of hits; the benchmark also runs 1/10 and 1/100 of it first
+        #[arg(long, default_value_t = 100_000)]
+        hits: u64,
+        #[arg(long, default_value_t = 4096)]
+        samples: usize,
+        #[arg(long, default_value_t = 0)]
+        threads: usize,
+        /// Where to write the (small) feature tables
+        #[arg(long, default_value = "target/bench-stream")]
+        out: PathBuf,
+    },
+}
+
+fn load_config(path: Option<&Path>) -> Result<PipelineConfig, ExitCode> {
+    match path {
+        None => Ok(PipelineConfig::default()),
+        Some(p) => PipelineConfig::from_file(p).map_err(|e| {
+            eprintln!("aepipe: {e}");
+            ExitCode::from(1)
+        }),
+    }
+}
+
+fn print_run(report: &RunReport, what: &str) {
+    let s = &report.stats;
+    println!(
+        "{what}: {} rows, {} rejects, {} records read, {:.2} s ({:.0} hits/s)",
+        s.rows,
+        s.rejects,
+        s.records_read,
+        s.seconds,
+        s.rows as f64 / s.seconds.max(1e-9)
+    );
+    for (exp, c) in &s.by_experiment {
+        println!(
+            "  {:<40} {:>7} rows {:>6} rejects",
+            if exp.is_empty() {
+                "(no experiment)"
+            } else {
+                exp
+            },
+            c.rows,
+            c.rejects
+        );
+    }
+    if !report.skipped.is_empty() {
+        println!("  {} file(s) in the input folders are not recordings and were passed over (listed in the manifest)", report.skipped.len());
+    }
+    for r in &s.first_rejects {
+        eprintln!("  reject: {r}");
+    }
+    if s.rejects as usize > s.first_rejects.len() {
+        eprintln!(
+            "  … {} more in {}",
+            s.rejects as usize - s.first_rejects.len(),
+            report.rejects_path.display()
+        );
+    }
+    println!(
+        "  wrote {}, {}, {}",
+        report.table_path.display(),
+        report.rejects_path.display(),
+        report.manifest_path.display()
+    );
+}
+
+fn run_job(job: Job, a: RunArgs) -> ExitCode {
+    let cfg = match load_config(a.config.as_deref()) {
+        Ok(c) => c,
+        Err(code) => return code,
+    };
+    let opts = RunOptions {
+        threads: a.threads,
+        progress: !a.quiet,
+    };
+    match run(job, &a.inputs, &a.out, &cfg, &opts) {
+        Ok(report) => {
+            print_run(&report, job.table_file());
+            if a.strict && report.stats.rejects > 0 {
+                eprintln!(
+                    "aepipe: {} rejects and --strict given",
+                    report.stats.rejects
+                );
+                return ExitCode::from(2);
+            }
+            ExitCode::SUCCESS
+        }
+        Err(e) => {
+            eprintln!("aepipe: {e}");
+            ExitCode::from(3)
+        }
+    }
+}
+
+fn main() -> ExitCode {
+    let cli = match Cli::try_parse() {
+        Ok(c) => c,
+        Err(e) => {
+            let code = if e.use_stderr() { 1 } else { 0 };
+            let _ = e.print();
+            return ExitCode::from(code);
+        }
+    };
+    match cli.cmd {
+        Cmd::Waveforms(a) => run_job(Job::Waveforms, a),
+        Cmd::Features(a) => run_job(Job::Features, a),
+        Cmd::Inspect { paths, config } => {
+            let cfg = match load_config(config.as_deref()) {
+                Ok(c) => c,
+                Err(code) => return code,
+            };
+            let d = aepipe::ingest::discover(&paths, &cfg.ingest);
+            for s in &d.sources {
+                println!("{}", aepipe::inspect::summarise(s, &cfg.ingest));
+            }
+            for r in &d.rejects {
+                eprintln!("aepipe: {}: {}", r.source_file, r.reason);
+            }
+            if !d.skipped.is_empty() {
+                println!("passed over (not recordings):");
+                for (p, why) in &d.skipped {
+                    println!("  {}: {why}", p.display());
+                }
+            }
+            if d.sources.is_empty() {
+                eprintln!(
+                    "aepipe: no recordings found in {}",
+                    paths
+                        .iter()
+                        .map(|p| p.display().to_string())
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                );
+                return ExitCode::from(1);
+            }
+            ExitCode::SUCCESS
+        }
+        Cmd::Schema { table, config } => {
+            let cfg = match load_config(config.as_deref()) {
+                Ok(c) => c,
+                Err(code) => return code,
+            };
+            let t = match table.as_str() {
+                "features" => aepipe::features::features_table(&cfg),
+                "waveforms" => aepipe::store::waveforms_table(),
+                "rejects" => aepipe::store::rejects_table(),
+                other => {
+                    eprintln!("aepipe: unknown table '{other}' (features, waveforms, rejects)");
+                    return ExitCode::from(1);
+                }
+            };
+            print!("{}", t.markdown_columns());
+            ExitCode::SUCCESS
+        }
+        Cmd::Demo {
+            out,
+            hits,
+            seed,
+            threads,
+        } => match aepipe::demo::run_demo(&out, hits, seed, threads) {
+            Ok(d) => {
+                println!("aepipe demo: synthetic notched-paper experiment ({hits} hits, seed {seed}) in {}\n", d.data_dir.display());
+                for s in &d.inspect {
+                    println!("{s}");
+                }
+                print_run(&d.report, "features");
+                println!("\ndemo finished in {:.1} s", d.seconds);
+                ExitCode::SUCCESS
+            }
+            Err(e) => {
+                eprintln!("aepipe: {e}");
+                ExitCode::from(3)
+            }
+        },
+        Cmd::Bench {
+            which:
+                BenchCmd::Stream {
+                    hits,
+                    samples,
+                    threads,
+                    out,
+                },
+        } => {
+            println!("streaming synthetic hits of {samples} samples through the feature pipeline (threads: {})", if threads == 0 { aepipe::pipeline::num_cpus() } else { threads });
+            println!(
+                "{:>10} {:>10} {:>12} {:>14}",
+                "hits", "seconds", "hits/s", "peak RSS MiB"
+            );
+            let mut sizes = vec![hits / 100, hits / 10, hits];
+            sizes.retain(|&n| n > 0);
+            sizes.dedup();
+            for n in sizes {
+                match aepipe::bench::stream_point(n, samples, threads, &out) {
+                    Ok(p) => println!(
+                        "{:>10} {:>10.2} {:>12.0} {:>14.1}",
+                        p.hits, p.seconds, p.hits_per_s, p.peak_rss_mb
+                    ),
+                    Err(e) => {
+                        eprintln!("aepipe: {e}");
+                        return ExitCode::from(3);
+                    }
+                }
+            }
+            ExitCode::SUCCESS
+        }
+    }
+}

@@ -1,0 +1,163 @@
+//! The vocabulary every room shares: one AE hit ([`AeRecord`]), the damage mechanisms
+//! ([`Mechanism`]) and the reject record ([`Reject`]) that keeps a bad hit from being lost.
+//!
+//! SI units inside: seconds, hertz, volts, newtons, metres. Nothing in here depends on any
+//! other module of the crate.
+
+use std::fmt;
+
+/// One acoustic-emission hit: a transient waveform and what is known about it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct AeRecord {
+    /// Experiment id: file stem of a Vallen pair or multi-hit file, folder name otherwise.
+    pub experiment: String,
+    /// Sensor channel (1-based as the acquisition system numbers them; 0 if unknown).
+    pub channel: u32,
+    /// Hit number inside the experiment (Vallen TRAI, AEwin hit #, event #; 1-based).
+    pub hit: u64,
+    /// Trigger time since the start of the acquisition, seconds (`None`: the format does not
+    /// record it, e.g. WaveExplorer events, WAV and CSV files).
+    pub time_s: Option<f64>,
+    /// Sampling rate, Hz.
+    pub sample_rate_hz: f64,
+    /// Number of samples recorded before the trigger.
+    pub pretrigger: u32,
+    /// The waveform, volts at the sensor (after removing preamplifier gain where known).
+    pub samples: Vec<f32>,
+    /// Test-machine load at the hit time, newtons.
+    pub load_n: Option<f64>,
+    /// Test-machine extension at the hit time, metres.
+    pub extension_m: Option<f64>,
+    /// Ground-truth or user label (simulator mechanism, hand label), if any.
+    pub label: Option<String>,
+    /// The file the samples came from.
+    pub source_file: String,
+}
+
+impl AeRecord {
+    /// A short id for messages: `experiment ch1 hit 17`.
+    pub fn id(&self) -> String {
+        format!("{} ch{} hit {}", self.experiment, self.channel, self.hit)
+    }
+
+    /// Duration of the record, seconds.
+    pub fn duration_s(&self) -> f64 {
+        self.samples.len() as f64 / self.sample_rate_hz
+    }
+}
+
+/// A hit (or a whole file) that could not become a feature row, and why.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Reject {
+    pub experiment: String,
+    pub source_file: String,
+    /// Which record: `ch1 hit 17`, `TRAI 12`, `event 3`, or empty for a whole file.
+    pub record_id: String,
+    /// Pipeline stage: `discover`, `read`, `validate`, `features`.
+    pub stage: Stage,
+    /// One line saying what is wrong.
+    pub reason: String,
+}
+
+/// Where in the pipeline a reject happened.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Stage {
+    Discover,
+    Read,
+    Validate,
+    Features,
+}
+
+impl Stage {
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Stage::Discover => "discover",
+            Stage::Read => "read",
+            Stage::Validate => "validate",
+            Stage::Features => "features",
+        }
+    }
+}
+
+impl fmt::Display for Stage {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.as_str())
+    }
+}
+
+/// What a reader yields: a hit, or the reason a hit (or file) could not be read.
+#[derive(Debug, Clone)]
+pub enum Item {
+    Record(AeRecord),
+    Reject(Reject),
+}
+
+/// The damage mechanisms of the thesis (ch. 4.7, Table 5.1) plus the two bookkeeping classes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum Mechanism {
+    /// Fibre/fibre bond failure: ~250 kHz and ~750 kHz components, the low one ringing longer.
+    BondFailure,
+    /// Fibre failure: a short (< 5 µs) pulse above 800 kHz at the start of the record.
+    FibreFailure,
+    /// A fibre-failure pulse followed by a bond-like wave.
+    Both,
+    /// Triggered early, two bursts, clipped or empty.
+    Erroneous,
+    /// None of the criteria matched.
+    Unclassified,
+}
+
+impl Mechanism {
+    pub const ALL: [Mechanism; 5] = [
+        Mechanism::BondFailure,
+        Mechanism::FibreFailure,
+        Mechanism::Both,
+        Mechanism::Erroneous,
+        Mechanism::Unclassified,
+    ];
+
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Mechanism::BondFailure => "bond_failure",
+            Mechanism::FibreFailure => "fibre_failure",
+            Mechanism::Both => "both",
+            Mechanism::Erroneous => "erroneous",
+            Mechanism::Unclassified => "unclassified",
+        }
+    }
+
+    pub fn parse(s: &str) -> Option<Mechanism> {
+        Mechanism::ALL.into_iter().find(|m| m.as_str() == s)
+    }
+}
+
+impl fmt::Display for Mechanism {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.as_str())
+    }
+}
+
+/// Amplitude in dB re 1 µV (dB_AE), the AE convention: `20·log10(|v| / 1 µV)`.
+pub fn db_ae(volts: f64) -> f64 {
+    20.0 * (volts.abs() / 1e-6).log10()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn db_ae_of_known_amplitudes() {
+        assert!((db_ae(1e-6) - 0.0).abs() < 1e-12);
+        assert!((db_ae(1e-3) - 60.0).abs() < 1e-12);
+        assert!((db_ae(-0.1) - 100.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn mechanism_names_round_trip() {
+        for m in Mechanism::ALL {
+            assert_eq!(Mechanism::parse(m.as_str()), Some(m));
+        }
+        assert_eq!(Mechanism::parse("crack"), None);
+    }
+}

@@ -1,0 +1,521 @@
+//! The staged streaming runner.
+//!
+//! ```text
+//! discover ─► read (thread) ─► bounded channel of batches ─► workers (rayon pool, order kept)
+//!          ─► bounded channel ─► sink (thread): table + rejects ─► rename ─► manifest.json
+//! ```
+//!
+//! Memory is bounded by the channel capacities: at most `2·queue_batches + 3` batches of
+//! `batch_size` records exist at once, whatever the number of hits. Batches keep the reading
+//! order and workers keep the order inside a batch (`collect` of an indexed parallel
+//! iterator), so the output is the same, byte for byte, for any thread count. Every record
+//! ends as a row or a reject row; a panic inside a per-record transform becomes a reject row.
+
+use crate::config::PipelineConfig;
+use crate::features::{features_table, validate, FeatureExtractor};
+use crate::ingest::{self, Discovery, Source};
+use crate::model::{Item, Reject, Stage};
+use crate::store::{
+    self, reject_row, rejects_table, waveform_row, waveforms_table, Row, TableWriter,
+};
+use rayon::prelude::*;
+use serde_json::json;
+use sha2::{Digest, Sha256};
+use std::collections::BTreeMap;
+use std::io::{IsTerminal, Read};
+use std::path::{Path, PathBuf};
+use std::sync::Mutex;
+use std::time::Instant;
+
+#[derive(Debug, thiserror::Error)]
+pub enum PipelineError {
+    #[error(transparent)]
+    Store(#[from] store::StoreError),
+    #[error("{path}: {source}")]
+    Io {
+        path: String,
+        source: std::io::Error,
+    },
+    #[error("cannot start the worker pool: {0}")]
+    Pool(String),
+    #[error("no input given")]
+    NoInput,
+}
+
+/// What a run produces.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Job {
+    /// `features.parquet` + `rejects.parquet` + `manifest.json`.
+    Features,
+    /// `waveforms.parquet` (canonical waveforms) + `rejects.parquet` + `manifest.json`.
+    Waveforms,
+}
+
+impl Job {
+    pub fn table_file(self) -> &'static str {
+        match self {
+            Job::Features => "features.parquet",
+            Job::Waveforms => "waveforms.parquet",
+        }
+    }
+    fn name(self) -> &'static str {
+        match self {
+            Job::Features => "features",
+            Job::Waveforms => "waveforms",
+        }
+    }
+}
+
+#[derive(Debug, Clone)]
+pub struct RunOptions {
+    /// Worker threads (0 = all cores).
+    pub threads: usize,
+    /// Show a progress bar (only drawn when stderr is a terminal).
+    pub progress: bool,
+}
+
+impl Default for RunOptions {
+    fn default() -> Self {
+        RunOptions {
+            threads: 0,
+            progress: true,
+        }
+    }
+}
+
+/// Row and reject counts of one experiment.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, serde::Serialize)]
+pub struct Counts {
+    pub rows: u64,
+    pub rejects: u64,
+}
+
+/// What a streaming run did.
+#[derive(Debug, Clone, Default)]
+pub struct StreamStats {
+    /// Records the readers produced (before validation).
+    pub records_read: u64,
+    pub rows: u64,
+    pub rejects: u64,
+    pub by_experiment: BTreeMap<String, Counts>,
+    /// Rejects by stage.
+    pub by_stage: BTreeMap<String, u64>,
+    /// The first few reject lines, for the terminal.
+    pub first_rejects: Vec<String>,
+    pub seconds: f64,
+}
+
+/// What [`run`] did, including where it wrote.
+#[derive(Debug, Clone)]
+pub struct RunReport {
+    pub stats: StreamStats,
+    pub table_path: PathBuf,
+    pub rejects_path: PathBuf,
+    pub manifest_path: PathBuf,
+    pub sources: Vec<Source>,
+    pub skipped: Vec<(PathBuf, String)>,
+}
+
+enum Out {
+    Row(String, Row),
+    Reject(Reject),
+}
+
+/// Per-worker states, checked out for a parallel job and returned afterwards, so that plans
+/// and scratch buffers are made once per worker, not once per record.
+struct StatePool<T> {
+    free: Mutex<Vec<T>>,
+}
+
+struct Checkout<'a, T> {
+    pool: &'a StatePool<T>,
+    item: Option<T>,
+}
+
+impl<T> StatePool<T> {
+    fn checkout(&self, make: impl Fn() -> T) -> Checkout<'_, T> {
+        let item = self
+            .free
+            .lock()
+            .expect("pool lock")
+            .pop()
+            .unwrap_or_else(make);
+        Checkout {
+            pool: self,
+            item: Some(item),
+        }
+    }
+}
+
+impl<T> Drop for Checkout<'_, T> {
+    fn drop(&mut self) {
+        if let Some(t) = self.item.take() {
+            if let Ok(mut v) = self.pool.free.lock() {
+                v.push(t);
+            }
+        }
+    }
+}
+
+fn record_reject(r: &crate::model::AeRecord, stage: Stage, reason: String) -> Reject {
+    Reject {
+        experiment: r.experiment.clone(),
+        source_file: r.source_file.clone(),
+        record_id: format!("ch{} hit {}", r.channel, r.hit),
+        stage,
+        reason,
+    }
+}
+
+fn process(job: Job, ex: &mut FeatureExtractor, item: Item) -> Out {
+    let rec = match item {
+        Item::Reject(r) => return Out::Reject(r),
+        Item::Record(r) => r,
+    };
+    if let Err(e) = validate(&rec, ex.config()) {
+        return Out::Reject(record_reject(&rec, Stage::Validate, e));
+    }
+    match job {
+        Job::Waveforms => Out::Row(rec.experiment.clone(), waveform_row(rec)),
+        Job::Features => {
+            let res = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| ex.row(&rec)));
+            match res {
+                Ok(Ok(row)) => Out::Row(rec.experiment.clone(), row),
+                Ok(Err(e)) => Out::Reject(record_reject(&rec, Stage::Features, e)),
+                Err(p) => {
+                    let msg = p
+                        .downcast_ref::<String>()
+                        .cloned()
+                        .or_else(|| p.downcast_ref::<&str>().map(|s| s.to_string()))
+                        .unwrap_or_default();
+                    // The extractor may be mid-update: replace it.
+                    *ex = FeatureExtractor::new(ex.config());
+                    Out::Reject(record_reject(
+                        &rec,
+                        Stage::Features,
+                        format!("internal error (please report): {msg}"),
+                    ))
+                }
+            }
+        }
+    }
+}
+
+fn progress_bar(enabled: bool) -> indicatif::ProgressBar {
+    if !enabled || !std::io::stderr().is_terminal() || std::env::var_os("CI").is_some() {
+        return indicatif::ProgressBar::hidden();
+    }
+    let pb = indicatif::ProgressBar::new_spinner();
+    pb.set_style(
+        indicatif::ProgressStyle::with_template(
+            "{spinner} {pos} hits  {per_sec}  {elapsed}  {msg}",
+        )
+        .unwrap_or_else(|_| indicatif::ProgressStyle::default_spinner()),
+    );
+    pb.enable_steady_tick(std::time::Duration::from_millis(200));
+    pb
+}
+
+/// Stream items through validation and the per-record transform into `out_dir`.
+/// Writes the job's table and `rejects.parquet` atomically; returns the counts.
+pub fn stream<I>(
+    items: I,
+    job: Job,
+    out_dir: &Path,
+    cfg: &PipelineConfig,
+    opts: &RunOptions,
+) -> Result<StreamStats, PipelineError>
+where
+    I: Iterator<Item = Item> + Send,
+{
+    let t0 = Instant::now();
+    let threads = if opts.threads == 0 {
+        num_cpus()
+    } else {
+        opts.threads
+    };
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .thread_name(|i| format!("aepipe-worker-{i}"))
+        .build()
+        .map_err(|e| PipelineError::Pool(e.to_string()))?;
+    let q = cfg.pipeline.queue_batches;
+    let bs = cfg.pipeline.batch_size;
+    let meta = vec![
+        ("aepipe.config_sha256".to_string(), cfg.hash()),
+        ("aepipe.job".to_string(), job.name().to_string()),
+    ];
+    let table = match job {
+        Job::Features => features_table(cfg),
+        Job::Waveforms => waveforms_table(),
+    };
+    let mut table_w = TableWriter::create(
+        &out_dir.join(job.table_file()),
+        table,
+        &meta,
+        cfg.pipeline.row_group_rows,
+    )?;
+    let mut rej_w = TableWriter::create(
+        &out_dir.join("rejects.parquet"),
+        rejects_table(),
+        &meta,
+        cfg.pipeline.row_group_rows,
+    )?;
+    let (tx_in, rx_in) = crossbeam_channel::bounded::<Vec<Item>>(q);
+    let (tx_out, rx_out) = crossbeam_channel::bounded::<Vec<Out>>(q);
+    let states: StatePool<FeatureExtractor> = StatePool {
+        free: Mutex::new(Vec::new()),
+    };
+    let pb = progress_bar(opts.progress);
+    let read_count = std::sync::atomic::AtomicU64::new(0);
+
+    let result: Result<StreamStats, PipelineError> = std::thread::scope(|s| {
+        let read_count = &read_count;
+        s.spawn(move || {
+            let mut batch = Vec::with_capacity(bs);
+            for it in items {
+                if matches!(it, Item::Record(_)) {
+                    read_count.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                }
+                batch.push(it);
+                if batch.len() >= bs
+                    && tx_in
+                        .send(std::mem::replace(&mut batch, Vec::with_capacity(bs)))
+                        .is_err()
+                {
+                    return; // the sink stopped (an error): stop reading
+                }
+            }
+            if !batch.is_empty() {
+                let _ = tx_in.send(batch);
+            }
+        });
+        let pb2 = pb.clone();
+        let sink = s.spawn(move || -> Result<StreamStats, PipelineError> {
+            let mut st = StreamStats::default();
+            for outs in rx_out {
+                for o in outs {
+                    match o {
+                        Out::Row(exp, row) => {
+                            table_w.push(row)?;
+                            st.rows += 1;
+                            st.by_experiment.entry(exp).or_default().rows += 1;
+                        }
+                        Out::Reject(r) => {
+                            rej_w.push(reject_row(&r))?;
+                            st.rejects += 1;
+                            st.by_experiment
+                                .entry(r.experiment.clone())
+                                .or_default()
+                                .rejects += 1;
+                            *st.by_stage.entry(r.stage.as_str().to_string()).or_default() += 1;
+                            if st.first_rejects.len() < 10 {
+                                let id = if r.record_id.is_empty() {
+                                    String::new()
+                                } else {
+                                    format!(" [{}]", r.record_id)
+                                };
+                                st.first_rejects.push(format!(
+                                    "{}{id}: {} ({})",
+                                    r.source_file, r.reason, r.stage
+                                ));
+                            }
+                        }
+                    }
+                    pb2.inc(1);
+                }
+            }
+            table_w.finish()?;
+            rej_w.finish()?;
+            Ok(st)
+        });
+        for batch in rx_in {
+            let outs: Vec<Out> = pool.install(|| {
+                batch
+                    .into_par_iter()
+                    .map_init(
+                        || states.checkout(|| FeatureExtractor::new(cfg)),
+                        |ex, item| process(job, ex.item.as_mut().expect("checked out"), item),
+                    )
+                    .collect()
+            });
+            if tx_out.send(outs).is_err() {
+                break;
+            }
+        }
+        drop(tx_out);
+        sink.join()
+            .unwrap_or_else(|_| Err(PipelineError::Pool("the sink thread panicked".into())))
+    });
+    pb.finish_and_clear();
+    let mut st = result?;
+    st.records_read = read_count.into_inner();
+    st.seconds = t0.elapsed().as_secs_f64();
+    Ok(st)
+}
+
+pub fn num_cpus() -> usize {
+    std::thread::available_parallelism()
+        .map(|n| n.get())
+        .unwrap_or(1)
+}
+
+/// SHA-256 and size of a file, streamed.
+pub fn file_digest(path: &Path) -> std::io::Result<(u64, String)> {
+    let mut f = std::fs::File::open(path)?;
+    let mut h = Sha256::new();
+    let mut buf = vec![0u8; 1 << 20];
+    let mut size = 0u64;
+    loop {
+        let n = f.read(&mut buf)?;
+        if n == 0 {
+            break;
+        }
+        size += n as u64;
+        h.update(&buf[..n]);
+    }
+    Ok((size, crate::config::hex(&h.finalize())))
+}
+
+/// RFC 3339 UTC timestamp of now (no time-zone database needed).
+pub fn utc_now() -> String {
+    let secs = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map(|d| d.as_secs() as i64)
+        .unwrap_or(0);
+    let (days, rem) = (secs.div_euclid(86400), secs.rem_euclid(86400));
+    // Civil date from days since 1970-01-01 (Howard Hinnant's algorithm).
+    let z = days + 719_468;
+    let era = z.div_euclid(146_097);
+    let doe = z - era * 146_097;
+    let yoe = (doe - doe / 1460 + doe / 36524 - doe / 146_096) / 365;
+    let doy = doe - (365 * yoe + yoe / 4 - yoe / 100);
+    let mp = (5 * doy + 2) / 153;
+    let d = doy - (153 * mp + 2) / 5 + 1;
+    let m = if mp < 10 { mp + 3 } else { mp - 9 };
+    let y = yoe + era * 400 + i64::from(m <= 2);
+    format!(
+        "{y:04}-{m:02}-{d:02}T{:02}:{:02}:{:02}Z",
+        rem / 3600,
+        rem % 3600 / 60,
+        rem % 60
+    )
+}
+
+/// Write a file atomically (temporary name, then rename).
+pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), PipelineError> {
+    let tmp = store::tmp_path_for(path);
+    let io = |source| PipelineError::Io {
+        path: path.display().to_string(),
+        source,
+    };
+    std::fs::write(&tmp, bytes).map_err(io)?;
+    std::fs::rename(&tmp, path).map_err(io)
+}
+
+/// Discover, read, transform and write: the whole `aepipe features` / `aepipe waveforms` job.
+pub fn run(
+    job: Job,
+    inputs: &[PathBuf],
+    out_dir: &Path,
+    cfg: &PipelineConfig,
+    opts: &RunOptions,
+) -> Result<RunReport, PipelineError> {
+    if inputs.is_empty() {
+        return Err(PipelineError::NoInput);
+    }
+    let started = utc_now();
+    let t0 = Instant::now();
+    std::fs::create_dir_all(out_dir).map_err(|source| PipelineError::Io {
+        path: out_dir.display().to_string(),
+        source,
+    })?;
+    store::clean_stale_tmp(out_dir);
+    let table_path = out_dir.join(job.table_file());
+    let rejects_path = out_dir.join("rejects.parquet");
+    let manifest_path = out_dir.join("manifest.json");
+    // Outputs of an earlier run are removed first: the files in `out_dir` always belong to
+    // one complete run (an interrupted run leaves none rather than a stale mixture).
+    for p in [&table_path, &rejects_path, &manifest_path] {
+        let _ = std::fs::remove_file(p);
+    }
+
+    let Discovery {
+        sources,
+        rejects: discover_rejects,
+        skipped,
+    } = ingest::discover(inputs, &cfg.ingest);
+    let t_discover = t0.elapsed().as_secs_f64();
+
+    let t1 = Instant::now();
+    let files: Vec<(PathBuf, &Source)> = sources
+        .iter()
+        .flat_map(|s| s.all_files().map(move |f| (f.clone(), s)))
+        .collect();
+    let digests: Vec<serde_json::Value> = files
+        .par_iter()
+        .map(|(f, s)| {
+            let (size, sha) = match file_digest(f) {
+                Ok((n, h)) => (json!(n), json!(h)),
+                Err(e) => (json!(null), json!(format!("unreadable: {e}"))),
+            };
+            json!({"path": f.display().to_string(), "experiment": s.id, "format": s.format.as_str(), "size_bytes": size, "sha256": sha})
+        })
+        .collect();
+    let t_hash = t1.elapsed().as_secs_f64();
+
+    let ingest_cfg = cfg.ingest.clone();
+    let items = discover_rejects.into_iter().map(Item::Reject).chain(
+        sources
+            .iter()
+            .flat_map(move |s| ingest::open(s, &ingest_cfg)),
+    );
+    let stats = stream(items, job, out_dir, cfg, opts)?;
+
+    let manifest = json!({
+        "tool": {"name": "aepipe", "version": env!("CARGO_PKG_VERSION")},
+        "job": job.name(),
+        "started_utc": started,
+        "finished_utc": utc_now(),
+        "threads": if opts.threads == 0 { num_cpus() } else { opts.threads },
+        "config_sha256": cfg.hash(),
+        "config": serde_json::to_value(cfg).unwrap_or(json!(null)),
+        "inputs": digests,
+        "skipped": skipped.iter().map(|(p, why)| json!({"path": p.display().to_string(), "reason": why})).collect::<Vec<_>>(),
+        "experiments": sources.iter().map(|s| json!({"id": s.id, "format": s.format.as_str(), "files": s.files.len(), "companions": s.companions.iter().map(|p| p.display().to_string()).collect::<Vec<_>>()})).collect::<Vec<_>>(),
+        "outputs": {
+            "table": {"path": table_path.display().to_string(), "rows": stats.rows},
+            "rejects": {"path": rejects_path.display().to_string(), "rows": stats.rejects},
+        },
+        "counts": {
+            "records_read": stats.records_read,
+            "rows_written": stats.rows,
+            "rejects": stats.rejects,
+            "rejects_by_stage": stats.by_stage,
+            "by_experiment": stats.by_experiment,
+        },
+        "timings_s": {"discover": t_discover, "hash_inputs": t_hash, "stream": stats.seconds, "total": t0.elapsed().as_secs_f64()},
+    });
+    let text = serde_json::to_string_pretty(&manifest).expect("manifest serialises");
+    write_atomic(&manifest_path, text.as_bytes())?;
+    Ok(RunReport {
+        stats,
+        table_path,
+        rejects_path,
+        manifest_path,
+        sources,
+        skipped,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn utc_now_is_well_formed() {
+        let s = utc_now();
+        assert_eq!(s.len(), 20, "{s}");
+        assert!(s.starts_with("20") && s.ends_with('Z'));
+    }
+}
