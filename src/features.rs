@@ -60,7 +60,7 @@ pub fn features_table(_cfg: &PipelineConfig) -> TableSchema {
         "peak_amplitude_v",
         ColType::Float64,
         "V",
-        "largest |sample| after removing the DC offset (mean of the pretrigger, or of the record without one)",
+        "largest absolute sample after removing the DC offset (mean of the pretrigger, or of the record without one)",
     ));
     columns.push(ColumnSpec::new(
         "peak_amplitude_db",

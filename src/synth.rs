@@ -207,6 +207,8 @@ impl Experiment {
             let progress = i as f64 / self.n_hits.max(1) as f64;
             let mut spec = HitSpec::new(mech);
             spec.n_samples = self.n_samples;
+            // 500 samples (50 µs) of pretrigger as in the thesis' records, less for short ones.
+            spec.pretrigger = (self.n_samples / 8).min(500);
             spec.amplitude_v = 0.003 * (1.0 + 9.0 * rng.uniform().powi(3));
             // Damage shifts power from ~750 to ~250 kHz as the test goes on (ch. 4.5.5).
             spec.low_share = 0.3 + 0.4 * progress;

@@ -1,0 +1,227 @@
+//! Bad inputs become reject rows (or one clear error line); the good hits beside them are all
+//! written. Every fixture is made here with aepipe's own writers.
+
+use crate::{table_rows, TempDir};
+use aepipe::config::PipelineConfig;
+use aepipe::pipeline::{run, Job, RunOptions};
+use aepipe::synth::Experiment;
+use std::path::Path;
+
+fn vallen(dir: &Path, id: &str, hits: usize, seed: u64) {
+    let mut e = Experiment::new(id, hits, seed);
+    e.n_samples = 512;
+    e.write_vallen(dir).unwrap();
+}
+
+struct Rejects {
+    rows: Vec<(String, String, String, String, String)>,
+}
+
+impl Rejects {
+    fn read(p: &Path) -> Rejects {
+        let (names, rows) = table_rows(p);
+        assert_eq!(
+            names,
+            ["experiment", "source_file", "record_id", "stage", "reason"]
+        );
+        Rejects {
+            rows: rows
+                .into_iter()
+                .map(|r| {
+                    (
+                        r[0].clone(),
+                        r[1].clone(),
+                        r[2].clone(),
+                        r[3].clone(),
+                        r[4].clone(),
+                    )
+                })
+                .collect(),
+        }
+    }
+    fn about(&self, needle: &str) -> Vec<&(String, String, String, String, String)> {
+        self.rows.iter().filter(|r| r.1.contains(needle)).collect()
+    }
+}
+
+#[test]
+fn each_bad_input_becomes_a_clear_reject_and_good_hits_are_all_written() {
+    let t = TempDir::new("bad");
+    let d = t.path().join("batch");
+    std::fs::create_dir_all(&d).unwrap();
+    // Good experiment.
+    vallen(&d, "good", 30, 1);
+    // Truncated .tradb.
+    vallen(&d, "trunc", 20, 2);
+    let tra = d.join("trunc.tradb");
+    let len = std::fs::metadata(&tra).unwrap().len();
+    std::fs::OpenOptions::new()
+        .write(true)
+        .open(&tra)
+        .unwrap()
+        .set_len(len * 2 / 5)
+        .unwrap();
+    // A corrupt FLAC blob in one record of an otherwise good pair.
+    vallen(&d, "flacbad", 10, 3);
+    {
+        let c = rusqlite::Connection::open(d.join("flacbad.tradb")).unwrap();
+        let n = c
+            .execute(
+                "UPDATE tr_data SET DataFormat = 2, Data = X'664C614300000022' WHERE TRAI = 3",
+                [],
+            )
+            .unwrap();
+        assert_eq!(n, 1);
+    }
+    // A .pridb without its .tradb.
+    vallen(&d, "orphan", 8, 4);
+    std::fs::remove_file(d.join("orphan.tradb")).unwrap();
+    // NaN/inf samples, an empty record, a zero-length WAV, an unreadable (dangling) file.
+    let csvdir = d.join("csv_exp");
+    std::fs::create_dir_all(&csvdir).unwrap();
+    std::fs::write(
+        csvdir.join("h1.csv"),
+        "voltage_v\n0.1\nNaN\n0.2\ninf\n".to_string() + &"0.0\n".repeat(40),
+    )
+    .unwrap();
+    std::fs::write(csvdir.join("h2.csv"), "voltage_v\n").unwrap();
+    std::fs::write(
+        csvdir.join("h3.csv"),
+        "voltage_v\n".to_string() + &"0.001\n".repeat(64),
+    )
+    .unwrap();
+    let wavdir = d.join("wav_exp");
+    std::fs::create_dir_all(&wavdir).unwrap();
+    aepipe::ingest::wavfmt::write_wav_f32(&wavdir.join("empty.wav"), 10_000_000, &[]).unwrap();
+    std::os::unix::fs::symlink(
+        t.path().join("does-not-exist.wav"),
+        wavdir.join("broken.wav"),
+    )
+    .unwrap();
+    // An unknown file named explicitly.
+    let unknown = t.path().join("notes.xyz");
+    std::fs::write(&unknown, "hello").unwrap();
+
+    let out = t.path().join("out");
+    let r = run(
+        Job::Features,
+        &[d.clone(), unknown.clone(), t.path().join("missing_folder")],
+        &out,
+        &PipelineConfig::default(),
+        &RunOptions {
+            threads: 2,
+            progress: false,
+        },
+    )
+    .unwrap();
+    let rej = Rejects::read(&r.rejects_path);
+    let by_exp = &r.stats.by_experiment;
+
+    // Good hits are all written.
+    assert_eq!(by_exp["good"].rows, 30);
+    assert_eq!(by_exp["flacbad"].rows, 9);
+    assert_eq!(by_exp["csv_exp"].rows, 1);
+
+    // Corrupt FLAC: exactly the one record, named, with the decoder's complaint.
+    let flac = rej.about("flacbad.tradb");
+    assert_eq!(flac.len(), 1, "{flac:?}");
+    assert_eq!(flac[0].2, "TRAI 3");
+    assert!(flac[0].4.contains("FLAC"), "{}", flac[0].4);
+
+    // Truncated: every one of its 20 hits is a row or a per-hit reject; the file is named.
+    let trunc_hits = rej
+        .rows
+        .iter()
+        .filter(|r| r.0 == "trunc" && !r.2.is_empty())
+        .count() as u64;
+    let trunc_rows = by_exp.get("trunc").map(|c| c.rows).unwrap_or(0);
+    assert_eq!(trunc_rows + trunc_hits, 20, "{:?}", rej.rows);
+    assert!(trunc_hits > 0);
+    assert!(
+        rej.rows.iter().any(|r| r.1.ends_with("trunc.tradb")
+            && (r.4.contains("malformed")
+                || r.4.contains("not a readable")
+                || r.4.contains("cannot"))),
+        "{:?}",
+        rej.about("trunc")
+    );
+
+    // .pridb without .tradb: its 8 hits are rejects that say so.
+    let orphan: Vec<_> = rej.rows.iter().filter(|r| r.0 == "orphan").collect();
+    assert_eq!(orphan.len(), 8);
+    assert!(orphan
+        .iter()
+        .all(|r| r.4.contains("no .tradb") && r.2.starts_with("TRAI ")));
+
+    // NaN/inf and empty records are validate-stage rejects.
+    let nan = rej.about("h1.csv");
+    assert_eq!(nan.len(), 1);
+    assert_eq!(nan[0].3, "validate");
+    assert!(nan[0].4.contains("2 non-finite"), "{}", nan[0].4);
+    let empty = rej.about("h2.csv");
+    assert!(empty[0].4.contains("0 samples"), "{:?}", empty);
+    let ew = rej.about("empty.wav");
+    assert!(ew[0].4.contains("0 samples"), "{:?}", ew);
+
+    // Unreadable (dangling link) and unknown files.
+    let broken = rej.about("broken.wav");
+    assert_eq!(broken.len(), 1);
+    assert!(
+        broken[0].4.contains("not a readable WAV"),
+        "{}",
+        broken[0].4
+    );
+    let unk = rej.about("notes.xyz");
+    assert_eq!(unk.len(), 1);
+    assert_eq!(unk[0].3, "discover");
+    assert!(unk[0].4.contains(".xyz"));
+    let missing = rej.about("missing_folder");
+    assert!(missing[0].4.contains("no such file"));
+
+    // Nothing lost: the manifest's counts add up.
+    let m: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&r.manifest_path).unwrap()).unwrap();
+    assert_eq!(m["counts"]["rows_written"].as_u64().unwrap(), r.stats.rows);
+    assert_eq!(
+        m["counts"]["rejects"].as_u64().unwrap(),
+        rej.rows.len() as u64
+    );
+    // Every reject reason is one line.
+    assert!(rej
+        .rows
+        .iter()
+        .all(|r| !r.4.contains('\n') && !r.4.is_empty()));
+}
+
+#[test]
+fn malformed_text_lines_are_named() {
+    let t = TempDir::new("badtext");
+    let dir = t.path().join("txt");
+    std::fs::create_dir_all(&dir).unwrap();
+    std::fs::write(dir.join("a.txt"), "0.1\n0.2\n0.3\nbanana\n0.4\n").unwrap();
+    let (recs, rejs) = crate::read_all(&[dir], &PipelineConfig::default());
+    assert!(recs.is_empty());
+    assert_eq!(rejs.len(), 1);
+    assert!(
+        rejs[0].reason.contains("line 4") && rejs[0].reason.contains("banana"),
+        "{}",
+        rejs[0].reason
+    );
+}
+
+#[test]
+fn truncated_waveexplorer_file_reports_every_missing_event() {
+    let t = TempDir::new("badwe");
+    let f = t.path().join("x_wave.txt");
+    // Header promises 3 events of 4 samples; only 1.5 events are present.
+    std::fs::write(&f, "10\t3\t4\t1\n0.1\n0.2\n0.3\n0.4\n0.5\n0.6\n").unwrap();
+    let (recs, rejs) = crate::read_all(&[f], &PipelineConfig::default());
+    assert_eq!(recs.len(), 1);
+    assert_eq!(rejs.len(), 2);
+    assert!(
+        rejs[0].reason.contains("ends after 2 of 4"),
+        "{}",
+        rejs[0].reason
+    );
+    assert_eq!(rejs[1].record_id, "event 3");
+}

@@ -1,0 +1,94 @@
+//! aepipe's integration tests, in one binary (one link of the big dependency set).
+//!
+//! Tests that need the real recordings in `../shared/data/real/` print why they skip when
+//! that folder is absent. Everything else makes its own fixtures with aepipe's own code.
+
+mod bad_input;
+mod cli;
+mod formats;
+mod pipeline;
+mod real_data;
+
+use std::path::{Path, PathBuf};
+
+/// `../shared/data/real` beside the repository, or `None` with a printed reason.
+pub fn real_data(test: &str) -> Option<PathBuf> {
+    let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data/real");
+    if p.join("README.md").is_file() {
+        Some(p)
+    } else {
+        eprintln!(
+            "SKIP {test}: {} is absent (the real AE recordings live there)",
+            p.display()
+        );
+        None
+    }
+}
+
+/// A scratch folder removed when dropped.
+pub struct TempDir(pub PathBuf);
+
+impl TempDir {
+    pub fn new(tag: &str) -> TempDir {
+        use std::sync::atomic::{AtomicU32, Ordering};
+        static N: AtomicU32 = AtomicU32::new(0);
+        let p = Path::new(env!("CARGO_TARGET_TMPDIR")).join(format!(
+            "{tag}-{}-{}",
+            std::process::id(),
+            N.fetch_add(1, Ordering::Relaxed)
+        ));
+        let _ = std::fs::remove_dir_all(&p);
+        std::fs::create_dir_all(&p).unwrap();
+        TempDir(p)
+    }
+    pub fn path(&self) -> &Path {
+        &self.0
+    }
+}
+
+impl Drop for TempDir {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.0);
+    }
+}
+
+/// Read every column of a Parquet table as strings (for comparisons across tables).
+pub fn table_rows(path: &Path) -> (Vec<String>, Vec<Vec<String>>) {
+    let (schema, _, batches) = aepipe::store::read_parquet(path).unwrap();
+    let names: Vec<String> = schema.fields().iter().map(|f| f.name().clone()).collect();
+    let mut rows = Vec::new();
+    for b in batches {
+        let cols: Vec<_> = (0..b.num_columns())
+            .map(|c| {
+                arrow::util::display::ArrayFormatter::try_new(
+                    b.column(c).as_ref(),
+                    &Default::default(),
+                )
+                .unwrap()
+            })
+            .collect();
+        for r in 0..b.num_rows() {
+            rows.push(cols.iter().map(|f| f.value(r).to_string()).collect());
+        }
+    }
+    (names, rows)
+}
+
+/// Records of all sources found under `inputs`, with the default configuration.
+pub fn read_all(
+    inputs: &[PathBuf],
+    cfg: &aepipe::config::PipelineConfig,
+) -> (Vec<aepipe::model::AeRecord>, Vec<aepipe::model::Reject>) {
+    let d = aepipe::ingest::discover(inputs, &cfg.ingest);
+    let mut recs = Vec::new();
+    let mut rejs = d.rejects;
+    for s in &d.sources {
+        for it in aepipe::ingest::open(s, &cfg.ingest) {
+            match it {
+                aepipe::model::Item::Record(r) => recs.push(r),
+                aepipe::model::Item::Reject(r) => rejs.push(r),
+            }
+        }
+    }
+    (recs, rejs)
+}
