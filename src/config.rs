@@ -35,7 +35,7 @@ pub enum FormatChoice {
     Parquet,
 }
 
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct PipelineConfig {
     pub ingest: IngestConfig,
@@ -87,7 +87,7 @@ pub struct AewinConfig {
 }
 
 /// Digital Wave WaveExplorer text exports give the rate in their header, not the pretrigger.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct WaveExplorerConfig {
     pub pretrigger_samples: u32,
@@ -111,16 +111,6 @@ pub struct RunConfig {
 pub struct ValidateConfig {
     /// Fewer samples than this is a reject ("too short").
     pub min_samples: usize,
-}
-
-impl Default for PipelineConfig {
-    fn default() -> Self {
-        PipelineConfig {
-            ingest: IngestConfig::default(),
-            pipeline: RunConfig::default(),
-            validate: ValidateConfig::default(),
-        }
-    }
 }
 
 impl Default for IngestConfig {
@@ -157,14 +147,6 @@ impl Default for AewinConfig {
             pretrigger_samples: 100,
             preamp_gain_db: 40.0,
             log_time_offset_s: 0.0,
-        }
-    }
-}
-
-impl Default for WaveExplorerConfig {
-    fn default() -> Self {
-        WaveExplorerConfig {
-            pretrigger_samples: 0,
         }
     }
 }
@@ -244,7 +226,9 @@ impl PipelineConfig {
             &self.ingest.vallen.load_param,
             &self.ingest.vallen.extension_param,
         ] {
-            if !p.is_empty() && !(p.starts_with("PA") && p[2..].parse::<u32>().is_ok()) {
+            let well_formed =
+                p.is_empty() || (p.starts_with("PA") && p[2..].parse::<u32>().is_ok());
+            if !well_formed {
                 return Err(ConfigError::Invalid(format!(
                     "ingest.vallen: parametric input must look like PA0, PA1, …; got {p:?}"
                 )));

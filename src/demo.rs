@@ -16,6 +16,13 @@ pub struct DemoResult {
     pub seconds: f64,
 }
 
+/// The demo's pipeline definition, `pipelines/demo.toml`, embedded in the binary so that
+/// `aepipe demo` needs no file beside it.
+pub fn demo_config() -> PipelineConfig {
+    PipelineConfig::from_toml(include_str!("../pipelines/demo.toml"))
+        .expect("pipelines/demo.toml is valid")
+}
+
 pub fn run_demo(root: &Path, hits: usize, seed: u64, threads: usize) -> Result<DemoResult, String> {
     let t0 = std::time::Instant::now();
     let data_dir = root.join("data");
@@ -27,11 +34,7 @@ pub fn run_demo(root: &Path, hits: usize, seed: u64, threads: usize) -> Result<D
             data_dir.display()
         )
     })?;
-    let mut cfg = PipelineConfig::default();
-    cfg.ingest.vallen.load_param = "PA0".into();
-    cfg.ingest.vallen.load_n_per_mv = 1.0;
-    cfg.ingest.vallen.extension_param = "PA1".into();
-    cfg.ingest.vallen.extension_m_per_mv = 1e-6;
+    let cfg = demo_config();
     let disc = crate::ingest::discover(std::slice::from_ref(&data_dir), &cfg.ingest);
     let inspect = disc
         .sources
@@ -40,7 +43,7 @@ pub fn run_demo(root: &Path, hits: usize, seed: u64, threads: usize) -> Result<D
         .collect();
     let report = run(
         Job::Features,
-        &[data_dir.clone()],
+        std::slice::from_ref(&data_dir),
         &out_dir,
         &cfg,
         &RunOptions {

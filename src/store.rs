@@ -450,6 +450,9 @@ impl Drop for TableWriter {
     }
 }
 
+/// Parquet key-value metadata as `(key, value)` pairs.
+pub type KeyValues = Vec<(String, String)>;
+
 /// Open a Parquet file for batch-wise reading.
 pub fn open_parquet(
     path: &Path,
@@ -457,7 +460,7 @@ pub fn open_parquet(
 ) -> Result<
     (
         SchemaRef,
-        Vec<(String, String)>,
+        KeyValues,
         parquet::arrow::arrow_reader::ParquetRecordBatchReader,
     ),
     StoreError,
@@ -493,9 +496,7 @@ pub fn open_parquet(
 }
 
 /// Read a whole (small) Parquet table: schema, key-value metadata and batches.
-pub fn read_parquet(
-    path: &Path,
-) -> Result<(SchemaRef, Vec<(String, String)>, Vec<RecordBatch>), StoreError> {
+pub fn read_parquet(path: &Path) -> Result<(SchemaRef, KeyValues, Vec<RecordBatch>), StoreError> {
     let (schema, kv, reader) = open_parquet(path, 8192)?;
     let batches = reader
         .collect::<Result<Vec<_>, _>>()

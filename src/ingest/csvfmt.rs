@@ -138,7 +138,7 @@ fn timing(times: &[f64], default_rate: f64, default_pre: u32) -> (f64, u32) {
         return (default_rate, default_pre);
     }
     let span = times[times.len() - 1] - times[0];
-    if !(span > 0.0) {
+    if span.is_nan() || span <= 0.0 {
         return (default_rate, default_pre);
     }
     let rate = (times.len() - 1) as f64 / span;

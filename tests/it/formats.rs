@@ -29,9 +29,9 @@ fn wav_folder_is_one_experiment_with_one_hit_per_file() {
         sample_format: hound::SampleFormat::Int,
     };
     let mut w = hound::WavWriter::create(dir.join("hit_11.wav"), spec).unwrap();
-    for i in 0..100 {
+    for _ in 0..100 {
         w.write_sample(16384i16).unwrap(); // channel 1: +0.5 V
-        w.write_sample(-32768i16 + i as i16 * 0).unwrap(); // channel 2: -1 V
+        w.write_sample(-32768i16).unwrap(); // channel 2: -1 V
     }
     w.finalize().unwrap();
     let (recs, rejs) = read_all(&[t.path().to_path_buf()], &PipelineConfig::default());
@@ -91,7 +91,7 @@ fn csv_long_table_groups_rows_by_hit_and_channel() {
     s.push_str("3,1,notanumber\n");
     let f = t.path().join("long.csv");
     std::fs::write(&f, s).unwrap();
-    let d = discover(&[f.clone()], &PipelineConfig::default().ingest);
+    let d = discover(std::slice::from_ref(&f), &PipelineConfig::default().ingest);
     assert_eq!(d.sources[0].format, Format::CsvLong);
     let (recs, rejs) = read_all(&[f], &PipelineConfig::default());
     let got: Vec<(u32, u64, usize)> = recs

@@ -189,7 +189,7 @@ fn waveexplorer_events_have_the_header_rate_and_the_angle_label() {
     let last: f32 = text
         .lines()
         .filter(|l| !l.trim().is_empty())
-        .last()
+        .next_back()
         .unwrap()
         .trim()
         .parse()
