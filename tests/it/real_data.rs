@@ -121,7 +121,7 @@ fn aewin_amplitudes_match_the_hit_list_and_load_comes_from_the_log() {
         return;
     };
     let dir = real.join("aewin_cfrp_tensile");
-    let (recs, rejs) = read_all(&[dir.clone()], &PipelineConfig::default());
+    let (recs, rejs) = read_all(std::slice::from_ref(&dir), &PipelineConfig::default());
     assert!(rejs.is_empty(), "{rejs:?}");
     assert_eq!(recs.len(), 29);
     assert!(recs
@@ -167,7 +167,7 @@ fn waveexplorer_events_have_the_header_rate_and_the_angle_label() {
         return;
     };
     let f = real.join("plb_angle_waveexplorer/220426_30deg_4mm_wave.txt");
-    let (recs, rejs) = read_all(&[f.clone()], &PipelineConfig::default());
+    let (recs, rejs) = read_all(std::slice::from_ref(&f), &PipelineConfig::default());
     assert!(rejs.is_empty());
     assert_eq!(recs.len(), 113);
     assert!(recs.iter().all(|r| r.samples.len() == 1024
@@ -188,8 +188,7 @@ fn waveexplorer_events_have_the_header_rate_and_the_angle_label() {
     assert_eq!(&recs[0].samples[..5], &first[..]);
     let last: f32 = text
         .lines()
-        .filter(|l| !l.trim().is_empty())
-        .next_back()
+        .rfind(|l| !l.trim().is_empty())
         .unwrap()
         .trim()
         .parse()
@@ -203,7 +202,7 @@ fn folders_of_companion_files_are_passed_over_not_rejected() {
         return;
     };
     let cfg = PipelineConfig::default();
-    let d = discover(&[real.clone()], &cfg.ingest);
+    let d = discover(std::slice::from_ref(&real), &cfg.ingest);
     assert!(d.rejects.is_empty(), "{:?}", d.rejects);
     let skipped: Vec<String> = d
         .skipped
