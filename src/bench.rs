@@ -53,6 +53,7 @@ pub fn synthetic_items(n: u64, len: usize) -> impl Iterator<Item = Item> + Send 
             load_n: None,
             extension_m: None,
             label: None,
+            threshold_v: None,
             source_file: "synthetic".into(),
         })
     })

@@ -41,6 +41,150 @@ pub struct PipelineConfig {
     pub ingest: IngestConfig,
     pub pipeline: RunConfig,
     pub validate: ValidateConfig,
+    pub dsp: DspConfig,
+    pub criteria: CriteriaConfig,
+}
+
+/// Signal processing (thesis ch. 4.5.5, 5.2; DESIGN §4).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct DspConfig {
+    /// Width of one power-ratio band, Hz (Eq. 4.5.4: Δf = 100 kHz).
+    pub band_hz: f64,
+    /// Upper end of the power-ratio range, Hz (Eq. 4.5.4: 2500 kHz → 25 bands).
+    pub band_max_hz: f64,
+    pub cwt: CwtConfig,
+    pub bins: BinsConfig,
+    pub hit: HitConfig,
+}
+
+/// The continuous wavelet transform: complex Gabor (Morlet) wavelet on a linear grid.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct CwtConfig {
+    pub f_min_hz: f64,
+    pub f_max_hz: f64,
+    pub n_freqs: usize,
+    /// Full width at half maximum of the Gaussian envelope, in periods of the centre
+    /// frequency (AGU-Vallen style Gabor wavelet; 2 periods → Δf/f ≈ 0.44). Morlet with
+    /// ω0 = 6 is 2.2487 periods.
+    pub fwhm_periods: f64,
+}
+
+/// The time/frequency bins of ch. 5.2 (Fig. 5.2): normalised |W|² summed over windows.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct BinsConfig {
+    /// Window length in time, s (thesis: 5 µs).
+    pub window_s: f64,
+    /// Number of time windows from the trigger (8 × 5 µs = 40 µs).
+    pub n_windows: usize,
+    /// Frequency band of one bin, Hz (thesis: 100 kHz); bands cover 0..dsp.band_max_hz.
+    pub band_hz: f64,
+}
+
+/// Standard hit features (vallenae / ASTM E1316 conventions).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct HitConfig {
+    /// Detection threshold, dB_AE, used when the recording does not carry its own
+    /// (Vallen records do; they are used unless `use_record_threshold = false`).
+    pub threshold_db: f64,
+    pub use_record_threshold: bool,
+}
+
+/// The ch. 4.7 criteria that label a hit from its CWT (every threshold here).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct CriteriaConfig {
+    /// The two bond-failure frequencies, Hz (≈250 and ≈750 kHz).
+    pub bond_low_hz: f64,
+    pub bond_high_hz: f64,
+    /// How far a dominant frequency may be from them, Hz.
+    pub bond_tolerance_hz: f64,
+    /// A fibre failure's dominant frequency is above this, Hz (800 kHz).
+    pub fibre_min_hz: f64,
+    /// …lasts less than this above half power, s (5 µs).
+    pub fibre_max_duration_s: f64,
+    /// …and arrives within this time of the trigger, s.
+    pub fibre_max_arrival_s: f64,
+    /// A component counts as present when its peak power is at least this share of the
+    /// dominant component's (0.05 in power ≈ 0.22 in amplitude: clearly visible in a CWT).
+    pub component_min_ratio: f64,
+    /// "both": a bond-like component peaking at least this long after the fibre pulse, s.
+    pub both_min_delay_s: f64,
+    /// Triggered early: the signal already exceeds the threshold this long before the
+    /// trigger, s.
+    pub early_trigger_s: f64,
+    /// Two bursts: the envelope falls below `burst_quiet_ratio` of the peak for at least
+    /// `burst_gap_s`, then rises above `burst_level_ratio` of the peak again.
+    pub burst_gap_s: f64,
+    pub burst_quiet_ratio: f64,
+    pub burst_level_ratio: f64,
+    /// Clipped: this many consecutive samples at the record's extreme value.
+    pub clip_run: usize,
+}
+
+impl Default for DspConfig {
+    fn default() -> Self {
+        DspConfig {
+            band_hz: 100e3,
+            band_max_hz: 2500e3,
+            cwt: CwtConfig::default(),
+            bins: BinsConfig::default(),
+            hit: HitConfig::default(),
+        }
+    }
+}
+
+impl Default for CwtConfig {
+    fn default() -> Self {
+        CwtConfig {
+            f_min_hz: 10e3,
+            f_max_hz: 2500e3,
+            n_freqs: 250,
+            fwhm_periods: 2.0,
+        }
+    }
+}
+
+impl Default for BinsConfig {
+    fn default() -> Self {
+        BinsConfig {
+            window_s: 5e-6,
+            n_windows: 8,
+            band_hz: 100e3,
+        }
+    }
+}
+
+impl Default for HitConfig {
+    fn default() -> Self {
+        HitConfig {
+            threshold_db: 40.0,
+            use_record_threshold: true,
+        }
+    }
+}
+
+impl Default for CriteriaConfig {
+    fn default() -> Self {
+        CriteriaConfig {
+            bond_low_hz: 250e3,
+            bond_high_hz: 750e3,
+            bond_tolerance_hz: 100e3,
+            fibre_min_hz: 800e3,
+            fibre_max_duration_s: 5e-6,
+            fibre_max_arrival_s: 5e-6,
+            component_min_ratio: 0.05,
+            both_min_delay_s: 2e-6,
+            early_trigger_s: 10e-6,
+            burst_gap_s: 20e-6,
+            burst_quiet_ratio: 0.1,
+            burst_level_ratio: 0.3,
+            clip_run: 3,
+        }
+    }
 }
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -221,6 +365,35 @@ impl PipelineConfig {
             return Err(ConfigError::Invalid(
                 "pipeline.row_group_rows must be ≥ 1".into(),
             ));
+        }
+        let d = &self.dsp;
+        pos(d.band_hz, "dsp.band_hz")?;
+        pos(d.band_max_hz, "dsp.band_max_hz")?;
+        pos(d.cwt.f_min_hz, "dsp.cwt.f_min_hz")?;
+        pos(d.cwt.fwhm_periods, "dsp.cwt.fwhm_periods")?;
+        pos(d.bins.window_s, "dsp.bins.window_s")?;
+        pos(d.bins.band_hz, "dsp.bins.band_hz")?;
+        if d.cwt.f_max_hz < d.cwt.f_min_hz || d.cwt.n_freqs == 0 {
+            return Err(ConfigError::Invalid(
+                "dsp.cwt: need f_max_hz ≥ f_min_hz and n_freqs ≥ 1".into(),
+            ));
+        }
+        if d.bins.n_windows == 0 {
+            return Err(ConfigError::Invalid(
+                "dsp.bins.n_windows must be ≥ 1".into(),
+            ));
+        }
+        let bands = d.band_max_hz / d.band_hz;
+        if (bands - bands.round()).abs() > 1e-9 || bands.round() > 1000.0 {
+            return Err(ConfigError::Invalid(format!(
+                "dsp.band_max_hz / dsp.band_hz must be a whole number of bands (≤ 1000), got {bands}"
+            )));
+        }
+        let bin_bands = d.band_max_hz / d.bins.band_hz;
+        if (bin_bands - bin_bands.round()).abs() > 1e-9 {
+            return Err(ConfigError::Invalid(format!(
+                "dsp.band_max_hz / dsp.bins.band_hz must be a whole number, got {bin_bands}"
+            )));
         }
         for p in [
             &self.ingest.vallen.load_param,

@@ -9,6 +9,7 @@
 pub mod bench;
 pub mod config;
 pub mod demo;
+pub mod dsp;
 pub mod features;
 pub mod ingest;
 pub mod inspect;

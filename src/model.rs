@@ -30,6 +30,8 @@ pub struct AeRecord {
     pub extension_m: Option<f64>,
     /// Ground-truth or user label (simulator mechanism, hand label), if any.
     pub label: Option<String>,
+    /// Detection threshold the acquisition used, volts (Vallen `Thr`), if recorded.
+    pub threshold_v: Option<f64>,
     /// The file the samples came from.
     pub source_file: String,
 }

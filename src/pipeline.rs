@@ -245,6 +245,10 @@ where
         ("aepipe.config_sha256".to_string(), cfg.hash()),
         ("aepipe.job".to_string(), job.name().to_string()),
     ];
+    let mut table_meta = meta.clone();
+    if job == Job::Features {
+        table_meta.extend(crate::features::features_metadata(cfg));
+    }
     let table = match job {
         Job::Features => features_table(cfg),
         Job::Waveforms => waveforms_table(),
@@ -252,7 +256,7 @@ where
     let mut table_w = TableWriter::create(
         &out_dir.join(job.table_file()),
         table,
-        &meta,
+        &table_meta,
         cfg.pipeline.row_group_rows,
     )?;
     let mut rej_w = TableWriter::create(

@@ -566,6 +566,7 @@ pub fn identity_columns() -> Vec<ColumnSpec> {
         ColumnSpec::new("load_n", ColType::Float64, "N", "test-machine load at the hit time (null: no load channel)").nullable(),
         ColumnSpec::new("extension_m", ColType::Float64, "m", "test-machine extension at the hit time (null: none)").nullable(),
         ColumnSpec::new("label", ColType::Utf8, "", "ground-truth or user label (simulator mechanism, hand label); null if none").nullable(),
+        ColumnSpec::new("threshold_v", ColType::Float64, "V", "detection threshold the acquisition used (Vallen Thr); null if not recorded").nullable(),
     ]
 }
 
@@ -582,6 +583,7 @@ pub fn identity_values(r: &crate::model::AeRecord) -> Row {
         Value::F64(r.load_n),
         Value::F64(r.extension_m),
         Value::Str(r.label.clone()),
+        Value::F64(r.threshold_v),
     ]
 }
 

@@ -223,6 +223,7 @@ impl Experiment {
                 load_n: Some(load_curve(t, t_peak, 60.0)),
                 extension_m: Some(1e-3 * t / self.duration_s),
                 label: Some(mech.as_str().to_string()),
+                threshold_v: None,
                 source_file: String::new(),
             }
         })

@@ -154,6 +154,7 @@ impl Iterator for Reader {
                     load_n: self.log.load_n.at(tm),
                     extension_m: self.log.extension_m.at(tm),
                     label: None,
+                    threshold_v: None,
                     source_file: path.display().to_string(),
                 })
             }

@@ -193,6 +193,7 @@ pub fn open_per_hit(src: &Source, cfg: &IngestConfig) -> Box<dyn Iterator<Item =
                 load_n: None,
                 extension_m: None,
                 label: None,
+                threshold_v: None,
                 source_file: p.display().to_string(),
             }),
             Err(reason) => Item::Reject(Reject {
@@ -330,6 +331,7 @@ impl Iterator for LongReader {
             load_n: None,
             extension_m: None,
             label: None,
+            threshold_v: None,
             source_file: self.path.clone(),
         }))
     }

@@ -51,6 +51,9 @@ fn records(b: &RecordBatch, path: &str) -> Result<Vec<AeRecord>, String> {
     let label = col(b, "label")?
         .as_string_opt::<i32>()
         .ok_or("label: expected string")?;
+    let thr = col(b, "threshold_v")?
+        .as_primitive_opt::<Float64Type>()
+        .ok_or("threshold_v: expected float64")?;
     let samples = col(b, "samples_v")?
         .as_list_opt::<i32>()
         .ok_or("samples_v: expected list<float32>")?;
@@ -85,6 +88,7 @@ fn records(b: &RecordBatch, path: &str) -> Result<Vec<AeRecord>, String> {
                 } else {
                     Some(label.value(i).to_string())
                 },
+                threshold_v: opt(thr, i),
                 source_file: match &src {
                     Some(a) if !a.is_null(i) => a.value(i).to_string(),
                     _ => path.to_string(),

@@ -64,6 +64,7 @@ pub fn open(src: &Source, cfg: &IngestConfig) -> Box<dyn Iterator<Item = Item> +
                 load_n: None,
                 extension_m: None,
                 label: None,
+                threshold_v: None,
                 source_file: p.display().to_string(),
             }),
             Err(e) => Item::Reject(Reject {

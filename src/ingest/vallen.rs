@@ -208,7 +208,7 @@ impl Reader {
     fn fetch(&mut self, chan: i64, trai: i64, setid: i64) -> Item {
         let conn = self.conn.as_ref().expect("open while keys remain");
         let row = conn.query_row(
-            "SELECT d.Time, d.Pretrigger, d.SampleRate, d.Samples, d.DataFormat, d.Data, p.TR_mV \
+            "SELECT d.Time, d.Pretrigger, d.SampleRate, d.Samples, d.DataFormat, d.Data, p.TR_mV, d.Thr * p.\"ADC_µV\" \
              FROM tr_data d LEFT JOIN tr_params p ON p.ID = d.ParamID WHERE d.SetID = ?1",
             [setid],
             |r| {
@@ -220,6 +220,7 @@ impl Reader {
                     r.get::<_, Option<i64>>(4)?,
                     r.get::<_, Option<Vec<u8>>>(5)?,
                     r.get::<_, Option<f64>>(6)?,
+                    r.get::<_, Option<f64>>(7)?,
                 ))
             },
         );
@@ -232,7 +233,7 @@ impl Reader {
                 reason,
             })
         };
-        let (time, pre, rate, n, fmt, data, tr_mv) = match row {
+        let (time, pre, rate, n, fmt, data, tr_mv, thr_uv) = match row {
             Ok(r) => r,
             Err(e) => return reject(format!("cannot read the record: {e}")),
         };
@@ -260,6 +261,7 @@ impl Reader {
             load_n: time_s.and_then(|t| self.info.load.at(t)),
             extension_m: time_s.and_then(|t| self.info.extension.at(t)),
             label: None,
+            threshold_v: thr_uv.filter(|t| *t > 0.0).map(|t| t * 1e-6),
             source_file: self.tradb.display().to_string(),
         })
     }

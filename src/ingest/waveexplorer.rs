@@ -124,6 +124,7 @@ impl Iterator for Reader {
                     load_n: None,
                     extension_m: None,
                     label: self.label.clone(),
+                    threshold_v: None,
                     source_file: self.path.display().to_string(),
                 }),
                 Err(reason) => {

@@ -1,0 +1,519 @@
+//! Continuous wavelet transform with a complex Gabor (Morlet) wavelet, computed in the
+//! frequency domain.
+//!
+//! The wavelet at centre frequency `f` has a Gaussian envelope whose full width at half
+//! maximum is `fwhm_periods / f` (AGU-Vallen's Gabor wavelet style). In the frequency domain
+//! its filter is `H(ν) = 2·exp(−(ν − f)² / 2σ_f²)` for ν > 0 and 0 for ν ≤ 0 (analytic), with
+//! `σ_f = 2√(2 ln 2)·f / (2π·fwhm_periods)`. The gain 2 at ν = f makes the transform
+//! amplitude-preserving: a sine of amplitude A at f gives |W(t, f)| = A.
+//!
+//! One implementation, two paths:
+//! * [`Cwt::full_power`]: |W|² at every sample × every frequency of the record (pictures).
+//! * [`Cwt::window_power`]: |W|² only over an output window `[a, b)` (the 200 feature bins
+//!   need 40 µs). Each frequency then needs only the window plus its wavelet's support
+//!   (±5σ_t), so it is computed from a short segment with a short FFT; frequencies that need
+//!   the same segment length share one forward FFT. Where a segment would not fit inside the
+//!   record (low frequencies, long wavelets) the whole record is used, exactly as the full
+//!   path does, so the two paths agree.
+
+use super::next_fast_len;
+use crate::config::CwtConfig;
+use rustfft::num_complex::Complex32;
+use rustfft::{Fft, FftPlanner};
+use std::collections::HashMap;
+use std::f64::consts::PI;
+use std::sync::Arc;
+
+/// 2·sqrt(2·ln 2): FWHM of a Gaussian in units of its σ.
+const FWHM_SIGMAS: f64 = 2.354_820_045_030_949_4;
+/// How many σ of the wavelet are kept (in frequency: filter support; in time: segment margin).
+const SUPPORT_SIGMAS: f64 = 5.0;
+
+/// The wavelet family and frequency grid.
+#[derive(Debug, Clone, PartialEq)]
+pub struct WaveletBank {
+    pub freqs_hz: Vec<f64>,
+    pub fwhm_periods: f64,
+}
+
+impl WaveletBank {
+    /// Linear grid from `f_min_hz` to `f_max_hz` inclusive.
+    pub fn from_config(c: &CwtConfig) -> WaveletBank {
+        let n = c.n_freqs.max(1);
+        let step = if n > 1 {
+            (c.f_max_hz - c.f_min_hz) / (n - 1) as f64
+        } else {
+            0.0
+        };
+        WaveletBank {
+            freqs_hz: (0..n).map(|k| c.f_min_hz + step * k as f64).collect(),
+            fwhm_periods: c.fwhm_periods,
+        }
+    }
+
+    /// Standard deviation of the filter in frequency, Hz.
+    pub fn sigma_f(&self, f: f64) -> f64 {
+        FWHM_SIGMAS * f / (2.0 * PI * self.fwhm_periods)
+    }
+
+    /// Standard deviation of the envelope in time, s.
+    pub fn sigma_t(&self, f: f64) -> f64 {
+        self.fwhm_periods / (FWHM_SIGMAS * f)
+    }
+}
+
+/// The filter of one frequency on one FFT grid: taps for bins `k0 .. k0 + taps.len()`
+/// (already divided by the FFT length, so the unnormalised inverse FFT gives W).
+#[derive(Debug, Default)]
+struct Band {
+    k0: usize,
+    taps: Vec<f32>,
+}
+
+/// Frequencies that share one segment length in [`Cwt::window_power`].
+#[derive(Debug)]
+struct Group {
+    /// Segment length (FFT size); equal to the record length for whole-record groups.
+    m: usize,
+    /// First sample of the segment in the record.
+    start: usize,
+    whole_record: bool,
+    freqs: Vec<usize>,
+}
+
+/// Per-worker CWT engine: plans, filters and buffers, reused across records.
+pub struct Cwt {
+    bank: WaveletBank,
+    planner: FftPlanner<f32>,
+    plans: HashMap<(usize, bool), Arc<dyn Fft<f32>>>,
+    filters: HashMap<(usize, u64), Arc<Vec<Band>>>,
+    groups: HashMap<(usize, u64, usize, usize), Arc<Vec<Group>>>,
+    /// Spectrum of the whole record loaded by [`Cwt::load`].
+    full: Vec<Complex32>,
+    loaded: Option<(usize, u64)>,
+    seg: Vec<Complex32>,
+    work: Vec<Complex32>,
+    scratch: Vec<Complex32>,
+    row: Vec<f32>,
+}
+
+impl Cwt {
+    pub fn new(bank: WaveletBank) -> Cwt {
+        Cwt {
+            bank,
+            planner: FftPlanner::new(),
+            plans: HashMap::new(),
+            filters: HashMap::new(),
+            groups: HashMap::new(),
+            full: Vec::new(),
+            loaded: None,
+            seg: Vec::new(),
+            work: Vec::new(),
+            scratch: Vec::new(),
+            row: Vec::new(),
+        }
+    }
+
+    pub fn bank(&self) -> &WaveletBank {
+        &self.bank
+    }
+
+    fn plan(&mut self, m: usize, inverse: bool) -> Arc<dyn Fft<f32>> {
+        let planner = &mut self.planner;
+        self.plans
+            .entry((m, inverse))
+            .or_insert_with(|| {
+                if inverse {
+                    planner.plan_fft_inverse(m)
+                } else {
+                    planner.plan_fft_forward(m)
+                }
+            })
+            .clone()
+    }
+
+    fn filter_set(&mut self, m: usize, fs: f64) -> Arc<Vec<Band>> {
+        let bank = &self.bank;
+        self.filters
+            .entry((m, fs.to_bits()))
+            .or_insert_with(|| {
+                let df = fs / m as f64;
+                let half = m / 2;
+                Arc::new(
+                    bank.freqs_hz
+                        .iter()
+                        .map(|&f| {
+                            if f <= 0.0 || f > fs / 2.0 {
+                                return Band::default(); // above Nyquist: nothing to see
+                            }
+                            let s = bank.sigma_f(f);
+                            let lo = (((f - SUPPORT_SIGMAS * s) / df).ceil().max(1.0)) as usize;
+                            let hi = (((f + SUPPORT_SIGMAS * s) / df).floor() as usize).min(half);
+                            if hi < lo {
+                                return Band::default();
+                            }
+                            let taps = (lo..=hi)
+                                .map(|k| {
+                                    let d = k as f64 * df - f;
+                                    (2.0 * (-d * d / (2.0 * s * s)).exp() / m as f64) as f32
+                                })
+                                .collect();
+                            Band { k0: lo, taps }
+                        })
+                        .collect(),
+                )
+            })
+            .clone()
+    }
+
+    /// Forward FFT of `x` into `out` (resized to `x.len()`).
+    fn forward_into(&mut self, x: &[f32], which_full: bool) {
+        let m = x.len();
+        let plan = self.plan(m, false);
+        let buf = if which_full {
+            &mut self.full
+        } else {
+            &mut self.seg
+        };
+        buf.clear();
+        buf.extend(x.iter().map(|&v| Complex32::new(v, 0.0)));
+        let need = plan.get_inplace_scratch_len();
+        if self.scratch.len() < need {
+            self.scratch.resize(need, Complex32::default());
+        }
+        plan.process_with_scratch(buf, &mut self.scratch[..need]);
+    }
+
+    /// Load a record: one forward FFT of the whole record, kept for the spectrum features
+    /// and for the whole-record CWT. Must precede [`full_power`](Self::full_power) and
+    /// [`window_power`](Self::window_power) for the same record.
+    pub fn load(&mut self, x: &[f32], fs: f64) {
+        self.forward_into(x, true);
+        self.loaded = Some((x.len(), fs.to_bits()));
+    }
+
+    /// The whole record's spectrum (unnormalised DFT), after [`load`](Self::load).
+    pub fn spectrum(&self) -> &[Complex32] {
+        &self.full
+    }
+
+    /// |W|² of frequency `fi` from a spectrum of length `m`, for outputs `lo..hi` of the
+    /// segment, into `out` (length `hi − lo`).
+    fn band_power(
+        &mut self,
+        fi: usize,
+        m: usize,
+        fs: f64,
+        from_full: bool,
+        lo: usize,
+        hi: usize,
+        out: &mut [f32],
+    ) {
+        let filters = self.filter_set(m, fs);
+        let band = &filters[fi];
+        if band.taps.is_empty() {
+            out.fill(0.0);
+            return;
+        }
+        let plan = self.plan(m, true);
+        self.work.clear();
+        self.work.resize(m, Complex32::default());
+        let spec = if from_full { &self.full } else { &self.seg };
+        for (j, &t) in band.taps.iter().enumerate() {
+            let k = band.k0 + j;
+            self.work[k] = spec[k] * t;
+        }
+        let need = plan.get_inplace_scratch_len();
+        if self.scratch.len() < need {
+            self.scratch.resize(need, Complex32::default());
+        }
+        plan.process_with_scratch(&mut self.work, &mut self.scratch[..need]);
+        for (o, w) in out.iter_mut().zip(&self.work[lo..hi]) {
+            *o = w.norm_sqr();
+        }
+    }
+
+    fn check_loaded(&self, x: &[f32], fs: f64) {
+        assert_eq!(
+            self.loaded,
+            Some((x.len(), fs.to_bits())),
+            "Cwt::load must be called with this record first"
+        );
+    }
+
+    /// Full resolution: |W(t, f)|² for every frequency (rows) × every sample (columns),
+    /// row-major into `out` (resized to `n_freqs · x.len()`).
+    pub fn full_power(&mut self, x: &[f32], fs: f64, out: &mut Vec<f32>) {
+        self.check_loaded(x, fs);
+        let n = x.len();
+        let nf = self.bank.freqs_hz.len();
+        out.resize(nf * n, 0.0);
+        for fi in 0..nf {
+            self.band_power(fi, n, fs, true, 0, n, &mut out[fi * n..(fi + 1) * n]);
+        }
+    }
+
+    fn groups(&mut self, n: usize, fs: f64, a: usize, b: usize) -> Arc<Vec<Group>> {
+        let bank = &self.bank;
+        self.groups
+            .entry((n, fs.to_bits(), a, b))
+            .or_insert_with(|| {
+                let w = b - a;
+                let mut by_m: std::collections::BTreeMap<usize, Vec<usize>> = Default::default();
+                let mut whole = Vec::new();
+                for (fi, &f) in bank.freqs_hz.iter().enumerate() {
+                    if f <= 0.0 || f > fs / 2.0 {
+                        continue;
+                    }
+                    let t = (SUPPORT_SIGMAS * bank.sigma_t(f) * fs).ceil() as usize;
+                    let m = next_fast_len(w + 2 * t);
+                    let margin = (m - w) / 2;
+                    // The segment must hold the window plus the wavelet support on both
+                    // sides inside the record; otherwise use the whole record (as the full
+                    // path does, circular ends included).
+                    if m >= n || a < margin || a - margin + m > n {
+                        whole.push(fi);
+                    } else {
+                        by_m.entry(m).or_default().push(fi);
+                    }
+                }
+                let mut gs: Vec<Group> = by_m
+                    .into_iter()
+                    .map(|(m, freqs)| Group {
+                        m,
+                        start: a - (m - w) / 2,
+                        whole_record: false,
+                        freqs,
+                    })
+                    .collect();
+                if !whole.is_empty() {
+                    gs.push(Group {
+                        m: n,
+                        start: 0,
+                        whole_record: true,
+                        freqs: whole,
+                    });
+                }
+                Arc::new(gs)
+            })
+            .clone()
+    }
+
+    /// |W|² over the output window `a..b` only: `visit(freq_index, power)` is called once for
+    /// each frequency below Nyquist, with `power.len() == b − a`. Frequencies above Nyquist
+    /// are not visited (their power is zero).
+    pub fn window_power(
+        &mut self,
+        x: &[f32],
+        fs: f64,
+        a: usize,
+        b: usize,
+        mut visit: impl FnMut(usize, &[f32]),
+    ) {
+        self.check_loaded(x, fs);
+        let n = x.len();
+        assert!(
+            a <= b && b <= n,
+            "window {a}..{b} outside a record of {n} samples"
+        );
+        if a == b {
+            return;
+        }
+        let groups = self.groups(n, fs, a, b);
+        let mut row = std::mem::take(&mut self.row);
+        row.resize(b - a, 0.0);
+        for g in groups.iter() {
+            if !g.whole_record {
+                self.forward_into(&x[g.start..g.start + g.m], false);
+            }
+            let (lo, hi) = (a - g.start, b - g.start);
+            for &fi in &g.freqs {
+                self.band_power(fi, g.m, fs, g.whole_record, lo, hi, &mut row);
+                visit(fi, &row);
+            }
+        }
+        self.row = row;
+    }
+
+    /// |W|² of one frequency over the output window `a..b` into `out` (as
+    /// [`window_power`](Self::window_power) computes it for that frequency).
+    pub fn window_row(
+        &mut self,
+        x: &[f32],
+        fs: f64,
+        a: usize,
+        b: usize,
+        fi: usize,
+        out: &mut Vec<f32>,
+    ) {
+        self.check_loaded(x, fs);
+        out.clear();
+        out.resize(b - a, 0.0);
+        let groups = self.groups(x.len(), fs, a, b);
+        if let Some(g) = groups.iter().find(|g| g.freqs.contains(&fi)) {
+            if !g.whole_record {
+                self.forward_into(&x[g.start..g.start + g.m], false);
+            }
+            self.band_power(fi, g.m, fs, g.whole_record, a - g.start, b - g.start, out);
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn bank() -> WaveletBank {
+        WaveletBank::from_config(&CwtConfig::default())
+    }
+
+    fn sine(n: usize, f: f64, fs: f64, a: f64) -> Vec<f32> {
+        (0..n)
+            .map(|i| (a * (2.0 * PI * f * i as f64 / fs).sin()) as f32)
+            .collect()
+    }
+
+    #[test]
+    fn default_grid_is_10_to_2500_khz_in_10_khz_steps() {
+        let b = bank();
+        assert_eq!(b.freqs_hz.len(), 250);
+        assert!((b.freqs_hz[0] - 10e3).abs() < 1e-6);
+        assert!((b.freqs_hz[249] - 2500e3).abs() < 1e-6);
+        assert!((b.freqs_hz[1] - b.freqs_hz[0] - 10e3).abs() < 1e-6);
+        // FWHM of 2 periods: Δf/f = FWHM_f / f ≈ 0.44.
+        let f = 500e3;
+        let rel = FWHM_SIGMAS * b.sigma_f(f) / f;
+        assert!((rel - 0.4413).abs() < 1e-3, "{rel}");
+        // Time FWHM = 2 periods.
+        assert!((FWHM_SIGMAS * b.sigma_t(f) - 2.0 / f).abs() < 1e-15);
+    }
+
+    #[test]
+    fn sine_ridge_is_at_its_frequency_with_its_amplitude() {
+        let fs = 10e6;
+        let n = 4096;
+        let b = bank();
+        let mut cwt = Cwt::new(b.clone());
+        let mut out = Vec::new();
+        for f_khz in [100.0, 250.0, 500.0, 750.0, 1000.0, 1200.0, 1750.0, 2000.0] {
+            let f = f_khz * 1e3;
+            let a = 0.37;
+            let x = sine(n, f, fs, a);
+            cwt.load(&x, fs);
+            cwt.full_power(&x, fs, &mut out);
+            // Middle of the record, away from the circular ends.
+            let t = n / 2;
+            let (best, p) = (0..b.freqs_hz.len())
+                .map(|fi| (fi, out[fi * n + t]))
+                .fold((0, 0.0f32), |m, c| if c.1 > m.1 { c } else { m });
+            assert!(
+                (b.freqs_hz[best] - f).abs() <= 10e3 + 1e-6,
+                "{f_khz} kHz: ridge at {}",
+                b.freqs_hz[best]
+            );
+            let amp = (p as f64).sqrt();
+            assert!(
+                (amp - a).abs() / a < 0.02,
+                "{f_khz} kHz: |W| = {amp}, A = {a}"
+            );
+        }
+    }
+
+    #[test]
+    fn window_path_equals_full_path_on_the_window() {
+        let fs = 10e6;
+        let n = 4096;
+        let mut x = sine(n, 250e3, fs, 0.1);
+        for (i, v) in x.iter_mut().enumerate() {
+            let t = i as f64 / fs;
+            *v +=
+                (0.05 * (2.0 * PI * 1.2e6 * t).cos() * (-((t - 6e-5) / 3e-6).powi(2)).exp()) as f32;
+        }
+        let mut cwt = Cwt::new(bank());
+        cwt.load(&x, fs);
+        let mut full = Vec::new();
+        cwt.full_power(&x, fs, &mut full);
+        let (a, b) = (500, 900);
+        let mut worst = 0.0f64;
+        let mut visited = 0;
+        let peak = full.iter().cloned().fold(0.0f32, f32::max) as f64;
+        cwt.window_power(&x, fs, a, b, |fi, p| {
+            visited += 1;
+            for (j, &v) in p.iter().enumerate() {
+                let r = full[fi * n + a + j] as f64;
+                worst = worst.max((v as f64 - r).abs() / peak);
+            }
+        });
+        assert_eq!(visited, 250);
+        assert!(worst < 1e-4, "worst difference {worst} of the peak");
+    }
+
+    #[test]
+    fn short_pulse_is_localised_in_time() {
+        let fs = 10e6;
+        let n = 4096;
+        let t0 = 150e-6;
+        let x: Vec<f32> = (0..n)
+            .map(|i| {
+                let t = i as f64 / fs - t0;
+                ((2.0 * PI * 1.2e6 * t).cos() * (-(t / 1e-6).powi(2) / 2.0).exp()) as f32
+            })
+            .collect();
+        let b = bank();
+        let mut cwt = Cwt::new(b.clone());
+        cwt.load(&x, fs);
+        let mut out = Vec::new();
+        cwt.full_power(&x, fs, &mut out);
+        let fi = b
+            .freqs_hz
+            .iter()
+            .position(|&f| (f - 1.2e6).abs() < 1.0)
+            .unwrap();
+        let row = &out[fi * n..(fi + 1) * n];
+        let tmax = row
+            .iter()
+            .enumerate()
+            .fold((0, 0.0f32), |m, (i, &v)| if v > m.1 { (i, v) } else { m })
+            .0;
+        assert!(
+            ((tmax as f64 / fs) - t0).abs() < 1e-6,
+            "peak at {} µs",
+            tmax as f64 / fs * 1e6
+        );
+    }
+
+    #[test]
+    fn two_tones_separate() {
+        let fs = 10e6;
+        let n = 4096;
+        let x: Vec<f32> = sine(n, 250e3, fs, 0.2)
+            .iter()
+            .zip(sine(n, 750e3, fs, 0.1))
+            .map(|(a, b)| a + b)
+            .collect();
+        let b = bank();
+        let mut cwt = Cwt::new(b.clone());
+        cwt.load(&x, fs);
+        let mut out = Vec::new();
+        cwt.full_power(&x, fs, &mut out);
+        let t = n / 2;
+        let col: Vec<f32> = (0..b.freqs_hz.len())
+            .map(|fi| out[fi * n + t].sqrt())
+            .collect();
+        let at = |f: f64| {
+            col[b
+                .freqs_hz
+                .iter()
+                .position(|&g| (g - f).abs() < 1.0)
+                .unwrap()]
+        };
+        assert!(
+            (at(250e3) - 0.2).abs() < 0.004 && (at(750e3) - 0.1).abs() < 0.002,
+            "{} {}",
+            at(250e3),
+            at(750e3)
+        );
+        // A clear valley between them.
+        assert!(at(500e3) < 0.1 * at(750e3), "valley {}", at(500e3));
+    }
+}

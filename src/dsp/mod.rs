@@ -1,0 +1,60 @@
+//! Signal processing: power spectrum and band power ratios (Eq. 4.5.4), the continuous
+//! wavelet transform (Gabor/Morlet, frequency domain), and the standard hit features.
+//!
+//! Plans, filters and scratch buffers live in the structs here and are reused from record to
+//! record (RustFFT style: a planner hands out plans, callers own scratch); the per-record
+//! work allocates nothing once the caches are warm.
+
+pub mod cwt;
+pub mod hit;
+pub mod spectrum;
+
+/// The smallest length ≥ `n` whose only prime factors are 2, 3 and 5 (fast FFT sizes).
+pub fn next_fast_len(n: usize) -> usize {
+    let mut m = n.max(1);
+    loop {
+        let mut k = m;
+        for p in [2, 3, 5] {
+            while k % p == 0 {
+                k /= p;
+            }
+        }
+        if k == 1 {
+            return m;
+        }
+        m += 1;
+    }
+}
+
+/// Remove the DC offset (mean of the pretrigger; of the whole record without one) and
+/// convert to f32 volts, into `out` (reused).
+pub fn condition(samples: &[f32], pretrigger: usize, out: &mut Vec<f32>) -> f64 {
+    let pre = pretrigger.min(samples.len());
+    let base = if pre > 0 { &samples[..pre] } else { samples };
+    let dc = base.iter().map(|&s| s as f64).sum::<f64>() / base.len().max(1) as f64;
+    out.clear();
+    out.extend(samples.iter().map(|&s| (s as f64 - dc) as f32));
+    dc
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn fast_lengths() {
+        assert_eq!(next_fast_len(1), 1);
+        assert_eq!(next_fast_len(7), 8);
+        assert_eq!(next_fast_len(401), 405);
+        assert_eq!(next_fast_len(4096), 4096);
+        assert_eq!(next_fast_len(4097), 4320);
+    }
+
+    #[test]
+    fn conditioning_removes_the_pretrigger_mean() {
+        let mut out = Vec::new();
+        let dc = condition(&[1.0, 3.0, 10.0, 2.0], 2, &mut out);
+        assert_eq!(dc, 2.0);
+        assert_eq!(out, vec![-1.0, 1.0, 8.0, 0.0]);
+    }
+}

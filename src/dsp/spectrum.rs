@@ -1,0 +1,157 @@
+//! Power spectrum features of a record (thesis Eq. 4.5.4, right-hand side).
+//!
+//! From the record's DFT `X_j` (one FFT, shared with the CWT): power `P_j = |X_j|²` at
+//! `f_j = j·fs/N` for `0 ≤ j ≤ N/2`. The power ratio of band i is the power in
+//! `[i·Δf, (i+1)·Δf)` divided by the power in `[0, band_max)`, so the ratios sum to 1.
+//! Bands entirely above the Nyquist frequency hold 0.
+
+use rustfft::num_complex::Complex32;
+
+/// Scalar spectrum features.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SpectrumScalars {
+    /// Power in `[0, band_max)`, (V·sample)² (unnormalised DFT units; only ratios matter).
+    pub total_power: f64,
+    /// Frequency of the largest power bin (DC excluded), Hz.
+    pub peak_freq_hz: f64,
+    /// Power-weighted mean frequency over `(0, fs/2]`, Hz.
+    pub centroid_freq_hz: f64,
+}
+
+/// Fill `ratios` (one per band) from the spectrum of an `n`-sample record at `fs`.
+/// Returns `None` when the record has no power below `band_max` (a flat record).
+pub fn power_ratios(
+    spec: &[Complex32],
+    n: usize,
+    fs: f64,
+    band_hz: f64,
+    ratios: &mut [f64],
+) -> Option<SpectrumScalars> {
+    ratios.fill(0.0);
+    let band_max = band_hz * ratios.len() as f64;
+    let df = fs / n as f64;
+    let half = n / 2;
+    let mut total_all = 0.0;
+    let mut moment = 0.0;
+    let mut peak = (0usize, -1.0f64);
+    for (j, x) in spec.iter().enumerate().take(half + 1) {
+        let p = x.norm_sqr() as f64;
+        let f = j as f64 * df;
+        if j > 0 {
+            total_all += p;
+            moment += p * f;
+            if p > peak.1 {
+                peak = (j, p);
+            }
+        }
+        if f < band_max {
+            let i = ((f / band_hz) as usize).min(ratios.len() - 1);
+            ratios[i] += p;
+        }
+    }
+    let total: f64 = ratios.iter().sum();
+    if !(total > 0.0) || !total.is_finite() {
+        ratios.fill(0.0);
+        return None;
+    }
+    ratios.iter_mut().for_each(|r| *r /= total);
+    Some(SpectrumScalars {
+        total_power: total,
+        peak_freq_hz: peak.0 as f64 * df,
+        centroid_freq_hz: if total_all > 0.0 {
+            moment / total_all
+        } else {
+            0.0
+        },
+    })
+}
+
+/// Column name of band `i`: `pr_200_300khz`.
+pub fn band_column(i: usize, band_hz: f64) -> String {
+    let lo = i as f64 * band_hz / 1e3;
+    let hi = (i + 1) as f64 * band_hz / 1e3;
+    if lo.fract() == 0.0 && hi.fract() == 0.0 {
+        format!("pr_{}_{}khz", lo as u64, hi as u64)
+    } else {
+        format!("pr_{lo}_{hi}khz").replace('.', "p")
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rustfft::FftPlanner;
+    use std::f64::consts::PI;
+
+    fn spectrum(x: &[f64]) -> Vec<Complex32> {
+        let mut buf: Vec<Complex32> = x.iter().map(|&v| Complex32::new(v as f32, 0.0)).collect();
+        FftPlanner::<f32>::new()
+            .plan_fft_forward(x.len())
+            .process(&mut buf);
+        buf
+    }
+
+    #[test]
+    fn damped_250_khz_sine_puts_most_power_in_200_300_khz() {
+        let fs = 10e6;
+        let n = 4096;
+        let x: Vec<f64> = (0..n)
+            .map(|i| {
+                let t = i as f64 / fs;
+                if i < 500 {
+                    0.0
+                } else {
+                    let t = t - 500.0 / fs;
+                    (-5e4 * t).exp() * (2.0 * PI * 250e3 * t).sin()
+                }
+            })
+            .collect();
+        let mut r = vec![0.0; 25];
+        let s = power_ratios(&spectrum(&x), n, fs, 100e3, &mut r).unwrap();
+        assert!((r.iter().sum::<f64>() - 1.0).abs() < 1e-9);
+        assert!(r[2] > 0.8, "200–300 kHz holds {}", r[2]);
+        assert!((s.peak_freq_hz - 250e3).abs() < 2.5e3, "{}", s.peak_freq_hz);
+    }
+
+    #[test]
+    fn bands_above_nyquist_are_zero_and_flat_records_give_none() {
+        let fs = 2e6;
+        let n = 2048;
+        let x: Vec<f64> = (0..n)
+            .map(|i| (2.0 * PI * 300e3 * i as f64 / fs).sin())
+            .collect();
+        let mut r = vec![0.0; 25];
+        power_ratios(&spectrum(&x), n, fs, 100e3, &mut r).unwrap();
+        // 1 MHz Nyquist: its bin opens band 1000–1100 kHz; every band above is empty.
+        assert!(r[11..].iter().all(|&v| v == 0.0));
+        assert!((r.iter().sum::<f64>() - 1.0).abs() < 1e-9);
+        assert!(power_ratios(&spectrum(&vec![0.0; 64]), 64, fs, 100e3, &mut r).is_none());
+    }
+
+    #[test]
+    fn centroid_of_two_equal_tones_is_their_mean() {
+        let fs = 10e6;
+        let n = 10000; // both tones on exact bins (1 kHz resolution)
+        let x: Vec<f64> = (0..n)
+            .map(|i| {
+                let t = i as f64 / fs;
+                (2.0 * PI * 200e3 * t).sin() + (2.0 * PI * 600e3 * t).sin()
+            })
+            .collect();
+        let mut r = vec![0.0; 25];
+        let s = power_ratios(&spectrum(&x), n, fs, 100e3, &mut r).unwrap();
+        assert!(
+            (s.centroid_freq_hz - 400e3).abs() < 100.0,
+            "{}",
+            s.centroid_freq_hz
+        );
+        assert!((r[2] - 0.5).abs() < 1e-3 && (r[6] - 0.5).abs() < 1e-3);
+    }
+
+    #[test]
+    fn band_names() {
+        assert_eq!(band_column(2, 100e3), "pr_200_300khz");
+        assert_eq!(band_column(0, 100e3), "pr_0_100khz");
+        assert_eq!(band_column(1, 50e3), "pr_50_100khz");
+    }
+}

@@ -1,0 +1,565 @@
+//! The per-record transform: a validated [`AeRecord`] becomes one feature row.
+//!
+//! For each record: condition (remove the pretrigger mean), one FFT of the whole record
+//! (power ratios, peak and centroid frequency), the CWT over the bins' window (the 200
+//! time/frequency bins and the components the ch. 4.7 criteria need), the standard hit
+//! features, and the criteria label.
+//!
+//! [`FeatureExtractor`] is made once per worker and reused for every record: FFT plans,
+//! wavelet filters and buffers live in it, so nothing is planned or allocated per record
+//! once its caches are warm (beyond the output row). [`features_table`] lists the columns;
+//! adding a feature is one [`ColumnSpec`] there and one value in [`FeatureExtractor::row`].
+
+pub mod criteria;
+
+use crate::config::PipelineConfig;
+use crate::dsp::cwt::{Cwt, WaveletBank};
+use crate::dsp::hit::hit_features;
+use crate::dsp::spectrum::{band_column, power_ratios};
+use crate::dsp::{condition, hit::HitFeatures};
+use crate::model::{db_ae, AeRecord};
+use crate::store::{
+    identity_columns, identity_values, ColType, ColumnSpec, Row, TableSchema, Value,
+};
+use criteria::{acquisition_fault, decide, Component, Components};
+
+/// Why a record cannot become a feature row (stage `validate`).
+pub fn validate(r: &AeRecord, cfg: &PipelineConfig) -> Result<(), String> {
+    if r.samples.is_empty() {
+        return Err("record has 0 samples".into());
+    }
+    if r.samples.len() < cfg.validate.min_samples {
+        return Err(format!(
+            "record has {} samples, fewer than validate.min_samples = {}",
+            r.samples.len(),
+            cfg.validate.min_samples
+        ));
+    }
+    if !(r.sample_rate_hz.is_finite() && r.sample_rate_hz > 0.0) {
+        return Err(format!(
+            "sample rate {} Hz is not a positive number",
+            r.sample_rate_hz
+        ));
+    }
+    let bad = r.samples.iter().filter(|s| !s.is_finite()).count();
+    if bad > 0 {
+        let first = r.samples.iter().position(|s| !s.is_finite()).unwrap_or(0);
+        return Err(format!(
+            "{bad} non-finite samples (NaN or inf), first at index {first} ({})",
+            r.samples[first]
+        ));
+    }
+    if r.pretrigger as usize > r.samples.len() {
+        return Err(format!(
+            "pretrigger {} is longer than the record ({} samples)",
+            r.pretrigger,
+            r.samples.len()
+        ));
+    }
+    Ok(())
+}
+
+/// The layout of the time/frequency bins: `n_bands` bands of `band_hz` from 0 Hz, times
+/// `n_windows` windows of `window_s` from the trigger. Bin index = band · n_windows + window.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct BinGrid {
+    pub n_bands: usize,
+    pub band_hz: f64,
+    pub n_windows: usize,
+    pub window_s: f64,
+}
+
+impl BinGrid {
+    pub fn from_config(cfg: &PipelineConfig) -> BinGrid {
+        let b = &cfg.dsp.bins;
+        BinGrid {
+            n_bands: (cfg.dsp.band_max_hz / b.band_hz).round() as usize,
+            band_hz: b.band_hz,
+            n_windows: b.n_windows,
+            window_s: b.window_s,
+        }
+    }
+
+    pub fn len(&self) -> usize {
+        self.n_bands * self.n_windows
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// The bins' description stored in the Parquet metadata (`aepipe.tf_bins`).
+    pub fn describe(&self) -> String {
+        serde_json::json!({
+            "order": "band-major: index = band * n_windows + window",
+            "n_bands": self.n_bands,
+            "band_hz": self.band_hz,
+            "n_windows": self.n_windows,
+            "window_s": self.window_s,
+            "time_origin": "trigger (first sample after the pretrigger)",
+            "value": "sum of |W|^2 over the bin / sum over all bins",
+        })
+        .to_string()
+    }
+}
+
+fn n_ratio_bands(cfg: &PipelineConfig) -> usize {
+    (cfg.dsp.band_max_hz / cfg.dsp.band_hz).round() as usize
+}
+
+/// The columns of `features.parquet` for a configuration.
+pub fn features_table(cfg: &PipelineConfig) -> TableSchema {
+    let mut c = identity_columns();
+    let f64c =
+        |name: &str, unit: &str, doc: &str| ColumnSpec::new(name, ColType::Float64, unit, doc);
+    c.push(ColumnSpec::new(
+        "source_file",
+        ColType::Utf8,
+        "",
+        "file the samples were read from",
+    ));
+    c.push(f64c("peak_amplitude_v", "V", "largest absolute sample after removing the DC offset (mean of the pretrigger, or of the record without one)"));
+    c.push(f64c(
+        "peak_amplitude_db",
+        "dB_AE",
+        "peak amplitude in dB re 1 µV, 20·log10(peak_amplitude_v / 1 µV)",
+    ));
+    c.push(f64c("threshold_used_v", "V", "detection threshold used for the hit features: the record's own (Vallen Thr) or dsp.hit.threshold_db"));
+    c.push(f64c("first_crossing_s", "s", "first sample with absolute value ≥ threshold, from the trigger (negative: before it); null if never reached").nullable());
+    c.push(f64c("rise_time_s", "s", "first threshold crossing to peak amplitude (vallenae); 0 if the threshold is never reached"));
+    c.push(f64c(
+        "duration_s",
+        "s",
+        "first to last sample with absolute value ≥ threshold (ASTM E1316); 0 if never reached",
+    ));
+    c.push(ColumnSpec::new(
+        "counts",
+        ColType::Int64,
+        "",
+        "positive-going crossings of +threshold (vallenae)",
+    ));
+    c.push(f64c(
+        "energy_eu",
+        "eu",
+        "Σx²/fs over the record, 1 eu = 1e-14 V²s (vallenae)",
+    ));
+    c.push(f64c(
+        "signal_strength_nvs",
+        "nVs",
+        "Σ|x|/fs over the record (vallenae)",
+    ));
+    c.push(f64c("rms_v", "V", "root mean square of the record"));
+    c.push(
+        f64c(
+            "peak_freq_hz",
+            "Hz",
+            "frequency of the largest power-spectrum bin (DC excluded); null for a flat record",
+        )
+        .nullable(),
+    );
+    c.push(
+        f64c(
+            "centroid_freq_hz",
+            "Hz",
+            "power-weighted mean frequency of the spectrum up to fs/2; null for a flat record",
+        )
+        .nullable(),
+    );
+    let nb = n_ratio_bands(cfg);
+    for i in 0..nb {
+        let lo = i as f64 * cfg.dsp.band_hz / 1e3;
+        c.push(
+            f64c(
+                &band_column(i, cfg.dsp.band_hz),
+                "1",
+                &format!("power ratio W_{} (Eq. 4.5.4): power in [{lo}, {}) kHz / power in [0, {}) kHz; the {nb} sum to 1; null for a flat record", i + 1, lo + cfg.dsp.band_hz / 1e3, cfg.dsp.band_max_hz / 1e3),
+            )
+            .nullable(),
+        );
+    }
+    let g = BinGrid::from_config(cfg);
+    c.push(
+        ColumnSpec::new(
+            "tf_bins",
+            ColType::FixedListF32(g.len() as i32),
+            "1",
+            &format!(
+                "time/frequency bins (ch. 5.2): CWT |W|² summed over {} bands of {} kHz × {} windows of {} µs from the trigger, divided by their total (sum 1); index = band·{} + window; null when the window holds no power",
+                g.n_bands,
+                g.band_hz / 1e3,
+                g.n_windows,
+                g.window_s * 1e6,
+                g.n_windows
+            ),
+        )
+        .nullable(),
+    );
+    c.push(ColumnSpec::new(
+        "criteria_label",
+        ColType::Utf8,
+        "",
+        "ch. 4.7 label: bond_failure, fibre_failure, both, erroneous or unclassified",
+    ));
+    c.push(ColumnSpec::new(
+        "criteria_reason",
+        ColType::Utf8,
+        "",
+        "the numbers behind the label, in words",
+    ));
+    c.push(f64c("dominant_freq_hz", "Hz", "CWT frequency with the largest |W|² in the bins' window; null when the window holds no power").nullable());
+    c.push(
+        f64c(
+            "dominant_duration_s",
+            "s",
+            "time around its peak that the dominant component stays ≥ half its peak power",
+        )
+        .nullable(),
+    );
+    c.push(
+        f64c(
+            "dominant_arrival_s",
+            "s",
+            "start of that half-power run, from the trigger",
+        )
+        .nullable(),
+    );
+    c.push(f64c("bond_low_duration_s", "s", "half-power duration of the strongest component near criteria.bond_low_hz (≈250 kHz); null if absent").nullable());
+    c.push(f64c("bond_high_duration_s", "s", "half-power duration of the strongest component near criteria.bond_high_hz (≈750 kHz); null if absent").nullable());
+    TableSchema {
+        name: "features".into(),
+        columns: c,
+    }
+}
+
+/// Extra Parquet metadata of `features.parquet`: the bin layout and the CWT.
+pub fn features_metadata(cfg: &PipelineConfig) -> Vec<(String, String)> {
+    vec![
+        (
+            "aepipe.tf_bins".into(),
+            BinGrid::from_config(cfg).describe(),
+        ),
+        (
+            "aepipe.cwt".into(),
+            serde_json::json!({
+                "wavelet": "complex Gabor (Morlet), analytic, amplitude-preserving",
+                "fwhm_periods": cfg.dsp.cwt.fwhm_periods,
+                "f_min_hz": cfg.dsp.cwt.f_min_hz,
+                "f_max_hz": cfg.dsp.cwt.f_max_hz,
+                "n_freqs": cfg.dsp.cwt.n_freqs,
+            })
+            .to_string(),
+        ),
+    ]
+}
+
+/// The strongest frequency in `lo..=hi` Hz whose peak power is a local maximum along
+/// frequency: a real component, not the flank of a stronger neighbour.
+fn strongest_peak(freqs: &[f64], peaks: &[f32], lo: f64, hi: f64) -> Option<usize> {
+    (0..peaks.len())
+        .filter(|&i| freqs[i] >= lo && freqs[i] <= hi && peaks[i] > 0.0)
+        .filter(|&i| {
+            (i == 0 || peaks[i] >= peaks[i - 1])
+                && (i + 1 == peaks.len() || peaks[i] >= peaks[i + 1])
+        })
+        .max_by(|&a, &b| peaks[a].total_cmp(&peaks[b]))
+}
+
+/// Per-worker state for computing feature rows.
+pub struct FeatureExtractor {
+    cfg: PipelineConfig,
+    grid: BinGrid,
+    cwt: Cwt,
+    cond: Vec<f32>,
+    ratios: Vec<f64>,
+    bins: Vec<f64>,
+    /// Peak |W|² of each CWT frequency over the window.
+    peaks: Vec<f32>,
+    row: Vec<f32>,
+}
+
+/// What the DSP found in one record (everything the row needs).
+pub struct Analysis {
+    pub hit: HitFeatures,
+    pub peak_freq_hz: Option<f64>,
+    pub centroid_freq_hz: Option<f64>,
+    /// Power ratios (empty: flat record).
+    pub ratios: Vec<f64>,
+    /// Normalised time/frequency bins (None: no power in the window).
+    pub bins: Option<Vec<f32>>,
+    pub components: Components,
+    pub label: crate::model::Mechanism,
+    pub reason: String,
+}
+
+impl FeatureExtractor {
+    pub fn new(cfg: &PipelineConfig) -> FeatureExtractor {
+        FeatureExtractor {
+            cfg: cfg.clone(),
+            grid: BinGrid::from_config(cfg),
+            cwt: Cwt::new(WaveletBank::from_config(&cfg.dsp.cwt)),
+            cond: Vec::new(),
+            ratios: vec![0.0; n_ratio_bands(cfg)],
+            bins: Vec::new(),
+            peaks: Vec::new(),
+            row: Vec::new(),
+        }
+    }
+
+    pub fn config(&self) -> &PipelineConfig {
+        &self.cfg
+    }
+
+    /// The full-resolution CWT power of a record (n_freqs × n_samples, row-major) after
+    /// conditioning, with the frequency grid: for pictures.
+    pub fn full_cwt(&mut self, r: &AeRecord) -> (Vec<f64>, Vec<f32>) {
+        condition(&r.samples, r.pretrigger as usize, &mut self.cond);
+        self.cwt.load(&self.cond, r.sample_rate_hz);
+        let mut out = Vec::new();
+        self.cwt.full_power(&self.cond, r.sample_rate_hz, &mut out);
+        (self.cwt.bank().freqs_hz.clone(), out)
+    }
+
+    /// Run the DSP of a validated record.
+    pub fn analyse(&mut self, r: &AeRecord) -> Analysis {
+        let fs = r.sample_rate_hz;
+        let n = r.samples.len();
+        let pre = r.pretrigger as usize;
+        condition(&r.samples, pre, &mut self.cond);
+        let thr = match r.threshold_v {
+            Some(t) if self.cfg.dsp.hit.use_record_threshold && t > 0.0 => t,
+            _ => 1e-6 * 10f64.powf(self.cfg.dsp.hit.threshold_db / 20.0),
+        };
+        let hit = hit_features(&self.cond, fs, thr);
+
+        // Spectrum: one FFT of the whole record, shared with the whole-record CWT.
+        self.cwt.load(&self.cond, fs);
+        let spec = power_ratios(
+            self.cwt.spectrum(),
+            n,
+            fs,
+            self.cfg.dsp.band_hz,
+            &mut self.ratios,
+        );
+
+        // CWT over the bins' window.
+        let g = self.grid;
+        let a = pre.min(n);
+        let edge = |w: usize| (a + (w as f64 * g.window_s * fs).round() as usize).min(n);
+        let b = edge(g.n_windows);
+        self.bins.clear();
+        self.bins.resize(g.len(), 0.0);
+        let freqs = self.cwt.bank().freqs_hz.clone();
+        self.peaks.clear();
+        self.peaks.resize(freqs.len(), 0.0);
+        let band_max = g.band_hz * g.n_bands as f64;
+        let bins = &mut self.bins;
+        let peaks = &mut self.peaks;
+        self.cwt.window_power(&self.cond, fs, a, b, |fi, row| {
+            let f = freqs[fi];
+            if f <= band_max {
+                let band = ((f / g.band_hz) as usize).min(g.n_bands - 1);
+                for w in 0..g.n_windows {
+                    let (lo, hi) = (edge(w) - a, edge(w + 1) - a);
+                    bins[band * g.n_windows + w] +=
+                        row[lo..hi].iter().map(|&v| v as f64).sum::<f64>();
+                }
+            }
+            peaks[fi] = row.iter().fold(0.0f32, |m, &v| m.max(v));
+        });
+        let total: f64 = self.bins.iter().sum();
+        let bins = (total > 0.0 && total.is_finite())
+            .then(|| self.bins.iter().map(|&v| (v / total) as f32).collect());
+        let crit = self.cfg.criteria.clone();
+        let tol = crit.bond_tolerance_hz;
+        let mut component = |lo: f64, hi: f64| {
+            let fi = strongest_peak(&freqs, &self.peaks, lo, hi)?;
+            self.cwt.window_row(&self.cond, fs, a, b, fi, &mut self.row);
+            Component::from_row(freqs[fi], &self.row, fs)
+        };
+        let components = Components {
+            dominant: component(f64::NEG_INFINITY, f64::INFINITY),
+            low: component(crit.bond_low_hz - tol, crit.bond_low_hz + tol),
+            high: component(crit.bond_high_hz - tol, crit.bond_high_hz + tol),
+            fibre: component(crit.fibre_min_hz + 1e-9, f64::INFINITY),
+        };
+        let (label, reason) = match acquisition_fault(&r.samples, &self.cond, fs, pre, &hit, &crit)
+        {
+            Some(why) => (crate::model::Mechanism::Erroneous, why),
+            None => {
+                let d = decide(&components, &crit);
+                (d.label, d.reason)
+            }
+        };
+        Analysis {
+            hit,
+            peak_freq_hz: spec.map(|s| s.peak_freq_hz),
+            centroid_freq_hz: spec.map(|s| s.centroid_freq_hz),
+            ratios: if spec.is_some() {
+                self.ratios.clone()
+            } else {
+                Vec::new()
+            },
+            bins,
+            components,
+            label,
+            reason,
+        }
+    }
+
+    /// The feature row of a validated record, in [`features_table`] order.
+    pub fn row(&mut self, r: &AeRecord) -> Result<Row, String> {
+        let an = self.analyse(r);
+        let fs = r.sample_rate_hz;
+        let h = &an.hit;
+        let mut row = identity_values(r);
+        row.push(Value::Str(Some(r.source_file.clone())));
+        row.push(Value::F64(Some(h.amplitude_v)));
+        row.push(Value::F64(Some(if h.amplitude_v > 0.0 {
+            db_ae(h.amplitude_v)
+        } else {
+            f64::NEG_INFINITY
+        })));
+        row.push(Value::F64(Some(h.threshold_v)));
+        row.push(Value::F64(
+            h.first_crossing
+                .map(|i| (i as f64 - r.pretrigger as f64) / fs),
+        ));
+        row.push(Value::F64(Some(h.rise_time_s)));
+        row.push(Value::F64(Some(h.duration_s)));
+        row.push(Value::I64(Some(h.counts)));
+        row.push(Value::F64(Some(h.energy_eu)));
+        row.push(Value::F64(Some(h.signal_strength_nvs)));
+        row.push(Value::F64(Some(h.rms_v)));
+        row.push(Value::F64(an.peak_freq_hz));
+        row.push(Value::F64(an.centroid_freq_hz));
+        for i in 0..self.ratios.len() {
+            row.push(Value::F64(an.ratios.get(i).copied()));
+        }
+        row.push(Value::F32s(an.bins));
+        row.push(Value::Str(Some(an.label.as_str().to_string())));
+        row.push(Value::Str(Some(an.reason)));
+        let k = &an.components;
+        row.push(Value::F64(k.dominant.map(|d| d.freq_hz)));
+        row.push(Value::F64(k.dominant.map(|d| d.duration_s)));
+        row.push(Value::F64(k.dominant.map(|d| d.arrival_s)));
+        row.push(Value::F64(k.low.map(|d| d.duration_s)));
+        row.push(Value::F64(k.high.map(|d| d.duration_s)));
+        Ok(row)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::model::Mechanism;
+    use crate::synth::{waveform, HitSpec, Rng};
+
+    fn rec(samples: Vec<f32>, pre: u32) -> AeRecord {
+        AeRecord {
+            experiment: "e".into(),
+            channel: 1,
+            hit: 1,
+            time_s: Some(0.0),
+            sample_rate_hz: 10e6,
+            pretrigger: pre,
+            samples,
+            load_n: None,
+            extension_m: None,
+            label: None,
+            threshold_v: None,
+            source_file: "f".into(),
+        }
+    }
+
+    fn get(row: &Row, t: &TableSchema, name: &str) -> Value {
+        row[t.index_of(name).unwrap_or_else(|| panic!("{name}"))].clone()
+    }
+
+    #[test]
+    fn row_matches_the_table_and_sums_to_one() {
+        let cfg = PipelineConfig::default();
+        let t = features_table(&cfg);
+        let spec = HitSpec::new(Mechanism::BondFailure);
+        let r = rec(waveform(&spec, &mut Rng::new(1)), spec.pretrigger as u32);
+        let row = FeatureExtractor::new(&cfg).row(&r).unwrap();
+        assert_eq!(row.len(), t.columns.len());
+        let ratios: f64 = (0..25)
+            .map(|i| match get(&row, &t, &band_column(i, 100e3)) {
+                Value::F64(Some(v)) => v,
+                _ => panic!(),
+            })
+            .sum();
+        assert!((ratios - 1.0).abs() < 1e-6, "{ratios}");
+        let Value::F32s(Some(bins)) = get(&row, &t, "tf_bins") else {
+            panic!()
+        };
+        assert_eq!(bins.len(), 200);
+        assert!((bins.iter().map(|&v| v as f64).sum::<f64>() - 1.0).abs() < 1e-6);
+    }
+
+    #[test]
+    fn peak_is_measured_from_the_pretrigger_baseline() {
+        let cfg = PipelineConfig::default();
+        let mut s = vec![0.5f32; 100];
+        s[60] = 0.5 + 0.01;
+        s[70] = 0.5 - 0.02;
+        let row = FeatureExtractor::new(&cfg).row(&rec(s, 50)).unwrap();
+        let t = features_table(&cfg);
+        let Value::F64(Some(p)) = get(&row, &t, "peak_amplitude_v") else {
+            panic!()
+        };
+        assert!((p - 0.02).abs() < 1e-6, "{p}");
+        let Value::F64(Some(db)) = get(&row, &t, "peak_amplitude_db") else {
+            panic!()
+        };
+        assert!((db - 86.0206).abs() < 1e-3, "{db}");
+    }
+
+    fn label_of(m: Mechanism, seed: u64) -> (Mechanism, String) {
+        let cfg = PipelineConfig::default();
+        let spec = HitSpec::new(m);
+        let r = rec(waveform(&spec, &mut Rng::new(seed)), spec.pretrigger as u32);
+        let a = FeatureExtractor::new(&cfg).analyse(&r);
+        (a.label, a.reason)
+    }
+
+    #[test]
+    fn synthetic_mechanisms_get_their_labels() {
+        for seed in 1..=40 {
+            for m in [
+                Mechanism::BondFailure,
+                Mechanism::FibreFailure,
+                Mechanism::Both,
+                Mechanism::Erroneous,
+            ] {
+                let (got, why) = label_of(m, seed);
+                assert_eq!(got, m, "seed {seed}: {m} labelled {got}: {why}");
+            }
+        }
+    }
+
+    #[test]
+    fn early_trigger_and_clipping_are_erroneous() {
+        let cfg = PipelineConfig::default();
+        let mut spec = HitSpec::new(Mechanism::BondFailure);
+        spec.pretrigger = 50; // the wave starts 450 samples (45 µs) before the trigger
+        let mut w = waveform(&spec, &mut Rng::new(3));
+        let r = rec(w.clone(), 500);
+        let a = FeatureExtractor::new(&cfg).analyse(&r);
+        assert_eq!(a.label, Mechanism::Erroneous);
+        assert!(a.reason.starts_with("triggered early"), "{}", a.reason);
+        // Clip the normal record at 40 % of its peak.
+        spec.pretrigger = 500;
+        w = waveform(&spec, &mut Rng::new(3));
+        let lim = 0.4 * w.iter().fold(0.0f32, |m, v| m.max(v.abs()));
+        let clipped: Vec<f32> = w.iter().map(|v| v.clamp(-lim, lim)).collect();
+        let a = FeatureExtractor::new(&cfg).analyse(&rec(clipped, 500));
+        assert_eq!(a.label, Mechanism::Erroneous);
+        assert!(a.reason.starts_with("clipped"), "{}", a.reason);
+        // Pure noise below the threshold is empty.
+        let mut rng = Rng::new(4);
+        let noise: Vec<f32> = (0..4096).map(|_| (1e-5 * rng.normal()) as f32).collect();
+        let a = FeatureExtractor::new(&cfg).analyse(&rec(noise, 500));
+        assert!(a.reason.starts_with("empty"), "{}", a.reason);
+    }
+}
