@@ -81,6 +81,15 @@ struct Group {
     freqs: Vec<usize>,
 }
 
+/// The spectrum a frequency's transform starts from: FFT length, sample rate, and whether it
+/// is the whole record's spectrum (else the current segment's).
+#[derive(Debug, Clone, Copy)]
+struct Seg {
+    m: usize,
+    fs: f64,
+    whole: bool,
+}
+
 /// Per-worker CWT engine: plans, filters and buffers, reused across records.
 pub struct Cwt {
     bank: WaveletBank,
@@ -199,16 +208,12 @@ impl Cwt {
 
     /// |W|² of frequency `fi` from a spectrum of length `m`, for outputs `lo..hi` of the
     /// segment, into `out` (length `hi − lo`).
-    fn band_power(
-        &mut self,
-        fi: usize,
-        m: usize,
-        fs: f64,
-        from_full: bool,
-        lo: usize,
-        hi: usize,
-        out: &mut [f32],
-    ) {
+    fn band_power(&mut self, fi: usize, seg: Seg, lo: usize, hi: usize, out: &mut [f32]) {
+        let Seg {
+            m,
+            fs,
+            whole: from_full,
+        } = seg;
         let filters = self.filter_set(m, fs);
         let band = &filters[fi];
         if band.taps.is_empty() {
@@ -249,7 +254,17 @@ impl Cwt {
         let nf = self.bank.freqs_hz.len();
         out.resize(nf * n, 0.0);
         for fi in 0..nf {
-            self.band_power(fi, n, fs, true, 0, n, &mut out[fi * n..(fi + 1) * n]);
+            self.band_power(
+                fi,
+                Seg {
+                    m: n,
+                    fs,
+                    whole: true,
+                },
+                0,
+                n,
+                &mut out[fi * n..(fi + 1) * n],
+            );
         }
     }
 
@@ -270,8 +285,10 @@ impl Cwt {
                     let margin = (m - w) / 2;
                     // The segment must hold the window plus the wavelet support on both
                     // sides inside the record; otherwise use the whole record (as the full
-                    // path does, circular ends included).
-                    if m >= n || a < margin || a - margin + m > n {
+                    // path does, circular ends included). A filter cut off at Nyquist is
+                    // not compact in time (it rings past 5σ_t): whole record too.
+                    let cut_at_nyquist = f + SUPPORT_SIGMAS * bank.sigma_f(f) > fs / 2.0;
+                    if cut_at_nyquist || m >= n || a < margin || a - margin + m > n {
                         whole.push(fi);
                     } else {
                         by_m.entry(m).or_default().push(fi);
@@ -328,7 +345,17 @@ impl Cwt {
             }
             let (lo, hi) = (a - g.start, b - g.start);
             for &fi in &g.freqs {
-                self.band_power(fi, g.m, fs, g.whole_record, lo, hi, &mut row);
+                self.band_power(
+                    fi,
+                    Seg {
+                        m: g.m,
+                        fs,
+                        whole: g.whole_record,
+                    },
+                    lo,
+                    hi,
+                    &mut row,
+                );
                 visit(fi, &row);
             }
         }
@@ -354,7 +381,17 @@ impl Cwt {
             if !g.whole_record {
                 self.forward_into(&x[g.start..g.start + g.m], false);
             }
-            self.band_power(fi, g.m, fs, g.whole_record, a - g.start, b - g.start, out);
+            self.band_power(
+                fi,
+                Seg {
+                    m: g.m,
+                    fs,
+                    whole: g.whole_record,
+                },
+                a - g.start,
+                b - g.start,
+                out,
+            );
         }
     }
 }

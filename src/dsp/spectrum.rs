@@ -50,7 +50,7 @@ pub fn power_ratios(
         }
     }
     let total: f64 = ratios.iter().sum();
-    if !(total > 0.0) || !total.is_finite() {
+    if total.is_nan() || total <= 0.0 || !total.is_finite() {
         ratios.fill(0.0);
         return None;
     }

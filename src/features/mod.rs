@@ -562,4 +562,69 @@ mod tests {
         let a = FeatureExtractor::new(&cfg).analyse(&rec(noise, 500));
         assert!(a.reason.starts_with("empty"), "{}", a.reason);
     }
+
+    /// Sum a full-resolution CWT into the bins the way the thesis describes (independently of
+    /// the windowed path).
+    fn bins_from_full(cfg: &PipelineConfig, r: &AeRecord) -> Vec<f64> {
+        let g = BinGrid::from_config(cfg);
+        let (freqs, p) = FeatureExtractor::new(cfg).full_cwt(r);
+        let n = r.samples.len();
+        let fs = r.sample_rate_hz;
+        let t0 = r.pretrigger as f64 / fs;
+        let mut bins = vec![0.0f64; g.len()];
+        for (fi, &f) in freqs.iter().enumerate() {
+            if f > g.band_hz * g.n_bands as f64 {
+                continue;
+            }
+            let band = ((f / g.band_hz) as usize).min(g.n_bands - 1);
+            for i in 0..n {
+                let t = i as f64 / fs - t0;
+                let w = (t / g.window_s + 1e-9).floor();
+                if w >= 0.0 && (w as usize) < g.n_windows {
+                    bins[band * g.n_windows + w as usize] += p[fi * n + i] as f64;
+                }
+            }
+        }
+        let total: f64 = bins.iter().sum();
+        bins.iter().map(|b| b / total).collect()
+    }
+
+    #[test]
+    fn feature_path_equals_full_resolution_summed_into_bins() {
+        for (fs, len) in [(10e6, 4096usize), (5e6, 2048)] {
+            let mut cfg = PipelineConfig::default();
+            cfg.dsp.hit.threshold_db = 30.0;
+            for (k, m) in [
+                Mechanism::BondFailure,
+                Mechanism::FibreFailure,
+                Mechanism::Both,
+                Mechanism::Erroneous,
+            ]
+            .into_iter()
+            .enumerate()
+            {
+                let mut spec = HitSpec::new(m);
+                spec.sample_rate_hz = fs;
+                spec.n_samples = len;
+                let mut r = rec(
+                    waveform(&spec, &mut Rng::new(k as u64 + 10)),
+                    spec.pretrigger as u32,
+                );
+                r.sample_rate_hz = fs;
+                let fast = FeatureExtractor::new(&cfg).analyse(&r).bins.unwrap();
+                let slow = bins_from_full(&cfg, &r);
+                let big = slow.iter().cloned().fold(0.0, f64::max);
+                for (i, (a, b)) in fast.iter().zip(&slow).enumerate() {
+                    let (a, b) = (*a as f64, *b);
+                    // Relative to the bin where the bin matters; absolute (to the largest bin)
+                    // for bins that hold almost nothing.
+                    let err = (a - b).abs() / b.max(1e-3 * big);
+                    assert!(
+                        err < 1e-3,
+                        "{m} at {fs} Hz, bin {i}: windowed {a} vs full {b}"
+                    );
+                }
+            }
+        }
+    }
 }
