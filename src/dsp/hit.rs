@@ -28,8 +28,14 @@ pub struct HitFeatures {
     pub rms_v: f64,
 }
 
+/// Relative slack of the threshold comparisons. ADC samples and thresholds are multiples of
+/// the ADC step, so a sample often lies exactly on the threshold; whether float rounding
+/// puts it an ulp below or above must not decide a crossing (vallenae compares in float32,
+/// aepipe scales in float64). 1e-6 is far below one ADC step (≈3 % of a typical threshold).
+const THRESHOLD_SLACK: f64 = 1e-6;
+
 pub fn hit_features(x: &[f32], fs: f64, threshold_v: f64) -> HitFeatures {
-    let thr = threshold_v as f32;
+    let thr = (threshold_v * (1.0 - THRESHOLD_SLACK)) as f32;
     let mut peak = (0usize, 0.0f32);
     let mut first = None;
     let mut last = None;

@@ -26,12 +26,18 @@ pub fn next_fast_len(n: usize) -> usize {
     }
 }
 
-/// Remove the DC offset (mean of the pretrigger; of the whole record without one) and
-/// convert to f32 volts, into `out` (reused).
+/// Remove the DC offset, measured as the mean of the pretrigger (the only part of a record
+/// known to hold no signal), and convert to f32 volts, into `out` (reused). Without a
+/// pretrigger nothing is subtracted: the mean of a record that holds a burst is not its
+/// baseline (and acquisition systems such as Vallen's AMSY are AC-coupled anyway).
+/// Returns the offset removed.
 pub fn condition(samples: &[f32], pretrigger: usize, out: &mut Vec<f32>) -> f64 {
     let pre = pretrigger.min(samples.len());
-    let base = if pre > 0 { &samples[..pre] } else { samples };
-    let dc = base.iter().map(|&s| s as f64).sum::<f64>() / base.len().max(1) as f64;
+    let dc = if pre > 0 {
+        samples[..pre].iter().map(|&s| s as f64).sum::<f64>() / pre as f64
+    } else {
+        0.0
+    };
     out.clear();
     out.extend(samples.iter().map(|&s| (s as f64 - dc) as f32));
     dc
@@ -56,5 +62,8 @@ mod tests {
         let dc = condition(&[1.0, 3.0, 10.0, 2.0], 2, &mut out);
         assert_eq!(dc, 2.0);
         assert_eq!(out, vec![-1.0, 1.0, 8.0, 0.0]);
+        // No pretrigger, no known baseline: nothing is subtracted.
+        assert_eq!(condition(&[1.0, 3.0], 0, &mut out), 0.0);
+        assert_eq!(out, vec![1.0, 3.0]);
     }
 }

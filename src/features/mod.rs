@@ -118,7 +118,7 @@ pub fn features_table(cfg: &PipelineConfig) -> TableSchema {
         "",
         "file the samples were read from",
     ));
-    c.push(f64c("peak_amplitude_v", "V", "largest absolute sample after removing the DC offset (mean of the pretrigger, or of the record without one)"));
+    c.push(f64c("peak_amplitude_v", "V", "largest absolute sample after removing the DC offset (the mean of the pretrigger; nothing is removed from a record without one)"));
     c.push(f64c(
         "peak_amplitude_db",
         "dB_AE",

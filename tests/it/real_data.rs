@@ -231,3 +231,68 @@ fn folders_of_companion_files_are_passed_over_not_rejected() {
         d.rejects[0].reason
     );
 }
+
+#[test]
+fn hit_features_agree_with_vallenae() {
+    let Some(real) = real_data("hit_features_agree_with_vallenae") else {
+        return;
+    };
+    use aepipe::pipeline::{run, Job, RunOptions};
+    let golden = std::fs::read_to_string(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/tests/golden/vallenae_hit_features.csv"
+    ))
+    .unwrap();
+    let mut lines = golden.lines();
+    let head: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let col = |n: &str| head.iter().position(|h| *h == n).unwrap();
+    let t = crate::TempDir::new("vallenae");
+    let r = run(
+        Job::Features,
+        &[real.join("vallen")],
+        t.path(),
+        &PipelineConfig::default(),
+        &RunOptions {
+            threads: 2,
+            progress: false,
+        },
+    )
+    .unwrap();
+    let (names, rows) = crate::table_rows(&r.table_path);
+    let ix = |n: &str| names.iter().position(|h| h == n).unwrap();
+    let num = |s: &str| s.parse::<f64>().unwrap();
+    let mut checked = 0;
+    let (mut worst_db, mut worst_rise, mut worst_dur, mut worst_en) = (0f64, 0f64, 0f64, 0f64);
+    for l in lines {
+        let g: Vec<&str> = l.split(',').collect();
+        let ours = rows
+            .iter()
+            .find(|r| {
+                r[ix("source_file")].ends_with(&format!("/{}", g[col("file")]))
+                    && r[ix("hit")] == g[col("trai")]
+            })
+            .unwrap_or_else(|| panic!("no row for {} TRAI {}", g[col("file")], g[col("trai")]));
+        let d_db = (num(&ours[ix("peak_amplitude_db")]) - num(g[col("amplitude_db")])).abs();
+        let d_rise = (num(&ours[ix("rise_time_s")]) - num(g[col("rise_time_s")])).abs();
+        let d_dur = (num(&ours[ix("duration_s")]) - num(g[col("duration_s")])).abs();
+        let d_en = (num(&ours[ix("energy_eu")]) / num(g[col("energy_eu")]) - 1.0).abs();
+        assert!(
+            (num(&ours[ix("threshold_used_v")]) / num(g[col("threshold_v")]) - 1.0).abs() < 1e-9
+        );
+        worst_db = worst_db.max(d_db);
+        worst_rise = worst_rise.max(d_rise);
+        worst_dur = worst_dur.max(d_dur);
+        worst_en = worst_en.max(d_en);
+        checked += 1;
+    }
+    eprintln!("vallenae agreement over {checked} records: amplitude {worst_db:.4} dB, rise {:.3} µs, duration {:.3} µs, energy {:.4} %", worst_rise * 1e6, worst_dur * 1e6, worst_en * 100.0);
+    assert_eq!(checked, 498);
+    assert!(worst_db <= 0.1, "amplitude off by {worst_db} dB");
+    // ±0.2 µs is one sample at 5 MHz: allow float noise on top.
+    assert!(
+        worst_rise <= 0.2e-6 + 1e-12,
+        "rise time off by {worst_rise} s"
+    );
+    assert!(worst_dur <= 0.2e-6 + 1e-12, "duration off by {worst_dur} s");
+    assert!(worst_en <= 0.005, "energy off by {worst_en}");
+}
