@@ -99,3 +99,207 @@ pub fn stream_point(
         stats,
     })
 }
+
+/// Read a little-endian f32 or f64 binary file (the peers' `export_inputs.py` output).
+fn read_f32(path: &Path) -> Result<Vec<f32>, String> {
+    let b = std::fs::read(path).map_err(|e| {
+        format!(
+            "{}: {e} (run the peers' export_inputs.py first)",
+            path.display()
+        )
+    })?;
+    Ok(b.chunks_exact(4)
+        .map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]]))
+        .collect())
+}
+
+fn read_f64(path: &Path) -> Result<Vec<f64>, String> {
+    let b = std::fs::read(path).map_err(|e| {
+        format!(
+            "{}: {e} (run the peers' export_inputs.py first)",
+            path.display()
+        )
+    })?;
+    Ok(b.chunks_exact(8)
+        .map(|c| f64::from_le_bytes(c.try_into().expect("8 bytes")))
+        .collect())
+}
+
+/// Median of `repeats` timed runs after one warm-up, seconds.
+fn median_time(repeats: usize, mut f: impl FnMut()) -> f64 {
+    f();
+    let mut t: Vec<f64> = (0..repeats.max(1))
+        .map(|_| {
+            let t0 = std::time::Instant::now();
+            f();
+            t0.elapsed().as_secs_f64()
+        })
+        .collect();
+    t.sort_by(f64::total_cmp);
+    t[t.len() / 2]
+}
+
+/// Morlet ω0 as a Gabor FWHM in periods: σ_f = f/ω0 ⇔ FWHM = 2√(2 ln 2)·ω0/(2π) periods.
+pub fn morlet_w0_to_fwhm_periods(w0: f64) -> f64 {
+    2.354_820_045_030_949_4 * w0 / (2.0 * std::f64::consts::PI)
+}
+
+/// One line of the CWT benchmark table.
+#[derive(Debug, Clone)]
+pub struct CwtBenchRow {
+    pub what: String,
+    pub threads: usize,
+    pub seconds: f64,
+    pub per_signal_ms: f64,
+}
+
+/// W1 and the feature path on the peers' exact inputs (`dir` = output of their
+/// `export_inputs.py`): 651 × 4096 samples at 10 MHz, 250 frequencies 10–2500 kHz, Morlet
+/// ω0 = 6. The full-resolution CWT fills a preallocated float32 array (n, 250, 4096) of |W|²,
+/// as the peers do.
+pub fn cwt_bench(
+    dir: &Path,
+    threads_list: &[usize],
+    repeats: usize,
+    skip_full: bool,
+) -> Result<Vec<CwtBenchRow>, String> {
+    use crate::dsp::cwt::{Cwt, WaveletBank};
+    use rayon::prelude::*;
+    let x = read_f32(&dir.join("w1_signals_f32.bin"))?;
+    let freqs = read_f64(&dir.join("w1_freqs_hz_f64.bin"))?;
+    let n = 4096;
+    let nsig = x.len() / n;
+    let fs = 10e6;
+    let bank = WaveletBank {
+        freqs_hz: freqs.clone(),
+        fwhm_periods: morlet_w0_to_fwhm_periods(6.0),
+    };
+    let nf = freqs.len();
+    let mut out = vec![0.0f32; if skip_full { 0 } else { nsig * nf * n }];
+    let mut rows = Vec::new();
+    for &threads in threads_list.iter().filter(|_| !skip_full) {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .map_err(|e| e.to_string())?;
+        let states = crate::pipeline::StatePool::default();
+        let t = median_time(repeats, || {
+            pool.install(|| {
+                out.par_chunks_mut(nf * n)
+                    .zip(x.par_chunks(n))
+                    .for_each_init(
+                        || states.checkout(|| Cwt::new(bank.clone())),
+                        |cwt, (o, sig)| {
+                            cwt.load(sig, fs);
+                            cwt.full_power(sig, fs, o);
+                        },
+                    )
+            })
+        });
+        rows.push(CwtBenchRow {
+            what: "W1 full-resolution CWT |W|² → (651, 250, 4096) f32".into(),
+            threads,
+            seconds: t,
+            per_signal_ms: t * 1e3 / nsig as f64,
+        });
+    }
+    drop(out);
+    // The whole feature path (thesis defaults) on the same signals.
+    let cfg = PipelineConfig::default();
+    let recs: Vec<crate::model::AeRecord> = x
+        .chunks(n)
+        .enumerate()
+        .map(|(i, s)| crate::model::AeRecord {
+            experiment: "w1".into(),
+            channel: 1,
+            hit: i as u64 + 1,
+            time_s: None,
+            sample_rate_hz: fs,
+            pretrigger: 500,
+            samples: s.to_vec(),
+            load_n: None,
+            extension_m: None,
+            label: None,
+            threshold_v: None,
+            source_file: String::new(),
+        })
+        .collect();
+    for &threads in threads_list {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .map_err(|e| e.to_string())?;
+        let states = crate::pipeline::StatePool::default();
+        let t = median_time(repeats, || {
+            pool.install(|| {
+                recs.par_iter().for_each_init(
+                    || states.checkout(|| crate::features::FeatureExtractor::new(&cfg)),
+                    |ex, r| {
+                        std::hint::black_box(ex.row(r).expect("row"));
+                    },
+                )
+            })
+        });
+        rows.push(CwtBenchRow {
+            what: "feature path (spectrum, 25 ratios, 200 bins, hit features, label, row)".into(),
+            threads,
+            seconds: t,
+            per_signal_ms: t * 1e3 / nsig as f64,
+        });
+    }
+    // W2: spectrum + 25 band ratios only.
+    let mut cwt = crate::dsp::cwt::Cwt::new(WaveletBank {
+        freqs_hz: vec![],
+        fwhm_periods: 2.0,
+    });
+    let mut ratios = vec![0.0; 25];
+    let t = median_time(repeats * 4, || {
+        for s in x.chunks(n) {
+            cwt.load(s, fs);
+            std::hint::black_box(crate::dsp::spectrum::power_ratios(
+                cwt.spectrum(),
+                n,
+                fs,
+                100e3,
+                &mut ratios,
+            ));
+        }
+    });
+    rows.push(CwtBenchRow {
+        what: "W2 spectrum + 25 band ratios".into(),
+        threads: 1,
+        seconds: t,
+        per_signal_ms: t * 1e3 / nsig as f64,
+    });
+    Ok(rows)
+}
+
+/// Run one peer script in the same run: `python script args… --out tmp.json`; returns the
+/// median seconds from its JSON.
+pub fn run_peer(python: &Path, peers: &Path, script: &str, args: &[&str]) -> Result<f64, String> {
+    let out = std::env::temp_dir().join(format!(
+        "aepipe-peer-{}-{}.json",
+        script.trim_end_matches(".py"),
+        args.join("_")
+    ));
+    let st = std::process::Command::new(python)
+        .arg(peers.join(script))
+        .args(args)
+        .arg("--out")
+        .arg(&out)
+        .stdout(std::process::Stdio::null())
+        .status()
+        .map_err(|e| format!("{}: {e}", python.display()))?;
+    if !st.success() {
+        return Err(format!("peer {script} {args:?} failed ({st})"));
+    }
+    let v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&out).map_err(|e| e.to_string())?)
+            .map_err(|e| e.to_string())?;
+    let med = v["timing"]["median_s"]
+        .as_f64()
+        .ok_or("no timing.median_s in the peer's JSON")?;
+    // W2 reports the time of `inner` passes; per pass is what we compare.
+    let inner = v["params"]["inner"].as_f64().unwrap_or(1.0);
+    Ok(med / inner)
+}

@@ -83,6 +83,26 @@ enum Cmd {
 
 #[derive(Subcommand)]
 enum BenchCmd {
+    /// W1 CWT + feature path + W2 spectrum on the peers' exact inputs; with --peers, runs
+    /// fCWT, the numpy baseline and numpy rfft in the same run and prints the ratios
+    Cwt {
+        /// Folder written by the peers' export_inputs.py (w1_signals_f32.bin, w1_freqs_hz_f64.bin)
+        #[arg(long)]
+        inputs: PathBuf,
+        /// The peers' folder (../shared/bench/peers or a writable copy) to run them too
+        #[arg(long)]
+        peers: Option<PathBuf>,
+        /// Python with the peers' packages (their setup_env.sh venv)
+        #[arg(long, default_value = "python3")]
+        python: PathBuf,
+        #[arg(long, default_value = "1,2", value_delimiter = ',')]
+        threads: Vec<usize>,
+        #[arg(long, default_value_t = 5)]
+        repeats: usize,
+        /// Leave out the full-resolution CWT (2.5 GB output): feature path and spectrum only
+        #[arg(long)]
+        skip_full: bool,
+    },
     /// Stream synthetic hits through the feature pipeline: hits/s and peak RSS at growing hit counts
     Stream {
         /// Largest number of hits; the benchmark also runs 1/10 and 1/100 of it first
@@ -259,6 +279,95 @@ fn main() -> ExitCode {
                 ExitCode::from(3)
             }
         },
+        Cmd::Bench {
+            which:
+                BenchCmd::Cwt {
+                    inputs,
+                    peers,
+                    python,
+                    threads,
+                    repeats,
+                    skip_full,
+                },
+        } => {
+            let ours = match aepipe::bench::cwt_bench(&inputs, &threads, repeats, skip_full) {
+                Ok(r) => r,
+                Err(e) => {
+                    eprintln!("aepipe: {e}");
+                    return ExitCode::from(1);
+                }
+            };
+            println!(
+                "{:<72} {:>7} {:>9} {:>11}",
+                "aepipe (651 signals × 4096 samples)", "threads", "median s", "ms/signal"
+            );
+            for r in &ours {
+                println!(
+                    "{:<72} {:>7} {:>9.3} {:>11.3}",
+                    r.what, r.threads, r.seconds, r.per_signal_ms
+                );
+            }
+            if let Some(peers) = peers {
+                let find = |prefix: &str, t: usize| {
+                    ours.iter()
+                        .find(|r| r.what.starts_with(prefix) && r.threads == t)
+                        .map(|r| r.seconds)
+                };
+                println!(
+                    "\n{:<40} {:>9} {:>34}",
+                    "peer (same inputs, same run)", "median s", "peer / aepipe (same threads)"
+                );
+                let jobs: [(&str, &str, &[&str], &str, usize); 5] = [
+                    (
+                        "fCWT 0.1.18 f32, 1 thread",
+                        "w1_cwt.py",
+                        &["--peer", "fcwt", "--threads", "1"],
+                        "W1",
+                        1,
+                    ),
+                    (
+                        "fCWT 0.1.18 f32 + wisdom, 2 threads",
+                        "w1_cwt.py",
+                        &["--peer", "fcwt_opt", "--threads", "2"],
+                        "W1",
+                        2,
+                    ),
+                    (
+                        "numpy.fft baseline c128, 1 thread",
+                        "w1_cwt.py",
+                        &["--peer", "numpy", "--threads", "1"],
+                        "W1",
+                        1,
+                    ),
+                    (
+                        "scipy.fft c64, 1 thread",
+                        "w1_cwt.py",
+                        &["--peer", "scipy_f32", "--threads", "1"],
+                        "W1",
+                        1,
+                    ),
+                    (
+                        "W2 numpy rfft batched",
+                        "w2_spectrum.py",
+                        &["--peer", "numpy_rfft"],
+                        "W2",
+                        1,
+                    ),
+                ];
+                for (name, script, args, w, t) in jobs {
+                    match aepipe::bench::run_peer(&python, &peers, script, args) {
+                        Ok(secs) => {
+                            let ratio = find(w, t)
+                                .map(|o| format!("{:.2}x", secs / o))
+                                .unwrap_or_else(|| "–".into());
+                            println!("{name:<40} {secs:>9.3} {ratio:>34}");
+                        }
+                        Err(e) => println!("{name:<40} failed: {e}"),
+                    }
+                }
+            }
+            ExitCode::SUCCESS
+        }
         Cmd::Bench {
             which:
                 BenchCmd::Stream {

@@ -123,17 +123,40 @@ enum Out {
 
 /// Per-worker states, checked out for a parallel job and returned afterwards, so that plans
 /// and scratch buffers are made once per worker, not once per record.
-struct StatePool<T> {
+pub struct StatePool<T> {
     free: Mutex<Vec<T>>,
 }
 
-struct Checkout<'a, T> {
+/// A state checked out of a [`StatePool`]; returned to it when dropped.
+pub struct Checkout<'a, T> {
     pool: &'a StatePool<T>,
     item: Option<T>,
 }
 
+impl<T> Default for StatePool<T> {
+    fn default() -> Self {
+        StatePool {
+            free: Mutex::new(Vec::new()),
+        }
+    }
+}
+
+impl<T> std::ops::Deref for Checkout<'_, T> {
+    type Target = T;
+    fn deref(&self) -> &T {
+        self.item.as_ref().expect("checked out")
+    }
+}
+
+impl<T> std::ops::DerefMut for Checkout<'_, T> {
+    fn deref_mut(&mut self) -> &mut T {
+        self.item.as_mut().expect("checked out")
+    }
+}
+
 impl<T> StatePool<T> {
-    fn checkout(&self, make: impl Fn() -> T) -> Checkout<'_, T> {
+    /// A free state, or a new one from `make` when all are in use.
+    pub fn checkout(&self, make: impl Fn() -> T) -> Checkout<'_, T> {
         let item = self
             .free
             .lock()
@@ -267,9 +290,7 @@ where
     )?;
     let (tx_in, rx_in) = crossbeam_channel::bounded::<Vec<Item>>(q);
     let (tx_out, rx_out) = crossbeam_channel::bounded::<Vec<Out>>(q);
-    let states: StatePool<FeatureExtractor> = StatePool {
-        free: Mutex::new(Vec::new()),
-    };
+    let states: StatePool<FeatureExtractor> = StatePool::default();
     let pb = progress_bar(opts.progress);
     let read_count = std::sync::atomic::AtomicU64::new(0);
 
@@ -339,7 +360,7 @@ where
                     .into_par_iter()
                     .map_init(
                         || states.checkout(|| FeatureExtractor::new(cfg)),
-                        |ex, item| process(job, ex.item.as_mut().expect("checked out"), item),
+                        |ex, item| process(job, ex, item),
                     )
                     .collect()
             });

@@ -247,12 +247,16 @@ impl Cwt {
     }
 
     /// Full resolution: |W(t, f)|² for every frequency (rows) × every sample (columns),
-    /// row-major into `out` (resized to `n_freqs · x.len()`).
-    pub fn full_power(&mut self, x: &[f32], fs: f64, out: &mut Vec<f32>) {
+    /// row-major into `out`, which must hold `n_freqs · x.len()` values.
+    pub fn full_power(&mut self, x: &[f32], fs: f64, out: &mut [f32]) {
         self.check_loaded(x, fs);
         let n = x.len();
         let nf = self.bank.freqs_hz.len();
-        out.resize(nf * n, 0.0);
+        assert_eq!(
+            out.len(),
+            nf * n,
+            "full_power needs n_freqs × n_samples outputs"
+        );
         for fi in 0..nf {
             self.band_power(
                 fi,
@@ -431,7 +435,7 @@ mod tests {
         let n = 4096;
         let b = bank();
         let mut cwt = Cwt::new(b.clone());
-        let mut out = Vec::new();
+        let mut out = vec![0.0; b.freqs_hz.len() * n];
         for f_khz in [100.0, 250.0, 500.0, 750.0, 1000.0, 1200.0, 1750.0, 2000.0] {
             let f = f_khz * 1e3;
             let a = 0.37;
@@ -468,7 +472,7 @@ mod tests {
         }
         let mut cwt = Cwt::new(bank());
         cwt.load(&x, fs);
-        let mut full = Vec::new();
+        let mut full = vec![0.0; 250 * n];
         cwt.full_power(&x, fs, &mut full);
         let (a, b) = (500, 900);
         let mut worst = 0.0f64;
@@ -499,7 +503,7 @@ mod tests {
         let b = bank();
         let mut cwt = Cwt::new(b.clone());
         cwt.load(&x, fs);
-        let mut out = Vec::new();
+        let mut out = vec![0.0; b.freqs_hz.len() * n];
         cwt.full_power(&x, fs, &mut out);
         let fi = b
             .freqs_hz
@@ -531,7 +535,7 @@ mod tests {
         let b = bank();
         let mut cwt = Cwt::new(b.clone());
         cwt.load(&x, fs);
-        let mut out = Vec::new();
+        let mut out = vec![0.0; b.freqs_hz.len() * n];
         cwt.full_power(&x, fs, &mut out);
         let t = n / 2;
         let col: Vec<f32> = (0..b.freqs_hz.len())

@@ -272,6 +272,8 @@ pub struct FeatureExtractor {
     cond: Vec<f32>,
     ratios: Vec<f64>,
     bins: Vec<f64>,
+    /// The CWT frequency grid (a copy of the bank's, to borrow beside the engine).
+    freqs: Vec<f64>,
     /// Peak |W|² of each CWT frequency over the window.
     peaks: Vec<f32>,
     row: Vec<f32>,
@@ -293,10 +295,12 @@ pub struct Analysis {
 
 impl FeatureExtractor {
     pub fn new(cfg: &PipelineConfig) -> FeatureExtractor {
+        let bank = WaveletBank::from_config(&cfg.dsp.cwt);
         FeatureExtractor {
+            freqs: bank.freqs_hz.clone(),
             cfg: cfg.clone(),
             grid: BinGrid::from_config(cfg),
-            cwt: Cwt::new(WaveletBank::from_config(&cfg.dsp.cwt)),
+            cwt: Cwt::new(bank),
             cond: Vec::new(),
             ratios: vec![0.0; n_ratio_bands(cfg)],
             bins: Vec::new(),
@@ -314,7 +318,7 @@ impl FeatureExtractor {
     pub fn full_cwt(&mut self, r: &AeRecord) -> (Vec<f64>, Vec<f32>) {
         condition(&r.samples, r.pretrigger as usize, &mut self.cond);
         self.cwt.load(&self.cond, r.sample_rate_hz);
-        let mut out = Vec::new();
+        let mut out = vec![0.0; self.cwt.bank().freqs_hz.len() * self.cond.len()];
         self.cwt.full_power(&self.cond, r.sample_rate_hz, &mut out);
         (self.cwt.bank().freqs_hz.clone(), out)
     }
@@ -348,23 +352,35 @@ impl FeatureExtractor {
         let b = edge(g.n_windows);
         self.bins.clear();
         self.bins.resize(g.len(), 0.0);
-        let freqs = self.cwt.bank().freqs_hz.clone();
+        let freqs = &self.freqs;
         self.peaks.clear();
         self.peaks.resize(freqs.len(), 0.0);
         let band_max = g.band_hz * g.n_bands as f64;
         let bins = &mut self.bins;
         let peaks = &mut self.peaks;
+        // Window edges relative to the trigger, computed once per record.
+        let mut edges = [0usize; 65];
+        let n_edges = (g.n_windows + 1).min(edges.len());
+        for (w, e) in edges.iter_mut().enumerate().take(n_edges) {
+            *e = edge(w) - a;
+        }
         self.cwt.window_power(&self.cond, fs, a, b, |fi, row| {
             let f = freqs[fi];
+            let mut peak = 0.0f32;
             if f <= band_max {
                 let band = ((f / g.band_hz) as usize).min(g.n_bands - 1);
-                for w in 0..g.n_windows {
-                    let (lo, hi) = (edge(w) - a, edge(w + 1) - a);
-                    bins[band * g.n_windows + w] +=
-                        row[lo..hi].iter().map(|&v| v as f64).sum::<f64>();
+                for w in 0..n_edges - 1 {
+                    let mut sum = 0.0f32;
+                    for &v in &row[edges[w]..edges[w + 1]] {
+                        sum += v;
+                        peak = peak.max(v);
+                    }
+                    bins[band * g.n_windows + w] += sum as f64;
                 }
+            } else {
+                peak = row.iter().fold(0.0f32, |m, &v| m.max(v));
             }
-            peaks[fi] = row.iter().fold(0.0f32, |m, &v| m.max(v));
+            peaks[fi] = peak;
         });
         let total: f64 = self.bins.iter().sum();
         let bins = (total > 0.0 && total.is_finite())
@@ -372,7 +388,7 @@ impl FeatureExtractor {
         let crit = self.cfg.criteria.clone();
         let tol = crit.bond_tolerance_hz;
         let mut component = |lo: f64, hi: f64| {
-            let fi = strongest_peak(&freqs, &self.peaks, lo, hi)?;
+            let fi = strongest_peak(freqs, &self.peaks, lo, hi)?;
             self.cwt.window_row(&self.cond, fs, a, b, fi, &mut self.row);
             Component::from_row(freqs[fi], &self.row, fs)
         };
