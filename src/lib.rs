@@ -15,5 +15,6 @@ pub mod ingest;
 pub mod inspect;
 pub mod model;
 pub mod pipeline;
+pub mod plot;
 pub mod store;
 pub mod synth;

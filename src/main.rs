@@ -55,6 +55,25 @@ enum Cmd {
         #[arg(long)]
         config: Option<PathBuf>,
     },
+    /// Draw one hit's waveform and full-resolution CWT into a PNG
+    Cwt {
+        /// Files or folders holding the hit
+        #[arg(required = true)]
+        inputs: Vec<PathBuf>,
+        /// Hit number (Vallen TRAI, AEwin hit #, event #)
+        #[arg(long)]
+        hit: u64,
+        /// Channel (default: the first channel that has this hit)
+        #[arg(long)]
+        channel: Option<u32>,
+        /// Experiment id (default: the first experiment that has this hit)
+        #[arg(long)]
+        experiment: Option<String>,
+        #[arg(long)]
+        png: PathBuf,
+        #[arg(long)]
+        config: Option<PathBuf>,
+    },
     /// Print the column table of an output table (features, waveforms, rejects)
     Schema {
         #[arg(default_value = "features")]
@@ -241,6 +260,31 @@ fn main() -> ExitCode {
                 return ExitCode::from(1);
             }
             ExitCode::SUCCESS
+        }
+        Cmd::Cwt {
+            inputs,
+            hit,
+            channel,
+            experiment,
+            png,
+            config,
+        } => {
+            let cfg = match load_config(config.as_deref()) {
+                Ok(c) => c,
+                Err(code) => return code,
+            };
+            match aepipe::plot::cwt_of_hit(&inputs, &cfg, experiment.as_deref(), channel, hit, &png)
+            {
+                Ok(summary) => {
+                    println!("{summary}");
+                    println!("wrote {}", png.display());
+                    ExitCode::SUCCESS
+                }
+                Err(e) => {
+                    eprintln!("aepipe: {e}");
+                    ExitCode::from(1)
+                }
+            }
         }
         Cmd::Schema { table, config } => {
             let cfg = match load_config(config.as_deref()) {

@@ -115,3 +115,35 @@ fn schema_command_prints_the_documented_table() {
         "data-schema/features.md does not contain `aepipe schema features` output"
     );
 }
+
+#[test]
+fn cwt_command_draws_a_png_and_names_the_label() {
+    let t = TempDir::new("cwtpng");
+    let data = small_experiment(&t);
+    let png = t.path().join("hit.png");
+    let (c, so, se) = aepipe(&["cwt", &data, "--hit", "3", "--png", png.to_str().unwrap()]);
+    if c == 1 && se.contains("no TrueType font") {
+        eprintln!("SKIP cwt_command_draws_a_png_and_names_the_label: {se}");
+        return;
+    }
+    assert_eq!(c, 0, "{se}");
+    assert!(
+        so.contains("exp ch1 hit 3:") && so.contains("dominant"),
+        "{so}"
+    );
+    let bytes = std::fs::read(&png).unwrap();
+    assert_eq!(&bytes[1..4], b"PNG");
+    // IHDR: width and height, big-endian, at bytes 16..24.
+    let w = u32::from_be_bytes(bytes[16..20].try_into().unwrap());
+    let h = u32::from_be_bytes(bytes[20..24].try_into().unwrap());
+    assert_eq!((w, h), (1100, 760));
+    assert!(
+        bytes.len() > 20_000,
+        "suspiciously small picture: {} bytes",
+        bytes.len()
+    );
+    // A hit that is not there is one clear error.
+    let (c, _, se) = aepipe(&["cwt", &data, "--hit", "999", "--png", png.to_str().unwrap()]);
+    assert_eq!(c, 1);
+    assert!(se.contains("no hit 999"), "{se}");
+}

@@ -1,0 +1,230 @@
+//! Pictures (PNG, plotters' bitmap backend): the waveform + CWT of a hit the way AE engineers
+//! read them (time in µs, frequency in kHz, colour scale of |W|).
+//!
+//! Text is drawn with plotters' pure-Rust `ab_glyph` renderer and a TrueType font found on the
+//! machine (DejaVu Sans or Liberation Sans; `AEPIPE_FONT` names another), so no system font
+//! library is linked. The font is loaded once per process.
+
+use crate::model::AeRecord;
+use plotters::prelude::*;
+use plotters::style::colors::colormaps::ViridisRGB;
+use std::path::Path;
+use std::sync::OnceLock;
+
+const FONT_PATHS: &[&str] = &[
+    "/usr/share/fonts/truetype/dejavu/DejaVuSans.ttf",
+    "/usr/share/fonts/TTF/DejaVuSans.ttf",
+    "/usr/share/fonts/dejavu/DejaVuSans.ttf",
+    "/usr/share/fonts/truetype/liberation/LiberationSans-Regular.ttf",
+    "/usr/share/fonts/liberation-sans/LiberationSans-Regular.ttf",
+];
+
+/// Register a sans-serif font with plotters once; the error says how to get one.
+pub fn ensure_font() -> Result<(), String> {
+    static DONE: OnceLock<Result<(), String>> = OnceLock::new();
+    DONE.get_or_init(|| {
+        let env = std::env::var("AEPIPE_FONT").ok();
+        let candidates = env.iter().map(String::as_str).chain(FONT_PATHS.iter().copied());
+        for p in candidates {
+            if let Ok(bytes) = std::fs::read(p) {
+                let bytes: &'static [u8] = Box::leak(bytes.into_boxed_slice());
+                if plotters::style::register_font("sans-serif", FontStyle::Normal, bytes).is_ok() {
+                    return Ok(());
+                }
+            }
+        }
+        Err("no TrueType font found for the picture's labels: install fonts-dejavu-core (Debian) or set AEPIPE_FONT=/path/to/font.ttf".into())
+    })
+    .clone()
+}
+
+fn err<E: std::fmt::Display>(path: &Path) -> impl Fn(E) -> String + '_ {
+    move |e| format!("{}: {e}", path.display())
+}
+
+/// Draw a record's waveform (top) and CWT magnitude (bottom) into a PNG.
+/// `power` is |W|², `freqs.len()` rows × `rec.samples.len()` columns.
+pub fn cwt_png(
+    path: &Path,
+    rec: &AeRecord,
+    freqs: &[f64],
+    power: &[f32],
+    title: &str,
+) -> Result<(), String> {
+    ensure_font()?;
+    let n = rec.samples.len();
+    let nf = freqs.len();
+    assert_eq!(power.len(), n * nf);
+    let fs = rec.sample_rate_hz;
+    let t0 = -(rec.pretrigger as f64) / fs * 1e6; // µs, trigger at 0
+    let t1 = t0 + n as f64 / fs * 1e6;
+    let (w, h) = (1100u32, 760u32);
+    let root = BitMapBackend::new(path, (w, h)).into_drawing_area();
+    let e = err(path);
+    root.fill(&WHITE).map_err(&e)?;
+    let root = root.titled(title, ("sans-serif", 20)).map_err(&e)?;
+    let (top, bottom) = root.split_vertically(230);
+
+    // Waveform, mV.
+    let vmax = rec
+        .samples
+        .iter()
+        .fold(0f32, |m, v| m.max(v.abs()))
+        .max(1e-12) as f64
+        * 1e3
+        * 1.05;
+    let mut c = ChartBuilder::on(&top)
+        .margin(10)
+        .x_label_area_size(30)
+        .y_label_area_size(70)
+        .build_cartesian_2d(t0..t1, -vmax..vmax)
+        .map_err(&e)?;
+    c.configure_mesh()
+        .x_desc("time (µs)")
+        .y_desc("mV")
+        .light_line_style(WHITE)
+        .draw()
+        .map_err(&e)?;
+    c.draw_series(LineSeries::new(
+        rec.samples
+            .iter()
+            .enumerate()
+            .map(|(i, &v)| (t0 + i as f64 / fs * 1e6, v as f64 * 1e3)),
+        BLUE.stroke_width(1),
+    ))
+    .map_err(&e)?;
+
+    // CWT |W| as an image: each pixel of the plotting area takes its nearest cell.
+    let (cwt_area, bar_area) = bottom.split_horizontally(w - 110);
+    let (f0, f1) = (freqs[0] / 1e3, freqs[nf - 1] / 1e3);
+    let mut c = ChartBuilder::on(&cwt_area)
+        .margin(10)
+        .x_label_area_size(35)
+        .y_label_area_size(70)
+        .build_cartesian_2d(t0..t1, f0..f1)
+        .map_err(&e)?;
+    c.configure_mesh()
+        .x_desc("time (µs)")
+        .y_desc("frequency (kHz)")
+        .disable_mesh()
+        .draw()
+        .map_err(&e)?;
+    let amax = power.iter().fold(0f32, |m, &v| m.max(v)).sqrt().max(1e-30);
+    let area = c.plotting_area();
+    let (xr, yr) = area.get_pixel_range();
+    let (pw, ph) = ((xr.end - xr.start).max(1), (yr.end - yr.start).max(1));
+    for py in 0..ph {
+        // top pixel row = highest frequency
+        let fi =
+            (((ph - 1 - py) as f64 / (ph - 1).max(1) as f64) * (nf - 1) as f64).round() as usize;
+        for px in 0..pw {
+            let ti = ((px as f64 / (pw - 1).max(1) as f64) * (n - 1) as f64).round() as usize;
+            let a = power[fi * n + ti].sqrt() / amax;
+            let col = ViridisRGB::get_color(a as f64);
+            cwt_area
+                .draw_pixel(
+                    (
+                        xr.start + px - cwt_area.get_base_pixel().0,
+                        yr.start + py - cwt_area.get_base_pixel().1,
+                    ),
+                    &col,
+                )
+                .map_err(&e)?;
+        }
+    }
+    // Colour bar: |W| relative to its maximum.
+    let mut cb = ChartBuilder::on(&bar_area)
+        .margin_top(10)
+        .margin_bottom(45)
+        .margin_right(30)
+        .y_label_area_size(45)
+        .build_cartesian_2d(0.0..1.0, 0.0..1.0)
+        .map_err(&e)?;
+    cb.configure_mesh()
+        .disable_mesh()
+        .disable_x_axis()
+        .y_labels(6)
+        .y_desc("|W| / max")
+        .y_label_style(("sans-serif", 13))
+        .axis_desc_style(("sans-serif", 13))
+        .y_label_formatter(&|v| format!("{v:.1}"))
+        .draw()
+        .map_err(&e)?;
+    cb.draw_series((0..100).map(|k| {
+        let v = k as f64 / 100.0;
+        Rectangle::new(
+            [(0.0, v), (1.0, v + 0.01)],
+            ViridisRGB::get_color(v).filled(),
+        )
+    }))
+    .map_err(&e)?;
+    root.present().map_err(&e)?;
+    Ok(())
+}
+
+/// Find a hit in the inputs, analyse it and draw it: the `aepipe cwt` command. Returns a
+/// one-line summary (label, dominant frequency).
+pub fn cwt_of_hit(
+    inputs: &[std::path::PathBuf],
+    cfg: &crate::config::PipelineConfig,
+    experiment: Option<&str>,
+    channel: Option<u32>,
+    hit: u64,
+    png: &Path,
+) -> Result<String, String> {
+    let d = crate::ingest::discover(inputs, &cfg.ingest);
+    let found = d
+        .sources
+        .iter()
+        .filter(|s| {
+            experiment.is_none_or(|e| s.id == e || s.format == crate::ingest::Format::Parquet)
+        })
+        .flat_map(|s| crate::ingest::open(s, &cfg.ingest))
+        .find_map(|it| match it {
+            crate::model::Item::Record(r)
+                if r.hit == hit
+                    && channel.is_none_or(|c| r.channel == c)
+                    && experiment.is_none_or(|e| r.experiment == e) =>
+            {
+                Some(r)
+            }
+            _ => None,
+        });
+    let Some(rec) = found else {
+        return Err(format!(
+            "no hit {hit}{}{} in {}",
+            channel
+                .map(|c| format!(" on channel {c}"))
+                .unwrap_or_default(),
+            experiment.map(|e| format!(" of {e}")).unwrap_or_default(),
+            inputs
+                .iter()
+                .map(|p| p.display().to_string())
+                .collect::<Vec<_>>()
+                .join(", ")
+        ));
+    };
+    crate::features::validate(&rec, cfg).map_err(|e| format!("{}: {e}", rec.id()))?;
+    let mut ex = crate::features::FeatureExtractor::new(cfg);
+    let a = ex.analyse(&rec);
+    let (freqs, power) = ex.full_cwt(&rec);
+    let summary = format!(
+        "{}: {} ({}), dominant {} kHz, peak {:.1} dB_AE",
+        rec.id(),
+        a.label,
+        a.reason,
+        a.components
+            .dominant
+            .map(|d| format!("{:.0}", d.freq_hz / 1e3))
+            .unwrap_or_else(|| "–".into()),
+        a.hit.amplitude_db
+    );
+    cwt_png(
+        png,
+        &rec,
+        &freqs,
+        &power,
+        &format!("{} — {}", rec.id(), a.label),
+    )?;
+    Ok(summary)
+}
