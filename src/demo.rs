@@ -13,6 +13,8 @@ pub struct DemoResult {
     pub out_dir: PathBuf,
     pub inspect: Vec<inspect::Summary>,
     pub report: RunReport,
+    pub trend: crate::analysis::trend::TrendReport,
+    pub trend_plot: Option<PathBuf>,
     pub seconds: f64,
 }
 
@@ -52,11 +54,25 @@ pub fn run_demo(root: &Path, hits: usize, seed: u64, threads: usize) -> Result<D
         },
     )
     .map_err(|e| e.to_string())?;
+    let trend_dir = root.join("trend");
+    let trend = crate::analysis::trend::run_trend(
+        std::slice::from_ref(&report.table_path),
+        &trend_dir,
+        &Default::default(),
+    )
+    .map_err(|e| e.to_string())?;
+    let png = trend_dir.join("trend.png");
+    let trend_plot = match crate::plot::trend_png(&png, &trend, &exp.id, 1, 4) {
+        Ok(true) => Some(png),
+        _ => None,
+    };
     Ok(DemoResult {
         data_dir,
         out_dir,
         inspect,
         report,
+        trend,
+        trend_plot,
         seconds: t0.elapsed().as_secs_f64(),
     })
 }

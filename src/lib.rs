@@ -6,6 +6,7 @@
 //! [`pipeline`] (the staged streaming runner), [`inspect`] (human summaries), [`synth`]
 //! (synthetic hits for the demo, fixtures and benchmarks).
 
+pub mod analysis;
 pub mod bench;
 pub mod config;
 pub mod demo;

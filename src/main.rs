@@ -74,7 +74,27 @@ enum Cmd {
         #[arg(long)]
         config: Option<PathBuf>,
     },
-    /// Print the column table of an output table (features, waveforms, rejects)
+    /// Trend statistics (ch. 4.5.5): r, p, slope, intercept of each power ratio vs AE number
+    Trend {
+        /// features.parquet files
+        #[arg(required = true)]
+        features: Vec<PathBuf>,
+        #[arg(long)]
+        out: PathBuf,
+        /// none | peak-load | time:SECONDS | hits:N
+        #[arg(long, default_value = "peak-load")]
+        cutoff: String,
+        /// Significance level
+        #[arg(long, default_value_t = 0.01)]
+        alpha: f64,
+        /// Columns to test (default: every pr_* power ratio), e.g. peak_freq_hz,centroid_freq_hz
+        #[arg(long, value_delimiter = ',')]
+        columns: Vec<String>,
+        /// Skip the PNG plots
+        #[arg(long)]
+        no_plots: bool,
+    },
+    /// Print the column table of an output table (features, waveforms, rejects, trend)
     Schema {
         #[arg(default_value = "features")]
         table: String,
@@ -286,6 +306,60 @@ fn main() -> ExitCode {
                 }
             }
         }
+        Cmd::Trend {
+            features,
+            out,
+            cutoff,
+            alpha,
+            columns,
+            no_plots,
+        } => {
+            use aepipe::analysis::trend;
+            let cutoff: trend::Cutoff = match cutoff.parse() {
+                Ok(c) => c,
+                Err(e) => {
+                    eprintln!("aepipe: {e}");
+                    return ExitCode::from(1);
+                }
+            };
+            let opts = trend::TrendOptions {
+                cutoff,
+                alpha,
+                columns,
+            };
+            match trend::run_trend(&features, &out, &opts) {
+                Ok(rep) => {
+                    print!("{}", trend::format_table(&rep));
+                    if !no_plots {
+                        for sel in &rep.selections {
+                            let png =
+                                out.join(format!("trend_{}_ch{}.png", sel.experiment, sel.channel));
+                            match aepipe::plot::trend_png(
+                                &png,
+                                &rep,
+                                &sel.experiment,
+                                sel.channel,
+                                4,
+                            ) {
+                                Ok(true) => println!("plot: {}", png.display()),
+                                Ok(false) => {}
+                                Err(e) => eprintln!("aepipe: plot skipped: {e}"),
+                            }
+                        }
+                    }
+                    println!(
+                        "wrote {} and {}",
+                        rep.table_path.display(),
+                        out.join("trend_manifest.json").display()
+                    );
+                    ExitCode::SUCCESS
+                }
+                Err(e) => {
+                    eprintln!("aepipe: {e}");
+                    ExitCode::from(1)
+                }
+            }
+        }
         Cmd::Schema { table, config } => {
             let cfg = match load_config(config.as_deref()) {
                 Ok(c) => c,
@@ -295,6 +369,7 @@ fn main() -> ExitCode {
                 "features" => aepipe::features::features_table(&cfg),
                 "waveforms" => aepipe::store::waveforms_table(),
                 "rejects" => aepipe::store::rejects_table(),
+                "trend" => aepipe::analysis::trend::trend_table(),
                 other => {
                     eprintln!("aepipe: unknown table '{other}' (features, waveforms, rejects)");
                     return ExitCode::from(1);
@@ -315,6 +390,11 @@ fn main() -> ExitCode {
                     println!("{s}");
                 }
                 print_run(&d.report, "features");
+                println!("\ntrend of the power ratios over the test (ch. 4.5.5, Table 4.3):");
+                print!("{}", aepipe::analysis::trend::format_table(&d.trend));
+                if let Some(p) = &d.trend_plot {
+                    println!("trend plot (Fig. 4.18 style): {}", p.display());
+                }
                 println!("\ndemo finished in {:.1} s", d.seconds);
                 ExitCode::SUCCESS
             }

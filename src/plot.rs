@@ -228,3 +228,120 @@ pub fn cwt_of_hit(
     )?;
     Ok(summary)
 }
+
+/// Fig. 4.18 style: power ratio against AE number for the steepest significant windows of
+/// one experiment × channel, with their fitted lines.
+pub fn trend_png(
+    path: &Path,
+    rep: &crate::analysis::trend::TrendReport,
+    experiment: &str,
+    channel: i32,
+    max_lines: usize,
+) -> Result<bool, String> {
+    use crate::analysis::trend::window_name;
+    ensure_font()?;
+    let Some(series) = rep
+        .series
+        .iter()
+        .find(|s| s.experiment == experiment && s.channel == channel)
+    else {
+        return Ok(false);
+    };
+    let sel = rep
+        .selections
+        .iter()
+        .find(|s| s.experiment == experiment && s.channel == channel)
+        .expect("selection per series");
+    let mut sig: Vec<&crate::analysis::trend::TrendRow> = rep
+        .rows
+        .iter()
+        .filter(|r| r.experiment == experiment && r.channel == channel && r.significant)
+        .collect();
+    if sig.is_empty() {
+        return Ok(false);
+    }
+    sig.sort_by(|a, b| {
+        b.fit
+            .map(|f| f.slope.abs())
+            .unwrap_or(0.0)
+            .total_cmp(&a.fit.map(|f| f.slope.abs()).unwrap_or(0.0))
+    });
+    sig.truncate(max_lines);
+    let k = sel.hits_used;
+    let e = err(path);
+    let root = BitMapBackend::new(path, (1000, 620)).into_drawing_area();
+    root.fill(&WHITE).map_err(&e)?;
+    let ymax = sig
+        .iter()
+        .filter_map(|r| rep.columns.iter().position(|c| c == &r.column))
+        .flat_map(|ci| series.values[ci][..k].iter().flatten().copied())
+        .fold(0.0f64, f64::max)
+        .max(1e-6)
+        * 1.05;
+    let mut c = ChartBuilder::on(&root)
+        .caption(
+            format!(
+                "{experiment} ch{channel}: power ratio vs AE number ({})",
+                sel.cutoff
+            ),
+            ("sans-serif", 18),
+        )
+        .margin(15)
+        .x_label_area_size(40)
+        .y_label_area_size(60)
+        .build_cartesian_2d(0.0..(k.max(2) as f64 + 1.0), 0.0..ymax)
+        .map_err(&e)?;
+    c.configure_mesh()
+        .x_desc("AE number")
+        .y_desc("power ratio")
+        .draw()
+        .map_err(&e)?;
+    let palette = [
+        RGBColor(31, 119, 180),
+        RGBColor(214, 39, 40),
+        RGBColor(44, 160, 44),
+        RGBColor(148, 103, 189),
+        RGBColor(255, 127, 14),
+        RGBColor(23, 190, 207),
+    ];
+    for (i, r) in sig.iter().enumerate() {
+        let color = palette[i % palette.len()];
+        let ci = rep
+            .columns
+            .iter()
+            .position(|c| c == &r.column)
+            .expect("tested column");
+        let pts = series.values[ci][..k]
+            .iter()
+            .enumerate()
+            .filter_map(|(j, v)| v.map(|v| ((j + 1) as f64, v)));
+        c.draw_series(pts.map(|p| Circle::new(p, 2, color.mix(0.5).filled())))
+            .map_err(&e)?;
+        let f = r.fit.expect("significant");
+        c.draw_series(LineSeries::new(
+            [
+                (1.0, f.slope + f.intercept),
+                (k as f64, f.slope * k as f64 + f.intercept),
+            ],
+            color.stroke_width(3),
+        ))
+        .map_err(&e)?
+        .label(format!(
+            "{}: y = {:.2e}·x + {:.3}, r = {:.2}, p = {:.1e}",
+            window_name(&r.column),
+            f.slope,
+            f.intercept,
+            f.r,
+            f.p
+        ))
+        .legend(move |(x, y)| PathElement::new([(x, y), (x + 20, y)], color.stroke_width(3)));
+    }
+    c.configure_series_labels()
+        .background_style(WHITE.mix(0.85))
+        .border_style(BLACK)
+        .label_font(("sans-serif", 14))
+        .draw()
+        .map_err(&e)?;
+    root.present().map_err(&e)?;
+    Ok(true)
+}

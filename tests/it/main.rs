@@ -8,6 +8,7 @@ mod cli;
 mod formats;
 mod pipeline;
 mod real_data;
+mod trend;
 
 use std::path::{Path, PathBuf};
 

@@ -1,0 +1,554 @@
+//! `aepipe trend`: per experiment × channel × column, Pearson r, two-sided p, slope and
+//! intercept of y (a per-hit feature, by default the 25 power ratios) against x = AE number
+//! (1-based order of the hit in its experiment and channel), thesis ch. 4.5.5, Tables 4.2–4.3.
+//!
+//! Cut-off (thesis: "the following analysis will focus on the AEs emitted before the load
+//! begins to decrease"): by default only the hits up to the peak load when the experiment has
+//! a load channel; otherwise all hits, and the table says so.
+
+use super::stats::{linear_trend, LinearTrend};
+use crate::store::{ColType, ColumnSpec, Row, TableSchema, TableWriter, Value};
+use polars::prelude::*;
+use std::path::{Path, PathBuf};
+
+#[derive(Debug, thiserror::Error)]
+pub enum TrendError {
+    #[error("{path}: {message}")]
+    Read { path: String, message: String },
+    #[error(transparent)]
+    Store(#[from] crate::store::StoreError),
+    #[error("{0}")]
+    Usage(String),
+}
+
+/// Which hits enter the statistics.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Cutoff {
+    None,
+    /// Hits up to (and including) the one at the highest load.
+    PeakLoad,
+    /// Hits with `time_s ≤` this.
+    Time(f64),
+    /// The first N hits.
+    Hits(usize),
+}
+
+impl std::str::FromStr for Cutoff {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Cutoff, String> {
+        let bad = || format!("cut-off '{s}': expected none, peak-load, time:SECONDS or hits:N");
+        match s {
+            "none" => Ok(Cutoff::None),
+            "peak-load" => Ok(Cutoff::PeakLoad),
+            _ => match s.split_once(':') {
+                Some(("time", v)) => v.parse().map(Cutoff::Time).map_err(|_| bad()),
+                Some(("hits", v)) => v.parse().map(Cutoff::Hits).map_err(|_| bad()),
+                _ => Err(bad()),
+            },
+        }
+    }
+}
+
+/// Trend options.
+#[derive(Debug, Clone)]
+pub struct TrendOptions {
+    pub cutoff: Cutoff,
+    /// Significance level (thesis: 0.01).
+    pub alpha: f64,
+    /// Columns to test; empty = every `pr_*` column.
+    pub columns: Vec<String>,
+}
+
+impl Default for TrendOptions {
+    fn default() -> Self {
+        TrendOptions {
+            cutoff: Cutoff::PeakLoad,
+            alpha: 0.01,
+            columns: Vec::new(),
+        }
+    }
+}
+
+/// One experiment × channel: which hits were used, and why.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct Selection {
+    pub experiment: String,
+    pub channel: i32,
+    pub hits_total: usize,
+    pub hits_used: usize,
+    /// Hit number (AE number) of the last hit used.
+    pub last_hit: Option<i64>,
+    pub cutoff: String,
+    pub peak_load_n: Option<f64>,
+    pub peak_load_time_s: Option<f64>,
+    pub note: Option<String>,
+}
+
+/// One row of `trend.parquet`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TrendRow {
+    pub experiment: String,
+    pub channel: i32,
+    pub column: String,
+    pub n: usize,
+    pub fit: Option<LinearTrend>,
+    pub significant: bool,
+    pub note: Option<String>,
+}
+
+pub fn trend_table() -> TableSchema {
+    let f = |n: &str, u: &str, d: &str| ColumnSpec::new(n, ColType::Float64, u, d).nullable();
+    TableSchema {
+        name: "trend".into(),
+        columns: vec![
+            ColumnSpec::new("experiment", ColType::Utf8, "", "experiment id"),
+            ColumnSpec::new("channel", ColType::Int32, "", "sensor channel"),
+            ColumnSpec::new("column", ColType::Utf8, "", "the per-hit feature tested (y), e.g. pr_200_300khz"),
+            ColumnSpec::new("n", ColType::Int64, "", "hits used (after the cut-off)"),
+            ColumnSpec::new("cutoff", ColType::Utf8, "", "which hits were used: none, peak-load (up to hit N at L newtons), time ≤ S, first N hits"),
+            f("r", "1", "Pearson's correlation coefficient of y against x = AE number (Eq. 4.5.5); null with a note when undefined"),
+            f("p", "1", "two-sided p value of H0: no correlation (Student t, n − 2 degrees of freedom)"),
+            f("slope", "1/AE", "m of the least-squares line y = m·x + c (Table 4.3)"),
+            f("intercept", "1", "c of that line: y at x = 0"),
+            f("slope_stderr", "1/AE", "standard error of the slope"),
+            ColumnSpec::new("significant", ColType::Bool, "", "p < alpha (default 0.01, as Table 4.2)"),
+            ColumnSpec::new("note", ColType::Utf8, "", "why r and p are null (n < 3, constant series), or how the cut-off fell back").nullable(),
+        ],
+    }
+}
+
+fn row_cells(t: &TrendRow, sel: &Selection) -> Row {
+    let fit = t.fit;
+    vec![
+        Value::Str(Some(t.experiment.clone())),
+        Value::I32(Some(t.channel)),
+        Value::Str(Some(t.column.clone())),
+        Value::I64(Some(t.n as i64)),
+        Value::Str(Some(sel.cutoff.clone())),
+        Value::F64(fit.map(|f| f.r)),
+        Value::F64(fit.map(|f| f.p)),
+        Value::F64(fit.map(|f| f.slope)),
+        Value::F64(fit.map(|f| f.intercept)),
+        Value::F64(fit.map(|f| f.slope_stderr)),
+        Value::Bool(Some(t.significant)),
+        Value::Str(t.note.clone()),
+    ]
+}
+
+/// The per-hit data of one experiment × channel, in hit order.
+#[derive(Debug, Clone, Default)]
+pub struct Series {
+    pub experiment: String,
+    pub channel: i32,
+    pub hit: Vec<i64>,
+    pub time_s: Vec<Option<f64>>,
+    pub load_n: Vec<Option<f64>>,
+    /// One vector per tested column.
+    pub values: Vec<Vec<Option<f64>>>,
+}
+
+fn read_err(p: &Path) -> impl Fn(PolarsError) -> TrendError + '_ {
+    move |e| TrendError::Read {
+        path: p.display().to_string(),
+        message: e.to_string().replace('\n', " "),
+    }
+}
+
+/// Read feature tables with Polars: identity, time, load and the tested columns, grouped by
+/// experiment × channel and sorted by hit. Returns the column names tested too.
+pub fn read_series(
+    paths: &[PathBuf],
+    wanted: &[String],
+) -> Result<(Vec<String>, Vec<Series>), TrendError> {
+    let mut frames = Vec::new();
+    let mut columns: Vec<String> = wanted.to_vec();
+    for p in paths {
+        let lf = LazyFrame::scan_parquet(
+            PlRefPath::try_from_path(p).map_err(read_err(p))?,
+            ScanArgsParquet::default(),
+        )
+        .map_err(read_err(p))?;
+        let mut lf = lf;
+        let schema = lf.collect_schema().map_err(read_err(p))?;
+        for need in ["experiment", "channel", "hit", "time_s", "load_n"] {
+            if schema.get(need).is_none() {
+                return Err(TrendError::Read {
+                    path: p.display().to_string(),
+                    message: format!("no column {need}: not an aepipe features table"),
+                });
+            }
+        }
+        if columns.is_empty() {
+            columns = schema
+                .iter_names()
+                .filter(|n| n.starts_with("pr_"))
+                .map(|n| n.to_string())
+                .collect();
+            if columns.is_empty() {
+                return Err(TrendError::Read {
+                    path: p.display().to_string(),
+                    message: "no pr_* power-ratio columns; name the columns to test with --columns"
+                        .into(),
+                });
+            }
+        }
+        for c in &columns {
+            match schema.get(c.as_str()) {
+                None => {
+                    return Err(TrendError::Read {
+                        path: p.display().to_string(),
+                        message: format!("no column {c}"),
+                    })
+                }
+                Some(dt) if !dt.is_primitive_numeric() => {
+                    return Err(TrendError::Read {
+                        path: p.display().to_string(),
+                        message: format!("column {c} is {dt}, not a number"),
+                    })
+                }
+                _ => {}
+            }
+        }
+        let mut sel = vec![
+            col("experiment"),
+            col("channel"),
+            col("hit"),
+            col("time_s"),
+            col("load_n"),
+        ];
+        sel.extend(
+            columns
+                .iter()
+                .map(|c| col(c.as_str()).cast(DataType::Float64)),
+        );
+        frames.push(lf.select(sel).collect().map_err(read_err(p))?);
+    }
+    let mut groups: std::collections::BTreeMap<(String, i32), Series> = Default::default();
+    for (df, p) in frames.iter().zip(paths) {
+        let e = read_err(p);
+        let exp = df
+            .column("experiment")
+            .and_then(|c| c.str().cloned())
+            .map_err(&e)?;
+        let ch = df
+            .column("channel")
+            .and_then(|c| c.i32().cloned())
+            .map_err(&e)?;
+        let hit = df
+            .column("hit")
+            .and_then(|c| c.i64().cloned())
+            .map_err(&e)?;
+        let time = df
+            .column("time_s")
+            .and_then(|c| c.f64().cloned())
+            .map_err(&e)?;
+        let load = df
+            .column("load_n")
+            .and_then(|c| c.f64().cloned())
+            .map_err(&e)?;
+        let vals: Vec<Float64Chunked> = columns
+            .iter()
+            .map(|c| df.column(c.as_str()).and_then(|c| c.f64().cloned()))
+            .collect::<Result<_, _>>()
+            .map_err(&e)?;
+        for i in 0..df.height() {
+            let key = (exp.get(i).unwrap_or("").to_string(), ch.get(i).unwrap_or(0));
+            let s = groups.entry(key.clone()).or_insert_with(|| Series {
+                experiment: key.0.clone(),
+                channel: key.1,
+                values: vec![Vec::new(); columns.len()],
+                ..Default::default()
+            });
+            s.hit.push(hit.get(i).unwrap_or(0));
+            s.time_s.push(time.get(i));
+            s.load_n.push(load.get(i));
+            for (k, v) in vals.iter().enumerate() {
+                s.values[k].push(v.get(i));
+            }
+        }
+    }
+    // Hit order inside each group (tables are written in that order; several files may not be).
+    for s in groups.values_mut() {
+        let mut idx: Vec<usize> = (0..s.hit.len()).collect();
+        idx.sort_by_key(|&i| s.hit[i]);
+        let pick = |v: &Vec<Option<f64>>| idx.iter().map(|&i| v[i]).collect::<Vec<_>>();
+        s.time_s = pick(&s.time_s);
+        s.load_n = pick(&s.load_n);
+        s.values = s.values.iter().map(pick).collect();
+        s.hit = idx.iter().map(|&i| s.hit[i]).collect();
+    }
+    Ok((columns, groups.into_values().collect()))
+}
+
+/// How many leading hits of a series the cut-off keeps, and the description.
+pub fn select(s: &Series, cutoff: Cutoff) -> Selection {
+    let total = s.hit.len();
+    let mut sel = Selection {
+        experiment: s.experiment.clone(),
+        channel: s.channel,
+        hits_total: total,
+        hits_used: total,
+        last_hit: s.hit.last().copied(),
+        cutoff: "none (all hits)".into(),
+        peak_load_n: None,
+        peak_load_time_s: None,
+        note: None,
+    };
+    let keep = |sel: &mut Selection, k: usize| {
+        sel.hits_used = k;
+        sel.last_hit = if k > 0 { Some(s.hit[k - 1]) } else { None };
+    };
+    match cutoff {
+        Cutoff::None => {}
+        Cutoff::PeakLoad => {
+            let peak = s
+                .load_n
+                .iter()
+                .enumerate()
+                .filter_map(|(i, l)| l.map(|l| (i, l)))
+                .fold(None, |m: Option<(usize, f64)>, (i, l)| match m {
+                    Some((_, ml)) if ml >= l => m,
+                    _ => Some((i, l)),
+                });
+            match peak {
+                Some((i, l)) => {
+                    keep(&mut sel, i + 1);
+                    sel.peak_load_n = Some(l);
+                    sel.peak_load_time_s = s.time_s[i];
+                    sel.cutoff = format!("peak-load: hits up to {} at {:.6} N", s.hit[i], l);
+                }
+                None => {
+                    sel.cutoff = "none (all hits): no load channel".into();
+                    sel.note = Some("--cutoff peak-load asked, but the experiment has no load channel: all hits used".into());
+                }
+            }
+        }
+        Cutoff::Time(t) => {
+            let k = s
+                .time_s
+                .iter()
+                .take_while(|x| x.is_some_and(|x| x <= t))
+                .count();
+            keep(&mut sel, k);
+            sel.cutoff = format!("time ≤ {t} s");
+            if s.time_s.iter().any(Option::is_none) {
+                sel.note =
+                    Some("some hits have no time: the cut-off stops at the first of them".into());
+            }
+        }
+        Cutoff::Hits(n) => {
+            keep(&mut sel, n.min(total));
+            sel.cutoff = format!("first {n} hits");
+        }
+    }
+    sel
+}
+
+/// Statistics of every tested column of one series.
+pub fn trends(s: &Series, columns: &[String], sel: &Selection, alpha: f64) -> Vec<TrendRow> {
+    let k = sel.hits_used;
+    columns
+        .iter()
+        .enumerate()
+        .map(|(ci, name)| {
+            // x = AE number (1-based position in the experiment); hits whose value is null
+            // (a flat record) are left out of the fit but keep their AE numbers.
+            let (x, y): (Vec<f64>, Vec<f64>) = s.values[ci][..k]
+                .iter()
+                .enumerate()
+                .filter_map(|(i, v)| v.map(|v| ((i + 1) as f64, v)))
+                .unzip();
+            let fit = linear_trend(&x, &y);
+            let note = match &fit {
+                Err(why) => Some(why.to_string()),
+                Ok(_) => sel.note.clone(),
+            };
+            let fit = fit.ok();
+            TrendRow {
+                experiment: s.experiment.clone(),
+                channel: s.channel,
+                column: name.clone(),
+                n: x.len(),
+                significant: fit.is_some_and(|f| f.p < alpha),
+                fit,
+                note,
+            }
+        })
+        .collect()
+}
+
+/// What `aepipe trend` produced.
+pub struct TrendReport {
+    pub rows: Vec<TrendRow>,
+    pub selections: Vec<Selection>,
+    pub series: Vec<Series>,
+    pub columns: Vec<String>,
+    pub table_path: PathBuf,
+}
+
+/// Read, select, fit and write `DIR/trend.parquet` and `DIR/trend_manifest.json`.
+pub fn run_trend(
+    inputs: &[PathBuf],
+    out_dir: &Path,
+    opts: &TrendOptions,
+) -> Result<TrendReport, TrendError> {
+    if !(opts.alpha > 0.0 && opts.alpha < 1.0) {
+        return Err(TrendError::Usage(format!(
+            "alpha must be in (0, 1), got {}",
+            opts.alpha
+        )));
+    }
+    let (columns, series) = read_series(inputs, &opts.columns)?;
+    std::fs::create_dir_all(out_dir).map_err(|source| crate::store::StoreError::Io {
+        path: out_dir.display().to_string(),
+        source,
+    })?;
+    crate::store::clean_stale_tmp(out_dir);
+    let table_path = out_dir.join("trend.parquet");
+    let meta = vec![
+        ("aepipe.alpha".to_string(), opts.alpha.to_string()),
+        (
+            "aepipe.x".to_string(),
+            "AE number: 1-based order of the hit in its experiment and channel".to_string(),
+        ),
+    ];
+    let mut w = TableWriter::create(&table_path, trend_table(), &meta, 4096)?;
+    let mut rows = Vec::new();
+    let mut selections = Vec::new();
+    for s in &series {
+        let sel = select(s, opts.cutoff);
+        for t in trends(s, &columns, &sel, opts.alpha) {
+            w.push(row_cells(&t, &sel))?;
+            rows.push(t);
+        }
+        selections.push(sel);
+    }
+    w.finish()?;
+    let manifest = serde_json::json!({
+        "tool": {"name": "aepipe", "version": env!("CARGO_PKG_VERSION")},
+        "job": "trend",
+        "finished_utc": crate::pipeline::utc_now(),
+        "inputs": inputs.iter().map(|p| p.display().to_string()).collect::<Vec<_>>(),
+        "alpha": opts.alpha,
+        "columns": columns,
+        "selections": selections,
+    });
+    crate::pipeline::write_atomic(
+        &out_dir.join("trend_manifest.json"),
+        serde_json::to_string_pretty(&manifest)
+            .expect("json")
+            .as_bytes(),
+    )
+    .map_err(|e| TrendError::Usage(e.to_string()))?;
+    Ok(TrendReport {
+        rows,
+        selections,
+        series,
+        columns,
+        table_path,
+    })
+}
+
+/// The terminal table of the significant rows, like Table 4.3 (window, m, c, r, p).
+pub fn format_table(rep: &TrendReport) -> String {
+    let mut s = String::new();
+    for sel in &rep.selections {
+        s.push_str(&format!(
+            "{} ch{}: {} of {} hits used ({}){}\n",
+            sel.experiment,
+            sel.channel,
+            sel.hits_used,
+            sel.hits_total,
+            sel.cutoff,
+            sel.note
+                .as_ref()
+                .map(|n| format!("\n  note: {n}"))
+                .unwrap_or_default()
+        ));
+        let sig: Vec<&TrendRow> = rep
+            .rows
+            .iter()
+            .filter(|r| r.experiment == sel.experiment && r.channel == sel.channel && r.significant)
+            .collect();
+        if sig.is_empty() {
+            s.push_str("  no significant trend\n\n");
+            continue;
+        }
+        s.push_str(&format!(
+            "  {:<22} {:>11} {:>9} {:>7} {:>10}\n",
+            "frequency window", "m", "c", "r", "p"
+        ));
+        for r in sig {
+            let f = r.fit.expect("significant rows have a fit");
+            s.push_str(&format!(
+                "  {:<22} {:>11.2e} {:>9.3} {:>7.2} {:>10.2e}\n",
+                window_name(&r.column),
+                f.slope,
+                f.intercept,
+                f.r,
+                f.p
+            ));
+        }
+        s.push('\n');
+    }
+    s
+}
+
+/// `pr_200_300khz` → `200 - 300 kHz`; other names unchanged.
+pub fn window_name(column: &str) -> String {
+    column
+        .strip_prefix("pr_")
+        .and_then(|r| r.strip_suffix("khz"))
+        .and_then(|r| r.split_once('_'))
+        .map(|(a, b)| format!("{a} - {b} kHz"))
+        .unwrap_or_else(|| column.to_string())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn series(loads: &[Option<f64>]) -> Series {
+        Series {
+            experiment: "e".into(),
+            channel: 1,
+            hit: (1..=loads.len() as i64).collect(),
+            time_s: (0..loads.len()).map(|i| Some(i as f64)).collect(),
+            load_n: loads.to_vec(),
+            values: vec![(0..loads.len()).map(|i| Some(i as f64 * 0.1)).collect()],
+        }
+    }
+
+    #[test]
+    fn cutoffs() {
+        let s = series(&[Some(1.0), Some(3.0), Some(5.0), Some(4.0), Some(2.0)]);
+        let sel = select(&s, Cutoff::PeakLoad);
+        assert_eq!(
+            (sel.hits_used, sel.last_hit, sel.peak_load_n),
+            (3, Some(3), Some(5.0))
+        );
+        assert_eq!(select(&s, Cutoff::Time(1.5)).hits_used, 2);
+        assert_eq!(select(&s, Cutoff::Hits(4)).hits_used, 4);
+        assert_eq!(select(&s, Cutoff::Hits(40)).hits_used, 5);
+        let none = select(&series(&[None, None, None]), Cutoff::PeakLoad);
+        assert_eq!(none.hits_used, 3);
+        assert!(none.note.unwrap().contains("no load channel"));
+        assert_eq!("time:2.5".parse::<Cutoff>(), Ok(Cutoff::Time(2.5)));
+        assert!("peak".parse::<Cutoff>().is_err());
+    }
+
+    #[test]
+    fn too_few_hits_is_a_null_with_a_reason() {
+        let s = series(&[Some(1.0), Some(3.0), Some(5.0), Some(4.0)]);
+        let sel = select(&s, Cutoff::Hits(2));
+        let t = &trends(&s, &["pr_x".into()], &sel, 0.01)[0];
+        assert!(t.fit.is_none() && !t.significant);
+        assert!(t.note.as_ref().unwrap().contains("n = 2 < 3"));
+    }
+
+    #[test]
+    fn window_names() {
+        assert_eq!(window_name("pr_200_300khz"), "200 - 300 kHz");
+        assert_eq!(window_name("peak_freq_hz"), "peak_freq_hz");
+    }
+}

@@ -1,0 +1,206 @@
+//! Trend statistics (ch. 4.5.5): SciPy agreement through a golden file, a designed trend found
+//! end to end, false positives at α = 0.01, and the null cases.
+
+use crate::TempDir;
+use aepipe::analysis::stats::linear_trend;
+use aepipe::analysis::trend::{run_trend, Cutoff, TrendOptions};
+use aepipe::config::PipelineConfig;
+use aepipe::pipeline::{run, Job, RunOptions};
+use aepipe::synth::{Experiment, Rng};
+
+#[test]
+fn trend_statistics_agree_with_scipy() {
+    let text = std::fs::read_to_string(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/tests/golden/trend_scipy.json"
+    ))
+    .unwrap();
+    let g: serde_json::Value = serde_json::from_str(&text).unwrap();
+    let num = |v: &serde_json::Value| v.as_str().unwrap().parse::<f64>().unwrap();
+    let rel = |a: f64, b: f64| {
+        if a == b {
+            0.0
+        } else {
+            (a - b).abs() / a.abs().max(b.abs())
+        }
+    };
+    let cases = g["cases"].as_array().unwrap();
+    assert_eq!(cases.len(), 11);
+    for c in cases {
+        let x: Vec<f64> = c["x"].as_array().unwrap().iter().map(num).collect();
+        let y: Vec<f64> = c["y"].as_array().unwrap().iter().map(num).collect();
+        let t = linear_trend(&x, &y).unwrap();
+        let n = x.len();
+        for (name, ours, theirs) in [
+            ("r", t.r, num(&c["r"])),
+            ("slope", t.slope, num(&c["slope"])),
+            ("intercept", t.intercept, num(&c["intercept"])),
+        ] {
+            assert!(
+                rel(ours, theirs) < 1e-9,
+                "n={n} {name}: {ours} vs SciPy {theirs}"
+            );
+        }
+        // SciPy's stderr is sqrt((1 − r²)·s_yy/s_xx/df), which cancels when r → 1; ours sums
+        // the residuals. They agree to 1e-6 even on the near-perfect fit (r = 0.99999…).
+        assert!(
+            rel(t.slope_stderr, num(&c["stderr"])) < 1e-6,
+            "n={n} stderr: {} vs SciPy {}",
+            t.slope_stderr,
+            num(&c["stderr"])
+        );
+        let p = num(&c["p_linregress"]);
+        if p == 0.0 {
+            // SciPy underflows to 0 below ~1e-300; ours must be at least that small.
+            assert!(t.p < 1e-290, "n={n}: p {} where SciPy underflowed", t.p);
+        } else {
+            assert!(rel(t.p, p) < 1e-9, "n={n} p: {} vs SciPy {p}", t.p);
+            assert!(
+                rel(t.p, num(&c["p_pearsonr"])) < 1e-9,
+                "n={n} p vs pearsonr"
+            );
+        }
+    }
+}
+
+#[test]
+fn no_trend_is_rarely_significant_at_one_percent() {
+    // 200 seeds of trend-free power-ratio-like series (300 hits): a level-0.01 test must
+    // reject in about 1 % of them, and in ≤ 5 % to pass.
+    let mut significant = 0;
+    for seed in 0..200 {
+        let mut rng = Rng::new(seed);
+        let x: Vec<f64> = (1..=300).map(f64::from).collect();
+        let y: Vec<f64> = x.iter().map(|_| 0.25 + 0.05 * rng.normal()).collect();
+        if linear_trend(&x, &y).unwrap().p < 0.01 {
+            significant += 1;
+        }
+    }
+    assert!(
+        significant <= 10,
+        "{significant} of 200 trend-free series significant at 0.01"
+    );
+}
+
+#[test]
+fn designed_trend_is_found_with_the_right_signs_end_to_end() {
+    // The synthetic experiment shifts power from ~750 to ~250 kHz as damage accumulates.
+    let t = TempDir::new("trend");
+    let data = t.path().join("data");
+    let mut e = Experiment::new("notched", 400, 77);
+    e.n_samples = 2048;
+    e.write_vallen(&data).unwrap();
+    let mut cfg = PipelineConfig::default();
+    cfg.ingest.vallen.load_param = "PA0".into();
+    let f = run(
+        Job::Features,
+        &[data],
+        &t.path().join("f"),
+        &cfg,
+        &RunOptions {
+            threads: 2,
+            progress: false,
+        },
+    )
+    .unwrap();
+    let rep = run_trend(
+        std::slice::from_ref(&f.table_path),
+        &t.path().join("trend"),
+        &TrendOptions::default(),
+    )
+    .unwrap();
+    let get = |c: &str| rep.rows.iter().find(|r| r.column == c).unwrap();
+    let (low, high) = (get("pr_200_300khz"), get("pr_700_800khz"));
+    assert!(
+        low.significant && low.fit.unwrap().slope > 0.0,
+        "200-300 kHz: {low:?}"
+    );
+    assert!(
+        high.significant && high.fit.unwrap().slope < 0.0,
+        "700-800 kHz: {high:?}"
+    );
+    // Peak-load cut-off: the load peaks at 80 % of the test; hits after it are left out.
+    let sel = &rep.selections[0];
+    assert!(
+        sel.peak_load_n.unwrap() > 59.0
+            && sel.hits_used < sel.hits_total
+            && sel.hits_used > sel.hits_total / 2,
+        "{sel:?}"
+    );
+    assert_eq!(low.n, sel.hits_used);
+    // The table on disk says the same, and matches data-schema/trend.md.
+    let (names, rows) = crate::table_rows(&rep.table_path);
+    assert_eq!(rows.len(), 25);
+    let doc = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/data-schema/trend.md"))
+        .unwrap();
+    let cols: Vec<String> = aepipe::store::parse_schema_markdown(&doc)
+        .into_iter()
+        .map(|c| c.0)
+        .collect();
+    assert_eq!(
+        names, cols,
+        "trend.parquet drifted from data-schema/trend.md"
+    );
+    let m: serde_json::Value = serde_json::from_str(
+        &std::fs::read_to_string(t.path().join("trend/trend_manifest.json")).unwrap(),
+    )
+    .unwrap();
+    assert_eq!(
+        m["selections"][0]["hits_used"].as_u64().unwrap() as usize,
+        sel.hits_used
+    );
+}
+
+#[test]
+fn missing_load_falls_back_to_all_hits_and_says_so() {
+    let t = TempDir::new("trendnoload");
+    let data = t.path().join("data");
+    let mut e = Experiment::new("noload", 60, 5);
+    e.n_samples = 1024;
+    e.write_vallen(&data).unwrap();
+    // No load mapping: load_n is null.
+    let f = run(
+        Job::Features,
+        &[data],
+        &t.path().join("f"),
+        &PipelineConfig::default(),
+        &RunOptions {
+            threads: 1,
+            progress: false,
+        },
+    )
+    .unwrap();
+    let rep = run_trend(
+        &[f.table_path],
+        &t.path().join("trend"),
+        &TrendOptions {
+            cutoff: Cutoff::PeakLoad,
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    let sel = &rep.selections[0];
+    assert_eq!(sel.hits_used, 60);
+    assert!(sel.note.as_ref().unwrap().contains("no load channel"));
+    // Power above the 5 MHz Nyquist of nothing: a band that is always 0 is a constant series.
+    let hi = rep
+        .rows
+        .iter()
+        .find(|r| r.column == "pr_2400_2500khz")
+        .unwrap();
+    if hi.fit.is_none() {
+        assert!(hi.note.as_ref().unwrap().contains("constant"), "{hi:?}");
+    }
+    // Asking for an absent column is one clear error.
+    let err = run_trend(
+        &[t.path().join("f/features.parquet")],
+        &t.path().join("t2"),
+        &TrendOptions {
+            columns: vec!["nope".into()],
+            ..Default::default()
+        },
+    )
+    .err()
+    .unwrap();
+    assert!(err.to_string().contains("no column nope"), "{err}");
+}
