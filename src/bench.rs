@@ -303,3 +303,48 @@ pub fn run_peer(python: &Path, peers: &Path, script: &str, args: &[&str]) -> Res
     let inner = v["params"]["inner"].as_f64().unwrap_or(1.0);
     Ok(med / inner)
 }
+
+/// W3 on the peers' exact inputs: 651 × 200-D vectors, 10×10 map, the same initial codebook
+/// and the two-stage schedule of Table 5.2. Returns (median seconds, QE, TE8).
+pub fn som_bench(dir: &Path, repeats: usize) -> Result<(f64, f64, f64), String> {
+    use crate::som::{Init, Som, SomParams};
+    let data = read_f64(&dir.join("w3_som_data_f64.bin"))?;
+    let init = read_f64(&dir.join("w3_som_init_f64.bin"))?;
+    let params = SomParams {
+        init: Init::Given(init),
+        ..SomParams::default()
+    }
+    .check()
+    .map_err(|e| e.to_string())?;
+    let mut last = None;
+    let t = median_time(repeats, || {
+        last = Some(Som::fit(&params, &data, 200).expect("fit"))
+    });
+    let som = last.expect("ran");
+    let log = som.log.as_ref().expect("log");
+    Ok((t, *log.qe.last().expect("qe"), log.topographic_error))
+}
+
+/// Run the MiniSom peer; returns (median seconds, QE).
+pub fn run_minisom(python: &Path, peers: &Path) -> Result<(f64, f64), String> {
+    let out = std::env::temp_dir().join("aepipe-peer-w3-minisom.json");
+    let st = std::process::Command::new(python)
+        .arg(peers.join("w3_som.py"))
+        .args(["--peer", "minisom", "--threads", "1", "--out"])
+        .arg(&out)
+        .stdout(std::process::Stdio::null())
+        .status()
+        .map_err(|e| format!("{}: {e}", python.display()))?;
+    if !st.success() {
+        return Err(format!("peer w3_som.py minisom failed ({st})"));
+    }
+    let v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&out).map_err(|e| e.to_string())?)
+            .map_err(|e| e.to_string())?;
+    Ok((
+        v["timing"]["median_s"]
+            .as_f64()
+            .ok_or("no timing.median_s")?,
+        v["quality"]["qe"].as_f64().ok_or("no quality.qe")?,
+    ))
+}

@@ -17,5 +17,6 @@ pub mod inspect;
 pub mod model;
 pub mod pipeline;
 pub mod plot;
+pub mod som;
 pub mod store;
 pub mod synth;

@@ -122,6 +122,19 @@ enum Cmd {
 
 #[derive(Subcommand)]
 enum BenchCmd {
+    /// W3 SOM training (651 × 200-D, 10×10, Table 5.2 schedule, the peers' initial codebook);
+    /// with --peers, MiniSom in the same run
+    Som {
+        /// Folder written by the peers' export_inputs.py
+        #[arg(long)]
+        inputs: PathBuf,
+        #[arg(long)]
+        peers: Option<PathBuf>,
+        #[arg(long, default_value = "python3")]
+        python: PathBuf,
+        #[arg(long, default_value_t = 5)]
+        repeats: usize,
+    },
     /// W1 CWT + feature path + W2 spectrum on the peers' exact inputs; with --peers, runs
     /// fCWT, the numpy baseline and numpy rfft in the same run and prints the ratios
     Cwt {
@@ -403,6 +416,31 @@ fn main() -> ExitCode {
                 ExitCode::from(3)
             }
         },
+        Cmd::Bench {
+            which:
+                BenchCmd::Som {
+                    inputs,
+                    peers,
+                    python,
+                    repeats,
+                },
+        } => {
+            let (t, qe, te) = match aepipe::bench::som_bench(&inputs, repeats) {
+                Ok(r) => r,
+                Err(e) => {
+                    eprintln!("aepipe: {e}");
+                    return ExitCode::from(1);
+                }
+            };
+            println!("aepipe SOM (1 thread): median {t:.4} s, QE {qe:.4}, TE8 {te:.4}");
+            if let Some(peers) = peers {
+                match aepipe::bench::run_minisom(&python, &peers) {
+                    Ok((pt, pqe)) => println!("MiniSom (same run): median {pt:.4} s, QE {pqe:.4} -> aepipe is {:.1}x faster, QE {:+.2} %", pt / t, (qe / pqe - 1.0) * 100.0),
+                    Err(e) => println!("MiniSom failed: {e}"),
+                }
+            }
+            ExitCode::SUCCESS
+        }
         Cmd::Bench {
             which:
                 BenchCmd::Cwt {

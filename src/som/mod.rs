@@ -1,0 +1,561 @@
+//! Self-organising map (Kohonen; thesis ch. 5.3–5.4).
+//!
+//! A rectangular map of `rows × cols` nodes, each a weight vector of the input dimension.
+//! Online training (Eq. 5.3.3): one random input per iteration, best-matching unit by
+//! Euclidean distance (Eq. 5.3.1), Gaussian neighbourhood on grid distance
+//! `h = α(t)·exp(−d²/2σ(t)²)` (Eq. 5.3.2), α decaying linearly to 0 and σ linearly to 1 in
+//! each stage. Default stages: Table 5.2 (ordering α 0.05, σ 10, 1 000 iterations;
+//! convergence α 0.01, σ 3, 10 000 iterations). A seed makes training reproducible bit for bit.
+//!
+//! Hyper-parameters are checked once into [`SomParams::check`] → [`ValidParams`] (linfa's
+//! way), then [`Som::fit`] trains and [`Som::bmu`] / [`Som::classify`] predict.
+
+use crate::synth::Rng;
+
+#[derive(Debug, thiserror::Error, PartialEq)]
+pub enum SomError {
+    #[error("som: {0}")]
+    Params(String),
+    #[error("som: {0}")]
+    Data(String),
+    #[error("{path}: {message}")]
+    File { path: String, message: String },
+}
+
+/// One training stage.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct Stage {
+    pub alpha: f64,
+    pub sigma: f64,
+    pub iterations: usize,
+}
+
+/// How the codebook starts.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+pub enum Init {
+    /// Random training vectors (seeded).
+    Samples,
+    /// Uniform random in the bounding box of the training data (seeded).
+    Random,
+    /// A given codebook (`rows·cols × dim`, row-major, node r·cols + c).
+    Given(Vec<f64>),
+}
+
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct SomParams {
+    pub rows: usize,
+    pub cols: usize,
+    pub stages: Vec<Stage>,
+    pub seed: u64,
+    pub init: Init,
+}
+
+impl Default for SomParams {
+    fn default() -> Self {
+        SomParams {
+            rows: 10,
+            cols: 10,
+            stages: vec![
+                Stage {
+                    alpha: 0.05,
+                    sigma: 10.0,
+                    iterations: 1000,
+                },
+                Stage {
+                    alpha: 0.01,
+                    sigma: 3.0,
+                    iterations: 10_000,
+                },
+            ],
+            seed: 2008,
+            init: Init::Samples,
+        }
+    }
+}
+
+/// Parameters that passed [`SomParams::check`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct ValidParams(SomParams);
+
+impl SomParams {
+    pub fn check(self) -> Result<ValidParams, SomError> {
+        if self.rows == 0 || self.cols == 0 {
+            return Err(SomError::Params(format!(
+                "map must have ≥ 1 row and column, got {}×{}",
+                self.rows, self.cols
+            )));
+        }
+        if self.stages.is_empty() {
+            return Err(SomError::Params("at least one training stage".into()));
+        }
+        for (i, s) in self.stages.iter().enumerate() {
+            let ok = s.alpha > 0.0 && s.alpha <= 1.0 && s.sigma > 0.0 && s.iterations > 0;
+            if !ok {
+                return Err(SomError::Params(format!(
+                    "stage {}: need 0 < alpha ≤ 1, sigma > 0, iterations ≥ 1; got {s:?}",
+                    i + 1
+                )));
+            }
+        }
+        Ok(ValidParams(self))
+    }
+}
+
+/// What training did.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct TrainingLog {
+    pub n_inputs: usize,
+    /// Quantisation error before training and after each stage.
+    pub qe: Vec<f64>,
+    pub topographic_error: f64,
+}
+
+/// A trained map.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct Som {
+    pub rows: usize,
+    pub cols: usize,
+    pub dim: usize,
+    /// `rows·cols × dim`, node `r·cols + c`.
+    pub weights: Vec<f64>,
+    /// Node labels (majority vote of training hits; unlabelled nodes take their nearest
+    /// labelled node in weight space). Empty until [`Som::label_nodes`].
+    pub labels: Vec<String>,
+    pub params: SomParams,
+    pub log: Option<TrainingLog>,
+}
+
+/// Squared Euclidean distance with 8 independent accumulators, so the compiler can keep them
+/// in SIMD lanes (one accumulator is a serial dependency chain it may not reorder).
+fn sq_dist(a: &[f64], b: &[f64]) -> f64 {
+    let mut acc = [0.0f64; 8];
+    let (ca, cb) = (a.chunks_exact(8), b.chunks_exact(8));
+    let (ra, rb) = (ca.remainder(), cb.remainder());
+    for (x, y) in ca.zip(cb) {
+        for k in 0..8 {
+            let d = x[k] - y[k];
+            acc[k] += d * d;
+        }
+    }
+    let mut s: f64 = acc.iter().sum();
+    for (x, y) in ra.iter().zip(rb) {
+        s += (x - y) * (x - y);
+    }
+    s
+}
+
+impl Som {
+    pub fn nodes(&self) -> usize {
+        self.rows * self.cols
+    }
+
+    pub fn node(&self, j: usize) -> &[f64] {
+        &self.weights[j * self.dim..(j + 1) * self.dim]
+    }
+
+    /// Train on `data` (`n × dim`, row-major).
+    pub fn fit(params: &ValidParams, data: &[f64], dim: usize) -> Result<Som, SomError> {
+        let p = &params.0;
+        if dim == 0 || data.is_empty() || !data.len().is_multiple_of(dim) {
+            return Err(SomError::Data(format!(
+                "{} values do not make rows of dimension {dim}",
+                data.len()
+            )));
+        }
+        if data.iter().any(|v| !v.is_finite()) {
+            return Err(SomError::Data(
+                "training data holds NaN or infinite values".into(),
+            ));
+        }
+        let n = data.len() / dim;
+        let nodes = p.rows * p.cols;
+        let mut rng = Rng::new(p.seed);
+        let weights = match &p.init {
+            Init::Given(w) => {
+                if w.len() != nodes * dim {
+                    return Err(SomError::Params(format!(
+                        "initial codebook has {} values, need {}",
+                        w.len(),
+                        nodes * dim
+                    )));
+                }
+                w.clone()
+            }
+            Init::Random => {
+                let (mut lo, mut hi) = (vec![f64::INFINITY; dim], vec![f64::NEG_INFINITY; dim]);
+                for x in data.chunks(dim) {
+                    for k in 0..dim {
+                        lo[k] = lo[k].min(x[k]);
+                        hi[k] = hi[k].max(x[k]);
+                    }
+                }
+                (0..nodes * dim)
+                    .map(|i| rng.range(lo[i % dim], hi[i % dim]))
+                    .collect()
+            }
+            Init::Samples => (0..nodes)
+                .flat_map(|_| {
+                    let i = (rng.next_u64() % n as u64) as usize;
+                    data[i * dim..(i + 1) * dim].to_vec()
+                })
+                .collect(),
+        };
+        let mut som = Som {
+            rows: p.rows,
+            cols: p.cols,
+            dim,
+            weights,
+            labels: Vec::new(),
+            params: p.clone(),
+            log: None,
+        };
+        let mut qe = vec![som.quantisation_error(data)];
+        // Grid coordinates of the nodes.
+        let rc: Vec<(f64, f64)> = (0..nodes)
+            .map(|j| ((j / p.cols) as f64, (j % p.cols) as f64))
+            .collect();
+        for st in &p.stages {
+            let t_max = st.iterations as f64;
+            for t in 0..st.iterations {
+                let frac = t as f64 / t_max;
+                let alpha = st.alpha * (1.0 - frac);
+                let sigma = st.sigma + (1.0 - st.sigma) * frac;
+                let i = (rng.next_u64() % n as u64) as usize;
+                let x = &data[i * dim..(i + 1) * dim];
+                let (b, _) = som.bmu(x);
+                let (br, bc) = rc[b];
+                let inv = -1.0 / (2.0 * sigma * sigma);
+                for (j, &(r, c)) in rc.iter().enumerate() {
+                    let d2 = (r - br) * (r - br) + (c - bc) * (c - bc);
+                    let h = alpha * (d2 * inv).exp();
+                    if h < 1e-12 {
+                        continue; // below double precision's effect on a weight
+                    }
+                    for (w, &xv) in som.weights[j * dim..(j + 1) * dim].iter_mut().zip(x) {
+                        *w += h * (xv - *w);
+                    }
+                }
+            }
+            qe.push(som.quantisation_error(data));
+        }
+        som.log = Some(TrainingLog {
+            n_inputs: n,
+            qe,
+            topographic_error: som.topographic_error(data),
+        });
+        Ok(som)
+    }
+
+    /// Best-matching unit and its Euclidean distance (Eq. 5.3.1).
+    pub fn bmu(&self, x: &[f64]) -> (usize, f64) {
+        let mut best = (0, f64::INFINITY);
+        for j in 0..self.nodes() {
+            let d = sq_dist(x, self.node(j));
+            if d < best.1 {
+                best = (j, d);
+            }
+        }
+        (best.0, best.1.sqrt())
+    }
+
+    /// Mean distance of each input to its BMU (Eq. 5.4.1).
+    pub fn quantisation_error(&self, data: &[f64]) -> f64 {
+        let n = data.len() / self.dim;
+        data.chunks(self.dim).map(|x| self.bmu(x).1).sum::<f64>() / n.max(1) as f64
+    }
+
+    fn adjacent(&self, a: usize, b: usize) -> bool {
+        let (ar, ac) = ((a / self.cols) as i64, (a % self.cols) as i64);
+        let (br, bc) = ((b / self.cols) as i64, (b % self.cols) as i64);
+        (ar - br).abs() <= 1 && (ac - bc).abs() <= 1 && a != b
+    }
+
+    /// Share of inputs whose best and second-best units are not neighbours on the grid
+    /// (8-neighbourhood, as MiniSom).
+    pub fn topographic_error(&self, data: &[f64]) -> f64 {
+        if self.nodes() < 2 {
+            return 0.0;
+        }
+        let n = data.len() / self.dim;
+        let bad = data
+            .chunks(self.dim)
+            .filter(|x| {
+                let mut d: Vec<(f64, usize)> = (0..self.nodes())
+                    .map(|j| (sq_dist(x, self.node(j)), j))
+                    .collect();
+                d.select_nth_unstable_by(1, |a, b| a.0.total_cmp(&b.0));
+                let (first, second) = if d[0].0 <= d[1].0 {
+                    (d[0].1, d[1].1)
+                } else {
+                    (d[1].1, d[0].1)
+                };
+                !self.adjacent(first, second)
+            })
+            .count();
+        bad as f64 / n.max(1) as f64
+    }
+
+    /// U-matrix (Ultsch): for each node, the mean distance of its weight vector to those of
+    /// its 4-neighbours on the grid. `rows × cols`, row-major.
+    pub fn u_matrix(&self) -> Vec<f64> {
+        (0..self.nodes())
+            .map(|j| {
+                let (r, c) = ((j / self.cols) as i64, (j % self.cols) as i64);
+                let nb: Vec<usize> = [(r - 1, c), (r + 1, c), (r, c - 1), (r, c + 1)]
+                    .into_iter()
+                    .filter(|&(a, b)| {
+                        a >= 0 && b >= 0 && (a as usize) < self.rows && (b as usize) < self.cols
+                    })
+                    .map(|(a, b)| a as usize * self.cols + b as usize)
+                    .collect();
+                nb.iter()
+                    .map(|&k| sq_dist(self.node(j), self.node(k)).sqrt())
+                    .sum::<f64>()
+                    / nb.len().max(1) as f64
+            })
+            .collect()
+    }
+
+    /// Label nodes by majority vote of the labelled inputs mapped to them (ties: the label
+    /// that sorts first); nodes that won no input take the label of the nearest labelled node
+    /// in weight space.
+    pub fn label_nodes(&mut self, data: &[f64], labels: &[String]) -> Result<(), SomError> {
+        if data.len() / self.dim != labels.len() {
+            return Err(SomError::Data(format!(
+                "{} inputs but {} labels",
+                data.len() / self.dim,
+                labels.len()
+            )));
+        }
+        let mut votes: Vec<std::collections::BTreeMap<&str, usize>> =
+            vec![Default::default(); self.nodes()];
+        for (x, l) in data.chunks(self.dim).zip(labels) {
+            *votes[self.bmu(x).0].entry(l.as_str()).or_default() += 1;
+        }
+        let voted: Vec<Option<String>> = votes
+            .iter()
+            .map(|v| {
+                v.iter()
+                    .fold(None, |m: Option<(&str, usize)>, (l, &c)| match m {
+                        Some((_, mc)) if mc >= c => m,
+                        _ => Some((l, c)),
+                    })
+                    .map(|(l, _)| l.to_string())
+            })
+            .collect();
+        if voted.iter().all(Option::is_none) {
+            return Err(SomError::Data("no labelled input".into()));
+        }
+        self.labels = (0..self.nodes())
+            .map(|j| match &voted[j] {
+                Some(l) => l.clone(),
+                None => {
+                    let k = (0..self.nodes())
+                        .filter(|&k| voted[k].is_some())
+                        .min_by(|&a, &b| {
+                            sq_dist(self.node(j), self.node(a))
+                                .total_cmp(&sq_dist(self.node(j), self.node(b)))
+                        })
+                        .expect("some labelled");
+                    voted[k].clone().expect("labelled")
+                }
+            })
+            .collect();
+        Ok(())
+    }
+
+    /// BMU, distance and the BMU's label.
+    pub fn classify(&self, x: &[f64]) -> (usize, f64, Option<&str>) {
+        let (b, d) = self.bmu(x);
+        (b, d, self.labels.get(b).map(String::as_str))
+    }
+
+    /// SOM_PAK codebook (`.cod`): header `dim rect cols rows gaussian`, then one node per line,
+    /// x (column) fastest, with its label if any.
+    pub fn to_cod(&self) -> String {
+        let mut s = format!("{} rect {} {} gaussian\n", self.dim, self.cols, self.rows);
+        for j in 0..self.nodes() {
+            let v: Vec<String> = self.node(j).iter().map(|w| format!("{w:e}")).collect();
+            s.push_str(&v.join(" "));
+            if let Some(l) = self.labels.get(j) {
+                s.push(' ');
+                s.push_str(l);
+            }
+            s.push('\n');
+        }
+        s
+    }
+
+    /// Read a SOM_PAK codebook (rectangular topology).
+    pub fn from_cod(text: &str) -> Result<Som, String> {
+        let mut lines = text
+            .lines()
+            .filter(|l| !l.trim().is_empty() && !l.trim_start().starts_with('#'));
+        let head: Vec<&str> = lines
+            .next()
+            .ok_or("empty codebook")?
+            .split_whitespace()
+            .collect();
+        if head.len() < 4 || head[1] != "rect" {
+            return Err(format!(
+                "header '{}': expected 'DIM rect XDIM YDIM [neighbourhood]'",
+                head.join(" ")
+            ));
+        }
+        let num = |s: &str, what: &str| {
+            s.parse::<usize>()
+                .map_err(|_| format!("{what} '{s}' is not a whole number"))
+        };
+        let (dim, cols, rows) = (
+            num(head[0], "dimension")?,
+            num(head[2], "x size")?,
+            num(head[3], "y size")?,
+        );
+        let mut weights = Vec::with_capacity(dim * cols * rows);
+        let mut labels = Vec::new();
+        for (k, l) in lines.enumerate() {
+            let t: Vec<&str> = l.split_whitespace().collect();
+            if t.len() < dim {
+                return Err(format!("node {}: {} values, need {dim}", k + 1, t.len()));
+            }
+            for v in &t[..dim] {
+                weights.push(
+                    v.parse::<f64>()
+                        .map_err(|_| format!("node {}: '{v}' is not a number", k + 1))?,
+                );
+            }
+            if t.len() > dim {
+                labels.push(t[dim].to_string());
+            }
+        }
+        if weights.len() != dim * cols * rows {
+            return Err(format!(
+                "{} nodes, header says {}×{}",
+                weights.len() / dim.max(1),
+                cols,
+                rows
+            ));
+        }
+        if !labels.is_empty() && labels.len() != cols * rows {
+            return Err("some nodes are labelled and some are not".into());
+        }
+        Ok(Som {
+            rows,
+            cols,
+            dim,
+            weights,
+            labels,
+            params: SomParams {
+                rows,
+                cols,
+                ..SomParams::default()
+            },
+            log: None,
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn bad_parameters_are_refused_once() {
+        assert!(SomParams {
+            rows: 0,
+            ..Default::default()
+        }
+        .check()
+        .is_err());
+        assert!(SomParams {
+            stages: vec![Stage {
+                alpha: 0.0,
+                sigma: 1.0,
+                iterations: 5
+            }],
+            ..Default::default()
+        }
+        .check()
+        .is_err());
+        assert!(SomParams::default().check().is_ok());
+    }
+
+    #[test]
+    fn uniform_square_unfolds() {
+        // Thesis Fig. 5.7: 2-D inputs uniform on [0,10]², 10×10 map.
+        let mut rng = Rng::new(1);
+        let data: Vec<f64> = (0..2000).map(|_| rng.range(0.0, 10.0)).collect();
+        let som = Som::fit(&SomParams::default().check().unwrap(), &data, 2).unwrap();
+        let te = som.log.as_ref().unwrap().topographic_error;
+        assert!(te < 0.05, "topographic error {te}");
+        // Neighbouring weights roughly evenly spaced: spacing ≈ 10/10 = 1, spread small.
+        let mut d = Vec::new();
+        for r in 0..10 {
+            for c in 0..9 {
+                d.push(sq_dist(som.node(r * 10 + c), som.node(r * 10 + c + 1)).sqrt());
+            }
+        }
+        let mean = d.iter().sum::<f64>() / d.len() as f64;
+        let sd = (d.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / d.len() as f64).sqrt();
+        assert!(
+            (0.7..1.3).contains(&mean) && sd / mean < 0.35,
+            "spacing {mean} ± {sd}"
+        );
+    }
+
+    #[test]
+    fn separated_clusters_classify_perfectly_and_qe_falls() {
+        let mut rng = Rng::new(2);
+        let centres: Vec<Vec<f64>> = (0..3)
+            .map(|_| (0..20).map(|_| 5.0 * rng.normal()).collect())
+            .collect();
+        let (mut data, mut labels) = (Vec::new(), Vec::new());
+        for i in 0..300 {
+            let k = i % 3;
+            data.extend(centres[k].iter().map(|c| c + 0.3 * rng.normal()));
+            labels.push(format!("class{k}"));
+        }
+        let random = SomParams {
+            init: Init::Random,
+            ..Default::default()
+        }
+        .check()
+        .unwrap();
+        let qe = Som::fit(&random, &data, 20).unwrap().log.unwrap().qe;
+        assert!(qe[0] > qe[1] && qe[1] > qe[2], "QE does not fall: {qe:?}");
+        let mut som = Som::fit(&SomParams::default().check().unwrap(), &data, 20).unwrap();
+        som.label_nodes(&data, &labels).unwrap();
+        let right = data
+            .chunks(20)
+            .zip(&labels)
+            .filter(|(x, l)| som.classify(x).2 == Some(l.as_str()))
+            .count();
+        assert_eq!(right, 300);
+        // Bit-for-bit reproducible with the seed.
+        let again = Som::fit(&SomParams::default().check().unwrap(), &data, 20).unwrap();
+        assert_eq!(again.weights, som.weights);
+        // A SOM_PAK codebook written and read back classifies the same.
+        let back = Som::from_cod(&som.to_cod()).unwrap();
+        assert_eq!(back.labels, som.labels);
+        assert!(data
+            .chunks(20)
+            .all(|x| back.classify(x).0 == som.classify(x).0));
+        // The U-matrix shows the cluster borders: its maximum is well above its median.
+        let mut u = som.u_matrix();
+        u.sort_by(f64::total_cmp);
+        assert!(u[u.len() - 1] > 3.0 * u[u.len() / 2]);
+    }
+
+    #[test]
+    fn malformed_codebooks_say_why() {
+        assert!(Som::from_cod("2 hexa 2 2 gaussian\n")
+            .unwrap_err()
+            .contains("rect"));
+        assert!(Som::from_cod("2 rect 1 1 gaussian\n1.0 x\n")
+            .unwrap_err()
+            .contains("node 1"));
+        assert!(Som::from_cod("2 rect 2 1 gaussian\n1 2\n")
+            .unwrap_err()
+            .contains("1 nodes"));
+    }
+}
