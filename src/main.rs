@@ -94,7 +94,12 @@ enum Cmd {
         #[arg(long)]
         no_plots: bool,
     },
-    /// Print the column table of an output table (features, waveforms, rejects, trend)
+    /// Self-organising map (ch. 5): train, classify, show
+    Som {
+        #[command(subcommand)]
+        which: SomCmd,
+    },
+    /// Print the column table of an output table (features, waveforms, rejects, trend, classification)
     Schema {
         #[arg(default_value = "features")]
         table: String,
@@ -117,6 +122,52 @@ enum Cmd {
     Bench {
         #[command(subcommand)]
         which: BenchCmd,
+    },
+}
+
+#[derive(Subcommand)]
+enum SomCmd {
+    /// Train a map on a balanced ~10 % of the labelled hits (ch. 5.4): MODEL_DIR/model.json, model.cod, train.dat, u_matrix.png
+    Train {
+        #[arg(required = true)]
+        features: Vec<PathBuf>,
+        /// Column holding the training labels (criteria_label, or label for simulator truth)
+        #[arg(long, default_value = "criteria_label")]
+        label: String,
+        #[arg(long)]
+        out: PathBuf,
+        /// Feature columns (tf_bins expands to its 200 elements; numeric scalars add one each)
+        #[arg(long, default_value = "tf_bins", value_delimiter = ',')]
+        columns: Vec<String>,
+        /// Share of the hits in the training set
+        #[arg(long, default_value_t = 0.1)]
+        fraction: f64,
+        /// Standardise each dimension (z-score on the training set)
+        #[arg(long)]
+        standardise: bool,
+        #[arg(long, default_value_t = 10)]
+        rows: usize,
+        #[arg(long, default_value_t = 10)]
+        cols: usize,
+        #[arg(long, default_value_t = 2008)]
+        seed: u64,
+    },
+    /// Classify every hit: DIR/classification.parquet, the Table 5.4 confusion report, hit maps
+    Classify {
+        model: PathBuf,
+        #[arg(required = true)]
+        features: Vec<PathBuf>,
+        #[arg(long)]
+        out: PathBuf,
+        /// Reference column for the confusion report (default: the model's label column)
+        #[arg(long)]
+        reference: Option<String>,
+    },
+    /// Summarise a model and draw its U-matrix with node labels
+    Show {
+        model: PathBuf,
+        #[arg(long)]
+        png: Option<PathBuf>,
     },
 }
 
@@ -251,6 +302,148 @@ fn run_job(job: Job, a: RunArgs) -> ExitCode {
     }
 }
 
+fn run_som(which: SomCmd) -> ExitCode {
+    use aepipe::som::run;
+    let fail = |e: &dyn std::fmt::Display| {
+        eprintln!("aepipe: {e}");
+        ExitCode::from(1)
+    };
+    match which {
+        SomCmd::Train {
+            features,
+            label,
+            out,
+            columns,
+            fraction,
+            standardise,
+            rows,
+            cols,
+            seed,
+        } => {
+            let o = run::TrainOptions {
+                columns,
+                label,
+                standardise,
+                rows,
+                cols,
+                seed,
+                training: run::TrainingSet {
+                    fraction,
+                    ..Default::default()
+                },
+            };
+            match run::train(&features, &out, &o) {
+                Ok(m) => {
+                    println!(
+                        "trained a {}×{} map on {}-D inputs",
+                        m.som.rows, m.som.cols, m.som.dim
+                    );
+                    println!(
+                        "training set ({} rows):",
+                        m.composition.values().map(|c| c.1).sum::<usize>()
+                    );
+                    for (c, (distinct, rows)) in &m.composition {
+                        println!(
+                            "  {c:<16} {distinct:>4} hits, {rows:>4} rows{}",
+                            if rows > distinct {
+                                format!(" (repeated ×{:.1})", *rows as f64 / *distinct as f64)
+                            } else {
+                                String::new()
+                            }
+                        );
+                    }
+                    if let Some(l) = &m.som.log {
+                        println!(
+                            "quantisation error: {}",
+                            l.qe.iter()
+                                .map(|q| format!("{q:.5}"))
+                                .collect::<Vec<_>>()
+                                .join(" → ")
+                        );
+                        println!("topographic error: {:.4}", l.topographic_error);
+                    }
+                    let png = out.join("u_matrix.png");
+                    match aepipe::plot::u_matrix_png(&png, &m.som) {
+                        Ok(()) => println!(
+                            "wrote {}/model.json, model.cod, train.dat, u_matrix.png",
+                            out.display()
+                        ),
+                        Err(e) => eprintln!("aepipe: picture skipped: {e}"),
+                    }
+                    ExitCode::SUCCESS
+                }
+                Err(e) => fail(&e),
+            }
+        }
+        SomCmd::Classify {
+            model,
+            features,
+            out,
+            reference,
+        } => {
+            let m = match run::load_model(&model) {
+                Ok(m) => m,
+                Err(e) => return fail(&e),
+            };
+            let reference = reference.unwrap_or_else(|| m.label_column.clone());
+            match run::classify(&m, &features, Some(&reference), &out) {
+                Ok(conf) => {
+                    println!("SOM class (rows) against {reference} (columns), share of the SOM class's hits:");
+                    print!("{}", conf.format());
+                    let png = out.join("hit_maps.png");
+                    if let Err(e) = aepipe::plot::hit_maps_png(&png, &m.som, &conf.hits) {
+                        eprintln!("aepipe: picture skipped: {e}");
+                    }
+                    println!(
+                        "wrote {} and {}",
+                        out.join("classification.parquet").display(),
+                        png.display()
+                    );
+                    ExitCode::SUCCESS
+                }
+                Err(e) => fail(&e),
+            }
+        }
+        SomCmd::Show { model, png } => {
+            let m = match run::load_model(&model) {
+                Ok(m) => m,
+                Err(e) => return fail(&e),
+            };
+            println!(
+                "{}×{} map, {}-D inputs ({}), labels from {}",
+                m.som.rows,
+                m.som.cols,
+                m.som.dim,
+                m.columns.join(", "),
+                m.label_column
+            );
+            for r in 0..m.som.rows {
+                let row: Vec<String> = (0..m.som.cols)
+                    .map(|c| {
+                        format!(
+                            "{:>14}",
+                            m.som
+                                .labels
+                                .get(r * m.som.cols + c)
+                                .map(String::as_str)
+                                .unwrap_or("-")
+                        )
+                    })
+                    .collect();
+                println!("{}", row.join(""));
+            }
+            let png = png.unwrap_or_else(|| model.join("u_matrix.png"));
+            match aepipe::plot::u_matrix_png(&png, &m.som) {
+                Ok(()) => {
+                    println!("wrote {}", png.display());
+                    ExitCode::SUCCESS
+                }
+                Err(e) => fail(&e),
+            }
+        }
+    }
+}
+
 fn main() -> ExitCode {
     let cli = match Cli::try_parse() {
         Ok(c) => c,
@@ -373,6 +566,7 @@ fn main() -> ExitCode {
                 }
             }
         }
+        Cmd::Som { which } => run_som(which),
         Cmd::Schema { table, config } => {
             let cfg = match load_config(config.as_deref()) {
                 Ok(c) => c,
@@ -383,6 +577,7 @@ fn main() -> ExitCode {
                 "waveforms" => aepipe::store::waveforms_table(),
                 "rejects" => aepipe::store::rejects_table(),
                 "trend" => aepipe::analysis::trend::trend_table(),
+                "classification" => aepipe::som::run::classification_table(),
                 other => {
                     eprintln!("aepipe: unknown table '{other}' (features, waveforms, rejects)");
                     return ExitCode::from(1);

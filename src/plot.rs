@@ -345,3 +345,126 @@ pub fn trend_png(
     root.present().map_err(&e)?;
     Ok(true)
 }
+
+/// Draw a map-sized grid of values as coloured cells with optional text per cell.
+fn grid_panel<DB: DrawingBackend>(
+    area: &DrawingArea<DB, plotters::coord::Shift>,
+    title: &str,
+    rows: usize,
+    cols: usize,
+    values: &[f64],
+    text: &dyn Fn(usize) -> String,
+) -> Result<(), String>
+where
+    DB::ErrorType: 'static,
+{
+    let e = |x: DrawingAreaErrorKind<DB::ErrorType>| x.to_string();
+    let mut c = ChartBuilder::on(area)
+        .caption(title, ("sans-serif", 16))
+        .margin(8)
+        .x_label_area_size(20)
+        .y_label_area_size(25)
+        .build_cartesian_2d(0..cols, 0..rows)
+        .map_err(e)?;
+    c.configure_mesh()
+        .disable_mesh()
+        .x_labels(cols)
+        .y_labels(rows)
+        .label_style(("sans-serif", 11))
+        .draw()
+        .map_err(e)?;
+    let (lo, hi) = values
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |m, &v| {
+            (m.0.min(v), m.1.max(v))
+        });
+    let span = if hi > lo { hi - lo } else { 1.0 };
+    for (j, &value) in values.iter().enumerate().take(rows * cols) {
+        let (r, col) = (j / cols, j % cols);
+        // Row 0 at the top, as maps are usually drawn.
+        let y = rows - 1 - r;
+        let color = ViridisRGB::get_color((value - lo) / span);
+        c.draw_series(std::iter::once(Rectangle::new(
+            [(col, y), (col + 1, y + 1)],
+            color.filled(),
+        )))
+        .map_err(e)?;
+        let t = text(j);
+        if !t.is_empty() {
+            let style = TextStyle::from(("sans-serif", 12).into_font()).color(&WHITE);
+            c.draw_series(std::iter::once(Text::new(t, (col, y + 1), style)))
+                .map_err(e)?;
+        }
+    }
+    Ok(())
+}
+
+fn short_label(l: &str) -> String {
+    match l {
+        "bond_failure" => "B".into(),
+        "fibre_failure" => "F".into(),
+        "both" => "BF".into(),
+        "erroneous" => "E".into(),
+        "unclassified" => "U".into(),
+        other => other.chars().take(3).collect(),
+    }
+}
+
+/// U-matrix of a trained map with each node's label (B bond, F fibre, BF both, E erroneous).
+pub fn u_matrix_png(path: &Path, som: &crate::som::Som) -> Result<(), String> {
+    ensure_font()?;
+    let e = err(path);
+    let root = BitMapBackend::new(path, (620, 620)).into_drawing_area();
+    root.fill(&WHITE).map_err(&e)?;
+    let u = som.u_matrix();
+    grid_panel(
+        &root,
+        "U-matrix (mean distance to 4-neighbours; light = border) and node labels",
+        som.rows,
+        som.cols,
+        &u,
+        &|j| {
+            som.labels
+                .get(j)
+                .map(|l| short_label(l))
+                .unwrap_or_default()
+        },
+    )
+    .map_err(|m| format!("{}: {m}", path.display()))?;
+    root.present().map_err(&e)?;
+    Ok(())
+}
+
+/// One panel per reference class: how many of its hits land on each node.
+pub fn hit_maps_png(
+    path: &Path,
+    som: &crate::som::Som,
+    hits: &std::collections::BTreeMap<String, Vec<f64>>,
+) -> Result<(), String> {
+    ensure_font()?;
+    let e = err(path);
+    let n = hits.len().max(1);
+    let root = BitMapBackend::new(path, (380 * n as u32, 400)).into_drawing_area();
+    root.fill(&WHITE).map_err(&e)?;
+    let panels = root.split_evenly((1, n));
+    for ((class, counts), area) in hits.iter().zip(panels.iter()) {
+        let total: f64 = counts.iter().sum();
+        grid_panel(
+            area,
+            &format!("{class} ({total} hits)"),
+            som.rows,
+            som.cols,
+            counts,
+            &|j| {
+                if counts[j] > 0.0 {
+                    format!("{}", counts[j])
+                } else {
+                    String::new()
+                }
+            },
+        )
+        .map_err(|m| format!("{}: {m}", path.display()))?;
+    }
+    root.present().map_err(&e)?;
+    Ok(())
+}

@@ -10,6 +10,8 @@
 //! Hyper-parameters are checked once into [`SomParams::check`] → [`ValidParams`] (linfa's
 //! way), then [`Som::fit`] trains and [`Som::bmu`] / [`Som::classify`] predict.
 
+pub mod run;
+
 use crate::synth::Rng;
 
 #[derive(Debug, thiserror::Error, PartialEq)]

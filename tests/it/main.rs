@@ -8,6 +8,7 @@ mod cli;
 mod formats;
 mod pipeline;
 mod real_data;
+mod som;
 mod trend;
 
 use std::path::{Path, PathBuf};

@@ -1,0 +1,499 @@
+//! The SOM workflow on feature tables: inputs, the balanced training set of ch. 5.4, model
+//! files, classification of every hit and the confusion report of Table 5.4.
+
+use super::{Init, Som, SomError, SomParams, Stage};
+use crate::store::{self, ColType, ColumnSpec, TableSchema, TableWriter, Value};
+use arrow::array::{Array, AsArray};
+use arrow::datatypes::{DataType, Float32Type, Float64Type, Int32Type, Int64Type};
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+/// Per-hit vectors read from feature tables.
+#[derive(Debug, Clone, Default)]
+pub struct SomInput {
+    pub keys: Vec<(String, i32, i64)>,
+    pub dim: usize,
+    pub data: Vec<f64>,
+    pub labels: Vec<Option<String>>,
+    /// Rows left out because a feature was null (flat or empty records).
+    pub skipped: usize,
+}
+
+fn ferr(p: &Path, m: impl std::fmt::Display) -> SomError {
+    SomError::File {
+        path: p.display().to_string(),
+        message: m.to_string(),
+    }
+}
+
+/// Read `columns` (a fixed-size list such as `tf_bins` expands to its elements; numeric
+/// scalars give one dimension each) and the optional label column.
+pub fn read_inputs(
+    paths: &[PathBuf],
+    columns: &[String],
+    label: Option<&str>,
+) -> Result<SomInput, SomError> {
+    let mut inp = SomInput::default();
+    for p in paths {
+        let (_, _, batches) = store::read_parquet(p).map_err(|e| ferr(p, e))?;
+        for b in batches {
+            let get = |n: &str| {
+                b.column_by_name(n)
+                    .ok_or_else(|| ferr(p, format!("no column {n}")))
+            };
+            let exp = get("experiment")?
+                .as_string_opt::<i32>()
+                .ok_or_else(|| ferr(p, "experiment is not a string"))?
+                .clone();
+            let ch = get("channel")?
+                .as_primitive_opt::<Int32Type>()
+                .ok_or_else(|| ferr(p, "channel is not int32"))?
+                .clone();
+            let hit = get("hit")?
+                .as_primitive_opt::<Int64Type>()
+                .ok_or_else(|| ferr(p, "hit is not int64"))?
+                .clone();
+            let lab = match label {
+                Some(l) => Some(
+                    get(l)?
+                        .as_string_opt::<i32>()
+                        .ok_or_else(|| ferr(p, format!("label column {l} is not a string")))?
+                        .clone(),
+                ),
+                None => None,
+            };
+            let cols: Vec<std::sync::Arc<dyn Array>> = columns
+                .iter()
+                .map(|c| get(c).cloned())
+                .collect::<Result<_, _>>()?;
+            let mut row = Vec::new();
+            'rows: for i in 0..b.num_rows() {
+                row.clear();
+                for (c, name) in cols.iter().zip(columns) {
+                    if c.is_null(i) {
+                        inp.skipped += 1;
+                        continue 'rows;
+                    }
+                    match c.data_type() {
+                        DataType::FixedSizeList(_, _) => {
+                            let v = c.as_fixed_size_list().value(i);
+                            let v = v.as_primitive_opt::<Float32Type>().ok_or_else(|| {
+                                ferr(p, format!("{name}: expected float32 elements"))
+                            })?;
+                            row.extend(v.values().iter().map(|&x| x as f64));
+                        }
+                        DataType::Float64 => row.push(c.as_primitive::<Float64Type>().value(i)),
+                        DataType::Float32 => {
+                            row.push(c.as_primitive::<Float32Type>().value(i) as f64)
+                        }
+                        DataType::Int64 => row.push(c.as_primitive::<Int64Type>().value(i) as f64),
+                        DataType::Int32 => row.push(c.as_primitive::<Int32Type>().value(i) as f64),
+                        other => {
+                            return Err(ferr(
+                                p,
+                                format!("{name} is {other}, not a number or a fixed-size list"),
+                            ))
+                        }
+                    }
+                }
+                if inp.dim == 0 {
+                    inp.dim = row.len();
+                } else if row.len() != inp.dim {
+                    return Err(ferr(
+                        p,
+                        format!("rows of dimension {} and {}", inp.dim, row.len()),
+                    ));
+                }
+                if row.iter().any(|v| !v.is_finite()) {
+                    inp.skipped += 1;
+                    continue;
+                }
+                inp.data.extend_from_slice(&row);
+                inp.keys
+                    .push((exp.value(i).to_string(), ch.value(i), hit.value(i)));
+                inp.labels.push(lab.as_ref().and_then(|l| {
+                    if l.is_null(i) {
+                        None
+                    } else {
+                        Some(l.value(i).to_string())
+                    }
+                }));
+            }
+        }
+    }
+    if inp.keys.is_empty() {
+        return Err(SomError::Data(
+            "no usable rows in the feature tables".into(),
+        ));
+    }
+    Ok(inp)
+}
+
+/// How the training set is drawn (ch. 5.4).
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct TrainingSet {
+    /// Share of the hits in the training set (thesis: 64 of 651 ≈ 10 %).
+    pub fraction: f64,
+    /// Classes left out of training (faults are not a mechanism).
+    pub exclude: Vec<String>,
+    /// Repeat rare classes so every class has an equal share (thesis: 4 fibre failures
+    /// repeated 8 times beside 32 bond failures).
+    pub balance: bool,
+    pub seed: u64,
+}
+
+impl Default for TrainingSet {
+    fn default() -> Self {
+        TrainingSet {
+            fraction: 0.1,
+            exclude: vec!["erroneous".into(), "unclassified".into()],
+            balance: true,
+            seed: 5,
+        }
+    }
+}
+
+/// Class → (distinct hits drawn, rows in the training set).
+pub type Composition = BTreeMap<String, (usize, usize)>;
+
+/// Indices of the training rows (with repeats when balanced) and the composition.
+pub fn draw_training(
+    inp: &SomInput,
+    ts: &TrainingSet,
+) -> Result<(Vec<usize>, Composition), SomError> {
+    let mut by_class: BTreeMap<String, Vec<usize>> = BTreeMap::new();
+    for (i, l) in inp.labels.iter().enumerate() {
+        if let Some(l) = l {
+            if !ts.exclude.contains(l) {
+                by_class.entry(l.clone()).or_default().push(i);
+            }
+        }
+    }
+    if by_class.is_empty() {
+        return Err(SomError::Data(
+            "no labelled hits to train on (after excluding erroneous/unclassified)".into(),
+        ));
+    }
+    let total = ((ts.fraction * inp.keys.len() as f64).round() as usize).max(by_class.len());
+    let per = (total / by_class.len()).max(1);
+    let n_all: usize = by_class.values().map(Vec::len).sum();
+    let mut rng = crate::synth::Rng::new(ts.seed);
+    let mut rows = Vec::new();
+    let mut comp = Composition::new();
+    for (class, mut idx) in by_class {
+        // Seeded Fisher–Yates shuffle: which hits of the class are drawn.
+        for i in (1..idx.len()).rev() {
+            let j = (rng.next_u64() % (i as u64 + 1)) as usize;
+            idx.swap(i, j);
+        }
+        if ts.balance {
+            // An equal share per class; a class with fewer hits than its share is repeated.
+            let distinct = per.min(idx.len());
+            rows.extend((0..per).map(|k| idx[k % distinct]));
+            comp.insert(class, (distinct, per));
+        } else {
+            let k = ((idx.len() as f64 / n_all as f64) * total as f64)
+                .round()
+                .max(1.0) as usize;
+            let k = k.min(idx.len());
+            rows.extend_from_slice(&idx[..k]);
+            comp.insert(class, (k, k));
+        }
+    }
+    Ok((rows, comp))
+}
+
+/// Per-dimension mean and standard deviation (None: not standardised).
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct Scaling {
+    pub mean: Vec<f64>,
+    pub std: Vec<f64>,
+}
+
+impl Scaling {
+    pub fn fit(data: &[f64], dim: usize) -> Scaling {
+        let n = (data.len() / dim).max(1) as f64;
+        let mut mean = vec![0.0; dim];
+        for x in data.chunks(dim) {
+            for k in 0..dim {
+                mean[k] += x[k] / n;
+            }
+        }
+        let mut var = vec![0.0; dim];
+        for x in data.chunks(dim) {
+            for k in 0..dim {
+                var[k] += (x[k] - mean[k]).powi(2) / n;
+            }
+        }
+        Scaling {
+            mean,
+            std: var
+                .into_iter()
+                .map(|v| if v > 0.0 { v.sqrt() } else { 1.0 })
+                .collect(),
+        }
+    }
+    pub fn apply(&self, x: &mut [f64]) {
+        for (k, v) in x.iter_mut().enumerate() {
+            *v = (*v - self.mean[k % self.mean.len()]) / self.std[k % self.std.len()];
+        }
+    }
+}
+
+/// Everything saved in `MODEL_DIR/model.json`.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct Model {
+    pub som: Som,
+    pub columns: Vec<String>,
+    pub label_column: String,
+    pub scaling: Option<Scaling>,
+    pub training: TrainingSet,
+    pub composition: Composition,
+    pub tool_version: String,
+}
+
+/// Options of `aepipe som train`.
+#[derive(Debug, Clone)]
+pub struct TrainOptions {
+    pub columns: Vec<String>,
+    pub label: String,
+    pub standardise: bool,
+    pub rows: usize,
+    pub cols: usize,
+    pub seed: u64,
+    pub training: TrainingSet,
+}
+
+impl Default for TrainOptions {
+    fn default() -> Self {
+        TrainOptions {
+            columns: vec!["tf_bins".into()],
+            label: "criteria_label".into(),
+            standardise: false,
+            rows: 10,
+            cols: 10,
+            seed: 2008,
+            training: TrainingSet::default(),
+        }
+    }
+}
+
+/// Train a model on feature tables and write `model.json`, `model.cod` and `train.dat`.
+pub fn train(paths: &[PathBuf], out: &Path, o: &TrainOptions) -> Result<Model, SomError> {
+    let inp = read_inputs(paths, &o.columns, Some(&o.label))?;
+    let (rows, comp) = draw_training(&inp, &o.training)?;
+    let dim = inp.dim;
+    let mut data: Vec<f64> = rows
+        .iter()
+        .flat_map(|&i| inp.data[i * dim..(i + 1) * dim].iter().copied())
+        .collect();
+    let labels: Vec<String> = rows
+        .iter()
+        .map(|&i| inp.labels[i].clone().expect("training rows are labelled"))
+        .collect();
+    let scaling = o.standardise.then(|| Scaling::fit(&data, dim));
+    if let Some(s) = &scaling {
+        data.chunks_mut(dim).for_each(|x| s.apply(x));
+    }
+    let params = SomParams {
+        rows: o.rows,
+        cols: o.cols,
+        stages: vec![
+            Stage {
+                alpha: 0.05,
+                sigma: 10.0,
+                iterations: 1000,
+            },
+            Stage {
+                alpha: 0.01,
+                sigma: 3.0,
+                iterations: 10_000,
+            },
+        ],
+        seed: o.seed,
+        init: Init::Samples,
+    }
+    .check()?;
+    let mut som = Som::fit(&params, &data, dim)?;
+    som.label_nodes(&data, &labels)?;
+    let model = Model {
+        som,
+        columns: o.columns.clone(),
+        label_column: o.label.clone(),
+        scaling,
+        training: o.training.clone(),
+        composition: comp,
+        tool_version: env!("CARGO_PKG_VERSION").into(),
+    };
+    std::fs::create_dir_all(out).map_err(|e| ferr(out, e))?;
+    let w = |name: &str, text: String| {
+        crate::pipeline::write_atomic(&out.join(name), text.as_bytes())
+            .map_err(|e| ferr(&out.join(name), e))
+    };
+    w("model.json", serde_json::to_string(&model).expect("json"))?;
+    w("model.cod", model.som.to_cod())?;
+    let mut dat = format!("{dim}\n");
+    for (x, l) in data.chunks(dim).zip(&labels) {
+        dat.push_str(
+            &x.iter()
+                .map(|v| format!("{v:e}"))
+                .collect::<Vec<_>>()
+                .join(" "),
+        );
+        dat.push(' ');
+        dat.push_str(l);
+        dat.push('\n');
+    }
+    w("train.dat", dat)?;
+    Ok(model)
+}
+
+pub fn load_model(dir: &Path) -> Result<Model, SomError> {
+    let p = dir.join("model.json");
+    let text = std::fs::read_to_string(&p).map_err(|e| ferr(&p, e))?;
+    serde_json::from_str(&text).map_err(|e| ferr(&p, e))
+}
+
+pub fn classification_table() -> TableSchema {
+    TableSchema {
+        name: "classification".into(),
+        columns: vec![
+            ColumnSpec::new("experiment", ColType::Utf8, "", "experiment id"),
+            ColumnSpec::new("channel", ColType::Int32, "", "sensor channel"),
+            ColumnSpec::new("hit", ColType::Int64, "", "hit number"),
+            ColumnSpec::new("bmu_row", ColType::Int32, "", "row of the best-matching unit on the map"),
+            ColumnSpec::new("bmu_col", ColType::Int32, "", "column of the best-matching unit"),
+            ColumnSpec::new("bmu_distance", ColType::Float64, "1", "Euclidean distance of the hit's vector to its BMU (in the model's, possibly standardised, units)"),
+            ColumnSpec::new("som_label", ColType::Utf8, "", "label of the BMU node: the class the SOM assigns"),
+            ColumnSpec::new("reference_label", ColType::Utf8, "", "the hit's label in the reference column (e.g. criteria_label or label); null if none").nullable(),
+        ],
+    }
+}
+
+/// The confusion report: for each SOM class, how its hits split over reference groups.
+#[derive(Debug, Clone, Default)]
+pub struct Confusion {
+    /// (SOM class, reference group) → hits.
+    pub counts: BTreeMap<(String, String), usize>,
+    pub correct: usize,
+    pub total: usize,
+    /// Reference group → hits per map node (for the hit maps).
+    pub hits: BTreeMap<String, Vec<f64>>,
+}
+
+impl Confusion {
+    pub fn accuracy(&self) -> Option<f64> {
+        (self.total > 0).then(|| self.correct as f64 / self.total as f64)
+    }
+
+    /// Table 5.4 orientation: rows = SOM class, columns = reference group, cells = share of
+    /// the SOM class's hits (and the count), plus the overall accuracy.
+    pub fn format(&self) -> String {
+        let som: Vec<&String> = self
+            .counts
+            .keys()
+            .map(|k| &k.0)
+            .collect::<std::collections::BTreeSet<_>>()
+            .into_iter()
+            .collect();
+        let refs: Vec<&String> = self
+            .counts
+            .keys()
+            .map(|k| &k.1)
+            .collect::<std::collections::BTreeSet<_>>()
+            .into_iter()
+            .collect();
+        let mut s = format!("{:<16}", "SOM class");
+        for r in &refs {
+            s.push_str(&format!(" {:>18}", r));
+        }
+        s.push('\n');
+        for c in &som {
+            let n: usize = refs
+                .iter()
+                .map(|r| {
+                    self.counts
+                        .get(&((*c).clone(), (*r).clone()))
+                        .copied()
+                        .unwrap_or(0)
+                })
+                .sum();
+            s.push_str(&format!("{:<16}", c));
+            for r in &refs {
+                let k = self
+                    .counts
+                    .get(&((*c).clone(), (*r).clone()))
+                    .copied()
+                    .unwrap_or(0);
+                s.push_str(&format!(
+                    " {:>10.2}% ({:>4})",
+                    100.0 * k as f64 / n.max(1) as f64,
+                    k
+                ));
+            }
+            s.push('\n');
+        }
+        if let Some(a) = self.accuracy() {
+            s.push_str(&format!(
+                "overall accuracy: {}/{} = {:.2}%\n",
+                self.correct,
+                self.total,
+                100.0 * a
+            ));
+        }
+        s
+    }
+}
+
+/// Classify every hit of the feature tables; write `DIR/classification.parquet`.
+pub fn classify(
+    model: &Model,
+    paths: &[PathBuf],
+    reference: Option<&str>,
+    out: &Path,
+) -> Result<Confusion, SomError> {
+    let inp = read_inputs(paths, &model.columns, reference)?;
+    if inp.dim != model.som.dim {
+        return Err(SomError::Data(format!(
+            "feature dimension {} differs from the model's {}",
+            inp.dim, model.som.dim
+        )));
+    }
+    std::fs::create_dir_all(out).map_err(|e| ferr(out, e))?;
+    let path = out.join("classification.parquet");
+    let mut w = TableWriter::create(&path, classification_table(), &[], 4096)
+        .map_err(|e| ferr(&path, e))?;
+    let mut conf = Confusion::default();
+    let mut x = vec![0.0; inp.dim];
+    for (i, key) in inp.keys.iter().enumerate() {
+        x.copy_from_slice(&inp.data[i * inp.dim..(i + 1) * inp.dim]);
+        if let Some(s) = &model.scaling {
+            s.apply(&mut x);
+        }
+        let (b, d, l) = model.som.classify(&x);
+        let l = l.unwrap_or("").to_string();
+        if let Some(r) = &inp.labels[i] {
+            conf.hits
+                .entry(r.clone())
+                .or_insert_with(|| vec![0.0; model.som.nodes()])[b] += 1.0;
+            *conf.counts.entry((l.clone(), r.clone())).or_default() += 1;
+            conf.total += 1;
+            if &l == r {
+                conf.correct += 1;
+            }
+        }
+        w.push(vec![
+            Value::Str(Some(key.0.clone())),
+            Value::I32(Some(key.1)),
+            Value::I64(Some(key.2)),
+            Value::I32(Some((b / model.som.cols) as i32)),
+            Value::I32(Some((b % model.som.cols) as i32)),
+            Value::F64(Some(d)),
+            Value::Str(Some(l)),
+            Value::Str(inp.labels[i].clone()),
+        ])
+        .map_err(|e| ferr(&path, e))?;
+    }
+    w.finish().map_err(|e| ferr(&path, e))?;
+    Ok(conf)
+}

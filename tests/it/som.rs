@@ -1,0 +1,98 @@
+//! The SOM workflow on feature tables (ch. 5.4): balanced training set, classification,
+//! confusion report, model files.
+
+use crate::{table_rows, TempDir};
+use aepipe::config::PipelineConfig;
+use aepipe::pipeline::{run, Job, RunOptions};
+use aepipe::som::run::{classify, load_model, train, TrainOptions};
+use aepipe::som::Som;
+use aepipe::synth::Experiment;
+
+#[test]
+fn som_trained_on_criteria_labels_classifies_the_experiment() {
+    let t = TempDir::new("som");
+    let data = t.path().join("data");
+    let mut e = Experiment::new("notched", 400, 31);
+    e.n_samples = 1024;
+    e.write_vallen(&data).unwrap();
+    let f = run(
+        Job::Features,
+        &[data],
+        &t.path().join("f"),
+        &PipelineConfig::default(),
+        &RunOptions {
+            threads: 2,
+            progress: false,
+        },
+    )
+    .unwrap();
+    let model_dir = t.path().join("model");
+    let m = train(
+        std::slice::from_ref(&f.table_path),
+        &model_dir,
+        &TrainOptions::default(),
+    )
+    .unwrap();
+    // Balanced: every trained class has the same number of rows; ~10 % of 400 hits.
+    let rows: Vec<usize> = m.composition.values().map(|c| c.1).collect();
+    assert!(rows.windows(2).all(|w| w[0] == w[1]), "{:?}", m.composition);
+    assert!(
+        (36..=44).contains(&rows.iter().sum::<usize>()),
+        "{:?}",
+        m.composition
+    );
+    assert!(!m.composition.contains_key("erroneous"));
+    for f in ["model.json", "model.cod", "train.dat"] {
+        assert!(model_dir.join(f).exists(), "{f}");
+    }
+    // Classify every hit against the criteria labels.
+    let back = load_model(&model_dir).unwrap();
+    assert!(back == m, "model.json does not round-trip exactly");
+    let out = t.path().join("c");
+    let conf = classify(
+        &back,
+        std::slice::from_ref(&f.table_path),
+        Some("criteria_label"),
+        &out,
+    )
+    .unwrap();
+    let acc = conf.accuracy().unwrap();
+    assert!(acc > 0.85, "accuracy {acc}\n{}", conf.format());
+    // Of the mechanisms it was trained on, bond vs fibre failures are told apart.
+    let get = |a: &str, b: &str| {
+        conf.counts
+            .get(&(a.to_string(), b.to_string()))
+            .copied()
+            .unwrap_or(0)
+    };
+    assert_eq!(
+        get("bond_failure", "fibre_failure") + get("fibre_failure", "bond_failure"),
+        0,
+        "{}",
+        conf.format()
+    );
+    // The table matches its schema file and holds every hit.
+    let (names, rows) = table_rows(&out.join("classification.parquet"));
+    let doc = std::fs::read_to_string(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/data-schema/classification.md"
+    ))
+    .unwrap();
+    let cols: Vec<String> = aepipe::store::parse_schema_markdown(&doc)
+        .into_iter()
+        .map(|c| c.0)
+        .collect();
+    assert_eq!(names, cols);
+    assert_eq!(rows.len(), 400);
+    // The SOM_PAK codebook gives the same classification as the JSON model.
+    let cod =
+        Som::from_cod(&std::fs::read_to_string(model_dir.join("model.cod")).unwrap()).unwrap();
+    assert_eq!(cod.labels, m.som.labels);
+    let w: Vec<f64> = cod
+        .weights
+        .iter()
+        .zip(&m.som.weights)
+        .map(|(a, b)| (a - b).abs())
+        .collect();
+    assert!(w.iter().all(|d| *d < 1e-12), "cod weights differ");
+}
