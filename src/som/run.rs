@@ -1,7 +1,7 @@
 //! The SOM workflow on feature tables: inputs, the balanced training set of ch. 5.4, model
 //! files, classification of every hit and the confusion report of Table 5.4.
 
-use super::{Init, Som, SomError, SomParams, Stage};
+use super::{Init, Som, SomError, SomParams};
 use crate::store::{self, ColType, ColumnSpec, TableSchema, TableWriter, Value};
 use arrow::array::{Array, AsArray};
 use arrow::datatypes::{DataType, Float32Type, Float64Type, Int32Type, Int64Type};
@@ -298,20 +298,10 @@ pub fn train(paths: &[PathBuf], out: &Path, o: &TrainOptions) -> Result<Model, S
     let params = SomParams {
         rows: o.rows,
         cols: o.cols,
-        stages: vec![
-            Stage {
-                alpha: 0.05,
-                sigma: 10.0,
-                iterations: 1000,
-            },
-            Stage {
-                alpha: 0.01,
-                sigma: 3.0,
-                iterations: 10_000,
-            },
-        ],
         seed: o.seed,
         init: Init::Samples,
+        // The Table 5.2 stages.
+        ..SomParams::default()
     }
     .check()?;
     let mut som = Som::fit(&params, &data, dim)?;
