@@ -274,9 +274,14 @@ pub fn cwt_bench(
     Ok(rows)
 }
 
-/// Run one peer script in the same run: `python script args… --out tmp.json`; returns the
-/// median seconds from its JSON.
-pub fn run_peer(python: &Path, peers: &Path, script: &str, args: &[&str]) -> Result<f64, String> {
+/// Run one peer script in the same run (`python script args… --out tmp.json`) and return the
+/// JSON it wrote.
+fn peer_json(
+    python: &Path,
+    peers: &Path,
+    script: &str,
+    args: &[&str],
+) -> Result<serde_json::Value, String> {
     let out = std::env::temp_dir().join(format!(
         "aepipe-peer-{}-{}.json",
         script.trim_end_matches(".py"),
@@ -293,9 +298,13 @@ pub fn run_peer(python: &Path, peers: &Path, script: &str, args: &[&str]) -> Res
     if !st.success() {
         return Err(format!("peer {script} {args:?} failed ({st})"));
     }
-    let v: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(&out).map_err(|e| e.to_string())?)
-            .map_err(|e| e.to_string())?;
+    serde_json::from_str(&std::fs::read_to_string(&out).map_err(|e| e.to_string())?)
+        .map_err(|e| e.to_string())
+}
+
+/// Run one peer script in the same run; returns the median seconds from its JSON.
+pub fn run_peer(python: &Path, peers: &Path, script: &str, args: &[&str]) -> Result<f64, String> {
+    let v = peer_json(python, peers, script, args)?;
     let med = v["timing"]["median_s"]
         .as_f64()
         .ok_or("no timing.median_s in the peer's JSON")?;
@@ -327,24 +336,18 @@ pub fn som_bench(dir: &Path, repeats: usize) -> Result<(f64, f64, f64), String> 
 
 /// Run the MiniSom peer; returns (median seconds, QE).
 pub fn run_minisom(python: &Path, peers: &Path) -> Result<(f64, f64), String> {
-    let out = std::env::temp_dir().join("aepipe-peer-w3-minisom.json");
-    let st = std::process::Command::new(python)
-        .arg(peers.join("w3_som.py"))
-        .args(["--peer", "minisom", "--threads", "1", "--out"])
-        .arg(&out)
-        .stdout(std::process::Stdio::null())
-        .status()
-        .map_err(|e| format!("{}: {e}", python.display()))?;
-    if !st.success() {
-        return Err(format!("peer w3_som.py minisom failed ({st})"));
-    }
-    let v: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(&out).map_err(|e| e.to_string())?)
-            .map_err(|e| e.to_string())?;
+    let v = peer_json(
+        python,
+        peers,
+        "w3_som.py",
+        &["--peer", "minisom", "--threads", "1"],
+    )?;
     Ok((
         v["timing"]["median_s"]
             .as_f64()
-            .ok_or("no timing.median_s")?,
-        v["quality"]["qe"].as_f64().ok_or("no quality.qe")?,
+            .ok_or("no timing.median_s in the peer's JSON")?,
+        v["quality"]["qe"]
+            .as_f64()
+            .ok_or("no quality.qe in the peer's JSON")?,
     ))
 }
