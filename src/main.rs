@@ -125,6 +125,13 @@ enum Cmd {
     },
 }
 
+#[derive(Clone, Copy, clap::ValueEnum)]
+enum InitArg {
+    Samples,
+    Random,
+    Linear,
+}
+
 #[derive(Subcommand)]
 enum SomCmd {
     /// Train a map on a balanced ~10 % of the labelled hits (ch. 5.4): MODEL_DIR/model.json, model.cod, train.dat, u_matrix.png
@@ -151,6 +158,9 @@ enum SomCmd {
         cols: usize,
         #[arg(long, default_value_t = 2008)]
         seed: u64,
+        /// Initial codebook: random training vectors, uniform random, or linear (PCA plane)
+        #[arg(long, value_enum, default_value_t = InitArg::Samples)]
+        init: InitArg,
     },
     /// Classify every hit: DIR/classification.parquet, the Table 5.4 confusion report, hit maps
     Classify {
@@ -319,6 +329,7 @@ fn run_som(which: SomCmd) -> ExitCode {
             rows,
             cols,
             seed,
+            init,
         } => {
             let o = run::TrainOptions {
                 columns,
@@ -327,6 +338,11 @@ fn run_som(which: SomCmd) -> ExitCode {
                 rows,
                 cols,
                 seed,
+                init: match init {
+                    InitArg::Samples => aepipe::som::Init::Samples,
+                    InitArg::Random => aepipe::som::Init::Random,
+                    InitArg::Linear => aepipe::som::Init::Linear,
+                },
                 training: run::TrainingSet {
                     fraction,
                     ..Default::default()

@@ -261,6 +261,7 @@ pub struct TrainOptions {
     pub rows: usize,
     pub cols: usize,
     pub seed: u64,
+    pub init: Init,
     pub training: TrainingSet,
 }
 
@@ -273,6 +274,7 @@ impl Default for TrainOptions {
             rows: 10,
             cols: 10,
             seed: 2008,
+            init: Init::Samples,
             training: TrainingSet::default(),
         }
     }
@@ -299,7 +301,7 @@ pub fn train(paths: &[PathBuf], out: &Path, o: &TrainOptions) -> Result<Model, S
         rows: o.rows,
         cols: o.cols,
         seed: o.seed,
-        init: Init::Samples,
+        init: o.init.clone(),
         // The Table 5.2 stages.
         ..SomParams::default()
     }
