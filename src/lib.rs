@@ -17,6 +17,7 @@ pub mod inspect;
 pub mod model;
 pub mod pipeline;
 pub mod plot;
+pub mod sim;
 pub mod som;
 pub mod store;
 pub mod synth;

@@ -106,6 +106,34 @@ enum Cmd {
         #[arg(long)]
         config: Option<PathBuf>,
     },
+    /// Simulate AEs with the hybrid mass/spring + acoustic model (ch. 3–4): DIR/waveforms.parquet
+    Simulate {
+        /// Model file: the thesis's sectioned format (Appendix A) or .toml
+        model: Option<PathBuf>,
+        /// Built-in scenario instead of a file: sho, five-mass-fibre, fibre-single-constraint,
+        /// rubber-band, paper-fibre, mesh3x3-bond-failure, structure2x1-fibre-failure
+        #[arg(long)]
+        scenario: Option<String>,
+        /// Scenario parameter key=value (repeatable), e.g. point=7, stretch=0.01, dt=1e-8
+        #[arg(long = "param", value_parser = aepipe::sim::scenario::Params::parse_one)]
+        params: Vec<(String, f64)>,
+        /// Run once per integer value: key=LO..HI (e.g. point=1..12), one hit each
+        #[arg(long)]
+        sweep: Option<String>,
+        #[arg(long, value_enum)]
+        solver: Option<aepipe::sim::model::Solver>,
+        #[arg(long)]
+        out: PathBuf,
+        /// Write node trajectories every N mass/spring steps (DIR/trajectories.parquet)
+        #[arg(long)]
+        trajectories: Option<usize>,
+        /// Write a pressure-field PNG every N acoustic steps (DIR/snapshots/)
+        #[arg(long)]
+        snapshots: Option<usize>,
+        /// Sensor sensitivity, V/Pa (samples_v = pressure × this)
+        #[arg(long, default_value_t = 1.0)]
+        scale: f64,
+    },
     /// Make a synthetic experiment and run the pipeline on it (the README's first command)
     Demo {
         /// Folder for the demo's data and outputs
@@ -460,6 +488,18 @@ fn run_som(which: SomCmd) -> ExitCode {
     }
 }
 
+/// `key=LO..HI` with integer bounds.
+fn parse_sweep(s: &str) -> Result<(String, i64, i64), String> {
+    let bad = || format!("--sweep {s}: expected key=LO..HI with integers, e.g. point=1..12");
+    let (k, r) = s.split_once('=').ok_or_else(bad)?;
+    let (lo, hi) = r.split_once("..").ok_or_else(bad)?;
+    Ok((
+        k.trim().to_string(),
+        lo.trim().parse().map_err(|_| bad())?,
+        hi.trim().parse().map_err(|_| bad())?,
+    ))
+}
+
 fn main() -> ExitCode {
     let cli = match Cli::try_parse() {
         Ok(c) => c,
@@ -594,13 +634,65 @@ fn main() -> ExitCode {
                 "rejects" => aepipe::store::rejects_table(),
                 "trend" => aepipe::analysis::trend::trend_table(),
                 "classification" => aepipe::som::run::classification_table(),
+                "sim_waveforms" => aepipe::sim::output::sim_waveforms_table(),
+                "sim_trajectories" => aepipe::sim::output::trajectory_table(),
                 other => {
-                    eprintln!("aepipe: unknown table '{other}' (features, waveforms, rejects)");
+                    eprintln!("aepipe: unknown table '{other}' (features, waveforms, rejects, trend, classification, sim_waveforms, sim_trajectories)");
                     return ExitCode::from(1);
                 }
             };
             print!("{}", t.markdown_columns());
             ExitCode::SUCCESS
+        }
+        Cmd::Simulate {
+            model,
+            scenario,
+            params,
+            sweep,
+            solver,
+            out,
+            trajectories,
+            snapshots,
+            scale,
+        } => {
+            let sweep = match sweep.as_deref().map(parse_sweep).transpose() {
+                Ok(s) => s,
+                Err(e) => {
+                    eprintln!("aepipe: {e}");
+                    return ExitCode::from(1);
+                }
+            };
+            let job = aepipe::sim::Job {
+                model,
+                scenario,
+                params: aepipe::sim::scenario::Params(params),
+                sweep,
+                solver,
+                out,
+                run: aepipe::sim::RunOptions {
+                    trajectory_every: trajectories,
+                    snapshot_every: snapshots,
+                },
+                scale_v_per_pa: scale,
+            };
+            match aepipe::sim::run_job(&job) {
+                Ok(lines) => {
+                    for l in lines {
+                        println!("{l}");
+                    }
+                    ExitCode::SUCCESS
+                }
+                Err(
+                    e @ (aepipe::sim::SimError::Model(_) | aepipe::sim::SimError::Parse { .. }),
+                ) => {
+                    eprintln!("aepipe: {e}");
+                    ExitCode::from(1)
+                }
+                Err(e) => {
+                    eprintln!("aepipe: {e}");
+                    ExitCode::from(3)
+                }
+            }
         }
         Cmd::Demo {
             out,

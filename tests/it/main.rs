@@ -8,6 +8,7 @@ mod cli;
 mod formats;
 mod pipeline;
 mod real_data;
+mod sim;
 mod som;
 mod trend;
 

@@ -68,7 +68,7 @@ fn features_are_byte_identical_for_one_and_two_threads() {
     assert_eq!(keys, sorted);
 }
 
-fn check_against_schema_file(parquet: &Path, schema_md: &str) {
+pub fn check_against_schema_file(parquet: &Path, schema_md: &str) {
     let (schema, kv, _) = read_parquet(parquet).unwrap();
     let text = std::fs::read_to_string(
         Path::new(env!("CARGO_MANIFEST_DIR"))

@@ -1,0 +1,767 @@
+//! The mass/spring model (ch. 3.2): forces with Poisson's ratio, the four solvers, the
+//! initial-condition relaxation of Alg. 7 and the damage events of Alg. 8 and 9.
+
+// Index loops over nodes and 2×2 components read like the equations they implement.
+#![allow(clippy::needless_range_loop)]
+
+use super::model::{DamageSpec, ForceSpec, IcKind, ModelFile, Solver};
+use super::SimError;
+
+/// One spring with its material (Eq. 3.2.5, 3.2.9).
+#[derive(Debug, Clone)]
+pub struct Spring {
+    pub a: usize,
+    pub b: usize,
+    pub l0: f64,
+    pub e: f64,
+    pub t: f64,
+    pub w: f64,
+    pub nu: f64,
+    pub fibre: u32,
+    /// Removed by a fibre failure (stiffness zero).
+    pub broken: bool,
+    /// Cross-section used for the stiffness (Eq. 3.2.9 at the load).
+    pub area: f64,
+}
+
+impl Spring {
+    /// Tension f(l) = k·(l − L) and df/dl = k, with k = E·A/L (Eq. 3.2.5) and A the
+    /// cross-section of Eq. 3.2.9 at the load, i.e. at the strain of t = 0 (see
+    /// [`Mech::freeze_areas`]).
+    #[inline]
+    pub fn tension(&self, l: f64) -> (f64, f64) {
+        let k = self.e * self.area / self.l0;
+        (k * (l - self.l0), k)
+    }
+
+    /// Cross-section of Eq. 3.2.9 at length l: A = t·w·(1 − ν·ΔL/L)².
+    pub fn area_at(&self, l: f64) -> f64 {
+        let c = 1.0 - self.nu * (l - self.l0) / self.l0;
+        self.t * self.w * c * c
+    }
+
+    /// Small-strain stiffness E·t·w/L.
+    pub fn k0(&self) -> f64 {
+        self.e * self.t * self.w / self.l0
+    }
+}
+
+/// The state and structure of a mass/spring model.
+#[derive(Debug, Clone)]
+pub struct Mech {
+    pub r: Vec<[f64; 2]>,
+    pub u: Vec<[f64; 2]>,
+    pub m: Vec<f64>,
+    /// Clamped now (fixed nodes, and nodes held by an initial condition).
+    pub held: Vec<bool>,
+    /// Clamped for good (type 1 in the Nodes section).
+    pub fixed: Vec<bool>,
+    pub springs: Vec<Spring>,
+    pub damping: f64,
+    pub forces: Vec<ForceSpec>,
+    /// Velocity Verlet keeps the acceleration between steps.
+    acc: Vec<[f64; 2]>,
+    acc_valid: bool,
+    implicit: Implicit,
+}
+
+/// What the relaxation did.
+#[derive(Debug, Clone, Copy)]
+pub struct Relaxed {
+    pub steps: usize,
+    pub converged: bool,
+    /// Largest force on a free node at the end, relative to the largest spring tension.
+    pub residual: f64,
+}
+
+impl Mech {
+    pub fn new(model: &ModelFile) -> Mech {
+        let n = model.nodes.len();
+        let springs = model
+            .springs
+            .iter()
+            .enumerate()
+            .map(|(k, s)| Spring {
+                a: s.a,
+                b: s.b,
+                l0: model.rest_length(k),
+                e: s.e,
+                t: s.t,
+                w: s.w,
+                nu: s.poisson,
+                fibre: s.fibre,
+                broken: false,
+                area: s.t * s.w,
+            })
+            .collect();
+        let fixed: Vec<bool> = model.nodes.iter().map(|nd| nd.fixed).collect();
+        Mech {
+            r: model.nodes.iter().map(|nd| [nd.x, nd.y]).collect(),
+            u: vec![[0.0; 2]; n],
+            m: model.nodes.iter().map(|nd| nd.mass).collect(),
+            held: fixed.clone(),
+            fixed,
+            springs,
+            damping: model.system.damping,
+            forces: model.forces.clone(),
+            acc: vec![[0.0; 2]; n],
+            acc_valid: false,
+            implicit: Implicit::default(),
+        }
+    }
+
+    pub fn len(&self) -> usize {
+        self.r.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.r.is_empty()
+    }
+
+    /// Spring and applied forces at time `t` on every node, positions `r` (no damping).
+    fn spring_forces(&self, r: &[[f64; 2]], t: f64, out: &mut [[f64; 2]]) {
+        out.iter_mut().for_each(|f| *f = [0.0; 2]);
+        for s in self.springs.iter().filter(|s| !s.broken) {
+            let d = [r[s.b][0] - r[s.a][0], r[s.b][1] - r[s.a][1]];
+            let l = (d[0] * d[0] + d[1] * d[1]).sqrt();
+            if l == 0.0 {
+                continue;
+            }
+            let (f, _) = s.tension(l);
+            let g = [f * d[0] / l, f * d[1] / l];
+            out[s.a][0] += g[0];
+            out[s.a][1] += g[1];
+            out[s.b][0] -= g[0];
+            out[s.b][1] -= g[1];
+        }
+        for fs in &self.forces {
+            if t >= fs.start && t < fs.finish {
+                out[fs.node][0] += fs.fx;
+                out[fs.node][1] += fs.fy;
+            }
+        }
+    }
+
+    /// Accelerations (Eq. 3.2.10a) with damping `b`; zero for held nodes.
+    fn accel(&self, r: &[[f64; 2]], u: &[[f64; 2]], t: f64, b: f64, out: &mut [[f64; 2]]) {
+        self.spring_forces(r, t, out);
+        for i in 0..out.len() {
+            if self.held[i] {
+                out[i] = [0.0; 2];
+            } else {
+                let inv = 1.0 / self.m[i];
+                out[i] = [
+                    (out[i][0] - b * u[i][0]) * inv,
+                    (out[i][1] - b * u[i][1]) * inv,
+                ];
+            }
+        }
+    }
+
+    /// Largest tension in an intact spring (a force scale).
+    pub fn max_tension(&self) -> f64 {
+        self.springs
+            .iter()
+            .filter(|s| !s.broken)
+            .map(|s| {
+                let l = dist(self.r[s.a], self.r[s.b]);
+                s.tension(l).0.abs()
+            })
+            .fold(0.0, f64::max)
+    }
+
+    /// Highest angular frequency of a single mass on its springs (bound for explicit steps).
+    pub fn omega_max(&self) -> f64 {
+        let mut ksum = vec![0.0; self.len()];
+        for s in self.springs.iter().filter(|s| !s.broken) {
+            ksum[s.a] += s.k0();
+            ksum[s.b] += s.k0();
+        }
+        (0..self.len())
+            .filter(|&i| !self.held[i])
+            .map(|i| 2.0 * (ksum[i] / self.m[i]).sqrt())
+            .fold(0.0, f64::max)
+    }
+
+    /// Poisson's ratio (Eq. 3.2.9): set each spring's cross-section from its strain under the
+    /// load, i.e. in the current (t = 0) configuration, and keep it while the structure
+    /// vibrates. Updating it with every oscillation would make the tension E·A(l)·ε fall with
+    /// strain beyond ε = 1/(3ν) (the rubber band of Table 3.7 is stretched 347 %): the chain
+    /// then collapses longitudinally, which is not what the thesis's model shows.
+    pub fn freeze_areas(&mut self) {
+        for s in &mut self.springs {
+            let l = dist(self.r[s.a], self.r[s.b]);
+            s.area = s.area_at(l);
+        }
+    }
+
+    /// Alg. 7: displace the nodes with an initial condition and hold them; let the rest find
+    /// its equilibrium by RK4 with a damping that starts at zero and grows slowly (too fast a
+    /// growth stops the system in a false equilibrium, Fig. 3.10); then release the EqIC nodes
+    /// with their initial velocities and keep the StIC nodes held.
+    pub fn relax(&mut self, model: &ModelFile, enabled: bool) -> Relaxed {
+        for ic in &model.initial {
+            self.r[ic.node][0] += ic.dx;
+            self.r[ic.node][1] += ic.dy;
+            self.held[ic.node] = true;
+        }
+        self.freeze_areas();
+        let mut out = Relaxed {
+            steps: 0,
+            converged: true,
+            residual: 0.0,
+        };
+        let free: Vec<usize> = (0..self.len()).filter(|&i| !self.held[i]).collect();
+        if enabled && !free.is_empty() {
+            let w = self.omega_max().max(1e-300);
+            let dt = 1.0 / w;
+            let m_min = free
+                .iter()
+                .map(|&i| self.m[i])
+                .fold(f64::INFINITY, f64::min);
+            // Damping rates b/2m from 1e-4·ω_max up to 0.05·ω_max, growing 0.02 % per step
+            // after 2 000 undamped steps. (Mass-proportional damping decays every mode at
+            // b/2m until it passes the mode's critical value; beyond, the slow modes crawl.)
+            let b_max = 0.1 * m_min * w;
+            let mut b = 0.0;
+            let l_min = self
+                .springs
+                .iter()
+                .map(|s| s.l0)
+                .fold(f64::INFINITY, f64::min);
+            let mut f = vec![[0.0; 2]; self.len()];
+            let max_steps = 100_000;
+            out.converged = false;
+            while out.steps < max_steps {
+                self.rk4(dt, -1.0, b);
+                out.steps += 1;
+                if out.steps == 2000 {
+                    b = 2e-4 * m_min * w;
+                } else if out.steps > 2000 {
+                    b = (b * 1.0002).min(b_max);
+                }
+                if out.steps.is_multiple_of(200) {
+                    self.spring_forces(&self.r, -1.0, &mut f);
+                    let scale = self.max_tension().max(1e-300);
+                    let fmax = free.iter().map(|&i| norm(f[i])).fold(0.0, f64::max);
+                    let umax = free.iter().map(|&i| norm(self.u[i])).fold(0.0, f64::max);
+                    out.residual = fmax / scale;
+                    if out.residual < 1e-8 && umax * dt < 1e-11 * l_min {
+                        out.converged = true;
+                        break;
+                    }
+                }
+            }
+        }
+        if enabled && !free.is_empty() && !out.converged {
+            // Finish with Newton steps on the static equilibrium: an implicit Euler step
+            // from rest with a step far beyond every period is one (Δr = K⁻¹F).
+            self.acc_valid = false;
+            self.implicit.pattern_valid = false;
+            let damping = std::mem::replace(&mut self.damping, 0.0);
+            let mut f = vec![[0.0; 2]; self.len()];
+            for _ in 0..20 {
+                self.u.iter_mut().for_each(|u| *u = [0.0; 2]);
+                if self.implicit_step(1.0, -1.0).is_err() {
+                    break;
+                }
+                out.steps += 1;
+                self.spring_forces(&self.r, -1.0, &mut f);
+                let scale = self.max_tension().max(1e-300);
+                out.residual = free.iter().map(|&i| norm(f[i])).fold(0.0, f64::max) / scale;
+                if out.residual < 1e-10 {
+                    out.converged = true;
+                    break;
+                }
+            }
+            self.damping = damping;
+        }
+        self.freeze_areas();
+        self.u.iter_mut().for_each(|u| *u = [0.0; 2]);
+        for ic in &model.initial {
+            if ic.kind == IcKind::Eq && !self.fixed[ic.node] {
+                self.held[ic.node] = false;
+                self.u[ic.node] = [ic.du, ic.dv];
+            }
+        }
+        self.acc_valid = false;
+        self.implicit.pattern_valid = false;
+        out
+    }
+
+    /// Apply a damage event (Alg. 8 or 9). Returns the index of a node it created.
+    pub fn damage(&mut self, d: &DamageSpec) -> Option<usize> {
+        self.acc_valid = false;
+        self.implicit.pattern_valid = false;
+        match *d {
+            DamageSpec::Fibre { spring, .. } => {
+                self.springs[spring].broken = true;
+                None
+            }
+            DamageSpec::Bond { node, .. } => {
+                let keep = self
+                    .springs
+                    .iter()
+                    .filter(|s| !s.broken && (s.a == node || s.b == node))
+                    .map(|s| s.fibre)
+                    .min()?;
+                let j = self.len();
+                self.r.push(self.r[node]);
+                self.u.push(self.u[node]);
+                // The bond's mass is the sum of the two fibres' masses; each fibre takes
+                // back half.
+                self.m[node] *= 0.5;
+                self.m.push(self.m[node]);
+                let fixed = self.fixed[node];
+                self.fixed.push(fixed);
+                self.held[node] = fixed;
+                self.held.push(fixed);
+                self.acc.push([0.0; 2]);
+                for s in self.springs.iter_mut() {
+                    if s.fibre != keep {
+                        if s.a == node {
+                            s.a = j;
+                        }
+                        if s.b == node {
+                            s.b = j;
+                        }
+                    }
+                }
+                Some(j)
+            }
+        }
+    }
+
+    /// One step of `solver` from time t.
+    pub fn step(&mut self, solver: Solver, dt: f64, t: f64) -> Result<(), SimError> {
+        let b = self.damping;
+        match solver {
+            Solver::ExplicitEuler => {
+                let mut a = std::mem::take(&mut self.acc);
+                self.accel(&self.r, &self.u, t, b, &mut a);
+                for i in 0..self.len() {
+                    if !self.held[i] {
+                        for c in 0..2 {
+                            self.u[i][c] += dt * a[i][c];
+                            self.r[i][c] += dt * self.u[i][c];
+                        }
+                    }
+                }
+                self.acc = a;
+                self.acc_valid = false;
+            }
+            Solver::Rk4 => self.rk4(dt, t, b),
+            Solver::Verlet => {
+                let n = self.len();
+                let mut a = std::mem::take(&mut self.acc);
+                if !self.acc_valid {
+                    self.accel(&self.r, &self.u, t, b, &mut a);
+                }
+                let mut uh = vec![[0.0; 2]; n];
+                for i in 0..n {
+                    if self.held[i] {
+                        continue;
+                    }
+                    for c in 0..2 {
+                        self.r[i][c] += self.u[i][c] * dt + 0.5 * a[i][c] * dt * dt;
+                        uh[i][c] = self.u[i][c] + 0.5 * a[i][c] * dt;
+                    }
+                }
+                self.accel(&self.r, &uh, t + dt, b, &mut a);
+                for i in 0..n {
+                    if !self.held[i] {
+                        for c in 0..2 {
+                            self.u[i][c] = uh[i][c] + 0.5 * a[i][c] * dt;
+                        }
+                    }
+                }
+                self.acc = a;
+                self.acc_valid = true;
+            }
+            Solver::ImplicitEuler => self.implicit_step(dt, t)?,
+        }
+        Ok(())
+    }
+
+    fn rk4(&mut self, dt: f64, t: f64, b: f64) {
+        let n = self.len();
+        let (r0, u0) = (self.r.clone(), self.u.clone());
+        let mut ka = [
+            vec![[0.0; 2]; n],
+            vec![[0.0; 2]; n],
+            vec![[0.0; 2]; n],
+            vec![[0.0; 2]; n],
+        ];
+        let mut kv = ka.clone();
+        let (mut rt, mut ut) = (r0.clone(), u0.clone());
+        let frac = [0.0, 0.5, 0.5, 1.0];
+        for s in 0..4 {
+            if s > 0 {
+                for i in 0..n {
+                    for c in 0..2 {
+                        rt[i][c] = r0[i][c] + frac[s] * dt * kv[s - 1][i][c];
+                        ut[i][c] = u0[i][c] + frac[s] * dt * ka[s - 1][i][c];
+                    }
+                }
+            }
+            let mut a = std::mem::take(&mut ka[s]);
+            self.accel(&rt, &ut, t + frac[s] * dt, b, &mut a);
+            ka[s] = a;
+            for i in 0..n {
+                kv[s][i] = if self.held[i] { [0.0; 2] } else { ut[i] };
+            }
+        }
+        for i in 0..n {
+            if self.held[i] {
+                continue;
+            }
+            for c in 0..2 {
+                self.r[i][c] = r0[i][c]
+                    + dt / 6.0
+                        * (kv[0][i][c] + 2.0 * kv[1][i][c] + 2.0 * kv[2][i][c] + kv[3][i][c]);
+                self.u[i][c] = u0[i][c]
+                    + dt / 6.0
+                        * (ka[0][i][c] + 2.0 * ka[1][i][c] + 2.0 * ka[2][i][c] + ka[3][i][c]);
+            }
+        }
+        self.acc_valid = false;
+    }
+
+    /// Eq. 3.2.29: (I − Δt·M⁻¹·∂F/∂u − Δt²·M⁻¹·∂F/∂r)·Δu = Δt·M⁻¹·(F + Δt·∂F/∂r·u), with
+    /// the spring Jacobians of Eq. 3.2.30b, ∂F/∂u = −b·I, and
+    /// held masses as identity rows (M⁻¹ = 0): the matrix is not symmetric, hence BiCGSTAB.
+    fn implicit_step(&mut self, dt: f64, t: f64) -> Result<(), SimError> {
+        let n = self.len();
+        if !self.implicit.pattern_valid {
+            self.implicit.build_pattern(n, &self.springs);
+        }
+        let b = self.damping;
+        let mut f = std::mem::take(&mut self.acc);
+        self.spring_forces(&self.r, t, &mut f);
+        let im = &mut self.implicit;
+        im.vals.iter_mut().for_each(|v| *v = [0.0; 4]);
+        im.rhs.clear();
+        im.rhs.resize(2 * n, 0.0);
+        // ∂F/∂r·u accumulates in ku.
+        let mut ku = vec![[0.0f64; 2]; n];
+        for (k, s) in self.springs.iter().enumerate() {
+            if s.broken {
+                continue;
+            }
+            let d = [
+                self.r[s.b][0] - self.r[s.a][0],
+                self.r[s.b][1] - self.r[s.a][1],
+            ];
+            let l = (d[0] * d[0] + d[1] * d[1]).sqrt();
+            if l == 0.0 {
+                continue;
+            }
+            let (fl, dfl) = s.tension(l);
+            let nx = [d[0] / l, d[1] / l];
+            let g = fl / l;
+            // K = f'·n̂n̂ᵀ + (f/l)(I − n̂n̂ᵀ)
+            let kk = [
+                dfl * nx[0] * nx[0] + g * (1.0 - nx[0] * nx[0]),
+                (dfl - g) * nx[0] * nx[1],
+                (dfl - g) * nx[0] * nx[1],
+                dfl * nx[1] * nx[1] + g * (1.0 - nx[1] * nx[1]),
+            ];
+            let du = [
+                self.u[s.b][0] - self.u[s.a][0],
+                self.u[s.b][1] - self.u[s.a][1],
+            ];
+            let kd = [kk[0] * du[0] + kk[1] * du[1], kk[2] * du[0] + kk[3] * du[1]];
+            ku[s.a][0] += kd[0];
+            ku[s.a][1] += kd[1];
+            ku[s.b][0] -= kd[0];
+            ku[s.b][1] -= kd[1];
+            let (ab, ba) = im.spring_slots[k];
+            for (node, off) in [(s.a, ab), (s.b, ba)] {
+                if self.held[node] {
+                    continue;
+                }
+                let c = dt * dt / self.m[node];
+                let di = im.diag[node];
+                for q in 0..4 {
+                    im.vals[di][q] += c * kk[q];
+                    im.vals[off][q] -= c * kk[q];
+                }
+            }
+        }
+        for i in 0..n {
+            let di = im.diag[i];
+            if self.held[i] {
+                im.vals[di] = [1.0, 0.0, 0.0, 1.0];
+                continue;
+            }
+            let damp = 1.0 + dt * b / self.m[i];
+            im.vals[di][0] += damp;
+            im.vals[di][3] += damp;
+            let c = dt / self.m[i];
+            for q in 0..2 {
+                let force = f[i][q] - b * self.u[i][q];
+                im.rhs[2 * i + q] = c * (force + dt * ku[i][q]);
+            }
+        }
+        self.acc = f;
+        im.x.resize(2 * n, 0.0);
+        im.solve()?;
+        for i in 0..n {
+            if self.held[i] {
+                continue;
+            }
+            for q in 0..2 {
+                self.u[i][q] += self.implicit.x[2 * i + q];
+                self.r[i][q] += dt * self.u[i][q];
+            }
+        }
+        self.acc_valid = false;
+        Ok(())
+    }
+
+    /// Per node: the fibre length it stands for (half its intact springs' rest lengths), its
+    /// unit normal (perpendicular to the mean direction of its springs) and, for a free fibre
+    /// end (one spring), its outward tangent and the fibre width.
+    pub fn geometry(&self) -> Vec<NodeGeom> {
+        let mut g = vec![
+            NodeGeom {
+                length: 0.0,
+                tangent: [0.0; 2],
+                count: 0,
+                width: 0.0,
+            };
+            self.len()
+        ];
+        for s in self.springs.iter().filter(|s| !s.broken) {
+            let d = [
+                self.r[s.b][0] - self.r[s.a][0],
+                self.r[s.b][1] - self.r[s.a][1],
+            ];
+            let l = norm(d).max(1e-300);
+            let tv = [d[0] / l, d[1] / l];
+            for (node, sign) in [(s.a, 1.0), (s.b, -1.0)] {
+                let e = &mut g[node];
+                e.length += 0.5 * s.l0;
+                // Orient the tangents alike (a fibre passing through has one direction).
+                let dot = e.tangent[0] * tv[0] + e.tangent[1] * tv[1];
+                let sg = if e.count == 0 {
+                    sign
+                } else if dot < 0.0 {
+                    -1.0
+                } else {
+                    1.0
+                };
+                e.tangent[0] += sg * tv[0];
+                e.tangent[1] += sg * tv[1];
+                e.count += 1;
+                e.width = s.w;
+            }
+        }
+        for e in &mut g {
+            let l = norm(e.tangent);
+            if l > 0.0 {
+                e.tangent = [e.tangent[0] / l, e.tangent[1] / l];
+            }
+        }
+        g
+    }
+}
+
+/// Geometry of a node for the acoustic coupling.
+#[derive(Debug, Clone, Copy)]
+pub struct NodeGeom {
+    pub length: f64,
+    /// Unit tangent of the fibre at the node; for a free end (count 1) it points from the
+    /// end into the fibre.
+    pub tangent: [f64; 2],
+    pub count: usize,
+    pub width: f64,
+}
+
+pub fn dist(a: [f64; 2], b: [f64; 2]) -> f64 {
+    ((b[0] - a[0]).powi(2) + (b[1] - a[1]).powi(2)).sqrt()
+}
+
+fn norm(a: [f64; 2]) -> f64 {
+    (a[0] * a[0] + a[1] * a[1]).sqrt()
+}
+
+/// The implicit solver's sparse matrix (2×2 blocks, CSR by node) and BiCGSTAB workspace.
+/// The pattern is rebuilt only when the topology changes (a damage event); the values are
+/// assembled each step.
+#[derive(Debug, Clone, Default)]
+struct Implicit {
+    pattern_valid: bool,
+    row_ptr: Vec<usize>,
+    cols: Vec<usize>,
+    vals: Vec<[f64; 4]>,
+    diag: Vec<usize>,
+    /// Per spring: the (a, b) block in row a and the (b, a) block in row b.
+    spring_slots: Vec<(usize, usize)>,
+    rhs: Vec<f64>,
+    /// Δu, kept between steps as the next initial guess.
+    x: Vec<f64>,
+    work: Vec<Vec<f64>>,
+    pinv: Vec<[f64; 4]>,
+    pub iterations: usize,
+}
+
+impl Implicit {
+    fn build_pattern(&mut self, n: usize, springs: &[Spring]) {
+        let mut nb: Vec<Vec<usize>> = (0..n).map(|i| vec![i]).collect();
+        for s in springs.iter().filter(|s| !s.broken) {
+            nb[s.a].push(s.b);
+            nb[s.b].push(s.a);
+        }
+        self.row_ptr = vec![0];
+        self.cols.clear();
+        self.diag = vec![0; n];
+        for (i, row) in nb.iter_mut().enumerate() {
+            row.sort_unstable();
+            row.dedup();
+            for &c in row.iter() {
+                if c == i {
+                    self.diag[i] = self.cols.len();
+                }
+                self.cols.push(c);
+            }
+            self.row_ptr.push(self.cols.len());
+        }
+        let find = |row_ptr: &[usize], cols: &[usize], r: usize, c: usize| {
+            let (lo, hi) = (row_ptr[r], row_ptr[r + 1]);
+            lo + cols[lo..hi]
+                .binary_search(&c)
+                .expect("pattern holds every spring")
+        };
+        self.spring_slots = springs
+            .iter()
+            .map(|s| {
+                if s.broken {
+                    (0, 0)
+                } else {
+                    (
+                        find(&self.row_ptr, &self.cols, s.a, s.b),
+                        find(&self.row_ptr, &self.cols, s.b, s.a),
+                    )
+                }
+            })
+            .collect();
+        self.vals = vec![[0.0; 4]; self.cols.len()];
+        self.x = vec![0.0; 2 * n];
+        self.pattern_valid = true;
+    }
+
+    fn matvec(&self, x: &[f64], y: &mut [f64]) {
+        for i in 0..self.row_ptr.len() - 1 {
+            let (mut y0, mut y1) = (0.0, 0.0);
+            for k in self.row_ptr[i]..self.row_ptr[i + 1] {
+                let (c, v) = (self.cols[k], &self.vals[k]);
+                y0 += v[0] * x[2 * c] + v[1] * x[2 * c + 1];
+                y1 += v[2] * x[2 * c] + v[3] * x[2 * c + 1];
+            }
+            y[2 * i] = y0;
+            y[2 * i + 1] = y1;
+        }
+    }
+
+    fn precond(&self, x: &[f64], y: &mut [f64]) {
+        for (i, p) in self.pinv.iter().enumerate() {
+            let (a, b) = (x[2 * i], x[2 * i + 1]);
+            y[2 * i] = p[0] * a + p[1] * b;
+            y[2 * i + 1] = p[2] * a + p[3] * b;
+        }
+    }
+
+    /// Right-preconditioned BiCGSTAB (block-Jacobi), warm-started from the last Δu.
+    fn solve(&mut self) -> Result<(), SimError> {
+        let n2 = self.rhs.len();
+        self.pinv = self
+            .diag
+            .iter()
+            .map(|&d| {
+                let v = self.vals[d];
+                let det = v[0] * v[3] - v[1] * v[2];
+                [v[3] / det, -v[1] / det, -v[2] / det, v[0] / det]
+            })
+            .collect();
+        if self.work.len() != 7 || self.work[0].len() != n2 {
+            self.work = vec![vec![0.0; n2]; 7];
+        }
+        let mut w = std::mem::take(&mut self.work);
+        let [r, rh, p, v, y, s, z] = &mut w[..] else {
+            unreachable!()
+        };
+        let bnorm = dot(&self.rhs, &self.rhs).sqrt();
+        if bnorm == 0.0 {
+            self.x.iter_mut().for_each(|x| *x = 0.0);
+            self.work = w;
+            return Ok(());
+        }
+        let tol = 1e-12 * bnorm;
+        self.matvec(&self.x, r);
+        for k in 0..n2 {
+            r[k] = self.rhs[k] - r[k];
+        }
+        rh.copy_from_slice(r);
+        p.iter_mut().for_each(|x| *x = 0.0);
+        v.iter_mut().for_each(|x| *x = 0.0);
+        let (mut rho, mut alpha, mut omega) = (1.0f64, 1.0f64, 1.0f64);
+        let mut t = vec![0.0; n2];
+        let mut it = 0;
+        let mut res = dot(r, r).sqrt();
+        while res > tol {
+            if it >= 2000 {
+                self.work = w;
+                return Err(SimError::Solver(format!(
+                    "BiCGSTAB did not converge in 2000 iterations (relative residual {:.1e})",
+                    res / bnorm
+                )));
+            }
+            it += 1;
+            let rho1 = dot(rh, r);
+            if rho1 == 0.0 || omega == 0.0 {
+                self.work = w;
+                return Err(SimError::Solver("BiCGSTAB broke down (ρ or ω = 0)".into()));
+            }
+            let beta = (rho1 / rho) * (alpha / omega);
+            for k in 0..n2 {
+                p[k] = r[k] + beta * (p[k] - omega * v[k]);
+            }
+            self.precond(p, y);
+            self.matvec(y, v);
+            alpha = rho1 / dot(rh, v);
+            for k in 0..n2 {
+                s[k] = r[k] - alpha * v[k];
+            }
+            if dot(s, s).sqrt() <= tol {
+                for k in 0..n2 {
+                    self.x[k] += alpha * y[k];
+                }
+                break;
+            }
+            self.precond(s, z);
+            self.matvec(z, &mut t);
+            omega = dot(&t, s) / dot(&t, &t);
+            for k in 0..n2 {
+                self.x[k] += alpha * y[k] + omega * z[k];
+                r[k] = s[k] - omega * t[k];
+            }
+            rho = rho1;
+            res = dot(r, r).sqrt();
+        }
+        self.iterations += it;
+        self.work = w;
+        Ok(())
+    }
+}
+
+fn dot(a: &[f64], b: &[f64]) -> f64 {
+    a.iter().zip(b).map(|(x, y)| x * y).sum()
+}
+
+impl Mech {
+    /// BiCGSTAB iterations so far (implicit solver).
+    pub fn solver_iterations(&self) -> usize {
+        self.implicit.iterations
+    }
+}

@@ -1,0 +1,407 @@
+//! The hybrid vibro-acoustic simulator of ch. 3–4: a mass/spring model of the fibres
+//! ([`mech`]) coupled to a 2-D acoustic pressure FDTD ([`acoustic`]) through the volumetric
+//! acceleration of the masses (Eq. 3.4.6), with bond and fibre failures while it runs.
+//! Inputs: the thesis's sectioned file ([`input`]), TOML, or a built-in scenario
+//! ([`scenario`]). Output: labelled rows of the canonical waveform table ([`output`]).
+
+pub mod acoustic;
+pub mod input;
+pub mod mech;
+pub mod model;
+pub mod output;
+pub mod scenario;
+
+use acoustic::Field;
+use mech::{Mech, Relaxed};
+use model::{GridSpec, ModelFile};
+
+#[derive(Debug, thiserror::Error)]
+pub enum SimError {
+    #[error("model: {0}")]
+    Model(String),
+    #[error("{path}:{line}: {message}")]
+    Parse {
+        path: String,
+        line: usize,
+        message: String,
+    },
+    #[error("solver: {0}")]
+    Solver(String),
+    #[error("{0}")]
+    Io(String),
+}
+
+/// What to keep besides the sensor signals.
+#[derive(Debug, Clone, Default)]
+pub struct RunOptions {
+    /// Node positions every this many mass/spring steps.
+    pub trajectory_every: Option<usize>,
+    /// Pressure field every this many acoustic steps.
+    pub snapshot_every: Option<usize>,
+}
+
+/// Node positions at one time.
+#[derive(Debug, Clone)]
+pub struct Frame {
+    pub t: f64,
+    pub r: Vec<[f64; 2]>,
+    pub u: Vec<[f64; 2]>,
+}
+
+#[derive(Debug, Clone)]
+pub struct SimOutput {
+    /// Pressure at each sensor, one value per acoustic step, Pa.
+    pub sensors: Vec<Vec<f64>>,
+    /// 1 / grid.dt (0 without a grid).
+    pub sample_rate_hz: f64,
+    pub relaxed: Relaxed,
+    pub trajectory: Vec<Frame>,
+    pub snapshots: Vec<(f64, Vec<f64>)>,
+    /// Acoustic energy Σp² after every acoustic step.
+    pub energy: Vec<f64>,
+    pub solver_iterations: usize,
+    pub mass_steps: usize,
+}
+
+/// Run a model. Damage events fire at the first step whose time reaches theirs.
+pub fn simulate(model: &ModelFile, opts: &RunOptions) -> Result<SimOutput, SimError> {
+    model.check()?;
+    let sys = &model.system;
+    let mut mech = Mech::new(model);
+    let relaxed = mech.relax(model, sys.relax);
+    let mut field = model.grid.as_ref().map(Field::new);
+    let ratio = model
+        .grid
+        .as_ref()
+        .map(|g| (g.dt / sys.dt).round() as usize)
+        .unwrap_or(1);
+    let mut events = model.damage.clone();
+    events.sort_by(|a, b| a.time().total_cmp(&b.time()));
+    let mut next_event = 0;
+    let mut u_prev = mech.u.clone();
+    let mut out = SimOutput {
+        sensors: vec![Vec::with_capacity(sys.iterations / ratio + 1); model.sensors.len()],
+        sample_rate_hz: model.grid.as_ref().map(|g| 1.0 / g.dt).unwrap_or(0.0),
+        relaxed,
+        trajectory: Vec::new(),
+        snapshots: Vec::new(),
+        energy: Vec::new(),
+        solver_iterations: 0,
+        mass_steps: sys.iterations,
+    };
+    let keep_frame = |n: usize| {
+        opts.trajectory_every
+            .is_some_and(|e| e > 0 && n.is_multiple_of(e))
+    };
+    if keep_frame(0) {
+        out.trajectory.push(Frame {
+            t: 0.0,
+            r: mech.r.clone(),
+            u: mech.u.clone(),
+        });
+    }
+    for n in 0..sys.iterations {
+        let t = n as f64 * sys.dt;
+        while next_event < events.len() && events[next_event].time() <= t + 0.5 * sys.dt {
+            if let Some(j) = mech.damage(&events[next_event]) {
+                debug_assert_eq!(j, u_prev.len());
+                u_prev.push(mech.u[j]);
+            }
+            next_event += 1;
+        }
+        mech.step(sys.solver, sys.dt, t)?;
+        if keep_frame(n + 1) {
+            out.trajectory.push(Frame {
+                t: t + sys.dt,
+                r: mech.r.clone(),
+                u: mech.u.clone(),
+            });
+        }
+        if let (Some(f), Some(g)) = (field.as_mut(), model.grid.as_ref()) {
+            if (n + 1) % ratio == 0 {
+                couple(&mech, &u_prev, g, f);
+                u_prev.clone_from(&mech.u);
+                f.step();
+                for (s, spec) in out.sensors.iter_mut().zip(&model.sensors) {
+                    s.push(f.at(spec.i, spec.j));
+                }
+                out.energy.push(f.energy());
+                let k = (n + 1) / ratio;
+                if opts
+                    .snapshot_every
+                    .is_some_and(|e| e > 0 && k.is_multiple_of(e))
+                {
+                    out.snapshots.push((t + sys.dt, f.cur.clone()));
+                }
+            }
+        }
+    }
+    out.solver_iterations = mech.solver_iterations();
+    Ok(out)
+}
+
+/// The coupling of ch. 3.4: each mass's acceleration over the acoustic step displaces fluid.
+/// A mass standing for fibre length ℓ moving with normal acceleration aₙ is a volumetric
+/// acceleration ℓ·aₙ per unit depth: a source +ρ·ℓ·aₙ/Δh² just in front of the fibre and
+/// −ρ·ℓ·aₙ/Δh² just behind (a dipole, Fig. 3.28), each split bilinearly over the four nearest
+/// cells. A free fibre end (after a fibre failure) also pushes or leaves fluid with its end
+/// face (width w): one source ρ·w·aₒ/Δh² ahead of it, which is the monopole of Fig. 4.21.
+fn couple(mech: &Mech, u_prev: &[[f64; 2]], g: &GridSpec, f: &mut Field) {
+    let geo = mech.geometry();
+    let h = g.dx();
+    let inv_area = 1.0 / (h * h);
+    for i in 0..mech.len() {
+        if mech.held[i] || geo[i].count == 0 {
+            continue;
+        }
+        let a = [
+            (mech.u[i][0] - u_prev[i][0]) / g.dt,
+            (mech.u[i][1] - u_prev[i][1]) / g.dt,
+        ];
+        let tg = geo[i].tangent;
+        let nrm = [-tg[1], tg[0]];
+        let an = a[0] * nrm[0] + a[1] * nrm[1];
+        let s = g.rho * geo[i].length * an * inv_area;
+        let r = mech.r[i];
+        splat(f, g, [r[0] + 0.5 * h * nrm[0], r[1] + 0.5 * h * nrm[1]], s);
+        splat(f, g, [r[0] - 0.5 * h * nrm[0], r[1] - 0.5 * h * nrm[1]], -s);
+        if geo[i].count == 1 {
+            let o = [-tg[0], -tg[1]];
+            let ao = a[0] * o[0] + a[1] * o[1];
+            let se = g.rho * geo[i].width * ao * inv_area;
+            splat(f, g, [r[0] + 0.5 * h * o[0], r[1] + 0.5 * h * o[1]], se);
+        }
+    }
+}
+
+/// Add `s` at point p, split bilinearly over the four nearest cell centres.
+fn splat(f: &mut Field, g: &GridSpec, p: [f64; 2], s: f64) {
+    let h = g.dx();
+    let fx = (p[0] - g.x1) / h - 0.5;
+    let fy = (p[1] - g.y1) / h - 0.5;
+    let (i0, j0) = (fx.floor(), fy.floor());
+    let (wx, wy) = (fx - i0, fy - j0);
+    for (di, dj, w) in [
+        (0, 0, (1.0 - wx) * (1.0 - wy)),
+        (1, 0, wx * (1.0 - wy)),
+        (0, 1, (1.0 - wx) * wy),
+        (1, 1, wx * wy),
+    ] {
+        let (i, j) = (i0 as i64 + di, j0 as i64 + dj);
+        if i >= 0 && j >= 0 && (i as usize) < g.nx && (j as usize) < g.ny && w > 0.0 {
+            f.add_source(i as usize, j as usize, s * w);
+        }
+    }
+}
+
+/// Dominant frequency of a signal: the largest bin of its zero-padded power spectrum
+/// (at least 16 384 points), refined by a parabola through the three bins around it.
+pub fn dominant_frequency(x: &[f64], fs: f64) -> f64 {
+    use rustfft::num_complex::Complex;
+    if x.len() < 4 || fs <= 0.0 {
+        return 0.0;
+    }
+    let mean = x.iter().sum::<f64>() / x.len() as f64;
+    let n = x.len().next_power_of_two().max(16_384);
+    let mut buf: Vec<Complex<f64>> = (0..n)
+        .map(|k| Complex::new(if k < x.len() { x[k] - mean } else { 0.0 }, 0.0))
+        .collect();
+    rustfft::FftPlanner::new()
+        .plan_fft_forward(n)
+        .process(&mut buf);
+    let p: Vec<f64> = buf[..n / 2].iter().map(|c| c.norm_sqr()).collect();
+    let k = (1..p.len())
+        .max_by(|&a, &b| p[a].total_cmp(&p[b]))
+        .unwrap_or(1);
+    let delta = if k + 1 < p.len() {
+        let (a, b, c) = (p[k - 1].sqrt(), p[k].sqrt(), p[k + 1].sqrt());
+        let den = a - 2.0 * b + c;
+        if den != 0.0 {
+            0.5 * (a - c) / den
+        } else {
+            0.0
+        }
+    } else {
+        0.0
+    };
+    (k as f64 + delta) * fs / n as f64
+}
+
+/// What `aepipe simulate` runs.
+#[derive(Debug, Clone)]
+pub struct Job {
+    /// A model file, or a scenario name.
+    pub model: Option<std::path::PathBuf>,
+    pub scenario: Option<String>,
+    pub params: scenario::Params,
+    /// Run the scenario once per integer value of `key` in `lo..=hi`.
+    pub sweep: Option<(String, i64, i64)>,
+    pub solver: Option<model::Solver>,
+    pub out: std::path::PathBuf,
+    pub run: RunOptions,
+    pub scale_v_per_pa: f64,
+}
+
+/// Run a job into `job.out`: `waveforms.parquet` (the sensors, when the model has a grid),
+/// `trajectories.parquet` and `snapshots/*.png` when asked. Returns the lines to print.
+pub fn run_job(job: &Job) -> Result<Vec<String>, SimError> {
+    let io = |e: std::io::Error| SimError::Io(format!("{}: {e}", job.out.display()));
+    std::fs::create_dir_all(&job.out).map_err(io)?;
+    let values: Vec<Option<(String, f64)>> = match &job.sweep {
+        Some((k, lo, hi)) if lo <= hi => (*lo..=*hi).map(|v| Some((k.clone(), v as f64))).collect(),
+        Some((k, lo, hi)) => {
+            return Err(SimError::Model(format!(
+                "--sweep {k}={lo}..{hi}: empty range"
+            )))
+        }
+        None => vec![None],
+    };
+    let mut models = Vec::new();
+    for v in &values {
+        let mut params = job.params.clone();
+        if let Some(kv) = v {
+            params.0.push(kv.clone());
+        }
+        let (mut m, source) = match (&job.model, &job.scenario) {
+            (Some(path), None) => (input::read_model(path)?, path.display().to_string()),
+            (None, Some(name)) => (scenario::build(name, &params)?, format!("scenario:{name}")),
+            _ => {
+                return Err(SimError::Model(
+                    "give a model file or --scenario NAME (not both)".into(),
+                ))
+            }
+        };
+        if let Some(s) = job.solver {
+            m.system.solver = s;
+        }
+        let json = serde_json::to_string(
+            &params
+                .0
+                .iter()
+                .map(|(k, v)| (k.clone(), *v))
+                .collect::<std::collections::BTreeMap<_, _>>(),
+        )
+        .unwrap_or_else(|_| "{}".into());
+        models.push((m, source, json));
+    }
+    let mut lines = Vec::new();
+    let mut outs = Vec::new();
+    for (hit, (m, _, json)) in models.iter().enumerate() {
+        let t0 = std::time::Instant::now();
+        let out = simulate(m, &job.run)?;
+        let secs = t0.elapsed().as_secs_f64();
+        lines.push(format!(
+            "{} {json}: {} masses, {} springs, {} steps of {:e} s ({:?}) in {secs:.2} s; relaxation {} steps{}",
+            m.name,
+            m.nodes.len(),
+            m.springs.len(),
+            m.system.iterations,
+            m.system.dt,
+            m.system.solver,
+            out.relaxed.steps,
+            if out.relaxed.converged { String::new() } else { format!(" (NOT converged, residual {:.1e})", out.relaxed.residual) },
+        ));
+        for (k, s) in out.sensors.iter().enumerate() {
+            let (i, j) = (m.sensors[k].i, m.sensors[k].j);
+            let peak = s.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+            lines.push(format!(
+                "  sensor {} at cell ({i}, {j}): dominant {:.1} kHz, peak {peak:.3e} Pa",
+                k + 1,
+                dominant_frequency(s, out.sample_rate_hz) / 1e3
+            ));
+        }
+        if out.sensors.is_empty() {
+            if let Some((node, f)) = node_frequency(m, &job.run, &out) {
+                lines.push(format!(
+                    "  no sensors; node {node} oscillates at {f:.4} Hz (zero crossings of y)"
+                ));
+            }
+        }
+        if !out.trajectory.is_empty() {
+            let p = job.out.join(if models.len() > 1 {
+                format!("trajectories_{}.parquet", hit + 1)
+            } else {
+                "trajectories.parquet".into()
+            });
+            let n = output::write_trajectories(&p, &out.trajectory)?;
+            lines.push(format!("  {n} trajectory rows → {}", p.display()));
+        }
+        if !out.snapshots.is_empty() {
+            let dir = job.out.join("snapshots");
+            std::fs::create_dir_all(&dir).map_err(io)?;
+            let g = m.grid.as_ref().expect("snapshots need a grid");
+            let max = out
+                .snapshots
+                .iter()
+                .flat_map(|(_, p)| p.iter())
+                .fold(0.0f64, |a, v| a.max(v.abs()));
+            for (t, p) in &out.snapshots {
+                let f = dir.join(format!("p_{}_{:08.3}us.png", hit + 1, t * 1e6));
+                output::snapshot_png(&f, p, g.nx, g.ny, max)?;
+            }
+            lines.push(format!(
+                "  {} field snapshots (±{max:.2e} Pa) → {}",
+                out.snapshots.len(),
+                dir.display()
+            ));
+        }
+        outs.push(out);
+    }
+    let runs: Vec<output::Run> = models
+        .iter()
+        .zip(&outs)
+        .enumerate()
+        .map(|(k, ((m, source, json), out))| output::Run {
+            model: m,
+            out,
+            source: source.clone(),
+            params: json.clone(),
+            hit: k as u64 + 1,
+            scale_v_per_pa: job.scale_v_per_pa,
+        })
+        .collect();
+    if runs.iter().any(|r| !r.out.sensors.is_empty()) {
+        let p = job.out.join("waveforms.parquet");
+        let n = output::write_waveforms(&p, &runs)?;
+        lines.push(format!("{n} sensor signals → {}", p.display()));
+    }
+    Ok(lines)
+}
+
+/// Frequency of the free node that moves most in y, from the zero crossings of its
+/// displacement about its mean (needs trajectories; used for models without a grid).
+fn node_frequency(m: &ModelFile, _opts: &RunOptions, out: &SimOutput) -> Option<(usize, f64)> {
+    if out.trajectory.len() < 4 {
+        return None;
+    }
+    let n = m.nodes.len();
+    let node = (0..n).max_by(|&a, &b| {
+        let span = |i: usize| {
+            let (lo, hi) = out
+                .trajectory
+                .iter()
+                .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), f| {
+                    (l.min(f.r[i][1]), h.max(f.r[i][1]))
+                });
+            hi - lo
+        };
+        span(a).total_cmp(&span(b))
+    })?;
+    let t: Vec<f64> = out.trajectory.iter().map(|f| f.t).collect();
+    let y: Vec<f64> = out.trajectory.iter().map(|f| f.r[node][1]).collect();
+    zero_crossing_frequency(&t, &y).map(|f| (node, f))
+}
+
+/// Frequency from the upward zero crossings of x − mean(x), linearly interpolated in time:
+/// (crossings − 1) / (last − first). `None` with fewer than two crossings.
+pub fn zero_crossing_frequency(t: &[f64], x: &[f64]) -> Option<f64> {
+    let mean = x.iter().sum::<f64>() / x.len().max(1) as f64;
+    let mut times = Vec::new();
+    for k in 1..x.len() {
+        let (a, b) = (x[k - 1] - mean, x[k] - mean);
+        if a < 0.0 && b >= 0.0 {
+            times.push(t[k - 1] + (t[k] - t[k - 1]) * (-a) / (b - a));
+        }
+    }
+    (times.len() >= 2).then(|| (times.len() - 1) as f64 / (times[times.len() - 1] - times[0]))
+}

@@ -1,0 +1,374 @@
+//! The simulator's input: one struct for both input formats (the thesis's sectioned file of
+//! Appendix A, parsed in [`super::input`], and the equivalent TOML, read by serde), checked
+//! once into a valid model by [`ModelFile::check`].
+
+use super::SimError;
+use serde::{Deserialize, Serialize};
+
+/// ODE solver for the mass/spring model (ch. 3.2.3–3.2.6).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
+#[serde(rename_all = "kebab-case")]
+pub enum Solver {
+    /// Explicit (symplectic) Euler, Alg. 1: u ← u + Δt·a(r, u), then r ← r + Δt·u.
+    ExplicitEuler,
+    /// Classical fourth-order Runge–Kutta, Alg. 3.
+    Rk4,
+    /// Velocity Verlet, Alg. 4.
+    Verlet,
+    /// Linearised implicit Euler, Eq. 3.2.29, solved by Jacobi-preconditioned BiCGSTAB on a
+    /// sparse matrix assembled each step. The default, as in the thesis.
+    ImplicitEuler,
+}
+
+/// Spatial order of the acoustic FDTD scheme.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub enum Order {
+    /// Eq. 3.3.11, stable for α < 1/√2.
+    Second,
+    /// Eq. 3.3.13, stable for α < √(3/8).
+    Fourth,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct System {
+    /// Mass/spring time step, s.
+    pub dt: f64,
+    /// Frictional damping coefficient b, kg/s (Eq. 3.2.2), the same for every mass.
+    #[serde(default)]
+    pub damping: f64,
+    /// Number of mass/spring steps after t = 0.
+    pub iterations: usize,
+    #[serde(default = "default_solver")]
+    pub solver: Solver,
+    /// Relax to equilibrium before t = 0 (Alg. 7). Without it the given positions are used
+    /// as they are.
+    #[serde(default = "yes")]
+    pub relax: bool,
+}
+
+fn default_solver() -> Solver {
+    Solver::ImplicitEuler
+}
+fn yes() -> bool {
+    true
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct NodeSpec {
+    pub x: f64,
+    pub y: f64,
+    /// kg
+    pub mass: f64,
+    /// Clamped for the whole simulation.
+    #[serde(default)]
+    pub fixed: bool,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SpringSpec {
+    pub a: usize,
+    pub b: usize,
+    /// Young's modulus, Pa.
+    pub e: f64,
+    /// Equilibrium length L, m. Absent: the distance of the two nodes as given.
+    #[serde(default)]
+    pub length: Option<f64>,
+    /// Thickness t and width w, m (k = E·t·w/L, Eq. 3.2.5).
+    pub t: f64,
+    pub w: f64,
+    /// Poisson's ratio ν (Eq. 3.2.9).
+    #[serde(default)]
+    pub poisson: f64,
+    /// Fibre id: a bond failure keeps the springs of the lower fibre id on the old mass.
+    #[serde(default)]
+    pub fibre: u32,
+}
+
+/// Initial condition kind (ch. 3.2.8).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum IcKind {
+    /// Equilibrium IC: held at the displaced position while the rest relaxes, released at 0.
+    Eq,
+    /// Stretching IC: held at the displaced position for the whole simulation (a load).
+    St,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct InitialSpec {
+    pub node: usize,
+    #[serde(default)]
+    pub dx: f64,
+    #[serde(default)]
+    pub dy: f64,
+    /// Velocity at t = 0 (applied when the node is released), m/s.
+    #[serde(default)]
+    pub du: f64,
+    #[serde(default)]
+    pub dv: f64,
+    pub kind: IcKind,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ForceSpec {
+    pub node: usize,
+    pub fx: f64,
+    pub fy: f64,
+    /// Applied for start ≤ t < finish, s (t < 0 is the relaxation).
+    pub start: f64,
+    pub finish: f64,
+}
+
+/// A damage event (ch. 4.5.2, 4.6.2).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "kind", rename_all = "lowercase", deny_unknown_fields)]
+pub enum DamageSpec {
+    /// Fibre/fibre bond failure (Alg. 8): the bond mass splits in two, each half keeping one
+    /// fibre's pair of opposing springs; a bond held by an initial condition is released.
+    Bond { node: usize, time: f64 },
+    /// Fibre failure (Alg. 9): the spring's stiffness becomes zero (it is removed).
+    Fibre { spring: usize, time: f64 },
+}
+
+impl DamageSpec {
+    pub fn time(&self) -> f64 {
+        match self {
+            DamageSpec::Bond { time, .. } | DamageSpec::Fibre { time, .. } => *time,
+        }
+    }
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct GridSpec {
+    pub x1: f64,
+    pub x2: f64,
+    pub y1: f64,
+    pub y2: f64,
+    pub nx: usize,
+    pub ny: usize,
+    /// Acoustic time step, s (the sensors' sampling interval); a whole multiple of the
+    /// mass/spring step.
+    pub dt: f64,
+    /// Fluid density, kg/m³, and speed of sound, m/s.
+    pub rho: f64,
+    pub c: f64,
+    pub order: Order,
+}
+
+impl GridSpec {
+    pub fn dx(&self) -> f64 {
+        (self.x2 - self.x1) / self.nx as f64
+    }
+    pub fn dy(&self) -> f64 {
+        (self.y2 - self.y1) / self.ny as f64
+    }
+    /// Courant number α = c·Δt/Δh.
+    pub fn alpha(&self) -> f64 {
+        self.c * self.dt / self.dx()
+    }
+    /// Cell (i, j) holding the point (x, y), if inside.
+    pub fn cell(&self, x: f64, y: f64) -> Option<(usize, usize)> {
+        let i = ((x - self.x1) / self.dx()).floor();
+        let j = ((y - self.y1) / self.dy()).floor();
+        (i >= 0.0 && j >= 0.0 && (i as usize) < self.nx && (j as usize) < self.ny)
+            .then_some((i as usize, j as usize))
+    }
+    /// Centre of cell (i, j).
+    pub fn centre(&self, i: usize, j: usize) -> (f64, f64) {
+        (
+            self.x1 + (i as f64 + 0.5) * self.dx(),
+            self.y1 + (j as f64 + 0.5) * self.dy(),
+        )
+    }
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SensorSpec {
+    /// Grid cell.
+    pub i: usize,
+    pub j: usize,
+}
+
+/// A whole simulation input.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ModelFile {
+    /// Name written to the `experiment` column.
+    #[serde(default = "default_name")]
+    pub name: String,
+    /// Ground-truth label of the signals (`bond_failure`, `fibre_failure`, …).
+    #[serde(default)]
+    pub label: Option<String>,
+    pub system: System,
+    pub nodes: Vec<NodeSpec>,
+    #[serde(default)]
+    pub springs: Vec<SpringSpec>,
+    #[serde(default)]
+    pub initial: Vec<InitialSpec>,
+    #[serde(default)]
+    pub forces: Vec<ForceSpec>,
+    #[serde(default)]
+    pub damage: Vec<DamageSpec>,
+    #[serde(default)]
+    pub grid: Option<GridSpec>,
+    #[serde(default)]
+    pub sensors: Vec<SensorSpec>,
+}
+
+fn default_name() -> String {
+    "simulation".into()
+}
+
+fn bad(msg: String) -> SimError {
+    SimError::Model(msg)
+}
+
+impl ModelFile {
+    /// Check every index, length and the acoustic stability condition once.
+    pub fn check(&self) -> Result<(), SimError> {
+        let s = &self.system;
+        if !(s.dt > 0.0 && s.dt.is_finite()) {
+            return Err(bad(format!("system.dt must be > 0, got {}", s.dt)));
+        }
+        if s.damping < 0.0 || !s.damping.is_finite() {
+            return Err(bad(format!(
+                "system.damping must be ≥ 0, got {}",
+                s.damping
+            )));
+        }
+        if self.nodes.is_empty() {
+            return Err(bad("the model has no nodes".into()));
+        }
+        let n = self.nodes.len();
+        for (i, nd) in self.nodes.iter().enumerate() {
+            if !(nd.mass > 0.0 && nd.mass.is_finite() && nd.x.is_finite() && nd.y.is_finite()) {
+                return Err(bad(format!("node {i}: mass must be > 0 and x, y finite")));
+            }
+        }
+        for (k, sp) in self.springs.iter().enumerate() {
+            if sp.a >= n || sp.b >= n || sp.a == sp.b {
+                return Err(bad(format!(
+                    "spring {k}: nodes {} and {} (the model has {n} nodes)",
+                    sp.a, sp.b
+                )));
+            }
+            let l0 = self.rest_length(k);
+            if !(sp.e > 0.0 && sp.t > 0.0 && sp.w > 0.0 && l0 > 0.0) {
+                return Err(bad(format!(
+                    "spring {k}: E, t, w and its length must be > 0"
+                )));
+            }
+            if !(0.0..0.5).contains(&sp.poisson) {
+                return Err(bad(format!(
+                    "spring {k}: Poisson's ratio {} outside [0, 0.5)",
+                    sp.poisson
+                )));
+            }
+        }
+        for ic in &self.initial {
+            if ic.node >= n {
+                return Err(bad(format!("initial condition on node {} of {n}", ic.node)));
+            }
+        }
+        for f in &self.forces {
+            if f.node >= n {
+                return Err(bad(format!("force on node {} of {n}", f.node)));
+            }
+        }
+        for d in &self.damage {
+            match d {
+                DamageSpec::Bond { node, .. } if *node >= n => {
+                    return Err(bad(format!("bond failure at node {node} of {n}")))
+                }
+                DamageSpec::Bond { node, .. } => {
+                    let fibres: std::collections::BTreeSet<u32> = self
+                        .springs
+                        .iter()
+                        .filter(|s| s.a == *node || s.b == *node)
+                        .map(|s| s.fibre)
+                        .collect();
+                    if fibres.len() < 2 {
+                        return Err(bad(format!(
+                            "bond failure at node {node}: its springs belong to {} fibre(s); a bond joins two",
+                            fibres.len()
+                        )));
+                    }
+                }
+                DamageSpec::Fibre { spring, .. } if *spring >= self.springs.len() => {
+                    return Err(bad(format!(
+                        "fibre failure of spring {spring} of {}",
+                        self.springs.len()
+                    )))
+                }
+                _ => {}
+            }
+        }
+        if let Some(g) = &self.grid {
+            if g.nx < 8
+                || g.ny < 8
+                || g.x2 <= g.x1
+                || g.y2 <= g.y1
+                || g.x1.is_nan()
+                || g.y1.is_nan()
+            {
+                return Err(bad(
+                    "grid: need x2 > x1, y2 > y1 and at least 8×8 cells".into()
+                ));
+            }
+            if ((g.dx() - g.dy()) / g.dx()).abs() > 1e-6 {
+                return Err(bad(format!(
+                    "grid: cells must be square (Δx = {:e}, Δy = {:e})",
+                    g.dx(),
+                    g.dy()
+                )));
+            }
+            let ratio = g.dt / s.dt;
+            if (ratio - ratio.round()).abs() > 1e-6 || ratio.round() < 1.0 {
+                return Err(bad(format!(
+                    "grid.dt {:e} must be a whole multiple of system.dt {:e}",
+                    g.dt, s.dt
+                )));
+            }
+            let a = g.alpha();
+            let (limit, name) = match g.order {
+                Order::Second => (
+                    std::f64::consts::FRAC_1_SQRT_2,
+                    "1/√2 (2nd order, Eq. 3.3.12)",
+                ),
+                Order::Fourth => ((3.0f64 / 8.0).sqrt(), "√(3/8) (4th order, Eq. 3.3.14)"),
+            };
+            if a >= limit {
+                return Err(bad(format!(
+                    "grid: unstable, α = c·Δt/Δh = {a:.4} must be < {name}; reduce dt or refine less"
+                )));
+            }
+            for (k, se) in self.sensors.iter().enumerate() {
+                if se.i >= g.nx || se.j >= g.ny {
+                    return Err(bad(format!(
+                        "sensor {k}: cell ({}, {}) outside the {}×{} grid",
+                        se.i, se.j, g.nx, g.ny
+                    )));
+                }
+            }
+        } else if !self.sensors.is_empty() {
+            return Err(bad("sensors need a grid".into()));
+        }
+        Ok(())
+    }
+
+    /// Equilibrium length of spring k: given, or the distance of its nodes as given.
+    pub fn rest_length(&self, k: usize) -> f64 {
+        let sp = &self.springs[k];
+        sp.length.unwrap_or_else(|| {
+            let (a, b) = (&self.nodes[sp.a], &self.nodes[sp.b]);
+            ((b.x - a.x).powi(2) + (b.y - a.y).powi(2)).sqrt()
+        })
+    }
+}

@@ -1,0 +1,514 @@
+//! Built-in scenarios: the thesis's test cases (Tables 3.1, 3.3, 3.5, 3.7, 3.8 / Appendix A)
+//! and its two damage structures (Fig. 4.8, Fig. 4.19), built with the material of Table 4.1.
+
+use super::model::*;
+use super::SimError;
+
+/// Scenario names, for the CLI and errors.
+pub const NAMES: &[&str] = &[
+    "sho",
+    "five-mass-fibre",
+    "fibre-single-constraint",
+    "rubber-band",
+    "paper-fibre",
+    "mesh3x3-bond-failure",
+    "structure2x1-fibre-failure",
+];
+
+/// Knobs a scenario takes (`--param key=value`); each scenario reads the ones it knows.
+#[derive(Debug, Clone, Default)]
+pub struct Params(pub Vec<(String, f64)>);
+
+impl Params {
+    pub fn get(&self, key: &str, default: f64) -> f64 {
+        self.0
+            .iter()
+            .rev()
+            .find(|(k, _)| k == key)
+            .map(|(_, v)| *v)
+            .unwrap_or(default)
+    }
+
+    /// Parse `key=value`.
+    pub fn parse_one(s: &str) -> Result<(String, f64), String> {
+        let (k, v) = s
+            .split_once('=')
+            .ok_or_else(|| format!("--param {s}: expected key=value"))?;
+        let v: f64 = v
+            .trim()
+            .parse()
+            .map_err(|_| format!("--param {s}: {v} is not a number"))?;
+        Ok((k.trim().to_string(), v))
+    }
+}
+
+/// Paper fibre material of Table 4.1: E 35 GPa, t 2.8 µm, w 35 µm, ν 0.28, density 1.5 g/cm³.
+pub const FIBRE_E: f64 = 3.5e10;
+pub const FIBRE_T: f64 = 2.8e-6;
+pub const FIBRE_W: f64 = 3.5e-5;
+pub const FIBRE_NU: f64 = 0.28;
+pub const FIBRE_RHO: f64 = 1500.0;
+
+/// Build a scenario by name. `params` overrides its defaults; the keys each one reads are
+/// listed in the README.
+pub fn build(name: &str, p: &Params) -> Result<ModelFile, SimError> {
+    let solver = match p.get("solver", -1.0) as i64 {
+        0 => Some(Solver::ExplicitEuler),
+        1 => Some(Solver::Rk4),
+        2 => Some(Solver::Verlet),
+        3 => Some(Solver::ImplicitEuler),
+        _ => None,
+    };
+    let mut m = match name {
+        "sho" => sho(p),
+        "five-mass-fibre" => five_mass(p),
+        "fibre-single-constraint" => single_constraint(p),
+        "rubber-band" => rubber_band(p),
+        "paper-fibre" => paper_fibre(p),
+        "mesh3x3-bond-failure" => mesh3x3(p),
+        "structure2x1-fibre-failure" => structure2x1(p)?,
+        _ => {
+            return Err(SimError::Model(format!(
+                "unknown scenario {name:?}; known: {}",
+                NAMES.join(", ")
+            )))
+        }
+    };
+    if let Some(s) = solver {
+        m.system.solver = s;
+    }
+    if p.0.iter().any(|(k, _)| k == "dt") {
+        m.system.dt = p.get("dt", m.system.dt);
+    }
+    if p.0.iter().any(|(k, _)| k == "damping") {
+        m.system.damping = p.get("damping", m.system.damping);
+    }
+    if p.0.iter().any(|(k, _)| k == "iterations") {
+        m.system.iterations = p.get("iterations", 0.0) as usize;
+    }
+    if p.get("grid", 1.0) == 0.0 {
+        m.grid = None;
+        m.sensors.clear();
+    }
+    m.check()?;
+    Ok(m)
+}
+
+#[allow(clippy::too_many_arguments)]
+fn spring(
+    a: usize,
+    b: usize,
+    e: f64,
+    l: Option<f64>,
+    t: f64,
+    w: f64,
+    nu: f64,
+    fibre: u32,
+) -> SpringSpec {
+    SpringSpec {
+        a,
+        b,
+        e,
+        length: l,
+        t,
+        w,
+        poisson: nu,
+        fibre,
+    }
+}
+
+fn node(x: f64, y: f64, mass: f64, fixed: bool) -> NodeSpec {
+    NodeSpec { x, y, mass, fixed }
+}
+
+fn eq(node: usize, dx: f64, dy: f64) -> InitialSpec {
+    InitialSpec {
+        node,
+        dx,
+        dy,
+        du: 0.0,
+        dv: 0.0,
+        kind: IcKind::Eq,
+    }
+}
+
+fn st(node: usize, dx: f64, dy: f64) -> InitialSpec {
+    InitialSpec {
+        node,
+        dx,
+        dy,
+        du: 0.0,
+        dv: 0.0,
+        kind: IcKind::St,
+    }
+}
+
+/// A straight chain of equal masses from x0 to x1 on y = 0, ends fixed, with springs of the
+/// given material and rest length.
+#[allow(clippy::too_many_arguments)]
+fn chain(
+    n: usize,
+    x0: f64,
+    x1: f64,
+    mass: f64,
+    e: f64,
+    l: f64,
+    t: f64,
+    w: f64,
+    nu: f64,
+) -> (Vec<NodeSpec>, Vec<SpringSpec>) {
+    let nodes = (0..n)
+        .map(|i| {
+            let x = x0 + (x1 - x0) * i as f64 / (n - 1) as f64;
+            node(x, 0.0, mass, i == 0 || i == n - 1)
+        })
+        .collect();
+    let springs = (0..n - 1)
+        .map(|i| spring(i, i + 1, e, Some(l), t, w, nu, 0))
+        .collect();
+    (nodes, springs)
+}
+
+fn system(dt: f64, damping: f64, iterations: usize) -> System {
+    System {
+        dt,
+        damping,
+        iterations,
+        solver: Solver::ImplicitEuler,
+        relax: true,
+    }
+}
+
+/// Table 3.1: one 0.2 kg mass between two fixed masses 0.55 m away on springs of rest length
+/// 0.25 m (k = 1 N/m), lifted 0.1 m. With `grid=1` (default) it radiates into a 20 m × 20 m
+/// air-less test domain (c = 1 m/s, Section 3.3.6) for Fig. 3.29/3.30.
+fn sho(p: &Params) -> ModelFile {
+    let (mut nodes, springs) = chain(3, -0.55, 0.55, 0.2, 1.0, 0.25, 1.0, 0.25, 0.0);
+    nodes[1].mass = p.get("mass", 0.2);
+    let dt = p.get("dt", 0.01);
+    ModelFile {
+        name: "sho".into(),
+        label: Some("sho".into()),
+        system: system(dt, 0.0, 10_000),
+        nodes,
+        springs,
+        initial: vec![eq(1, 0.0, p.get("amplitude", 0.1))],
+        forces: vec![],
+        damage: vec![],
+        grid: Some(test_grid(dt * 10.0)),
+        sensors: vec![SensorSpec { i: 50, j: 60 }],
+    }
+}
+
+/// The acoustic test grid of Section 3.3.6: −10…10 m, Δh = 0.2 m, c = 1 m/s, ρ = 1 kg/m³.
+pub fn test_grid(dt: f64) -> GridSpec {
+    GridSpec {
+        x1: -10.0,
+        x2: 10.0,
+        y1: -10.0,
+        y2: 10.0,
+        nx: 100,
+        ny: 100,
+        dt,
+        rho: 1.0,
+        c: 1.0,
+        order: Order::Fourth,
+    }
+}
+
+/// Table 3.3: five masses, the three inner ones lifted 0.05, 0.1, 0.05 m.
+fn five_mass(p: &Params) -> ModelFile {
+    let (nodes, springs) = chain(5, -0.55, 0.55, 0.2, 1.0, 0.25, 1.0, 0.25, 0.0);
+    let a = p.get("amplitude", 0.1);
+    ModelFile {
+        name: "five-mass-fibre".into(),
+        label: None,
+        system: system(p.get("dt", 0.01), 0.0, 10_000),
+        nodes,
+        springs,
+        initial: vec![eq(1, 0.0, 0.5 * a), eq(2, 0.0, a), eq(3, 0.0, 0.5 * a)],
+        forces: vec![],
+        damage: vec![],
+        grid: None,
+        sensors: vec![],
+    }
+}
+
+/// Table 3.5: 21 masses (1/21 kg) from −0.5 to 0.6 m, rest length 0.05 m, only the central
+/// mass lifted 0.1 m: the relaxation (Alg. 7) shapes the rest of the fibre.
+fn single_constraint(p: &Params) -> ModelFile {
+    let (nodes, springs) = chain(21, -0.5, 0.6, 1.0 / 21.0, 1.0, 0.05, 1.0, 0.25, 0.0);
+    ModelFile {
+        name: "fibre-single-constraint".into(),
+        label: None,
+        system: system(p.get("dt", 0.01), 0.0, 2_000),
+        nodes,
+        springs,
+        initial: vec![eq(10, 0.0, p.get("amplitude", 0.1))],
+        forces: vec![],
+        damage: vec![],
+        grid: None,
+        sensors: vec![],
+    }
+}
+
+/// Table 3.7: a rubber band of 11 masses over ±76 mm, plucked 10 mm at the centre
+/// (triangle), damping 7e-4 kg/s.
+fn rubber_band(p: &Params) -> ModelFile {
+    let (nodes, springs) = chain(
+        11, -0.076, 0.076, 1.96e-5, 8.63e5, 3.4e-3, 1e-3, 6e-3, 0.144,
+    );
+    let a = p.get("amplitude", 0.010);
+    let initial = (1..10)
+        .map(|i| eq(i, 0.0, a * (5.0 - (i as f64 - 5.0).abs()) / 5.0))
+        .collect();
+    ModelFile {
+        name: "rubber-band".into(),
+        label: Some("rubber_band".into()),
+        system: system(p.get("dt", 2e-5), p.get("damping", 7e-4), 5_000),
+        nodes,
+        springs,
+        initial,
+        forces: vec![],
+        damage: vec![],
+        grid: None,
+        sensors: vec![],
+    }
+}
+
+/// The Appendix-A acoustic grid: ±9 mm, 250 × 250 cells (72 µm), Δt 0.1 µs (10 MHz), air
+/// (ρ 1.25 kg/m³, c 350 m/s), 4th order.
+pub fn paper_grid() -> GridSpec {
+    GridSpec {
+        x1: -9e-3,
+        x2: 9e-3,
+        y1: -9e-3,
+        y2: 9e-3,
+        nx: 250,
+        ny: 250,
+        dt: 1e-7,
+        rho: 1.25,
+        c: 350.0,
+        order: Order::Fourth,
+    }
+}
+
+/// Appendix A / Table 3.8: a 1 mm paper fibre of 29 masses, stretched 1 % by StICs on its
+/// end masses (±5 µm), plucked in its fundamental mode shape (10 µm at the centre), implicit
+/// Euler at 10 ns, b = 1.5e-6 kg/s, 40 µs. Rest lengths are the node spacing (the file's
+/// 3.6e-5 m is that spacing rounded); node masses 5.1e-12 kg as in the file.
+fn paper_fibre(p: &Params) -> ModelFile {
+    let n = 29;
+    let len = p.get("length", 1e-3);
+    let a = len / (n - 1) as f64;
+    let (nodes, springs) = chain(
+        n,
+        -len / 2.0,
+        len / 2.0,
+        p.get("mass", 5.1e-12),
+        FIBRE_E,
+        a,
+        FIBRE_T,
+        FIBRE_W,
+        FIBRE_NU,
+    );
+    let stretch = p.get("stretch", 0.01);
+    let amp = p.get("amplitude", 1e-5);
+    let mut initial = vec![
+        st(0, -stretch * len / 2.0, 0.0),
+        st(n - 1, stretch * len / 2.0, 0.0),
+    ];
+    // The interior masses start where the 1 % stretch puts them (uniformly spread, the
+    // equilibrium of the stretched fibre), lifted in the fundamental mode shape: the file's
+    // dy column is 10 µm·sin(πi/28). (Leaving them at the unstretched spacing, as the file
+    // literally does, puts the whole stretch into the two end springs at release.)
+    for i in 1..n - 1 {
+        let s = (std::f64::consts::PI * i as f64 / (n - 1) as f64).sin();
+        let x = -len / 2.0 + len * i as f64 / (n - 1) as f64;
+        initial.push(eq(i, stretch * x, amp * s));
+    }
+    ModelFile {
+        name: "paper-fibre".into(),
+        label: Some("fibre_vibration".into()),
+        system: system(p.get("dt", 1e-8), p.get("damping", 1.5e-6), 4_000),
+        nodes,
+        springs,
+        initial,
+        forces: vec![],
+        damage: vec![],
+        grid: Some(paper_grid()),
+        sensors: [
+            (125, 100),
+            (125, 80),
+            (125, 5),
+            (100, 125),
+            (80, 125),
+            (5, 125),
+            (100, 100),
+            (80, 80),
+            (5, 5),
+        ]
+        .iter()
+        .map(|&(i, j)| SensorSpec { i, j })
+        .collect(),
+    }
+}
+
+/// A lattice of straight 2 mm fibres of 29 masses (spacing a = 2 mm/28) on the points
+/// (ix·a, iy·a), ix, iy ∈ −14…14: horizontal fibres at the given iy, vertical at the given
+/// ix. Where two cross they share one bond mass of twice the fibre mass. Fibre ends are
+/// held by StICs that stretch every fibre by `stretch` (the damage zone's 1 %, ch. 4.3.3).
+struct Lattice {
+    nodes: Vec<NodeSpec>,
+    springs: Vec<SpringSpec>,
+    initial: Vec<InitialSpec>,
+    index: std::collections::HashMap<(i32, i32), usize>,
+    a: f64,
+}
+
+fn lattice(rows: &[i32], cols: &[i32], stretch: &dyn Fn(u32) -> f64) -> Lattice {
+    let len = 2e-3;
+    let a = len / 28.0;
+    let m = FIBRE_RHO * FIBRE_T * FIBRE_W * a;
+    let mut lat = Lattice {
+        nodes: vec![],
+        springs: vec![],
+        initial: vec![],
+        index: Default::default(),
+        a,
+    };
+    let at = |lat: &mut Lattice, ix: i32, iy: i32| -> usize {
+        if let Some(&k) = lat.index.get(&(ix, iy)) {
+            lat.nodes[k].mass += m;
+            return k;
+        }
+        lat.nodes.push(node(ix as f64 * a, iy as f64 * a, m, false));
+        lat.index.insert((ix, iy), lat.nodes.len() - 1);
+        lat.nodes.len() - 1
+    };
+    let mut fibre = 0u32;
+    let mut lines: Vec<(u32, bool, i32)> = vec![];
+    for &iy in rows {
+        lines.push((fibre, true, iy));
+        fibre += 1;
+    }
+    for &ix in cols {
+        lines.push((fibre, false, ix));
+        fibre += 1;
+    }
+    for &(f, horizontal, off) in &lines {
+        let ids: Vec<usize> = (-14..=14)
+            .map(|s| {
+                if horizontal {
+                    at(&mut lat, s, off)
+                } else {
+                    at(&mut lat, off, s)
+                }
+            })
+            .collect();
+        for w in ids.windows(2) {
+            lat.springs.push(spring(
+                w[0], w[1], FIBRE_E, None, FIBRE_T, FIBRE_W, FIBRE_NU, f,
+            ));
+        }
+        let d = stretch(f) * len / 2.0;
+        let (first, last) = (ids[0], ids[28]);
+        if horizontal {
+            lat.initial.push(st(first, -d, 0.0));
+            lat.initial.push(st(last, d, 0.0));
+        } else {
+            lat.initial.push(st(first, 0.0, -d));
+            lat.initial.push(st(last, 0.0, d));
+        }
+    }
+    lat
+}
+
+/// Fig. 4.8: a Cartesian mesh of 2 mm fibres (three horizontal, three vertical, 0.5 mm
+/// apart, so the middle square is the 1 mm damage zone) with 9 bonds. Before the failure the
+/// middle horizontal fibre is bent across the damage zone, its two 0.5 mm halves meeting at
+/// bond (1) (Fig. 4.13b). The mass/spring model has no bending stiffness, so a kink would
+/// hold every harmonic with equal acceleration; the bent shape is the smooth
+/// `kink`·(sin πξ + sin 3πξ / 9) over the zone (ξ = 0…1), the mix of the first harmonics the
+/// thesis describes. At `t1` (0) it is released and bond (1), the centre, fails: the fibre
+/// rings at the 1 mm free length's fundamental (~250 kHz) and third harmonic (~750 kHz).
+/// Bond (2), at (+0.5 mm, 0), fails at `t2` (20 µs; negative: never), lengthening the free
+/// fibre to 1.5 mm.
+fn mesh3x3(p: &Params) -> ModelFile {
+    let stretch = p.get("stretch", 0.01);
+    let lat = lattice(&[-7, 0, 7], &[-7, 0, 7], &|_| stretch);
+    let kink = p.get("kink", 1e-5);
+    let b1 = lat.index[&(0, 0)];
+    let b2 = lat.index[&(7, 0)];
+    let mut initial = lat.initial;
+    for ix in -6..=6 {
+        let xi = (ix + 7) as f64 / 14.0;
+        let pi = std::f64::consts::PI;
+        let dy = kink * ((pi * xi).sin() + (3.0 * pi * xi).sin() / 9.0);
+        // The fibre is already stretched 1 %: its nodes sit at the stretched spacing.
+        initial.push(eq(lat.index[&(ix, 0)], stretch * ix as f64 * lat.a, dy));
+    }
+    let (t1, t2) = (p.get("t1", 0.0), p.get("t2", 20e-6));
+    let mut damage = vec![DamageSpec::Bond { node: b1, time: t1 }];
+    if t2 >= 0.0 {
+        damage.push(DamageSpec::Bond { node: b2, time: t2 });
+    }
+    ModelFile {
+        name: "mesh3x3-bond-failure".into(),
+        label: Some("bond_failure".into()),
+        system: system(p.get("dt", 1e-8), p.get("damping", 1.5e-6), 4_000),
+        nodes: lat.nodes,
+        springs: lat.springs,
+        initial,
+        forces: vec![],
+        damage,
+        grid: Some(paper_grid()),
+        sensors: vec![SensorSpec { i: 125, j: 100 }, SensorSpec { i: 100, j: 125 }],
+    }
+}
+
+/// Fig. 4.19: fibre 3 (horizontal, y = 0) bonded to fibre 1 (vertical, x = −0.5 mm) and
+/// fibre 2 (vertical, x = +0.5 mm). Fibre 3 and fibre 2 are stretched 1 %, fibre 1 only
+/// 0.2 % (so fibre 2 is under the higher tension, Fig. 4.22). Fibre 3's 14 springs between
+/// the bonds are the candidate break points; `point` p = 1…12 removes the (p+1)-th of them
+/// at `t1` (1 µs), leaving p springs on fibre 1's side and 13 − p on fibre 2's: points p and
+/// 13 − p mirror each other, as (1) and (12) do in the thesis.
+fn structure2x1(p: &Params) -> Result<ModelFile, SimError> {
+    let point = p.get("point", 7.0);
+    if !(1.0..=12.0).contains(&point) || point.fract() != 0.0 {
+        return Err(SimError::Model(format!(
+            "structure2x1-fibre-failure: point must be 1…12, got {point}"
+        )));
+    }
+    let point = point as i32;
+    let s3 = p.get("stretch", 0.01);
+    let s1 = p.get("stretch1", 0.002);
+    // Fibre ids: 0 = fibre 3 (horizontal), 1 = fibre 1, 2 = fibre 2.
+    let lat = lattice(&[0], &[-7, 7], &|f| match f {
+        0 => s3,
+        1 => s1,
+        _ => s3,
+    });
+    let (lo, hi) = (lat.index[&(-7 + point, 0)], lat.index[&(-6 + point, 0)]);
+    let spring = lat
+        .springs
+        .iter()
+        .position(|s| (s.a == lo && s.b == hi) || (s.a == hi && s.b == lo))
+        .expect("fibre 3 has the spring");
+    let _ = lat.a;
+    Ok(ModelFile {
+        name: format!("structure2x1-fibre-failure-p{point}"),
+        label: Some("fibre_failure".into()),
+        system: system(p.get("dt", 1e-8), p.get("damping", 1.5e-6), 4_000),
+        nodes: lat.nodes,
+        springs: lat.springs,
+        initial: lat.initial,
+        forces: vec![],
+        damage: vec![DamageSpec::Fibre {
+            spring,
+            time: p.get("t1", 1e-6),
+        }],
+        grid: Some(paper_grid()),
+        sensors: vec![SensorSpec { i: 125, j: 100 }, SensorSpec { i: 100, j: 125 }],
+    })
+}

@@ -1,0 +1,466 @@
+//! The hybrid simulator (ch. 3–4) against analytic answers: oscillator and string
+//! frequencies, solver damping, 2-D wave propagation, non-reflecting boundaries, coupling,
+//! the Appendix-A input format and the damage events.
+
+use crate::TempDir;
+use aepipe::sim::acoustic::Field;
+use aepipe::sim::model::{DamageSpec, ModelFile, Order, Solver};
+use aepipe::sim::scenario::{self, test_grid, Params};
+use aepipe::sim::{simulate, zero_crossing_frequency, RunOptions};
+
+fn params(kv: &[(&str, f64)]) -> Params {
+    Params(kv.iter().map(|(k, v)| (k.to_string(), *v)).collect())
+}
+
+fn every_step() -> RunOptions {
+    RunOptions {
+        trajectory_every: Some(1),
+        snapshot_every: None,
+    }
+}
+
+/// y of `node` over time, and the times.
+fn track(m: &ModelFile, node: usize) -> (Vec<f64>, Vec<f64>) {
+    let out = simulate(m, &every_step()).unwrap();
+    (
+        out.trajectory.iter().map(|f| f.t).collect(),
+        out.trajectory.iter().map(|f| f.r[node][1]).collect(),
+    )
+}
+
+/// Table 3.1 linearised: two springs of stiffness k(1 − L/l) across, ω² = 2k(1 − L/l)/m.
+fn sho_frequency() -> f64 {
+    // k = E·t·w/L with E = 1 Pa, t = 1 m, w = 0.25 m, L = 0.25 m.
+    let (e, t, w, l0, l, m) = (1.0, 1.0, 0.25, 0.25, 0.55, 0.2);
+    let k = e * t * w / l0;
+    (2.0f64 * k * (1.0 - l0 / l) / m).sqrt() / (2.0 * std::f64::consts::PI)
+}
+
+#[test]
+fn sho_explicit_solvers_oscillate_at_the_analytic_frequency() {
+    let f0 = sho_frequency();
+    for s in [Solver::ExplicitEuler, Solver::Rk4, Solver::Verlet] {
+        let mut m =
+            scenario::build("sho", &params(&[("grid", 0.0), ("amplitude", 0.005)])).unwrap();
+        m.system.solver = s;
+        let (t, y) = track(&m, 1);
+        let f = zero_crossing_frequency(&t, &y).unwrap();
+        assert!((f / f0 - 1.0).abs() < 0.02, "{s:?}: {f} Hz vs {f0} Hz");
+        // No artificial damping worth the name over 100 s.
+        let late = y[y.len() - 300..]
+            .iter()
+            .fold(0.0f64, |a, v| a.max(v.abs()));
+        assert!(late > 0.9 * 0.005, "{s:?} lost amplitude: {late}");
+    }
+}
+
+/// Logarithmic decrement from the positive peaks: slope of ln(peak) against time.
+fn log_decrement(t: &[f64], y: &[f64]) -> f64 {
+    let peaks: Vec<(f64, f64)> = (1..y.len() - 1)
+        .filter(|&k| y[k] > 0.0 && y[k] >= y[k - 1] && y[k] > y[k + 1])
+        .map(|k| (t[k], y[k].ln()))
+        .collect();
+    let n = peaks.len() as f64;
+    assert!(n >= 3.0, "too few peaks");
+    let (mt, ml) = (
+        peaks.iter().map(|p| p.0).sum::<f64>() / n,
+        peaks.iter().map(|p| p.1).sum::<f64>() / n,
+    );
+    let sxy: f64 = peaks.iter().map(|p| (p.0 - mt) * (p.1 - ml)).sum();
+    let sxx: f64 = peaks.iter().map(|p| (p.0 - mt).powi(2)).sum();
+    -sxy / sxx
+}
+
+#[test]
+fn implicit_euler_damps_artificially_and_more_with_larger_steps() {
+    let f0 = sho_frequency();
+    let mut gammas = Vec::new();
+    for dt in [0.025, 0.05, 0.1] {
+        let mut m = scenario::build(
+            "sho",
+            &params(&[
+                ("grid", 0.0),
+                ("amplitude", 0.005),
+                ("dt", dt),
+                ("iterations", (12.0 / dt).round()),
+            ]),
+        )
+        .unwrap();
+        m.system.solver = Solver::ImplicitEuler;
+        let (t, y) = track(&m, 1);
+        let f = zero_crossing_frequency(&t, &y).unwrap();
+        assert!((f / f0 - 1.0).abs() < 0.03, "dt {dt}: {f} vs {f0}");
+        gammas.push(log_decrement(&t, &y));
+    }
+    // Fig. 3.14: γ grows linearly with Δt (γ ≈ ω²Δt/2 for implicit Euler).
+    let w2 = (2.0 * std::f64::consts::PI * f0).powi(2);
+    for (g, dt) in gammas.iter().zip([0.025, 0.05, 0.1]) {
+        assert!(*g > 0.0);
+        assert!((g / (w2 * dt / 2.0) - 1.0).abs() < 0.15, "γ {g} at dt {dt}");
+    }
+    assert!(
+        (gammas[1] / gammas[0] - 2.0).abs() < 0.2 && (gammas[2] / gammas[1] - 2.0).abs() < 0.2,
+        "{gammas:?}"
+    );
+}
+
+#[test]
+fn paper_fibre_fundamental_matches_the_discrete_string_and_the_thesis() {
+    // Small pluck, no friction: the linear discrete string.
+    let m = scenario::build(
+        "paper-fibre",
+        &params(&[("grid", 0.0), ("amplitude", 1e-6), ("damping", 0.0)]),
+    )
+    .unwrap();
+    let (t, y) = track(&m, 14);
+    let f = zero_crossing_frequency(&t, &y).unwrap();
+    // N = 28 segments of length a, tension T (1 % stretch, area by Poisson), mass m:
+    // ω₁ = 2·√(T/(m·a))·sin(π/2N).
+    let n = 28.0;
+    let l0 = 1e-3 / n;
+    let a = 1.01e-3 / n;
+    let eps: f64 = 0.01;
+    let area = scenario::FIBRE_T * scenario::FIBRE_W * (1.0 - scenario::FIBRE_NU * eps).powi(2);
+    let tension = scenario::FIBRE_E * area / l0 * (a - l0);
+    let w1 = 2.0 * (tension / (5.1e-12 * a)).sqrt() * (std::f64::consts::PI / (2.0 * n)).sin();
+    let f_string = w1 / (2.0 * std::f64::consts::PI);
+    assert!(
+        (f / f_string - 1.0).abs() < 0.01,
+        "{f} Hz vs discrete string {f_string} Hz"
+    );
+    assert!(
+        (f / 253.91e3 - 1.0).abs() < 0.05,
+        "{f} Hz vs the thesis's 253.91 kHz"
+    );
+}
+
+#[test]
+fn rubber_band_fundamental_is_the_thesis_value() {
+    let m = scenario::build("rubber-band", &params(&[("grid", 0.0)])).unwrap();
+    let (t, y) = track(&m, 5);
+    let f = zero_crossing_frequency(&t, &y).unwrap();
+    assert!((f / 189.21 - 1.0).abs() < 0.03, "{f} Hz vs 189.21 Hz");
+}
+
+/// A single sine pulse (period 2 s) from a monopole or dipole at the centre of the Section
+/// 3.3.6 grid; returns the field's history at the given cells and the energy Σp².
+fn pulse(
+    order: Order,
+    dipole: bool,
+    refine: usize,
+    cells: &[(usize, usize)],
+    steps: usize,
+) -> (Vec<Vec<f64>>, Vec<f64>) {
+    let mut g = test_grid(0.1 / refine as f64);
+    g.order = order;
+    g.nx *= refine;
+    g.ny *= refine;
+    let mut f = Field::new(&g);
+    let h = g.dx();
+    let c = 50 * refine + (refine - 1) / 2;
+    let mut hist = vec![Vec::new(); cells.len()];
+    let mut energy = Vec::new();
+    for k in 0..steps * refine {
+        let t = k as f64 * g.dt;
+        let s = if t < 2.0 {
+            (std::f64::consts::PI * t).sin() / (h * h)
+        } else {
+            0.0
+        };
+        if dipole {
+            f.add_source(c + refine, c, s);
+            f.add_source(c - refine, c, -s);
+        } else {
+            f.add_source(c, c, s);
+        }
+        f.step();
+        if (k + 1) % refine == 0 {
+            for (hv, &(i, j)) in hist.iter_mut().zip(cells) {
+                hv.push(f.at(i * refine + (refine - 1) / 2, j * refine + (refine - 1) / 2));
+            }
+            energy.push(f.energy() * h * h);
+        }
+    }
+    (hist, energy)
+}
+
+#[test]
+fn acoustic_pulses_travel_at_c_decay_in_2d_and_leave_the_domain() {
+    for dipole in [false, true] {
+        // Cells 2, 4 and 8 m from the source along x; one 4 m along y.
+        let cells = [(60, 50), (70, 50), (90, 50), (50, 70)];
+        let (h, e) = pulse(Order::Second, dipole, 1, &cells, 400);
+        let peak = |v: &Vec<f64>| v.iter().fold(0.0f64, |a, x| a.max(x.abs()));
+        let onset = |v: &Vec<f64>| {
+            let p = peak(v);
+            v.iter().position(|x| x.abs() > 0.02 * p).unwrap() as f64 * 0.1
+        };
+        for (k, r) in [(0, 2.0), (1, 4.0), (2, 8.0)] {
+            let t = onset(&h[k]);
+            assert!(
+                (t - r).abs() < 0.6,
+                "dipole {dipole}: onset {t} s at {r} m (r/c = {r} s)"
+            );
+        }
+        // 2-D spreading: amplitude ∝ 1/√r between 2 and 8 m.
+        let ratio = peak(&h[0]) / peak(&h[2]);
+        assert!(
+            (ratio / 2.0 - 1.0).abs() < 0.3,
+            "dipole {dipole}: 2 m / 8 m amplitude ratio {ratio}"
+        );
+        if dipole {
+            // The dipole is silent across its axis.
+            assert!(
+                peak(&h[3]) < 0.1 * peak(&h[1]),
+                "dipole radiates along y: {} vs {}",
+                peak(&h[3]),
+                peak(&h[1])
+            );
+        }
+        // After the pulse has left (t = 40 s) the domain holds < 5 % of its peak energy.
+        let emax = e.iter().fold(0.0f64, |a, &x| a.max(x));
+        let left = *e.last().unwrap();
+        assert!(left < 0.05 * emax, "dipole {dipole}: {left} of {emax} left");
+    }
+}
+
+#[test]
+fn fourth_order_error_is_below_second_order_error() {
+    // Reference: the 4th-order scheme on a grid three times finer (same α), same points.
+    let cells = [(70, 50)];
+    let (reference, _) = pulse(Order::Fourth, false, 3, &cells, 110);
+    let err = |o: Order| {
+        let (h, _) = pulse(o, false, 1, &cells, 110);
+        h[0].iter()
+            .zip(&reference[0])
+            .map(|(a, b)| (a - b).abs())
+            .fold(0.0f64, f64::max)
+    };
+    let (e2, e4) = (err(Order::Second), err(Order::Fourth));
+    assert!(e4 < e2, "4th-order error {e4} not below 2nd-order {e2}");
+}
+
+#[test]
+fn unstable_grids_are_refused_with_the_limit() {
+    let mut m = scenario::build("sho", &Params::default()).unwrap();
+    m.grid.as_mut().unwrap().dt = 0.15; // α = 0.75 ≥ √(3/8)
+    m.system.dt = 0.015;
+    let e = m.check().unwrap_err().to_string();
+    assert!(e.contains("unstable") && e.contains("√(3/8)"), "{e}");
+    m.grid.as_mut().unwrap().order = Order::Second;
+    let e = m.check().unwrap_err().to_string();
+    assert!(e.contains("1/√2"), "{e}");
+}
+
+#[test]
+fn coupled_sho_radiates_at_its_own_frequency() {
+    let m = scenario::build("sho", &params(&[("amplitude", 0.01)])).unwrap();
+    let out = simulate(&m, &RunOptions::default()).unwrap();
+    let f = aepipe::sim::dominant_frequency(&out.sensors[0], out.sample_rate_hz);
+    let f0 = sho_frequency();
+    assert!(
+        (f / f0 - 1.0).abs() < 0.03,
+        "pressure peaks at {f} Hz, SHO at {f0} Hz"
+    );
+}
+
+const APPENDIX: &str = "Section System
+x1 x2 y1 y2 dt damping gravity iters solver runwave stretch
+-5.5E-04 5.5E-04 -5.5E-04 5.5E-04 1.0e-08 0.0 0.0 2000 IEuler false true
+End System
+Section Nodes
+Node x y type m
+0 -5.0E-04 0.0 1 5.1E-12
+1 0.0 0.0 0 5.1E-12
+2 5.0E-04 0.0 1 5.1E-12
+End Nodes
+Section Springs
+Spring N1 N2 E L t w P.Ratio Fibre Type
+0 0 1 3.5E10 5.0E-04 2.8E-06 3.5E-05 0.28 0 0
+1 1 2 3.5E10 5.0E-04 2.8E-06 3.5E-05 0.28 0 0
+End Springs
+Section Initial
+Node dx dy du dv type
+0 -5.0e-06 0.0 0.0 0.0 1
+2 5.0e-06 0.0 0.0 0.0 1
+1 0.0 1.0e-06 0.0 0.0 0
+End Initial
+Section NodeDamage
+Node When Type Option
+1 5e-6 1 1
+End NodeDamage
+Section Storage
+NodePos NodeScreen
+np.dat nsp.dat
+End Storage
+";
+
+#[test]
+fn appendix_a_files_parse_and_errors_name_the_line() {
+    let d = TempDir::new("sim-input");
+    let p = d.path().join("fibre.txt");
+    std::fs::write(&p, APPENDIX).unwrap();
+    let m = aepipe::sim::input::read_model(&p).unwrap();
+    assert_eq!(m.nodes.len(), 3);
+    assert!(m.nodes[0].fixed && !m.nodes[1].fixed);
+    assert_eq!(m.springs[1].length, Some(5e-4));
+    assert_eq!(m.initial.len(), 3);
+    assert_eq!(
+        m.damage,
+        vec![DamageSpec::Fibre {
+            spring: 1,
+            time: 5e-6
+        }]
+    );
+    assert!(m.grid.is_none());
+    assert_eq!(m.system.solver, Solver::ImplicitEuler);
+    // The same model as TOML reads back equal.
+    let t = d.path().join("fibre.toml");
+    std::fs::write(&t, toml::to_string(&m).unwrap()).unwrap();
+    let mut back = aepipe::sim::input::read_model(&t).unwrap();
+    back.name = m.name.clone();
+    assert_eq!(back, m);
+    // Malformed lines name file and line.
+    let cases = [
+        (
+            APPENDIX.replace("1 0.0 0.0 0 5.1E-12", "1 0.0 zero 0 5.1E-12"),
+            "fibre.txt:8:",
+            "not a number",
+        ),
+        (
+            APPENDIX.replace("1 1 2 3.5E10", "1 1 2"),
+            "fibre.txt:14:",
+            "header names 10 columns",
+        ),
+        (
+            APPENDIX.replace("End Springs", "End Spring"),
+            "fibre.txt:15:",
+            "closes Section Springs",
+        ),
+        (
+            APPENDIX.replace("Storage", "Stroage"),
+            "fibre.txt:26:",
+            "unknown section Stroage",
+        ),
+        (
+            APPENDIX.replace("1 5e-6 1 1", "0 5e-6 1 1"),
+            "fibre.txt:24:",
+            "does not touch node 0",
+        ),
+    ];
+    for (text, at, what) in cases {
+        std::fs::write(&p, text).unwrap();
+        let e = aepipe::sim::input::read_model(&p).unwrap_err().to_string();
+        assert!(e.contains(at) && e.contains(what), "{e}");
+        assert_eq!(e.lines().count(), 1);
+    }
+}
+
+#[test]
+fn bond_failure_splits_the_mass_and_fibre_failure_cuts_the_spring() {
+    let m = scenario::build(
+        "mesh3x3-bond-failure",
+        &params(&[("grid", 0.0), ("iterations", 300.0)]),
+    )
+    .unwrap();
+    let mut mech = aepipe::sim::mech::Mech::new(&m);
+    mech.relax(&m, true);
+    let (node, total) = match m.damage[0] {
+        DamageSpec::Bond { node, .. } => (node, mech.m.iter().sum::<f64>()),
+        _ => unreachable!(),
+    };
+    let before: Vec<u32> = mech
+        .springs
+        .iter()
+        .filter(|s| s.a == node || s.b == node)
+        .map(|s| s.fibre)
+        .collect();
+    assert_eq!(before.len(), 4);
+    let j = mech.damage(&m.damage[0]).unwrap();
+    assert_eq!(j, m.nodes.len());
+    assert_eq!(mech.r[j], mech.r[node]);
+    assert!(
+        (mech.m.iter().sum::<f64>() - total).abs() < 1e-24,
+        "mass is conserved"
+    );
+    let at = |n: usize| -> Vec<u32> {
+        mech.springs
+            .iter()
+            .filter(|s| s.a == n || s.b == n)
+            .map(|s| s.fibre)
+            .collect()
+    };
+    // Each half keeps one fibre's pair of opposing springs.
+    let (a, b) = (at(node), at(j));
+    assert!(
+        a.len() == 2 && b.len() == 2 && a[0] == a[1] && b[0] == b[1] && a[0] != b[0],
+        "{a:?} {b:?}"
+    );
+    // The structure keeps running after the split (the implicit matrix gains the new node).
+    for k in 0..50 {
+        mech.step(Solver::ImplicitEuler, 1e-8, k as f64 * 1e-8)
+            .unwrap();
+    }
+    assert!(mech.r.iter().all(|r| r[0].is_finite() && r[1].is_finite()));
+
+    let s = scenario::build(
+        "structure2x1-fibre-failure",
+        &params(&[("point", 3.0), ("grid", 0.0)]),
+    )
+    .unwrap();
+    let mut mech = aepipe::sim::mech::Mech::new(&s);
+    mech.relax(&s, true);
+    let DamageSpec::Fibre { spring, .. } = s.damage[0] else {
+        unreachable!()
+    };
+    let tension = mech.max_tension();
+    assert!(tension > 0.0);
+    mech.damage(&s.damage[0]);
+    assert!(mech.springs[spring].broken);
+    // The cut fibre recoils: its two new ends move apart.
+    let (a, b) = (mech.springs[spring].a, mech.springs[spring].b);
+    let gap0 = aepipe::sim::mech::dist(mech.r[a], mech.r[b]);
+    for k in 0..200 {
+        mech.step(Solver::ImplicitEuler, 1e-8, k as f64 * 1e-8)
+            .unwrap();
+    }
+    assert!(aepipe::sim::mech::dist(mech.r[a], mech.r[b]) > gap0 * 1.05);
+    let e = scenario::build("structure2x1-fibre-failure", &params(&[("point", 13.0)])).unwrap_err();
+    assert!(e.to_string().contains("1…12"));
+}
+
+#[test]
+fn simulated_waveforms_feed_the_feature_pipeline_and_match_their_schema() {
+    let d = TempDir::new("sim-out");
+    let job = aepipe::sim::Job {
+        model: None,
+        scenario: Some("paper-fibre".into()),
+        params: params(&[("iterations", 2000.0)]),
+        sweep: None,
+        solver: None,
+        out: d.path().join("sim"),
+        run: RunOptions::default(),
+        scale_v_per_pa: 1e-3,
+    };
+    aepipe::sim::run_job(&job).unwrap();
+    let wf = d.path().join("sim/waveforms.parquet");
+    crate::pipeline::check_against_schema_file(&wf, "sim_waveforms.md");
+    let cfg = aepipe::config::PipelineConfig::default();
+    let (recs, rejs) = crate::read_all(&[wf], &cfg);
+    assert!(rejs.is_empty(), "{rejs:?}");
+    assert_eq!(recs.len(), 9, "one record per Appendix-A sensor");
+    assert_eq!(recs[0].label.as_deref(), Some("fibre_vibration"));
+    assert_eq!(recs[0].sample_rate_hz, 1e7);
+    assert_eq!(recs[0].samples.len(), 200);
+    // The sensor below the fibre hears its fundamental (~245 kHz): the feature pipeline's
+    // spectrum puts the most power in the 200–300 kHz window.
+    let f = aepipe::sim::dominant_frequency(
+        &recs[0]
+            .samples
+            .iter()
+            .map(|&v| v as f64)
+            .collect::<Vec<_>>(),
+        1e7,
+    );
+    assert!((200e3..300e3).contains(&f), "{f}");
+}
