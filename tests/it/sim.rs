@@ -464,3 +464,68 @@ fn simulated_waveforms_feed_the_feature_pipeline_and_match_their_schema() {
     );
     assert!((200e3..300e3).contains(&f), "{f}");
 }
+
+/// Simulate a scenario (sensor 1 only) and analyse it with the feature extractor.
+fn analyse(name: &str, kv: &[(&str, f64)]) -> aepipe::features::Analysis {
+    let d = TempDir::new("sim-analyse");
+    let job = aepipe::sim::Job {
+        model: None,
+        scenario: Some(name.into()),
+        params: params(kv),
+        sweep: None,
+        solver: None,
+        out: d.path().to_path_buf(),
+        run: RunOptions::default(),
+        scale_v_per_pa: 1e-3,
+    };
+    aepipe::sim::run_job(&job).unwrap();
+    let cfg = aepipe::config::PipelineConfig::default();
+    let (recs, _) = crate::read_all(&[d.path().join("waveforms.parquet")], &cfg);
+    let rec = recs.into_iter().find(|r| r.channel == 1).unwrap();
+    aepipe::features::FeatureExtractor::new(&cfg).analyse(&rec)
+}
+
+#[test]
+fn bond_failure_rings_at_250_and_750_khz_with_the_low_tone_lasting_longer() {
+    let a = analyse("mesh3x3-bond-failure", &[]);
+    let c = &a.components;
+    let (low, high) = (
+        c.low.as_ref().expect("a ~250 kHz component"),
+        c.high.as_ref().expect("a ~750 kHz component"),
+    );
+    assert!((200e3..300e3).contains(&low.freq_hz), "{low:?}");
+    assert!((650e3..850e3).contains(&high.freq_hz), "{high:?}");
+    assert!(low.duration_s > high.duration_s, "{low:?} {high:?}");
+    let dom = c.dominant.as_ref().unwrap();
+    assert!(
+        (dom.freq_hz - low.freq_hz).abs() < 1.0,
+        "the 250 kHz tone dominates: {dom:?}"
+    );
+    // Ratio windows (Eq. 4.5.4): 200–300 kHz holds the most power, 700–800 kHz is a local peak.
+    let r = &a.ratios;
+    let top = (0..r.len()).max_by(|&x, &y| r[x].total_cmp(&r[y])).unwrap();
+    assert_eq!(top, 2, "{r:?}");
+    assert!(r[7] > r[6] && r[7] > r[8] && r[7] > 0.05, "{r:?}");
+}
+
+#[test]
+fn fibre_failure_is_a_short_pulse_above_800_khz_that_moves_with_the_break_point() {
+    let mut freqs = Vec::new();
+    for point in [2.0, 7.0, 12.0] {
+        let a = analyse("structure2x1-fibre-failure", &[("point", point)]);
+        let dom = a.components.dominant.clone().unwrap();
+        assert!(dom.freq_hz > 800e3, "point {point}: {dom:?}");
+        assert!(dom.duration_s < 5e-6, "point {point}: {dom:?}");
+        assert_eq!(
+            a.label,
+            aepipe::model::Mechanism::FibreFailure,
+            "point {point}: {}",
+            a.reason
+        );
+        freqs.push(dom.freq_hz);
+    }
+    assert!(
+        (freqs[1] - freqs[0]).abs() > 100e3 && (freqs[2] - freqs[1]).abs() > 50e3,
+        "{freqs:?}"
+    );
+}
