@@ -355,3 +355,188 @@ pub fn run_minisom(python: &Path, peers: &Path) -> Result<(f64, f64), String> {
             .ok_or("no quality.qe in the peer's JSON")?,
     ))
 }
+
+/// A random fibre network: straight 1 mm fibres of 20 masses at random positions and angles
+/// in a square sized for about 3 crossings per fibre; every node is bonded by a spring to each
+/// node of another fibre within a quarter of the node spacing... or, where none is that close,
+/// to its nearest other-fibre node within one spacing. Nodes within 2 % of the square's edge
+/// are fixed. Paper-fibre material (Table 4.1).
+pub fn random_network(masses: usize, seed: u64) -> crate::sim::model::ModelFile {
+    use crate::sim::model::*;
+    use crate::sim::scenario::{FIBRE_E, FIBRE_NU, FIBRE_RHO, FIBRE_T, FIBRE_W};
+    let per = 20usize;
+    let fibres = (masses / per).max(1);
+    let len = 1e-3;
+    let a = len / (per - 1) as f64;
+    let side = len * (fibres as f64 / 4.0).sqrt().max(1.0);
+    let mut rng = crate::synth::Rng::new(seed);
+    let m = FIBRE_RHO * FIBRE_T * FIBRE_W * a;
+    let mut nodes = Vec::with_capacity(fibres * per);
+    let mut springs = Vec::new();
+    let mut owner = Vec::new();
+    for f in 0..fibres {
+        let (cx, cy) = (rng.range(0.0, side), rng.range(0.0, side));
+        let th = rng.range(0.0, std::f64::consts::PI);
+        let (dx, dy) = (th.cos(), th.sin());
+        let base = nodes.len();
+        for k in 0..per {
+            let s = (k as f64 / (per - 1) as f64 - 0.5) * len;
+            let (x, y) = (cx + s * dx, cy + s * dy);
+            let edge = x < 0.02 * side || y < 0.02 * side || x > 0.98 * side || y > 0.98 * side;
+            nodes.push(NodeSpec {
+                x,
+                y,
+                mass: m,
+                fixed: edge || k == 0 || k == per - 1,
+            });
+            owner.push(f);
+            if k > 0 {
+                springs.push(SpringSpec {
+                    a: base + k - 1,
+                    b: base + k,
+                    e: FIBRE_E,
+                    length: None,
+                    t: FIBRE_T,
+                    w: FIBRE_W,
+                    poisson: FIBRE_NU,
+                    fibre: f as u32,
+                });
+            }
+        }
+    }
+    // Bonds through a cell list of width a.
+    let cells = (side / a).ceil() as usize + 3;
+    let key = |x: f64, y: f64| {
+        (
+            ((x / a).floor() as i64 + 1).clamp(0, cells as i64 - 1) as usize,
+            ((y / a).floor() as i64 + 1).clamp(0, cells as i64 - 1) as usize,
+        )
+    };
+    let mut grid: std::collections::HashMap<(usize, usize), Vec<usize>> = Default::default();
+    for (i, nd) in nodes.iter().enumerate() {
+        grid.entry(key(nd.x, nd.y)).or_default().push(i);
+    }
+    for i in 0..nodes.len() {
+        let (ci, cj) = key(nodes[i].x, nodes[i].y);
+        let mut best: Option<(f64, usize)> = None;
+        for di in ci.saturating_sub(1)..=ci + 1 {
+            for dj in cj.saturating_sub(1)..=cj + 1 {
+                for &j in grid.get(&(di, dj)).map(|v| v.as_slice()).unwrap_or(&[]) {
+                    if j <= i || owner[j] == owner[i] {
+                        continue;
+                    }
+                    let d = ((nodes[j].x - nodes[i].x).powi(2) + (nodes[j].y - nodes[i].y).powi(2))
+                        .sqrt();
+                    if d < a && d > 1e-3 * a && best.is_none_or(|b| d < b.0) {
+                        best = Some((d, j));
+                    }
+                }
+            }
+        }
+        if let Some((_, j)) = best {
+            springs.push(SpringSpec {
+                a: i,
+                b: j,
+                e: FIBRE_E,
+                length: None,
+                t: FIBRE_T,
+                w: FIBRE_W,
+                poisson: FIBRE_NU,
+                fibre: u32::MAX,
+            });
+        }
+    }
+    ModelFile {
+        name: format!("random-network-{masses}"),
+        label: None,
+        system: System {
+            dt: 1e-8,
+            damping: 1.5e-6,
+            iterations: 0,
+            solver: Solver::ImplicitEuler,
+            relax: false,
+        },
+        nodes,
+        springs,
+        initial: vec![],
+        forces: vec![],
+        damage: vec![],
+        grid: None,
+        sensors: vec![],
+    }
+}
+
+/// One row of the simulator scale benchmark.
+#[derive(Debug, Clone)]
+pub struct SimScale {
+    pub masses: usize,
+    pub springs: usize,
+    pub seconds_per_step: f64,
+    pub solver_iterations_per_step: f64,
+}
+
+/// Implicit-Euler steps of random fibre networks (ch. 6.2: the thesis's solver crawled above
+/// 1 000 elements). Each network is stretched 1 % (every node moved away from the centre)
+/// and given random velocities, then stepped `steps` times at Δt = 10 ns.
+pub fn sim_scale(sizes: &[usize], steps: usize) -> Result<Vec<SimScale>, String> {
+    use crate::sim::mech::Mech;
+    let mut rows = Vec::new();
+    for &n in sizes {
+        let model = random_network(n, 7);
+        model.check().map_err(|e| e.to_string())?;
+        let mut mech = Mech::new(&model);
+        let side = model
+            .nodes
+            .iter()
+            .fold(0.0f64, |s, nd| s.max(nd.x).max(nd.y));
+        let mut rng = crate::synth::Rng::new(11);
+        for i in 0..mech.len() {
+            mech.r[i] = [
+                mech.r[i][0] + 0.01 * (mech.r[i][0] - side / 2.0),
+                mech.r[i][1] + 0.01 * (mech.r[i][1] - side / 2.0),
+            ];
+            if !mech.held[i] {
+                mech.u[i] = [rng.range(-0.1, 0.1), rng.range(-0.1, 0.1)];
+            }
+        }
+        mech.freeze_areas();
+        // One step to build the pattern, then the timed ones.
+        mech.step(crate::sim::model::Solver::ImplicitEuler, 1e-8, 0.0)
+            .map_err(|e| e.to_string())?;
+        let it0 = mech.solver_iterations();
+        let t0 = std::time::Instant::now();
+        for k in 0..steps {
+            mech.step(
+                crate::sim::model::Solver::ImplicitEuler,
+                1e-8,
+                k as f64 * 1e-8,
+            )
+            .map_err(|e| e.to_string())?;
+        }
+        let secs = t0.elapsed().as_secs_f64() / steps as f64;
+        rows.push(SimScale {
+            masses: mech.len(),
+            springs: model.springs.len(),
+            seconds_per_step: secs,
+            solver_iterations_per_step: (mech.solver_iterations() - it0) as f64 / steps as f64,
+        });
+    }
+    Ok(rows)
+}
+
+/// `mesh3x3-bond-failure` end to end (relaxation, 4 000 implicit steps, 400 steps of the
+/// 250 × 250 4th-order grid): median seconds of `repeats` runs.
+pub fn sim_mesh(repeats: usize) -> Result<f64, String> {
+    let model = crate::sim::scenario::build("mesh3x3-bond-failure", &Default::default())
+        .map_err(|e| e.to_string())?;
+    let mut err = None;
+    let t = median_time(repeats, || {
+        if let Err(e) = crate::sim::simulate(&model, &Default::default()) {
+            err = Some(e.to_string());
+        }
+    });
+    match err {
+        Some(e) => Err(e),
+        None => Ok(t),
+    }
+}

@@ -211,6 +211,16 @@ enum SomCmd {
 
 #[derive(Subcommand)]
 enum BenchCmd {
+    /// Simulator scale: implicit steps of random fibre networks (cost per spring), and the
+    /// mesh3x3-bond-failure scenario with its 250×250 grid over 40 µs
+    Sim {
+        #[arg(long, default_value = "1000,2500,5000,10000", value_delimiter = ',')]
+        masses: Vec<usize>,
+        #[arg(long, default_value_t = 200)]
+        steps: usize,
+        #[arg(long, default_value_t = 3)]
+        repeats: usize,
+    },
     /// W3 SOM training (651 × 200-D, 10×10, Table 5.2 schedule, the peers' initial codebook);
     /// with --peers, MiniSom in the same run
     Som {
@@ -719,6 +729,54 @@ fn main() -> ExitCode {
                 ExitCode::from(3)
             }
         },
+        Cmd::Bench {
+            which:
+                BenchCmd::Sim {
+                    masses,
+                    steps,
+                    repeats,
+                },
+        } => {
+            let rows = match aepipe::bench::sim_scale(&masses, steps) {
+                Ok(r) => r,
+                Err(e) => {
+                    eprintln!("aepipe: {e}");
+                    return ExitCode::from(3);
+                }
+            };
+            println!(
+                "implicit Euler on random fibre networks (Δt 10 ns, {steps} steps, 1 thread):"
+            );
+            println!(
+                "{:>8} {:>8} {:>10} {:>14} {:>13} {:>22}",
+                "masses",
+                "springs",
+                "ms/step",
+                "µs/step/1k sp",
+                "BiCGSTAB it",
+                "ns/spring/iteration"
+            );
+            for r in &rows {
+                println!(
+                    "{:>8} {:>8} {:>10.3} {:>14.2} {:>13.1} {:>22.2}",
+                    r.masses,
+                    r.springs,
+                    r.seconds_per_step * 1e3,
+                    r.seconds_per_step * 1e6 / (r.springs as f64 / 1e3),
+                    r.solver_iterations_per_step,
+                    r.seconds_per_step * 1e9
+                        / (r.springs as f64 * r.solver_iterations_per_step.max(1.0))
+                );
+            }
+            match aepipe::bench::sim_mesh(repeats) {
+                Ok(t) => println!("mesh3x3-bond-failure, 250×250 grid, 40 µs (relaxation + 4 000 implicit steps + 400 FDTD steps): median {t:.3} s"),
+                Err(e) => {
+                    eprintln!("aepipe: {e}");
+                    return ExitCode::from(3);
+                }
+            }
+            ExitCode::SUCCESS
+        }
         Cmd::Bench {
             which:
                 BenchCmd::Som {

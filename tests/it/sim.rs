@@ -513,7 +513,7 @@ fn fibre_failure_is_a_short_pulse_above_800_khz_that_moves_with_the_break_point(
     let mut freqs = Vec::new();
     for point in [2.0, 7.0, 12.0] {
         let a = analyse("structure2x1-fibre-failure", &[("point", point)]);
-        let dom = a.components.dominant.clone().unwrap();
+        let dom = a.components.dominant.unwrap();
         assert!(dom.freq_hz > 800e3, "point {point}: {dom:?}");
         assert!(dom.duration_s < 5e-6, "point {point}: {dom:?}");
         assert_eq!(
@@ -528,4 +528,16 @@ fn fibre_failure_is_a_short_pulse_above_800_khz_that_moves_with_the_break_point(
         (freqs[1] - freqs[0]).abs() > 100e3 && (freqs[2] - freqs[1]).abs() > 50e3,
         "{freqs:?}"
     );
+}
+
+#[test]
+fn random_networks_are_bonded_and_step_stably() {
+    let m = aepipe::bench::random_network(400, 3);
+    m.check().unwrap();
+    let fibre_springs = m.springs.iter().filter(|s| s.fibre != u32::MAX).count();
+    let bonds = m.springs.len() - fibre_springs;
+    assert_eq!(fibre_springs, 20 * 19);
+    assert!(bonds >= 20, "only {bonds} bonds");
+    let rows = aepipe::bench::sim_scale(&[400], 5).unwrap();
+    assert!(rows[0].solver_iterations_per_step >= 1.0);
 }
