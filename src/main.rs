@@ -134,6 +134,17 @@ enum Cmd {
         #[arg(long, default_value_t = 1.0)]
         scale: f64,
     },
+    /// Build the labelled reference library: the simulator over a grid of scenarios, in
+    /// parallel, into DIR/waveforms.parquet
+    Reference {
+        /// Library definition (see pipelines/reference-library.toml)
+        #[arg(long, default_value = "pipelines/reference-library.toml")]
+        config: PathBuf,
+        #[arg(long)]
+        out: PathBuf,
+        #[arg(long, default_value_t = 0)]
+        threads: usize,
+    },
     /// Make a synthetic experiment and run the pipeline on it (the README's first command)
     Demo {
         /// Folder for the demo's data and outputs
@@ -697,6 +708,39 @@ fn main() -> ExitCode {
                 ) => {
                     eprintln!("aepipe: {e}");
                     ExitCode::from(1)
+                }
+                Err(e) => {
+                    eprintln!("aepipe: {e}");
+                    ExitCode::from(3)
+                }
+            }
+        }
+        Cmd::Reference {
+            config,
+            out,
+            threads,
+        } => {
+            use aepipe::sim::reference::{build_library, ReferenceFile};
+            let f = match ReferenceFile::read(&config) {
+                Ok(f) => f,
+                Err(e) => {
+                    eprintln!("aepipe: {e}");
+                    return ExitCode::from(1);
+                }
+            };
+            let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build();
+            let run = || build_library(&f.reference, &out, true);
+            let r = match pool {
+                Ok(p) => p.install(run),
+                Err(_) => run(),
+            };
+            match r {
+                Ok((runs, n, secs)) => {
+                    println!(
+                        "{runs} simulations, {n} labelled signals → {} in {secs:.1} s",
+                        out.join("waveforms.parquet").display()
+                    );
+                    ExitCode::SUCCESS
                 }
                 Err(e) => {
                     eprintln!("aepipe: {e}");

@@ -9,6 +9,7 @@ pub mod input;
 pub mod mech;
 pub mod model;
 pub mod output;
+pub mod reference;
 pub mod scenario;
 
 use acoustic::Field;

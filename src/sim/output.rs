@@ -86,22 +86,14 @@ pub struct Run<'a> {
     pub scale_v_per_pa: f64,
 }
 
+/// The simulated sensor "triggers" at this fraction of its peak.
+pub const TRIGGER_FRACTION: f64 = 0.05;
+
 /// Rows of the simulated waveform table, one per sensor.
 pub fn rows(run: &Run) -> Vec<store::Row> {
     let g = match &run.model.grid {
         Some(g) => g,
         None => return vec![],
-    };
-    let first_event = run
-        .model
-        .damage
-        .iter()
-        .map(|d| d.time())
-        .fold(f64::INFINITY, f64::min);
-    let pretrigger = if first_event.is_finite() {
-        (first_event / g.dt).floor().max(0.0) as i32
-    } else {
-        0
     };
     run.out
         .sensors
@@ -110,6 +102,12 @@ pub fn rows(run: &Run) -> Vec<store::Row> {
         .enumerate()
         .map(|(k, (sig, spec))| {
             let (x, y) = g.centre(spec.i, spec.j);
+            // Trigger where an AE system would: the first sample reaching 5 % of the peak.
+            let peak = sig.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+            let pretrigger = sig
+                .iter()
+                .position(|v| v.abs() >= TRIGGER_FRACTION * peak)
+                .unwrap_or(0) as i32;
             let samples: Vec<f32> = sig
                 .iter()
                 .map(|p| (p * run.scale_v_per_pa) as f32)

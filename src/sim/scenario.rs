@@ -90,6 +90,28 @@ pub fn build(name: &str, p: &Params) -> Result<ModelFile, SimError> {
         m.grid = None;
         m.sensors.clear();
     }
+    // Material variation (Table 4.1 gives ranges): Young's modulus, thickness and width
+    // scaled; masses follow thickness × width (the density is fixed).
+    let (es, ts, ws) = (
+        p.get("e_scale", 1.0),
+        p.get("t_scale", 1.0),
+        p.get("w_scale", 1.0),
+    );
+    if (es, ts, ws) != (1.0, 1.0, 1.0) {
+        if !(es > 0.0 && ts > 0.0 && ws > 0.0) {
+            return Err(SimError::Model(format!(
+                "{name}: e_scale, t_scale and w_scale must be > 0"
+            )));
+        }
+        for s in &mut m.springs {
+            s.e *= es;
+            s.t *= ts;
+            s.w *= ws;
+        }
+        for n in &mut m.nodes {
+            n.mass *= ts * ws;
+        }
+    }
     m.check()?;
     Ok(m)
 }

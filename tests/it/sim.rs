@@ -541,3 +541,47 @@ fn random_networks_are_bonded_and_step_stably() {
     let rows = aepipe::bench::sim_scale(&[400], 5).unwrap();
     assert!(rows[0].solver_iterations_per_step >= 1.0);
 }
+
+#[test]
+fn reference_library_runs_the_grid_with_varied_material() {
+    use aepipe::sim::reference::{build_library, expand, ReferenceFile};
+    let d = TempDir::new("sim-ref");
+    let cfg = d.path().join("lib.toml");
+    std::fs::write(
+        &cfg,
+        "[reference]\nvariants = 2\nmaterial_spread = 0.1\nsensors = [[125, 100]]\n\
+         [[reference.scenario]]\nname = \"structure2x1-fibre-failure\"\nparams = { point = [3, 9], iterations = [1500] }\n",
+    )
+    .unwrap();
+    let f = ReferenceFile::read(&cfg).unwrap();
+    let runs = expand(&f.reference);
+    assert_eq!(runs.len(), 4);
+    for (_, p) in &runs {
+        for k in ["e_scale", "t_scale", "w_scale"] {
+            let v = p.get(k, 0.0);
+            assert!((0.9..=1.1).contains(&v), "{k} = {v}");
+        }
+    }
+    let (n, signals, _) = build_library(&f.reference, &d.path().join("lib"), false).unwrap();
+    assert_eq!((n, signals), (4, 4));
+    let wf = d.path().join("lib/waveforms.parquet");
+    crate::pipeline::check_against_schema_file(&wf, "sim_waveforms.md");
+    let (names, rows) = crate::table_rows(&wf);
+    let col = |n: &str| names.iter().position(|x| x == n).unwrap();
+    let hits: Vec<&str> = rows.iter().map(|r| r[col("hit")].as_str()).collect();
+    assert_eq!(hits, ["1", "2", "3", "4"]);
+    assert!(rows
+        .iter()
+        .all(|r| r[col("label")] == "fibre_failure" && r[col("sim_params")].contains("e_scale")));
+    // A misspelt scenario is refused with the file named.
+    std::fs::write(
+        &cfg,
+        "[reference]\n[[reference.scenario]]\nname = \"mesh\"\n",
+    )
+    .unwrap();
+    let e = ReferenceFile::read(&cfg).unwrap_err().to_string();
+    assert!(
+        e.contains("lib.toml") && e.contains("unknown scenario"),
+        "{e}"
+    );
+}
