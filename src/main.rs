@@ -145,6 +145,22 @@ enum Cmd {
         #[arg(long, default_value_t = 0)]
         threads: usize,
     },
+    /// A synthetic notched-paper test built from reference-library signals: DIR/<id>.pridb,
+    /// .tradb (Vallen) and DIR/truth.parquet
+    SynthExperiment {
+        #[arg(long)]
+        out: PathBuf,
+        #[arg(long, default_value_t = 651)]
+        hits: usize,
+        #[arg(long, default_value_t = 2026)]
+        seed: u64,
+        /// Reference library (waveforms.parquet of `aepipe reference`); default: build the
+        /// embedded pipelines/reference-library.toml into DIR/reference
+        #[arg(long)]
+        library: Option<PathBuf>,
+        #[arg(long, default_value = "synthetic_notched_paper")]
+        id: String,
+    },
     /// Make a synthetic experiment and run the pipeline on it (the README's first command)
     Demo {
         /// Folder for the demo's data and outputs
@@ -657,8 +673,9 @@ fn main() -> ExitCode {
                 "classification" => aepipe::som::run::classification_table(),
                 "sim_waveforms" => aepipe::sim::output::sim_waveforms_table(),
                 "sim_trajectories" => aepipe::sim::output::trajectory_table(),
+                "truth" => aepipe::synth::truth_table(),
                 other => {
-                    eprintln!("aepipe: unknown table '{other}' (features, waveforms, rejects, trend, classification, sim_waveforms, sim_trajectories)");
+                    eprintln!("aepipe: unknown table '{other}' (features, waveforms, rejects, trend, classification, sim_waveforms, sim_trajectories, truth)");
                     return ExitCode::from(1);
                 }
             };
@@ -748,6 +765,23 @@ fn main() -> ExitCode {
                 }
             }
         }
+        Cmd::SynthExperiment {
+            out,
+            hits,
+            seed,
+            library,
+            id,
+        } => match aepipe::synth::synth_experiment(&out, &id, hits, seed, library.as_deref(), true)
+        {
+            Ok(s) => {
+                println!("{s}");
+                ExitCode::SUCCESS
+            }
+            Err(e) => {
+                eprintln!("aepipe: {e}");
+                ExitCode::from(3)
+            }
+        },
         Cmd::Demo {
             out,
             hits,

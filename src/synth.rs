@@ -145,6 +145,81 @@ pub fn waveform(spec: &HitSpec, rng: &mut Rng) -> Vec<f32> {
         .collect()
 }
 
+/// Add `amp · sig` into `x` from index `at` (clipped at the end).
+fn add_at(x: &mut [f64], sig: &[f64], at: usize, amp: f64) {
+    for (k, v) in sig.iter().enumerate() {
+        if let Some(o) = x.get_mut(at + k) {
+            *o += amp * v;
+        }
+    }
+}
+
+/// A hit made of reference-library signals: a drawn signal of the mechanism placed at the
+/// trigger with up to 1 µs of arrival jitter, bond hits re-weighted between their parts
+/// below and above 500 kHz by `low_share` (the designed ch. 4.5.5 shift), distance
+/// attenuation (a source 0–5 mm away, 20 %/mm), the sensor band 100–2500 kHz, and noise.
+/// "Both" is a fibre pulse followed 4 µs later by a bond wave; erroneous hits are two bursts
+/// 150 µs apart or a burst that starts before the trigger.
+fn from_library(lib: &Library, spec: &HitSpec, rng: &mut Rng) -> (Vec<f32>, String) {
+    let fs = spec.sample_rate_hz;
+    let n = spec.n_samples;
+    let pre = spec.pretrigger.min(n);
+    let mut x = vec![0.0f64; n];
+    let mut sources = Vec::new();
+    let pick = |set: &[LibrarySignal], rng: &mut Rng| (rng.next_u64() % set.len() as u64) as usize;
+    let lead = (2e-6 * fs) as usize;
+    let bond = |x: &mut [f64], rng: &mut Rng, at: usize, amp: f64, sources: &mut Vec<String>| {
+        let s = &lib.bond[pick(&lib.bond, rng)];
+        let w: Vec<f64> = s
+            .low
+            .iter()
+            .zip(&s.high)
+            .map(|(l, h)| 2.0 * (spec.low_share * l + (1.0 - spec.low_share) * h))
+            .collect();
+        add_at(x, &w, at.saturating_sub(lead), amp);
+        sources.push(format!("bond: {}", s.source));
+    };
+    let fibre = |x: &mut [f64], rng: &mut Rng, at: usize, amp: f64, sources: &mut Vec<String>| {
+        let s = &lib.fibre[pick(&lib.fibre, rng)];
+        add_at(x, &s.samples, at.saturating_sub(lead), amp);
+        sources.push(format!("fibre: {}", s.source));
+    };
+    let distance_mm = rng.range(0.0, 5.0);
+    let a = spec.amplitude_v * (-0.2 * distance_mm).exp();
+    let at = pre + (rng.uniform() * 1e-6 * fs) as usize;
+    match spec.mechanism {
+        Mechanism::BondFailure => bond(&mut x, rng, at, a, &mut sources),
+        Mechanism::FibreFailure => fibre(&mut x, rng, at, a, &mut sources),
+        Mechanism::Both => {
+            fibre(&mut x, rng, at, a, &mut sources);
+            bond(
+                &mut x,
+                rng,
+                at + (4e-6 * fs) as usize,
+                0.8 * a,
+                &mut sources,
+            );
+        }
+        Mechanism::Erroneous => {
+            if rng.uniform() < 0.5 {
+                bond(&mut x, rng, at, a, &mut sources);
+                bond(&mut x, rng, at + (150e-6 * fs) as usize, a, &mut sources);
+            } else {
+                // Early trigger: the burst is already under way at the start of the record.
+                bond(&mut x, rng, (pre / 10).max(lead), a, &mut sources);
+            }
+        }
+        Mechanism::Unclassified => {}
+    }
+    let x = band_pass(&x, fs, 100e3, 2500e3);
+    (
+        x.iter()
+            .map(|v| (v + spec.noise_v * rng.normal()) as f32)
+            .collect(),
+        sources.join("; "),
+    )
+}
+
 /// The load curve of a notched-strip tensile test (Fig. 4.15 shape): rises almost linearly,
 /// bends over to a peak at `t_peak`, then falls as the crack grows. Newtons.
 pub fn load_curve(t: f64, t_peak: f64, peak_n: f64) -> f64 {
@@ -165,6 +240,110 @@ pub struct Experiment {
     pub duration_s: f64,
     pub seed: u64,
     pub n_samples: usize,
+    /// Simulated reference signals to build the hits from (else analytic waveforms).
+    pub library: Option<Library>,
+}
+
+/// Reference-library signals by mechanism, each cut to start a little before its trigger.
+#[derive(Debug, Clone, Default)]
+pub struct Library {
+    pub bond: Vec<LibrarySignal>,
+    pub fibre: Vec<LibrarySignal>,
+}
+
+#[derive(Debug, Clone)]
+pub struct LibrarySignal {
+    /// Samples from 2 µs before the trigger, peak-normalised, at `sample_rate_hz`.
+    pub samples: Vec<f64>,
+    /// The part below 500 kHz and the rest (for the designed spectral shift of bond hits).
+    pub low: Vec<f64>,
+    pub high: Vec<f64>,
+    /// Which simulation (its `sim_params`), for the truth table.
+    pub source: String,
+}
+
+impl Library {
+    /// Read a simulated `waveforms.parquet` (from `aepipe reference`): bond- and
+    /// fibre-failure signals sampled at `fs`.
+    pub fn read(path: &std::path::Path, fs: f64) -> Result<Library, String> {
+        let cfg = crate::config::PipelineConfig::default();
+        let d = crate::ingest::discover(&[path.to_path_buf()], &cfg.ingest);
+        let mut lib = Library::default();
+        for src in &d.sources {
+            for it in crate::ingest::open(src, &cfg.ingest) {
+                let crate::model::Item::Record(r) = it else {
+                    continue;
+                };
+                if (r.sample_rate_hz - fs).abs() > 1e-6 * fs {
+                    continue;
+                }
+                let start = (r.pretrigger as usize).saturating_sub((2e-6 * fs) as usize);
+                let x: Vec<f64> = r.samples[start..].iter().map(|&v| v as f64).collect();
+                let peak = x.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+                if peak <= 0.0 {
+                    continue;
+                }
+                let x: Vec<f64> = x.iter().map(|v| v / peak).collect();
+                let (low, high) = split_band(&x, fs, 500e3);
+                let sig = LibrarySignal {
+                    samples: x,
+                    low,
+                    high,
+                    source: format!("{} hit {} ch {}", r.experiment, r.hit, r.channel),
+                };
+                match r.label.as_deref() {
+                    Some("bond_failure") => lib.bond.push(sig),
+                    Some("fibre_failure") => lib.fibre.push(sig),
+                    _ => {}
+                }
+            }
+        }
+        if lib.bond.is_empty() || lib.fibre.is_empty() {
+            return Err(format!(
+                "{}: the library needs bond_failure and fibre_failure signals at {} MHz (found {} and {})",
+                path.display(),
+                fs / 1e6,
+                lib.bond.len(),
+                lib.fibre.len()
+            ));
+        }
+        Ok(lib)
+    }
+}
+
+/// Split a signal at `cut_hz` with an FFT mask: (below, at and above).
+pub fn split_band(x: &[f64], fs: f64, cut_hz: f64) -> (Vec<f64>, Vec<f64>) {
+    let (lo, hi) = (band_pass(x, fs, 0.0, cut_hz), band_pass(x, fs, cut_hz, fs));
+    (lo, hi)
+}
+
+/// Keep [lo, hi) Hz of a signal (FFT mask with 50 kHz cosine edges).
+pub fn band_pass(x: &[f64], fs: f64, lo: f64, hi: f64) -> Vec<f64> {
+    use rustfft::num_complex::Complex;
+    let n = x.len();
+    if n == 0 {
+        return vec![];
+    }
+    let mut planner = rustfft::FftPlanner::new();
+    let mut buf: Vec<Complex<f64>> = x.iter().map(|&v| Complex::new(v, 0.0)).collect();
+    planner.plan_fft_forward(n).process(&mut buf);
+    let edge = 50e3;
+    let gain = |f: f64| {
+        let up = if lo <= 0.0 {
+            1.0
+        } else {
+            (((f - lo) / edge) + 0.5).clamp(0.0, 1.0)
+        };
+        let down = (((hi - f) / edge) + 0.5).clamp(0.0, 1.0);
+        let g = up.min(down);
+        0.5 - 0.5 * (PI * g).cos()
+    };
+    for (k, c) in buf.iter_mut().enumerate() {
+        let f = k.min(n - k) as f64 * fs / n as f64;
+        *c *= gain(f) / n as f64;
+    }
+    planner.plan_fft_inverse(n).process(&mut buf);
+    buf.iter().map(|c| c.re).collect()
 }
 
 impl Experiment {
@@ -175,6 +354,7 @@ impl Experiment {
             duration_s: 60.0,
             seed,
             n_samples: 4096,
+            library: None,
         }
     }
 
@@ -195,6 +375,12 @@ impl Experiment {
 
     /// The hits, lazily (one waveform in memory at a time), labelled with their mechanism.
     pub fn records(&self) -> impl Iterator<Item = AeRecord> + Send + '_ {
+        self.hits().map(|(r, _)| r)
+    }
+
+    /// The hits with, for each, the reference signal(s) it was built from ("" for analytic
+    /// waveforms).
+    pub fn hits(&self) -> impl Iterator<Item = (AeRecord, String)> + Send + '_ {
         let mut rng = Rng::new(self.seed);
         let t_peak = 0.8 * self.duration_s;
         // AE activity grows towards the peak load: times ~ duration · u^(1/2.5).
@@ -212,20 +398,25 @@ impl Experiment {
             spec.amplitude_v = 0.003 * (1.0 + 9.0 * rng.uniform().powi(3));
             // Damage shifts power from ~750 to ~250 kHz as the test goes on (ch. 4.5.5).
             spec.low_share = 0.3 + 0.4 * progress;
-            AeRecord {
+            let (samples, source) = match &self.library {
+                Some(lib) => from_library(lib, &spec, &mut rng),
+                None => (waveform(&spec, &mut rng), String::new()),
+            };
+            let rec = AeRecord {
                 experiment: self.id.clone(),
                 channel: 1,
                 hit: i as u64 + 1,
                 time_s: Some(t),
                 sample_rate_hz: spec.sample_rate_hz,
                 pretrigger: spec.pretrigger as u32,
-                samples: waveform(&spec, &mut rng),
+                samples,
                 load_n: Some(load_curve(t, t_peak, 60.0)),
                 extension_m: Some(1e-3 * t / self.duration_s),
                 label: Some(mech.as_str().to_string()),
                 threshold_v: None,
                 source_file: String::new(),
-            }
+            };
+            (rec, source)
         })
     }
 
@@ -234,6 +425,15 @@ impl Experiment {
     pub fn write_vallen(
         &self,
         dir: &std::path::Path,
+    ) -> rusqlite::Result<(std::path::PathBuf, std::path::PathBuf)> {
+        let recs: Vec<AeRecord> = self.records().collect();
+        self.write_vallen_records(dir, &recs)
+    }
+
+    fn write_vallen_records(
+        &self,
+        dir: &std::path::Path,
+        recs: &[AeRecord],
     ) -> rusqlite::Result<(std::path::PathBuf, std::path::PathBuf)> {
         std::fs::create_dir_all(dir)
             .map_err(|e| rusqlite::Error::ToSqlConversionFailure(Box::new(e)))?;
@@ -245,7 +445,6 @@ impl Experiment {
                 (t, load_curve(t, t_peak, 60.0), 1e3 * t / self.duration_s)
             })
             .collect();
-        let recs: Vec<AeRecord> = self.records().collect();
         let hits = recs.iter().map(|r| crate::ingest::vallen::HitToWrite {
             channel: r.channel,
             trai: r.hit,
@@ -255,6 +454,108 @@ impl Experiment {
             samples_v: &r.samples,
         });
         crate::ingest::vallen::write_pair(&dir.join(&self.id), hits, &par, 1e-3, 1e-4)
+    }
+}
+
+/// `aepipe synth-experiment`: a library-built experiment in `dir` (the library built from the
+/// embedded definition into `dir/reference` unless given). Returns a summary line.
+pub fn synth_experiment(
+    dir: &std::path::Path,
+    id: &str,
+    hits: usize,
+    seed: u64,
+    library: Option<&std::path::Path>,
+    progress: bool,
+) -> Result<String, String> {
+    let t0 = std::time::Instant::now();
+    let lib_path = match library {
+        Some(p) => p.to_path_buf(),
+        None => {
+            let f = crate::sim::reference::ReferenceFile::default_library();
+            let out = dir.join("reference");
+            crate::sim::reference::build_library(&f.reference, &out, progress)
+                .map_err(|e| e.to_string())?;
+            out.join("waveforms.parquet")
+        }
+    };
+    let lib = Library::read(&lib_path, 10e6)?;
+    let mut e = Experiment::new(id, hits, seed);
+    e.library = Some(lib);
+    let data = dir.join("data");
+    let truth = e.write_with_truth(&data, &dir.join("truth.parquet"))?;
+    Ok(format!(
+        "{hits} hits (seed {seed}) from {} → {} (.pridb/.tradb) and {} in {:.1} s",
+        lib_path.display(),
+        data.join(id).display(),
+        truth.display(),
+        t0.elapsed().as_secs_f64()
+    ))
+}
+
+/// `truth.parquet`: the ground truth of a synthetic experiment.
+pub fn truth_table() -> crate::store::TableSchema {
+    use crate::store::{ColType, ColumnSpec};
+    crate::store::TableSchema {
+        name: "truth".into(),
+        columns: vec![
+            ColumnSpec::new(
+                "experiment",
+                ColType::Utf8,
+                "",
+                "experiment id (the Vallen file stem)",
+            ),
+            ColumnSpec::new("channel", ColType::Int32, "", "sensor channel"),
+            ColumnSpec::new("hit", ColType::Int64, "", "hit number (Vallen TRAI)"),
+            ColumnSpec::new("time_s", ColType::Float64, "s", "hit time"),
+            ColumnSpec::new(
+                "mechanism",
+                ColType::Utf8,
+                "",
+                "what made the hit: bond_failure, fibre_failure, both, erroneous",
+            ),
+            ColumnSpec::new(
+                "reference_signals",
+                ColType::Utf8,
+                "",
+                "the reference-library signals the hit was built from (empty: analytic waveform)",
+            ),
+        ],
+    }
+}
+
+impl Experiment {
+    /// Write the experiment as a Vallen pair in `dir` and its ground truth to `truth` (kept
+    /// out of `dir`, which an ingest run reads whole).
+    pub fn write_with_truth(
+        &self,
+        dir: &std::path::Path,
+        truth: &std::path::Path,
+    ) -> Result<std::path::PathBuf, String> {
+        use crate::store::{TableWriter, Value};
+        let (recs, sources): (Vec<AeRecord>, Vec<String>) = self.hits().unzip();
+        self.write_vallen_records(dir, &recs)
+            .map_err(|e| format!("{}: cannot write the Vallen pair: {e}", dir.display()))?;
+        let path = truth.to_path_buf();
+        let mut w = TableWriter::create(
+            &path,
+            truth_table(),
+            &[("aepipe.config_sha256".into(), format!("{:064x}", self.seed))],
+            65_536,
+        )
+        .map_err(|e| e.to_string())?;
+        for (r, src) in recs.iter().zip(sources) {
+            w.push(vec![
+                Value::Str(Some(r.experiment.clone())),
+                Value::I32(Some(r.channel as i32)),
+                Value::I64(Some(r.hit as i64)),
+                Value::F64(r.time_s),
+                Value::Str(r.label.clone()),
+                Value::Str(Some(src)),
+            ])
+            .map_err(|e| e.to_string())?;
+        }
+        w.finish().map_err(|e| e.to_string())?;
+        Ok(path)
     }
 }
 

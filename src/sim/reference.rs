@@ -62,11 +62,24 @@ pub struct ScenarioGrid {
     pub params: BTreeMap<String, Vec<f64>>,
 }
 
+/// `pipelines/reference-library.toml`, embedded so that the demo and `synth-experiment` need
+/// no file beside the binary.
+pub const DEFAULT_TOML: &str = include_str!("../../pipelines/reference-library.toml");
+
 impl ReferenceFile {
+    pub fn default_library() -> ReferenceFile {
+        ReferenceFile::parse(DEFAULT_TOML, Path::new("pipelines/reference-library.toml"))
+            .expect("pipelines/reference-library.toml is valid")
+    }
+
     pub fn read(path: &Path) -> Result<ReferenceFile, SimError> {
         let text = std::fs::read_to_string(path)
             .map_err(|e| SimError::Io(format!("{}: {e}", path.display())))?;
-        let f: ReferenceFile = toml::from_str(&text).map_err(|e| SimError::Parse {
+        ReferenceFile::parse(&text, path)
+    }
+
+    pub fn parse(text: &str, path: &Path) -> Result<ReferenceFile, SimError> {
+        let f: ReferenceFile = toml::from_str(text).map_err(|e| SimError::Parse {
             path: path.display().to_string(),
             line: e
                 .span()

@@ -5,6 +5,7 @@
 
 mod bad_input;
 mod cli;
+mod e2e;
 mod formats;
 mod pipeline;
 mod real_data;
