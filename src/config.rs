@@ -43,6 +43,83 @@ pub struct PipelineConfig {
     pub validate: ValidateConfig,
     pub dsp: DspConfig,
     pub criteria: CriteriaConfig,
+    /// `aepipe run` stages after the features.
+    pub trend: TrendConfig,
+    pub som: SomConfig,
+    pub report: ReportConfig,
+}
+
+/// The trend stage of `aepipe run` (ch. 4.5.5).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct TrendConfig {
+    pub enabled: bool,
+    /// `none`, `peak-load` (ch. 4.5.5: only hits before the load falls), `time:S`, `hits:N`.
+    pub cutoff: String,
+    /// Significance level (Table 4.2: 1 %).
+    pub alpha: f64,
+}
+
+impl Default for TrendConfig {
+    fn default() -> Self {
+        TrendConfig {
+            enabled: true,
+            cutoff: "peak-load".into(),
+            alpha: 0.01,
+        }
+    }
+}
+
+/// The SOM stage of `aepipe run` (ch. 5).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct SomConfig {
+    pub enabled: bool,
+    /// `reference`: train on a simulated reference library (labels = mechanism, ch. 3–4);
+    /// `criteria`: train on a balanced subset of the run's own hits labelled by the ch. 4.7
+    /// criteria (the thesis's ch. 5.4 procedure).
+    pub train_on: String,
+    /// Reference library `waveforms.parquet`; empty: build the embedded
+    /// `pipelines/reference-library.toml` into the run's folder.
+    pub reference_library: String,
+    /// Share of the hits in the training set (ch. 5.4: 10 %; a reference library is used
+    /// whole).
+    pub fraction: f64,
+    pub rows: usize,
+    pub cols: usize,
+    pub seed: u64,
+}
+
+impl Default for SomConfig {
+    fn default() -> Self {
+        SomConfig {
+            enabled: true,
+            train_on: "reference".into(),
+            reference_library: String::new(),
+            fraction: 0.1,
+            rows: 10,
+            cols: 10,
+            seed: 2008,
+        }
+    }
+}
+
+/// The HTML report of `aepipe run`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct ReportConfig {
+    pub enabled: bool,
+    /// CWT thumbnails per class in the gallery (Appendix B style).
+    pub gallery_per_class: usize,
+}
+
+impl Default for ReportConfig {
+    fn default() -> Self {
+        ReportConfig {
+            enabled: true,
+            gallery_per_class: 6,
+        }
+    }
 }
 
 /// Signal processing (thesis ch. 4.5.5, 5.2; DESIGN §4).
@@ -351,6 +428,22 @@ impl PipelineConfig {
             self.ingest.aewin.sample_rate_hz,
             "ingest.aewin.sample_rate_hz",
         )?;
+        if !matches!(self.som.train_on.as_str(), "reference" | "criteria") {
+            return Err(ConfigError::Invalid(format!(
+                "som.train_on must be \"reference\" or \"criteria\", got {:?}",
+                self.som.train_on
+            )));
+        }
+        if !(self.trend.alpha > 0.0 && self.trend.alpha < 1.0) {
+            return Err(ConfigError::Invalid(format!(
+                "trend.alpha must be in (0, 1), got {}",
+                self.trend.alpha
+            )));
+        }
+        self.trend
+            .cutoff
+            .parse::<crate::analysis::trend::Cutoff>()
+            .map_err(|e| ConfigError::Invalid(format!("trend.cutoff: {e}")))?;
         if self.pipeline.batch_size == 0 {
             return Err(ConfigError::Invalid(
                 "pipeline.batch_size must be ≥ 1".into(),

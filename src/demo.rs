@@ -1,20 +1,17 @@
-//! `aepipe demo`: the README's first command. Until the end-to-end pipeline lands it makes a
-//! synthetic notched-paper experiment (Vallen `.pridb`/`.tradb`, labelled), runs the feature
-//! pipeline on it through the real ingest path, and summarises what came out.
+//! `aepipe demo`: the README's first command. It builds a reference library with the
+//! simulator, a synthetic notched-paper experiment from it (Vallen `.pridb`/`.tradb` + ground
+//! truth), and runs the whole pipeline on it through the real ingest path: features, trend,
+//! SOM, classification against the truth, and the HTML report.
 
 use crate::config::PipelineConfig;
 use crate::inspect;
-use crate::pipeline::{run, Job, RunOptions, RunReport};
-use crate::synth::Experiment;
 use std::path::{Path, PathBuf};
 
 pub struct DemoResult {
     pub data_dir: PathBuf,
-    pub out_dir: PathBuf,
     pub inspect: Vec<inspect::Summary>,
-    pub report: RunReport,
-    pub trend: crate::analysis::trend::TrendReport,
-    pub trend_plot: Option<PathBuf>,
+    pub synth: String,
+    pub run: crate::workflow::RunSummary,
     pub seconds: f64,
 }
 
@@ -25,17 +22,16 @@ pub fn demo_config() -> PipelineConfig {
         .expect("pipelines/demo.toml is valid")
 }
 
+/// The whole method on data it makes itself: a synthetic notched-paper experiment built from
+/// a reference library simulated with the demo's seed (`root/data`, `root/truth.parquet`),
+/// then `aepipe run` with `pipelines/demo.toml`: features, trend, a SOM trained on the
+/// embedded reference library (other material draws), classification scored against the
+/// truth, and `root/run/report.html`.
 pub fn run_demo(root: &Path, hits: usize, seed: u64, threads: usize) -> Result<DemoResult, String> {
     let t0 = std::time::Instant::now();
+    let id = "synthetic_notched_paper";
+    let synth = crate::synth::synth_experiment(root, id, hits, seed, None, true)?;
     let data_dir = root.join("data");
-    let out_dir = root.join("features");
-    let exp = Experiment::new("synthetic_notched_paper", hits, seed);
-    exp.write_vallen(&data_dir).map_err(|e| {
-        format!(
-            "{}: cannot write the synthetic experiment: {e}",
-            data_dir.display()
-        )
-    })?;
     let cfg = demo_config();
     let disc = crate::ingest::discover(std::slice::from_ref(&data_dir), &cfg.ingest);
     let inspect = disc
@@ -43,36 +39,20 @@ pub fn run_demo(root: &Path, hits: usize, seed: u64, threads: usize) -> Result<D
         .iter()
         .map(|s| inspect::summarise(s, &cfg.ingest))
         .collect();
-    let report = run(
-        Job::Features,
-        std::slice::from_ref(&data_dir),
-        &out_dir,
-        &cfg,
-        &RunOptions {
-            threads,
-            progress: true,
-        },
-    )
-    .map_err(|e| e.to_string())?;
-    let trend_dir = root.join("trend");
-    let trend = crate::analysis::trend::run_trend(
-        std::slice::from_ref(&report.table_path),
-        &trend_dir,
-        &Default::default(),
-    )
-    .map_err(|e| e.to_string())?;
-    let png = trend_dir.join("trend.png");
-    let trend_plot = match crate::plot::trend_png(&png, &trend, &exp.id, 1, 4) {
-        Ok(true) => Some(png),
-        _ => None,
-    };
+    let truth = root.join("truth.parquet");
+    let run = crate::workflow::run(&crate::workflow::Job {
+        config: &cfg,
+        inputs: std::slice::from_ref(&data_dir),
+        out: &root.join("run"),
+        truth: Some(&truth),
+        threads,
+        progress: true,
+    })?;
     Ok(DemoResult {
         data_dir,
-        out_dir,
         inspect,
-        report,
-        trend,
-        trend_plot,
+        synth,
+        run,
         seconds: t0.elapsed().as_secs_f64(),
     })
 }

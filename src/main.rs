@@ -161,6 +161,21 @@ enum Cmd {
         #[arg(long, default_value = "synthetic_notched_paper")]
         id: String,
     },
+    /// The whole method from a pipeline definition: features → trend → SOM → classification →
+    /// DIR/report.html
+    Run {
+        /// Pipeline definition (pipelines/notched-paper.toml, pipelines/demo.toml, …)
+        pipeline: PathBuf,
+        #[arg(required = true)]
+        inputs: Vec<PathBuf>,
+        #[arg(long)]
+        out: PathBuf,
+        /// Ground truth (truth.parquet of `aepipe synth-experiment`) to score the classes
+        #[arg(long)]
+        truth: Option<PathBuf>,
+        #[arg(long, default_value_t = 0)]
+        threads: usize,
+    },
     /// Make a synthetic experiment and run the pipeline on it (the README's first command)
     Demo {
         /// Folder for the demo's data and outputs
@@ -765,6 +780,41 @@ fn main() -> ExitCode {
                 }
             }
         }
+        Cmd::Run {
+            pipeline,
+            inputs,
+            out,
+            truth,
+            threads,
+        } => {
+            let cfg = match load_config(Some(&pipeline)) {
+                Ok(c) => c,
+                Err(code) => return code,
+            };
+            let job = aepipe::workflow::Job {
+                config: &cfg,
+                inputs: &inputs,
+                out: &out,
+                truth: truth.as_deref(),
+                threads,
+                progress: true,
+            };
+            match aepipe::workflow::run(&job) {
+                Ok(s) => {
+                    for l in aepipe::workflow::headline(&s) {
+                        println!("{l}");
+                    }
+                    if cfg.report.enabled {
+                        println!("report: {}", out.join("report.html").display());
+                    }
+                    ExitCode::SUCCESS
+                }
+                Err(e) => {
+                    eprintln!("aepipe: {e}");
+                    ExitCode::from(3)
+                }
+            }
+        }
         Cmd::SynthExperiment {
             out,
             hits,
@@ -789,16 +839,17 @@ fn main() -> ExitCode {
             threads,
         } => match aepipe::demo::run_demo(&out, hits, seed, threads) {
             Ok(d) => {
-                println!("aepipe demo: synthetic notched-paper experiment ({hits} hits, seed {seed}) in {}\n", d.data_dir.display());
+                println!("aepipe demo: synthetic notched-paper experiment built from simulated reference signals");
+                println!("{}\n", d.synth);
                 for s in &d.inspect {
                     println!("{s}");
                 }
-                print_run(&d.report, "features");
-                println!("\ntrend of the power ratios over the test (ch. 4.5.5, Table 4.3):");
-                print!("{}", aepipe::analysis::trend::format_table(&d.trend));
-                if let Some(p) = &d.trend_plot {
-                    println!("trend plot (Fig. 4.18 style): {}", p.display());
+                print_run(&d.run.features, "features");
+                println!();
+                for l in aepipe::workflow::headline(&d.run) {
+                    println!("{l}");
                 }
+                println!("report: {}", out.join("run/report.html").display());
                 println!("\ndemo finished in {:.1} s", d.seconds);
                 ExitCode::SUCCESS
             }

@@ -471,7 +471,11 @@ pub fn synth_experiment(
     let lib_path = match library {
         Some(p) => p.to_path_buf(),
         None => {
-            let f = crate::sim::reference::ReferenceFile::default_library();
+            // The embedded library definition with the experiment's seed for the material
+            // draws: its signals differ from those of a library built for training
+            // (seed 2008), so a classifier trained on that one is tested on unseen fibres.
+            let mut f = crate::sim::reference::ReferenceFile::default_library();
+            f.reference.seed = seed;
             let out = dir.join("reference");
             crate::sim::reference::build_library(&f.reference, &out, progress)
                 .map_err(|e| e.to_string())?;

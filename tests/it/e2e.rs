@@ -91,3 +91,107 @@ fn synthetic_experiment_from_the_library_is_a_readable_vallen_pair_with_truth() 
         }
     }
 }
+
+#[test]
+fn run_classifies_against_truth_finds_the_trend_and_writes_a_report_a_browser_renders() {
+    let d = TempDir::new("e2e-run");
+    let lib = small_library(d.path());
+    // The experiment: 300 hits from the library, seed 9.
+    aepipe::synth::synth_experiment(d.path(), "exp", 300, 9, Some(&lib), false).unwrap();
+    let mut cfg = aepipe::demo::demo_config();
+    cfg.som.reference_library = lib.display().to_string();
+    cfg.report.gallery_per_class = 2;
+    let out = d.path().join("run");
+    let s = aepipe::workflow::run(&aepipe::workflow::Job {
+        config: &cfg,
+        inputs: &[d.path().join("data")],
+        out: &out,
+        truth: Some(&d.path().join("truth.parquet")),
+        threads: 2,
+        progress: false,
+    })
+    .unwrap();
+    // The designed shift (ch. 4.5.5): 200–300 kHz rising, 700–800 kHz falling, p < 0.01.
+    let t = s.trend.as_ref().unwrap();
+    let row = |c: &str| t.rows.iter().find(|r| r.column == c).unwrap();
+    let (lo, hi) = (row("pr_200_300khz"), row("pr_700_800khz"));
+    assert!(lo.significant && lo.fit.unwrap().r > 0.0, "{:?}", lo.fit);
+    assert!(hi.significant && hi.fit.unwrap().r < 0.0, "{:?}", hi.fit);
+    // Bond vs fibre failures against the truth.
+    let truth = s.truth.as_ref().unwrap();
+    assert!(truth.bond_fibre_total > 200);
+    assert!(
+        truth.accuracy().unwrap() >= 0.95,
+        "{}/{}",
+        truth.bond_fibre_correct,
+        truth.bond_fibre_total
+    );
+    // The report: one file, every picture embedded, the sections there.
+    let html = std::fs::read_to_string(out.join("report.html")).unwrap();
+    for part in [
+        "Hits by class",
+        "Trend of the power ratios",
+        "Self-organising map",
+        "Table 5.4",
+        "Against the ground truth",
+        "CWT gallery",
+        "manifest.json",
+    ] {
+        assert!(html.contains(part), "report lacks {part}");
+    }
+    let images = html.matches("<img ").count();
+    assert!(images >= 6, "{images} images");
+    assert_eq!(html.matches("src=\"data:image/png;base64,").count(), images);
+    assert!(!html.contains("class=\"missing\""));
+
+    // A real browser decodes every picture (headless Chromium, if installed).
+    let Some(chromium) = ["chromium", "chromium-browser", "google-chrome"]
+        .iter()
+        .find(|b| {
+            std::process::Command::new(b)
+                .arg("--version")
+                .output()
+                .is_ok_and(|o| o.status.success())
+        })
+    else {
+        eprintln!(
+            "SKIP browser part: no chromium (Debian package `chromium`; .ci/run installs it)"
+        );
+        return;
+    };
+    let url = format!("file://{}", out.join("report.html").display());
+    let dom = std::process::Command::new(chromium)
+        .args([
+            "--headless",
+            "--no-sandbox",
+            "--disable-gpu",
+            "--virtual-time-budget=10000",
+            "--dump-dom",
+            &url,
+        ])
+        .output()
+        .unwrap();
+    let dom = String::from_utf8_lossy(&dom.stdout);
+    let want = format!("data-images-loaded=\"{images}/{images}\"");
+    assert!(
+        dom.contains(&want),
+        "chromium: {}",
+        dom.split("data-images-loaded")
+            .nth(1)
+            .map(|s| &s[..20.min(s.len())])
+            .unwrap_or("no self-check attribute")
+    );
+    let png = d.path().join("report.png");
+    let shot = std::process::Command::new(chromium)
+        .args([
+            "--headless",
+            "--no-sandbox",
+            "--disable-gpu",
+            "--window-size=1280,3000",
+        ])
+        .arg(format!("--screenshot={}", png.display()))
+        .arg(&url)
+        .output()
+        .unwrap();
+    assert!(shot.status.success() && std::fs::metadata(&png).unwrap().len() > 10_000);
+}
