@@ -176,6 +176,8 @@ enum Cmd {
         #[arg(long, default_value_t = 0)]
         threads: usize,
     },
+    /// Write RUN_DIR/report.html again from a finished `aepipe run` folder
+    Report { run_dir: PathBuf },
     /// Make a synthetic experiment and run the pipeline on it (the README's first command)
     Demo {
         /// Folder for the demo's data and outputs
@@ -815,6 +817,16 @@ fn main() -> ExitCode {
                 }
             }
         }
+        Cmd::Report { run_dir } => match aepipe::workflow::rebuild_report(&run_dir) {
+            Ok(p) => {
+                println!("report: {}", p.display());
+                ExitCode::SUCCESS
+            }
+            Err(e) => {
+                eprintln!("aepipe: {e}");
+                ExitCode::from(1)
+            }
+        },
         Cmd::SynthExperiment {
             out,
             hits,

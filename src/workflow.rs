@@ -133,7 +133,146 @@ pub fn run(job: &Job) -> Result<RunSummary, String> {
             .seconds
             .push(("report".to_string(), t.elapsed().as_secs_f64()));
     }
+    write_run_json(&summary)?;
     Ok(summary)
+}
+
+/// `RUN_DIR/run.json`: what `aepipe report` needs besides the run's tables.
+#[derive(serde::Serialize, serde::Deserialize)]
+struct RunFile {
+    tool_version: String,
+    inputs: Vec<PathBuf>,
+    truth: Option<PathBuf>,
+    /// The effective pipeline definition (canonical TOML).
+    config: String,
+    seconds: Vec<(String, f64)>,
+    som_trained_on: Option<String>,
+    som_training_rows: Option<usize>,
+}
+
+fn write_run_json(s: &RunSummary) -> Result<(), String> {
+    let f = RunFile {
+        tool_version: env!("CARGO_PKG_VERSION").into(),
+        inputs: s.inputs.clone(),
+        truth: s.truth.as_ref().map(|t| t.path.clone()),
+        config: s.config.to_toml(),
+        seconds: s.seconds.clone(),
+        som_trained_on: s.som.as_ref().map(|m| m.trained_on.clone()),
+        som_training_rows: s.som.as_ref().map(|m| m.training_rows),
+    };
+    let p = s.out.join("run.json");
+    crate::pipeline::write_atomic(
+        &p,
+        serde_json::to_string_pretty(&f).expect("json").as_bytes(),
+    )
+    .map_err(|e| format!("{}: {e}", p.display()))
+}
+
+/// `aepipe report RUN_DIR`: rebuild the summary of a finished run from its folder (tables,
+/// model, `run.json`; the trend and the classification are recomputed, deterministically)
+/// and write `RUN_DIR/report.html` again.
+pub fn rebuild_report(dir: &Path) -> Result<PathBuf, String> {
+    let rp = dir.join("run.json");
+    let text = std::fs::read_to_string(&rp)
+        .map_err(|e| format!("{}: {e} (not a folder written by aepipe run)", rp.display()))?;
+    let f: RunFile = serde_json::from_str(&text).map_err(|e| format!("{}: {e}", rp.display()))?;
+    let config =
+        PipelineConfig::from_toml(&f.config).map_err(|e| format!("{}: {e}", rp.display()))?;
+    let fdir = dir.join("features");
+    let mp = fdir.join("manifest.json");
+    let m: serde_json::Value = serde_json::from_str(
+        &std::fs::read_to_string(&mp).map_err(|e| format!("{}: {e}", mp.display()))?,
+    )
+    .map_err(|e| format!("{}: {e}", mp.display()))?;
+    let c = &m["counts"];
+    let mut stats = crate::pipeline::StreamStats {
+        records_read: c["records_read"].as_u64().unwrap_or(0),
+        rows: c["rows_written"].as_u64().unwrap_or(0),
+        rejects: c["rejects"].as_u64().unwrap_or(0),
+        ..Default::default()
+    };
+    if let Some(o) = c["by_experiment"].as_object() {
+        for (k, v) in o {
+            stats.by_experiment.insert(
+                k.clone(),
+                crate::pipeline::Counts {
+                    rows: v["rows"].as_u64().unwrap_or(0),
+                    rejects: v["rejects"].as_u64().unwrap_or(0),
+                },
+            );
+        }
+    }
+    let features = RunReport {
+        stats,
+        table_path: fdir.join("features.parquet"),
+        rejects_path: fdir.join("rejects.parquet"),
+        manifest_path: mp,
+        sources: vec![],
+        skipped: vec![],
+    };
+    let feats = vec![features.table_path.clone()];
+    let (mut trend, mut trend_plots) = (None, Vec::new());
+    let tdir = dir.join("trend");
+    if config.trend.enabled && tdir.is_dir() {
+        let opts = crate::analysis::trend::TrendOptions {
+            cutoff: config
+                .trend
+                .cutoff
+                .parse()
+                .map_err(|e: String| format!("trend.cutoff: {e}"))?,
+            alpha: config.trend.alpha,
+            columns: vec![],
+        };
+        let rep =
+            crate::analysis::trend::run_trend(&feats, &tdir, &opts).map_err(|e| e.to_string())?;
+        for sel in &rep.selections {
+            let png = tdir.join(format!("trend_{}_ch{}.png", sel.experiment, sel.channel));
+            if png.is_file() {
+                trend_plots.push((format!("{} ch{}", sel.experiment, sel.channel), png));
+            }
+        }
+        trend = Some(rep);
+    }
+    let sdir = dir.join("som");
+    let mut som = None;
+    if config.som.enabled && sdir.join("model/model.json").is_file() {
+        let model = crate::som::run::load_model(&sdir.join("model")).map_err(|e| e.to_string())?;
+        let confusion = crate::som::run::classify(&model, &feats, Some("criteria_label"), &sdir)
+            .map_err(|e| e.to_string())?;
+        let mut classes = BTreeMap::new();
+        for ((s, _), n) in &confusion.counts {
+            *classes.entry(s.clone()).or_insert(0) += n;
+        }
+        let existing = |p: PathBuf| p.is_file().then_some(p);
+        som = Some(SomStage {
+            model_dir: sdir.join("model"),
+            trained_on: f.som_trained_on.clone().unwrap_or_default(),
+            training_rows: f.som_training_rows.unwrap_or(0),
+            confusion,
+            classification: sdir.join("classification.parquet"),
+            u_matrix: existing(sdir.join("u_matrix.png")),
+            hit_maps: existing(sdir.join("hit_maps.png")),
+            classes,
+        });
+    }
+    let truth = match (&f.truth, &som) {
+        (Some(p), Some(s)) => Some(score_truth(p, &s.classification)?),
+        _ => None,
+    };
+    let summary = RunSummary {
+        out: dir.to_path_buf(),
+        inputs: f.inputs,
+        features,
+        trend,
+        trend_plots,
+        som,
+        truth,
+        config,
+        seconds: f.seconds,
+    };
+    let out = dir.join("report.html");
+    crate::report::write(&summary, &out)?;
+    Ok(out)
 }
 
 fn som_stage(job: &Job, feats: &[PathBuf]) -> Result<SomStage, String> {
