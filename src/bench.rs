@@ -357,10 +357,9 @@ pub fn run_minisom(python: &Path, peers: &Path) -> Result<(f64, f64), String> {
 }
 
 /// A random fibre network: straight 1 mm fibres of 20 masses at random positions and angles
-/// in a square sized for about 3 crossings per fibre; every node is bonded by a spring to each
-/// node of another fibre within a quarter of the node spacing... or, where none is that close,
-/// to its nearest other-fibre node within one spacing. Nodes within 2 % of the square's edge
-/// are fixed. Paper-fibre material (Table 4.1).
+/// in a square sized for about 3 crossings per fibre; each node is bonded by a spring, as stiff
+/// as one fibre segment, to its nearest node of another fibre within one node spacing. Fibre
+/// ends and nodes within 2 % of the square's edge are fixed. Paper-fibre material (Table 4.1).
 pub fn random_network(masses: usize, seed: u64) -> crate::sim::model::ModelFile {
     use crate::sim::model::*;
     use crate::sim::scenario::{FIBRE_E, FIBRE_NU, FIBRE_RHO, FIBRE_T, FIBRE_W};
@@ -433,11 +432,14 @@ pub fn random_network(masses: usize, seed: u64) -> crate::sim::model::ModelFile 
                 }
             }
         }
-        if let Some((_, j)) = best {
+        if let Some((d, j)) = best {
+            // A bond as stiff as one fibre segment whatever the gap (E scaled by d/a in
+            // k = E·t·w/L): near-coincident nodes would otherwise give springs thousands of
+            // times stiffer than the fibres, and an ill-conditioned system.
             springs.push(SpringSpec {
                 a: i,
                 b: j,
-                e: FIBRE_E,
+                e: FIBRE_E * d / a,
                 length: None,
                 t: FIBRE_T,
                 w: FIBRE_W,
