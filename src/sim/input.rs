@@ -193,18 +193,16 @@ pub fn parse_sectioned(text: &str, path: &str) -> Result<ModelFile, SimError> {
         .rows
         .first()
         .ok_or_else(|| err(sys_t.line, "Section System has no values".into()))?;
-    let solver = match word(sys_t, sys_row, &["solver"])?
-        .to_ascii_lowercase()
-        .as_str()
-    {
+    let solver_word = word(sys_t, sys_row, &["solver"])?;
+    let solver = match solver_word.to_ascii_lowercase().as_str() {
         "ieuler" | "implicit" | "implicit-euler" => Solver::ImplicitEuler,
         "eeuler" | "euler" | "explicit-euler" => Solver::ExplicitEuler,
         "rk4" => Solver::Rk4,
         "verlet" | "vverlet" | "velocity-verlet" => Solver::Verlet,
-        s => {
+        _ => {
             return Err(err(
                 sys_row.0,
-                format!("solver {s:?}: expected IEuler, EEuler, RK4 or Verlet"),
+                format!("solver {solver_word:?}: expected IEuler, EEuler, RK4 or Verlet"),
             ))
         }
     };
@@ -317,7 +315,8 @@ pub fn parse_sectioned(text: &str, path: &str) -> Result<ModelFile, SimError> {
         for row in &t.rows {
             let node = index(t, row, &["Node"])?;
             let time = num(t, row, &["When", "time"])?;
-            match word(t, row, &["Type"])?.to_ascii_lowercase().as_str() {
+            let kind = word(t, row, &["Type"])?;
+            match kind.to_ascii_lowercase().as_str() {
                 "0" | "bond" => damage.push(DamageSpec::Bond { node, time }),
                 "1" | "fibre" | "fiber" => {
                     let spring = index(t, row, &["Option", "spring"])?;
@@ -333,7 +332,12 @@ pub fn parse_sectioned(text: &str, path: &str) -> Result<ModelFile, SimError> {
                     }
                     damage.push(DamageSpec::Fibre { spring, time });
                 }
-                w => return Err(err(row.0, format!("damage type {w:?}: 0/bond or 1/fibre"))),
+                _ => {
+                    return Err(err(
+                        row.0,
+                        format!("damage type {kind:?}: 0/bond or 1/fibre"),
+                    ))
+                }
             }
         }
     }
@@ -351,13 +355,14 @@ pub fn parse_sectioned(text: &str, path: &str) -> Result<ModelFile, SimError> {
                     ));
                 }
             }
-            let order = match word(t, row, &["Method"])?.to_ascii_lowercase().as_str() {
+            let method = word(t, row, &["Method"])?;
+            let order = match method.to_ascii_lowercase().as_str() {
                 "acoustic02" | "acoustic2" | "2" => Order::Second,
                 "acoustic04" | "acoustic4" | "4" => Order::Fourth,
-                m => {
+                _ => {
                     return Err(err(
                         row.0,
-                        format!("method {m:?}: acoustic02 or acoustic04"),
+                        format!("method {method:?}: acoustic02 or acoustic04"),
                     ))
                 }
             };

@@ -147,3 +147,84 @@ fn cwt_command_draws_a_png_and_names_the_label() {
     assert_eq!(c, 1);
     assert!(se.contains("no hit 999"), "{se}");
 }
+
+#[test]
+fn simulate_and_run_commands_say_what_is_wrong_in_one_line() {
+    let t = TempDir::new("cli-sim");
+    let out = t.path().join("o").display().to_string();
+    // A malformed model file: exit 1, the file and line named.
+    let bad = t.path().join("bad.txt");
+    std::fs::write(
+        &bad,
+        "Section System\ndt damping iters solver\n1e-8 0 10 Warp\nEnd System\n",
+    )
+    .unwrap();
+    let (c, _, se) = aepipe(&["simulate", &bad.display().to_string(), "--out", &out]);
+    assert_eq!(c, 1, "{se}");
+    assert!(
+        se.contains("bad.txt:3:") && se.contains("Warp") && se.trim().lines().count() == 1,
+        "{se}"
+    );
+    // An unknown scenario lists the known ones.
+    let (c, _, se) = aepipe(&["simulate", "--scenario", "mesh4x4", "--out", &out]);
+    assert_eq!(c, 1);
+    assert!(
+        se.contains("mesh3x3-bond-failure") && se.contains("mesh4x4"),
+        "{se}"
+    );
+    // An unstable grid names the limit.
+    let (c, _, se) = aepipe(&[
+        "simulate",
+        "--scenario",
+        "sho",
+        "--param",
+        "dt=0.02",
+        "--out",
+        &out,
+    ]);
+    assert_eq!(c, 1);
+    assert!(se.contains("unstable"), "{se}");
+    // A good scenario prints the sensor's dominant frequency (the SHO's 0.37 Hz).
+    let (c, so, se) = aepipe(&[
+        "simulate",
+        "--scenario",
+        "sho",
+        "--param",
+        "iterations=3000",
+        "--out",
+        &out,
+    ]);
+    assert_eq!(c, 0, "{se}");
+    assert!(so.contains("sensor 1 at cell (50, 60): dominant"), "{so}");
+    let (names, rows) = crate::table_rows(&t.path().join("o/waveforms.parquet"));
+    let col = names
+        .iter()
+        .position(|n| n == "dominant_frequency_hz")
+        .unwrap();
+    let f: f64 = rows[0][col].parse().unwrap();
+    // The SHO of Table 3.1 (lifted 0.1 m): ≈ 0.37 Hz.
+    assert!((f - 0.3717).abs() < 0.03, "{f} Hz");
+    // `aepipe report` on a folder that is not a run: exit 1, one line.
+    let (c, _, se) = aepipe(&["report", &t.path().display().to_string()]);
+    assert_eq!(c, 1);
+    assert!(
+        se.contains("run.json") && se.trim().lines().count() == 1,
+        "{se}"
+    );
+    // A reference library with a misspelt scenario: exit 1 naming the file.
+    let lib = t.path().join("lib.toml");
+    std::fs::write(
+        &lib,
+        "[reference]\n[[reference.scenario]]\nname = \"pluck\"\n",
+    )
+    .unwrap();
+    let (c, _, se) = aepipe(&[
+        "reference",
+        "--config",
+        &lib.display().to_string(),
+        "--out",
+        &out,
+    ]);
+    assert_eq!(c, 1);
+    assert!(se.contains("lib.toml") && se.contains("pluck"), "{se}");
+}
