@@ -155,6 +155,30 @@ fn run_classifies_against_truth_finds_the_trend_and_writes_a_report_a_browser_re
         strip(&html)
     );
 
+    // The thesis's own procedure (ch. 5.4): train on a balanced 10 % of the run's hits with
+    // their criteria labels; the map then reproduces those labels for most hits.
+    let mut crit = cfg.clone();
+    crit.som.train_on = "criteria".into();
+    crit.report.enabled = false;
+    let c = aepipe::workflow::run(&aepipe::workflow::Job {
+        config: &crit,
+        inputs: &[d.path().join("data")],
+        out: &d.path().join("run-criteria"),
+        truth: None,
+        threads: 2,
+        progress: false,
+    })
+    .unwrap();
+    let m = c.som.as_ref().unwrap();
+    assert!(m.trained_on.contains("criteria labels"), "{}", m.trained_on);
+    assert!(
+        m.confusion.accuracy().unwrap() > 0.6,
+        "{}/{}",
+        m.confusion.correct,
+        m.confusion.total
+    );
+    assert!(!d.path().join("run-criteria/report.html").exists());
+
     // A real browser decodes every picture (headless Chromium, if installed).
     let Some(chromium) = ["chromium", "chromium-browser", "google-chrome"]
         .iter()
