@@ -83,25 +83,9 @@ pub fn run(job: &Job) -> Result<RunSummary, String> {
     let (mut trend, mut trend_plots) = (None, Vec::new());
     if cfg.trend.enabled {
         let t = std::time::Instant::now();
-        let dir = job.out.join("trend");
-        let opts = crate::analysis::trend::TrendOptions {
-            cutoff: cfg
-                .trend
-                .cutoff
-                .parse()
-                .map_err(|e: String| format!("trend.cutoff: {e}"))?,
-            alpha: cfg.trend.alpha,
-            columns: vec![],
-        };
-        let rep =
-            crate::analysis::trend::run_trend(&feats, &dir, &opts).map_err(|e| e.to_string())?;
-        for sel in &rep.selections {
-            let png = dir.join(format!("trend_{}_ch{}.png", sel.experiment, sel.channel));
-            if let Ok(true) = crate::plot::trend_png(&png, &rep, &sel.experiment, sel.channel, 4) {
-                trend_plots.push((format!("{} ch{}", sel.experiment, sel.channel), png));
-            }
-        }
+        let (rep, plots) = trend_stage(cfg, &feats, &job.out.join("trend"))?;
         trend = Some(rep);
+        trend_plots = plots;
         seconds.push(("trend".to_string(), t.elapsed().as_secs_f64()));
     }
 
@@ -214,24 +198,9 @@ pub fn rebuild_report(dir: &Path) -> Result<PathBuf, String> {
     let (mut trend, mut trend_plots) = (None, Vec::new());
     let tdir = dir.join("trend");
     if config.trend.enabled && tdir.is_dir() {
-        let opts = crate::analysis::trend::TrendOptions {
-            cutoff: config
-                .trend
-                .cutoff
-                .parse()
-                .map_err(|e: String| format!("trend.cutoff: {e}"))?,
-            alpha: config.trend.alpha,
-            columns: vec![],
-        };
-        let rep =
-            crate::analysis::trend::run_trend(&feats, &tdir, &opts).map_err(|e| e.to_string())?;
-        for sel in &rep.selections {
-            let png = tdir.join(format!("trend_{}_ch{}.png", sel.experiment, sel.channel));
-            if png.is_file() {
-                trend_plots.push((format!("{} ch{}", sel.experiment, sel.channel), png));
-            }
-        }
+        let (rep, plots) = trend_stage(&config, &feats, &tdir)?;
         trend = Some(rep);
+        trend_plots = plots;
     }
     let sdir = dir.join("som");
     let mut som = None;
@@ -239,10 +208,7 @@ pub fn rebuild_report(dir: &Path) -> Result<PathBuf, String> {
         let model = crate::som::run::load_model(&sdir.join("model")).map_err(|e| e.to_string())?;
         let confusion = crate::som::run::classify(&model, &feats, Some("criteria_label"), &sdir)
             .map_err(|e| e.to_string())?;
-        let mut classes = BTreeMap::new();
-        for ((s, _), n) in &confusion.counts {
-            *classes.entry(s.clone()).or_insert(0) += n;
-        }
+        let classes = classes_of(&confusion);
         let existing = |p: PathBuf| p.is_file().then_some(p);
         som = Some(SomStage {
             model_dir: sdir.join("model"),
@@ -273,6 +239,42 @@ pub fn rebuild_report(dir: &Path) -> Result<PathBuf, String> {
     let out = dir.join("report.html");
     crate::report::write(&summary, &out)?;
     Ok(out)
+}
+
+/// The trend statistics of the feature tables into `dir`, with a Fig. 4.18 plot per
+/// experiment × channel that has significant windows.
+fn trend_stage(
+    cfg: &PipelineConfig,
+    feats: &[PathBuf],
+    dir: &Path,
+) -> Result<(crate::analysis::trend::TrendReport, Vec<(String, PathBuf)>), String> {
+    let opts = crate::analysis::trend::TrendOptions {
+        cutoff: cfg
+            .trend
+            .cutoff
+            .parse()
+            .map_err(|e: String| format!("trend.cutoff: {e}"))?,
+        alpha: cfg.trend.alpha,
+        columns: vec![],
+    };
+    let rep = crate::analysis::trend::run_trend(feats, dir, &opts).map_err(|e| e.to_string())?;
+    let mut plots = Vec::new();
+    for sel in &rep.selections {
+        let png = dir.join(format!("trend_{}_ch{}.png", sel.experiment, sel.channel));
+        if let Ok(true) = crate::plot::trend_png(&png, &rep, &sel.experiment, sel.channel, 4) {
+            plots.push((format!("{} ch{}", sel.experiment, sel.channel), png));
+        }
+    }
+    Ok((rep, plots))
+}
+
+/// Hits per SOM class.
+fn classes_of(c: &Confusion) -> BTreeMap<String, usize> {
+    let mut classes = BTreeMap::new();
+    for ((s, _), n) in &c.counts {
+        *classes.entry(s.clone()).or_insert(0) += n;
+    }
+    classes
 }
 
 fn som_stage(job: &Job, feats: &[PathBuf]) -> Result<SomStage, String> {
@@ -340,10 +342,7 @@ fn som_stage(job: &Job, feats: &[PathBuf]) -> Result<SomStage, String> {
     let hit_maps = crate::plot::hit_maps_png(&hm, &model.som, &confusion.hits)
         .ok()
         .map(|_| hm);
-    let mut classes = BTreeMap::new();
-    for ((s, _), n) in &confusion.counts {
-        *classes.entry(s.clone()).or_insert(0) += n;
-    }
+    let classes = classes_of(&confusion);
     Ok(SomStage {
         model_dir,
         trained_on,
