@@ -56,6 +56,34 @@ impl Drop for TempDir {
     }
 }
 
+/// A synthetic experiment (`hits` hits of 1024 samples, seeded) written as a Vallen pair in
+/// DIR/data, and its features in DIR/f with `cfg`; returns the features table.
+pub fn synthetic_features(
+    dir: &Path,
+    id: &str,
+    hits: usize,
+    seed: u64,
+    cfg: &aepipe::config::PipelineConfig,
+    threads: usize,
+) -> PathBuf {
+    let data = dir.join("data");
+    let mut e = aepipe::synth::Experiment::new(id, hits, seed);
+    e.n_samples = 1024;
+    e.write_vallen(&data).unwrap();
+    aepipe::pipeline::run(
+        aepipe::pipeline::Job::Features,
+        &[data],
+        &dir.join("f"),
+        cfg,
+        &aepipe::pipeline::RunOptions {
+            threads,
+            progress: false,
+        },
+    )
+    .unwrap()
+    .table_path
+}
+
 /// Read every column of a Parquet table as strings (for comparisons across tables).
 pub fn table_rows(path: &Path) -> (Vec<String>, Vec<Vec<String>>) {
     let (schema, _, batches) = aepipe::store::read_parquet(path).unwrap();

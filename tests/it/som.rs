@@ -3,32 +3,17 @@
 
 use crate::{table_rows, TempDir};
 use aepipe::config::PipelineConfig;
-use aepipe::pipeline::{run, Job, RunOptions};
 use aepipe::som::run::{classify, load_model, train, TrainOptions};
 use aepipe::som::Som;
-use aepipe::synth::Experiment;
 
 #[test]
 fn som_trained_on_criteria_labels_classifies_the_experiment() {
     let t = TempDir::new("som");
-    let data = t.path().join("data");
-    let mut e = Experiment::new("notched", 400, 31);
-    e.n_samples = 1024;
-    e.write_vallen(&data).unwrap();
-    let f = run(
-        Job::Features,
-        &[data],
-        &t.path().join("f"),
-        &PipelineConfig::default(),
-        &RunOptions {
-            threads: 2,
-            progress: false,
-        },
-    )
-    .unwrap();
+    let features =
+        crate::synthetic_features(t.path(), "notched", 400, 31, &PipelineConfig::default(), 2);
     let model_dir = t.path().join("model");
     let m = train(
-        std::slice::from_ref(&f.table_path),
+        std::slice::from_ref(&features),
         &model_dir,
         &TrainOptions::default(),
     )
@@ -51,7 +36,7 @@ fn som_trained_on_criteria_labels_classifies_the_experiment() {
     let out = t.path().join("c");
     let conf = classify(
         &back,
-        std::slice::from_ref(&f.table_path),
+        std::slice::from_ref(&features),
         Some("criteria_label"),
         &out,
     )

@@ -154,24 +154,11 @@ fn designed_trend_is_found_with_the_right_signs_end_to_end() {
 #[test]
 fn missing_load_falls_back_to_all_hits_and_says_so() {
     let t = TempDir::new("trendnoload");
-    let data = t.path().join("data");
-    let mut e = Experiment::new("noload", 60, 5);
-    e.n_samples = 1024;
-    e.write_vallen(&data).unwrap();
     // No load mapping: load_n is null.
-    let f = run(
-        Job::Features,
-        &[data],
-        &t.path().join("f"),
-        &PipelineConfig::default(),
-        &RunOptions {
-            threads: 1,
-            progress: false,
-        },
-    )
-    .unwrap();
+    let features =
+        crate::synthetic_features(t.path(), "noload", 60, 5, &PipelineConfig::default(), 1);
     let rep = run_trend(
-        &[f.table_path],
+        &[features],
         &t.path().join("trend"),
         &TrendOptions {
             cutoff: Cutoff::PeakLoad,
