@@ -63,6 +63,8 @@ pub struct Mech {
     acc: Vec<[f64; 2]>,
     acc_valid: bool,
     implicit: Implicit,
+    /// Scratch of the explicit solvers, reused from step to step.
+    work: Vec<Vec<[f64; 2]>>,
 }
 
 /// What the relaxation did.
@@ -107,6 +109,7 @@ impl Mech {
             acc: vec![[0.0; 2]; n],
             acc_valid: false,
             implicit: Implicit::default(),
+            work: Vec::new(),
         }
     }
 
@@ -357,7 +360,12 @@ impl Mech {
                 if !self.acc_valid {
                     self.accel(&self.r, &self.u, t, b, &mut a);
                 }
-                let mut uh = vec![[0.0; 2]; n];
+                let mut w = std::mem::take(&mut self.work);
+                if w.is_empty() {
+                    w.push(Vec::new());
+                }
+                let uh = &mut w[0];
+                uh.resize(n, [0.0; 2]);
                 for i in 0..n {
                     if self.held[i] {
                         continue;
@@ -367,7 +375,7 @@ impl Mech {
                         uh[i][c] = self.u[i][c] + 0.5 * a[i][c] * dt;
                     }
                 }
-                self.accel(&self.r, &uh, t + dt, b, &mut a);
+                self.accel(&self.r, uh, t + dt, b, &mut a);
                 for i in 0..n {
                     if !self.held[i] {
                         for c in 0..2 {
@@ -375,6 +383,7 @@ impl Mech {
                         }
                     }
                 }
+                self.work = w;
                 self.acc = a;
                 self.acc_valid = true;
             }
@@ -385,15 +394,22 @@ impl Mech {
 
     fn rk4(&mut self, dt: f64, t: f64, b: f64) {
         let n = self.len();
-        let (r0, u0) = (self.r.clone(), self.u.clone());
-        let mut ka = [
-            vec![[0.0; 2]; n],
-            vec![[0.0; 2]; n],
-            vec![[0.0; 2]; n],
-            vec![[0.0; 2]; n],
-        ];
-        let mut kv = ka.clone();
-        let (mut rt, mut ut) = (r0.clone(), u0.clone());
+        // Scratch kept between steps (the relaxation runs up to 100 000 of them):
+        // r0, u0, rt, ut, then K1…K4 of the accelerations and of the velocities.
+        let mut w = std::mem::take(&mut self.work);
+        w.resize(12, Vec::new());
+        for v in w.iter_mut() {
+            v.resize(n, [0.0; 2]);
+        }
+        let (state, k) = w.split_at_mut(4);
+        let [r0, u0, rt, ut] = state else {
+            unreachable!()
+        };
+        let (ka, kv) = k.split_at_mut(4);
+        r0.copy_from_slice(&self.r);
+        u0.copy_from_slice(&self.u);
+        rt.copy_from_slice(&self.r);
+        ut.copy_from_slice(&self.u);
         let frac = [0.0, 0.5, 0.5, 1.0];
         for s in 0..4 {
             if s > 0 {
@@ -404,9 +420,7 @@ impl Mech {
                     }
                 }
             }
-            let mut a = std::mem::take(&mut ka[s]);
-            self.accel(&rt, &ut, t + frac[s] * dt, b, &mut a);
-            ka[s] = a;
+            self.accel(rt, ut, t + frac[s] * dt, b, &mut ka[s]);
             for i in 0..n {
                 kv[s][i] = if self.held[i] { [0.0; 2] } else { ut[i] };
             }
@@ -424,6 +438,7 @@ impl Mech {
                         * (ka[0][i][c] + 2.0 * ka[1][i][c] + 2.0 * ka[2][i][c] + ka[3][i][c]);
             }
         }
+        self.work = w;
         self.acc_valid = false;
     }
 
