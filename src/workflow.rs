@@ -358,11 +358,6 @@ fn som_stage(job: &Job, feats: &[PathBuf]) -> Result<SomStage, String> {
 /// A hit's key in every table: (experiment, channel, hit).
 pub type HitKey = (String, i32, i64);
 
-/// Read a string column and the (experiment, channel, hit) key of every row.
-pub fn keyed_column(path: &Path, column: &str) -> Result<Vec<(HitKey, String)>, String> {
-    keyed(path, column)
-}
-
 /// Draw the CWT of the chosen hits (one pass over the inputs) into `dir`; returns the PNG
 /// of each hit drawn.
 pub fn draw_gallery(
@@ -406,7 +401,8 @@ pub fn draw_gallery(
     out
 }
 
-fn keyed(path: &Path, column: &str) -> Result<Vec<(HitKey, String)>, String> {
+/// Read a string column and the (experiment, channel, hit) key of every row.
+pub fn keyed_column(path: &Path, column: &str) -> Result<Vec<(HitKey, String)>, String> {
     use arrow::array::{Array, AsArray};
     use arrow::datatypes::{Int32Type, Int64Type};
     let (_, _, batches) = crate::store::read_parquet(path).map_err(|e| e.to_string())?;
@@ -446,14 +442,14 @@ fn keyed(path: &Path, column: &str) -> Result<Vec<(HitKey, String)>, String> {
 
 /// Compare the SOM classes with `truth.parquet`.
 pub fn score_truth(truth: &Path, classification: &Path) -> Result<TruthScore, String> {
-    let t: BTreeMap<_, _> = keyed(truth, "mechanism")?.into_iter().collect();
+    let t: BTreeMap<_, _> = keyed_column(truth, "mechanism")?.into_iter().collect();
     let mut s = TruthScore {
         path: truth.to_path_buf(),
         counts: BTreeMap::new(),
         bond_fibre_total: 0,
         bond_fibre_correct: 0,
     };
-    for (key, class) in keyed(classification, "som_label")? {
+    for (key, class) in keyed_column(classification, "som_label")? {
         let Some(m) = t.get(&key) else { continue };
         *s.counts.entry((class.clone(), m.clone())).or_insert(0) += 1;
         if m == "bond_failure" || m == "fibre_failure" {

@@ -275,15 +275,7 @@ pub fn run_job(job: &Job) -> Result<Vec<String>, SimError> {
         if let Some(s) = job.solver {
             m.system.solver = s;
         }
-        let json = serde_json::to_string(
-            &params
-                .0
-                .iter()
-                .map(|(k, v)| (k.clone(), *v))
-                .collect::<std::collections::BTreeMap<_, _>>(),
-        )
-        .unwrap_or_else(|_| "{}".into());
-        models.push((m, source, json));
+        models.push((m, source, params.to_json()));
     }
     let mut lines = Vec::new();
     let mut outs = Vec::new();
@@ -312,7 +304,7 @@ pub fn run_job(job: &Job) -> Result<Vec<String>, SimError> {
             ));
         }
         if out.sensors.is_empty() {
-            if let Some((node, f)) = node_frequency(m, &job.run, &out) {
+            if let Some((node, f)) = node_frequency(m, &out) {
                 lines.push(format!(
                     "  no sensors; node {node} oscillates at {f:.4} Hz (zero crossings of y)"
                 ));
@@ -371,7 +363,7 @@ pub fn run_job(job: &Job) -> Result<Vec<String>, SimError> {
 
 /// Frequency of the free node that moves most in y, from the zero crossings of its
 /// displacement about its mean (needs trajectories; used for models without a grid).
-fn node_frequency(m: &ModelFile, _opts: &RunOptions, out: &SimOutput) -> Option<(usize, f64)> {
+fn node_frequency(m: &ModelFile, out: &SimOutput) -> Option<(usize, f64)> {
     if out.trajectory.len() < 4 {
         return None;
     }

@@ -177,9 +177,7 @@ pub fn build_library(
             m.name = "reference".into();
             let o = simulate(&m, &RunOptions::default())?;
             pb.inc(1);
-            let json = serde_json::to_string(&p.0.iter().cloned().collect::<BTreeMap<_, _>>())
-                .unwrap_or_else(|_| "{}".into());
-            Ok((m, o, format!("scenario:{name}"), json))
+            Ok((m, o, format!("scenario:{name}"), p.to_json()))
         })
         .collect::<Result<Vec<_>, SimError>>()?;
     pb.finish_and_clear();

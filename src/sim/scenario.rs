@@ -29,6 +29,14 @@ impl Params {
             .unwrap_or(default)
     }
 
+    /// The parameters as a JSON object (sorted keys; a repeated key keeps its last value),
+    /// for the `sim_params` column.
+    pub fn to_json(&self) -> String {
+        let map: std::collections::BTreeMap<&str, f64> =
+            self.0.iter().map(|(k, v)| (k.as_str(), *v)).collect();
+        serde_json::to_string(&map).unwrap_or_else(|_| "{}".into())
+    }
+
     /// Parse `key=value`.
     pub fn parse_one(s: &str) -> Result<(String, f64), String> {
         let (k, v) = s
@@ -528,7 +536,6 @@ fn structure2x1(p: &Params) -> Result<ModelFile, SimError> {
         .iter()
         .position(|s| (s.a == lo && s.b == hi) || (s.a == hi && s.b == lo))
         .expect("fibre 3 has the spring");
-    let _ = lat.a;
     Ok(ModelFile {
         name: format!("structure2x1-fibre-failure-p{point}"),
         label: Some("fibre_failure".into()),
