@@ -58,8 +58,6 @@ pub struct SimOutput {
     pub relaxed: Relaxed,
     pub trajectory: Vec<Frame>,
     pub snapshots: Vec<(f64, Vec<f64>)>,
-    /// Acoustic energy Σp² after every acoustic step.
-    pub energy: Vec<f64>,
     pub solver_iterations: usize,
     pub mass_steps: usize,
 }
@@ -86,7 +84,6 @@ pub fn simulate(model: &ModelFile, opts: &RunOptions) -> Result<SimOutput, SimEr
         relaxed,
         trajectory: Vec::new(),
         snapshots: Vec::new(),
-        energy: Vec::new(),
         solver_iterations: 0,
         mass_steps: sys.iterations,
     };
@@ -126,7 +123,6 @@ pub fn simulate(model: &ModelFile, opts: &RunOptions) -> Result<SimOutput, SimEr
                 for (s, spec) in out.sensors.iter_mut().zip(&model.sensors) {
                     s.push(f.at(spec.i, spec.j));
                 }
-                out.energy.push(f.energy());
                 let k = (n + 1) / ratio;
                 if opts
                     .snapshot_every
