@@ -3,9 +3,27 @@
 
 use crate::config::PipelineConfig;
 use crate::model::{Item, Mechanism};
-use crate::pipeline::{stream, Job, RunOptions, StreamStats};
+use crate::pipeline::{stream, StreamJob, StreamOptions, StreamStats};
 use crate::synth::{waveform, HitSpec, Rng};
 use std::path::Path;
+
+/// Why a benchmark could not run (benchmarks print numbers; they never pass or fail on time).
+#[derive(Debug, thiserror::Error)]
+pub enum BenchError {
+    /// An input the peers' `export_inputs.py` writes is missing or unreadable.
+    #[error("{path}: {message} (run the peers' export_inputs.py first)")]
+    Input { path: String, message: String },
+    #[error("peer: {0}")]
+    Peer(String),
+    #[error("{0}")]
+    Run(String),
+}
+
+impl BenchError {
+    fn run(e: impl std::fmt::Display) -> BenchError {
+        BenchError::Run(e.to_string())
+    }
+}
 
 /// Peak resident set size of this process so far (VmHWM), bytes; `None` off Linux.
 pub fn peak_rss_bytes() -> Option<u64> {
@@ -77,16 +95,13 @@ pub fn stream_point(
     out_dir: &Path,
 ) -> Result<StreamPoint, crate::pipeline::PipelineError> {
     let cfg = PipelineConfig::default();
-    std::fs::create_dir_all(out_dir).map_err(|source| crate::pipeline::PipelineError::Io {
-        path: out_dir.display().to_string(),
-        source,
-    })?;
+    std::fs::create_dir_all(out_dir).map_err(|e| crate::util::IoAt::new(out_dir, e))?;
     let stats = stream(
         synthetic_items(hits, len),
-        Job::Features,
+        StreamJob::Features,
         out_dir,
         &cfg,
-        &RunOptions {
+        &StreamOptions {
             threads,
             progress: false,
         },
@@ -101,24 +116,20 @@ pub fn stream_point(
 }
 
 /// Read a little-endian f32 or f64 binary file (the peers' `export_inputs.py` output).
-fn read_f32(path: &Path) -> Result<Vec<f32>, String> {
-    let b = std::fs::read(path).map_err(|e| {
-        format!(
-            "{}: {e} (run the peers' export_inputs.py first)",
-            path.display()
-        )
+fn read_f32(path: &Path) -> Result<Vec<f32>, BenchError> {
+    let b = std::fs::read(path).map_err(|e| BenchError::Input {
+        path: path.display().to_string(),
+        message: e.to_string(),
     })?;
     Ok(b.chunks_exact(4)
         .map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]]))
         .collect())
 }
 
-fn read_f64(path: &Path) -> Result<Vec<f64>, String> {
-    let b = std::fs::read(path).map_err(|e| {
-        format!(
-            "{}: {e} (run the peers' export_inputs.py first)",
-            path.display()
-        )
+fn read_f64(path: &Path) -> Result<Vec<f64>, BenchError> {
+    let b = std::fs::read(path).map_err(|e| BenchError::Input {
+        path: path.display().to_string(),
+        message: e.to_string(),
     })?;
     Ok(b.chunks_exact(8)
         .map(|c| f64::from_le_bytes(c.try_into().expect("8 bytes")))
@@ -162,7 +173,7 @@ pub fn cwt_bench(
     threads_list: &[usize],
     repeats: usize,
     skip_full: bool,
-) -> Result<Vec<CwtBenchRow>, String> {
+) -> Result<Vec<CwtBenchRow>, BenchError> {
     use crate::dsp::cwt::{Cwt, WaveletBank};
     use rayon::prelude::*;
     let x = read_f32(&dir.join("w1_signals_f32.bin"))?;
@@ -181,7 +192,7 @@ pub fn cwt_bench(
         let pool = rayon::ThreadPoolBuilder::new()
             .num_threads(threads)
             .build()
-            .map_err(|e| e.to_string())?;
+            .map_err(BenchError::run)?;
         let states = crate::pipeline::StatePool::default();
         let t = median_time(repeats, || {
             pool.install(|| {
@@ -228,14 +239,14 @@ pub fn cwt_bench(
         let pool = rayon::ThreadPoolBuilder::new()
             .num_threads(threads)
             .build()
-            .map_err(|e| e.to_string())?;
+            .map_err(BenchError::run)?;
         let states = crate::pipeline::StatePool::default();
         let t = median_time(repeats, || {
             pool.install(|| {
                 recs.par_iter().for_each_init(
                     || states.checkout(|| crate::features::FeatureExtractor::new(&cfg)),
                     |ex, r| {
-                        std::hint::black_box(ex.row(r).expect("row"));
+                        std::hint::black_box(ex.row(r));
                     },
                 )
             })
@@ -281,7 +292,7 @@ fn peer_json(
     peers: &Path,
     script: &str,
     args: &[&str],
-) -> Result<serde_json::Value, String> {
+) -> Result<serde_json::Value, BenchError> {
     let out = std::env::temp_dir().join(format!(
         "aepipe-peer-{}-{}.json",
         script.trim_end_matches(".py"),
@@ -294,20 +305,74 @@ fn peer_json(
         .arg(&out)
         .stdout(std::process::Stdio::null())
         .status()
-        .map_err(|e| format!("{}: {e}", python.display()))?;
+        .map_err(|e| BenchError::Peer(format!("{}: {e}", python.display())))?;
     if !st.success() {
-        return Err(format!("peer {script} {args:?} failed ({st})"));
+        return Err(BenchError::Peer(format!("{script} {args:?} failed ({st})")));
     }
-    serde_json::from_str(&std::fs::read_to_string(&out).map_err(|e| e.to_string())?)
-        .map_err(|e| e.to_string())
+    serde_json::from_str(&std::fs::read_to_string(&out).map_err(BenchError::run)?)
+        .map_err(BenchError::run)
 }
 
+/// One peer job of `aepipe bench cwt --peers`: which script, its arguments, and which of
+/// our rows (workload prefix, threads) it is compared with.
+pub struct PeerJob {
+    pub name: &'static str,
+    pub script: &'static str,
+    pub args: &'static [&'static str],
+    pub workload: &'static str,
+    pub threads: usize,
+}
+
+/// The CWT/spectrum peers, run in the same invocation as our rows.
+pub const CWT_PEERS: &[PeerJob] = &[
+    PeerJob {
+        name: "fCWT 0.1.18 f32, 1 thread",
+        script: "w1_cwt.py",
+        args: &["--peer", "fcwt", "--threads", "1"],
+        workload: "W1",
+        threads: 1,
+    },
+    PeerJob {
+        name: "fCWT 0.1.18 f32 + wisdom, 2 threads",
+        script: "w1_cwt.py",
+        args: &["--peer", "fcwt_opt", "--threads", "2"],
+        workload: "W1",
+        threads: 2,
+    },
+    PeerJob {
+        name: "numpy.fft baseline c128, 1 thread",
+        script: "w1_cwt.py",
+        args: &["--peer", "numpy", "--threads", "1"],
+        workload: "W1",
+        threads: 1,
+    },
+    PeerJob {
+        name: "scipy.fft c64, 1 thread",
+        script: "w1_cwt.py",
+        args: &["--peer", "scipy_f32", "--threads", "1"],
+        workload: "W1",
+        threads: 1,
+    },
+    PeerJob {
+        name: "W2 numpy rfft batched",
+        script: "w2_spectrum.py",
+        args: &["--peer", "numpy_rfft"],
+        workload: "W2",
+        threads: 1,
+    },
+];
+
 /// Run one peer script in the same run; returns the median seconds from its JSON.
-pub fn run_peer(python: &Path, peers: &Path, script: &str, args: &[&str]) -> Result<f64, String> {
+pub fn run_peer(
+    python: &Path,
+    peers: &Path,
+    script: &str,
+    args: &[&str],
+) -> Result<f64, BenchError> {
     let v = peer_json(python, peers, script, args)?;
     let med = v["timing"]["median_s"]
         .as_f64()
-        .ok_or("no timing.median_s in the peer's JSON")?;
+        .ok_or_else(|| BenchError::Peer("no timing.median_s in the peer's JSON".into()))?;
     // W2 reports the time of `inner` passes; per pass is what we compare.
     let inner = v["params"]["inner"].as_f64().unwrap_or(1.0);
     Ok(med / inner)
@@ -315,7 +380,7 @@ pub fn run_peer(python: &Path, peers: &Path, script: &str, args: &[&str]) -> Res
 
 /// W3 on the peers' exact inputs: 651 × 200-D vectors, 10×10 map, the same initial codebook
 /// and the two-stage schedule of Table 5.2. Returns (median seconds, QE, TE8).
-pub fn som_bench(dir: &Path, repeats: usize) -> Result<(f64, f64, f64), String> {
+pub fn som_bench(dir: &Path, repeats: usize) -> Result<(f64, f64, f64), BenchError> {
     use crate::som::{Init, Som, SomParams};
     let data = read_f64(&dir.join("w3_som_data_f64.bin"))?;
     let init = read_f64(&dir.join("w3_som_init_f64.bin"))?;
@@ -324,22 +389,33 @@ pub fn som_bench(dir: &Path, repeats: usize) -> Result<(f64, f64, f64), String> 
         ..SomParams::default()
     }
     .check()
-    .map_err(|e| e.to_string())?;
+    .map_err(BenchError::run)?;
     let mut last = None;
     let t = median_time(repeats, || {
-        last = Some(Som::fit_with(&params, &data, 200, false).expect("fit"))
+        last = Some(
+            Som::fit_with(
+                &params,
+                ndarray::ArrayView2::from_shape((data.len() / 200, 200), &data).expect("n × 200"),
+                false,
+            )
+            .expect("fit"),
+        )
     });
     // Quality is measured outside the timing, as the peers do.
     let som = last.expect("ran");
     Ok((
         t,
-        som.quantisation_error(&data),
-        som.topographic_error(&data),
+        som.quantisation_error(
+            ndarray::ArrayView2::from_shape((data.len() / 200, 200), &data).expect("n × 200"),
+        ),
+        som.topographic_error(
+            ndarray::ArrayView2::from_shape((data.len() / 200, 200), &data).expect("n × 200"),
+        ),
     ))
 }
 
 /// Run the MiniSom peer; returns (median seconds, QE).
-pub fn run_minisom(python: &Path, peers: &Path) -> Result<(f64, f64), String> {
+pub fn run_minisom(python: &Path, peers: &Path) -> Result<(f64, f64), BenchError> {
     let v = peer_json(
         python,
         peers,
@@ -349,10 +425,10 @@ pub fn run_minisom(python: &Path, peers: &Path) -> Result<(f64, f64), String> {
     Ok((
         v["timing"]["median_s"]
             .as_f64()
-            .ok_or("no timing.median_s in the peer's JSON")?,
+            .ok_or_else(|| BenchError::Peer("no timing.median_s in the peer's JSON".into()))?,
         v["quality"]["qe"]
             .as_f64()
-            .ok_or("no quality.qe in the peer's JSON")?,
+            .ok_or_else(|| BenchError::Peer("no quality.qe in the peer's JSON".into()))?,
     ))
 }
 
@@ -368,7 +444,7 @@ pub fn random_network(masses: usize, seed: u64) -> crate::sim::model::ModelFile 
     let len = 1e-3;
     let a = len / (per - 1) as f64;
     let side = len * (fibres as f64 / 4.0).sqrt().max(1.0);
-    let mut rng = crate::synth::Rng::new(seed);
+    let mut rng = crate::util::Rng::new(seed);
     let m = FIBRE_RHO * FIBRE_T * FIBRE_W * a;
     let mut nodes = Vec::with_capacity(fibres * per);
     let mut springs = Vec::new();
@@ -480,18 +556,18 @@ pub struct SimScale {
 /// Implicit-Euler steps of random fibre networks (ch. 6.2: the thesis's solver crawled above
 /// 1 000 elements). Each network is stretched 1 % (every node moved away from the centre)
 /// and given random velocities, then stepped `steps` times at Δt = 10 ns.
-pub fn sim_scale(sizes: &[usize], steps: usize) -> Result<Vec<SimScale>, String> {
+pub fn sim_scale(sizes: &[usize], steps: usize) -> Result<Vec<SimScale>, BenchError> {
     use crate::sim::mech::Mech;
     let mut rows = Vec::new();
     for &n in sizes {
         let model = random_network(n, 7);
-        model.check().map_err(|e| e.to_string())?;
+        model.check().map_err(BenchError::run)?;
         let mut mech = Mech::new(&model);
         let side = model
             .nodes
             .iter()
             .fold(0.0f64, |s, nd| s.max(nd.x).max(nd.y));
-        let mut rng = crate::synth::Rng::new(11);
+        let mut rng = crate::util::Rng::new(11);
         for i in 0..mech.len() {
             mech.r[i] = [
                 mech.r[i][0] + 0.01 * (mech.r[i][0] - side / 2.0),
@@ -504,7 +580,7 @@ pub fn sim_scale(sizes: &[usize], steps: usize) -> Result<Vec<SimScale>, String>
         mech.freeze_areas();
         // One step to build the pattern, then the timed ones.
         mech.step(crate::sim::model::Solver::ImplicitEuler, 1e-8, 0.0)
-            .map_err(|e| e.to_string())?;
+            .map_err(BenchError::run)?;
         let it0 = mech.solver_iterations();
         let t0 = std::time::Instant::now();
         for k in 0..steps {
@@ -513,7 +589,7 @@ pub fn sim_scale(sizes: &[usize], steps: usize) -> Result<Vec<SimScale>, String>
                 1e-8,
                 k as f64 * 1e-8,
             )
-            .map_err(|e| e.to_string())?;
+            .map_err(BenchError::run)?;
         }
         let secs = t0.elapsed().as_secs_f64() / steps as f64;
         rows.push(SimScale {
@@ -528,17 +604,17 @@ pub fn sim_scale(sizes: &[usize], steps: usize) -> Result<Vec<SimScale>, String>
 
 /// `mesh3x3-bond-failure` end to end (relaxation, 4 000 implicit steps, 400 steps of the
 /// 250 × 250 4th-order grid): median seconds of `repeats` runs.
-pub fn sim_mesh(repeats: usize) -> Result<f64, String> {
+pub fn sim_mesh(repeats: usize) -> Result<f64, BenchError> {
     let model = crate::sim::scenario::build("mesh3x3-bond-failure", &Default::default())
-        .map_err(|e| e.to_string())?;
+        .map_err(BenchError::run)?;
     let mut err = None;
     let t = median_time(repeats, || {
         if let Err(e) = crate::sim::simulate(&model, &Default::default()) {
-            err = Some(e.to_string());
+            err = Some(e);
         }
     });
     match err {
-        Some(e) => Err(e),
+        Some(e) => Err(BenchError::run(e)),
         None => Ok(t),
     }
 }

@@ -4,7 +4,6 @@
 //! unknown keys are errors, so a typo in a lab's TOML is reported instead of silently ignored.
 
 use serde::{Deserialize, Serialize};
-use sha2::{Digest, Sha256};
 use std::path::Path;
 
 #[derive(Debug, thiserror::Error)]
@@ -18,6 +17,38 @@ pub enum ConfigError {
     Parse { path: String, message: String },
     #[error("config: {0}")]
     Invalid(String),
+}
+
+/// Which hits enter the statistics.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Cutoff {
+    None,
+    /// Hits up to (and including) the one at the highest load.
+    PeakLoad,
+    /// Hits with `time_s ≤` this.
+    Time(f64),
+    /// The first N hits.
+    Hits(usize),
+}
+
+impl std::str::FromStr for Cutoff {
+    type Err = ConfigError;
+    fn from_str(s: &str) -> Result<Cutoff, ConfigError> {
+        let bad = || {
+            ConfigError::Invalid(format!(
+                "cut-off '{s}': expected none, peak-load, time:SECONDS or hits:N"
+            ))
+        };
+        match s {
+            "none" => Ok(Cutoff::None),
+            "peak-load" => Ok(Cutoff::PeakLoad),
+            _ => match s.split_once(':') {
+                Some(("time", v)) => v.parse().map(Cutoff::Time).map_err(|_| bad()),
+                Some(("hits", v)) => v.parse().map(Cutoff::Hits).map_err(|_| bad()),
+                _ => Err(bad()),
+            },
+        }
+    }
 }
 
 /// Input format, detected from the files unless forced.
@@ -440,10 +471,10 @@ impl PipelineConfig {
                 self.trend.alpha
             )));
         }
-        self.trend
-            .cutoff
-            .parse::<crate::analysis::trend::Cutoff>()
-            .map_err(|e| ConfigError::Invalid(format!("trend.cutoff: {e}")))?;
+        self.trend.cutoff.parse::<Cutoff>().map_err(|e| match e {
+            ConfigError::Invalid(m) => ConfigError::Invalid(format!("trend.cutoff: {m}")),
+            e => e,
+        })?;
         if self.pipeline.batch_size == 0 {
             return Err(ConfigError::Invalid(
                 "pipeline.batch_size must be ≥ 1".into(),
@@ -511,12 +542,8 @@ impl PipelineConfig {
     /// SHA-256 of the canonical TOML: the same effective settings give the same hash,
     /// whatever the comments or key order of the file they came from.
     pub fn hash(&self) -> String {
-        hex(&Sha256::digest(self.to_toml().as_bytes()))
+        crate::util::sha256_hex(self.to_toml().as_bytes())
     }
-}
-
-pub(crate) fn hex(bytes: &[u8]) -> String {
-    bytes.iter().map(|b| format!("{b:02x}")).collect()
 }
 
 #[cfg(test)]

@@ -27,7 +27,12 @@ pub fn demo_config() -> PipelineConfig {
 /// then `aepipe run` with `pipelines/demo.toml`: features, trend, a SOM trained on the
 /// embedded reference library (other material draws), classification scored against the
 /// truth, and `root/run/report.html`.
-pub fn run_demo(root: &Path, hits: usize, seed: u64, threads: usize) -> Result<DemoResult, String> {
+pub fn run_demo(
+    root: &Path,
+    hits: usize,
+    seed: u64,
+    threads: usize,
+) -> Result<DemoResult, crate::workflow::WorkflowError> {
     let t0 = std::time::Instant::now();
     let id = "synthetic_notched_paper";
     let synth = crate::synth::synth_experiment(root, id, hits, seed, None, true)?;
@@ -40,7 +45,7 @@ pub fn run_demo(root: &Path, hits: usize, seed: u64, threads: usize) -> Result<D
         .map(|s| inspect::summarise(s, &cfg.ingest))
         .collect();
     let truth = root.join("truth.parquet");
-    let run = crate::workflow::run(&crate::workflow::Job {
+    let run = crate::workflow::run(&crate::workflow::RunJob {
         config: &cfg,
         inputs: std::slice::from_ref(&data_dir),
         out: &root.join("run"),

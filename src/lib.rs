@@ -8,6 +8,7 @@
 
 pub mod analysis;
 pub mod bench;
+pub mod cli;
 pub mod config;
 pub mod demo;
 pub mod dsp;
@@ -22,4 +23,5 @@ pub mod sim;
 pub mod som;
 pub mod store;
 pub mod synth;
+pub mod util;
 pub mod workflow;

@@ -18,11 +18,11 @@ use crate::model::{Item, Reject, Stage};
 use crate::store::{
     self, reject_row, rejects_table, waveform_row, waveforms_table, Row, TableWriter,
 };
+use crate::util::{file_digest, num_cpus, utc_now, write_atomic, IoAt};
 use rayon::prelude::*;
 use serde_json::json;
-use sha2::{Digest, Sha256};
 use std::collections::BTreeMap;
-use std::io::{IsTerminal, Read};
+use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
 use std::sync::Mutex;
 use std::time::Instant;
@@ -31,11 +31,8 @@ use std::time::Instant;
 pub enum PipelineError {
     #[error(transparent)]
     Store(#[from] store::StoreError),
-    #[error("{path}: {source}")]
-    Io {
-        path: String,
-        source: std::io::Error,
-    },
+    #[error(transparent)]
+    Io(#[from] IoAt),
     #[error("cannot start the worker pool: {0}")]
     Pool(String),
     #[error("no input given")]
@@ -44,39 +41,39 @@ pub enum PipelineError {
 
 /// What a run produces.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Job {
+pub enum StreamJob {
     /// `features.parquet` + `rejects.parquet` + `manifest.json`.
     Features,
     /// `waveforms.parquet` (canonical waveforms) + `rejects.parquet` + `manifest.json`.
     Waveforms,
 }
 
-impl Job {
+impl StreamJob {
     pub fn table_file(self) -> &'static str {
         match self {
-            Job::Features => "features.parquet",
-            Job::Waveforms => "waveforms.parquet",
+            StreamJob::Features => "features.parquet",
+            StreamJob::Waveforms => "waveforms.parquet",
         }
     }
     fn name(self) -> &'static str {
         match self {
-            Job::Features => "features",
-            Job::Waveforms => "waveforms",
+            StreamJob::Features => "features",
+            StreamJob::Waveforms => "waveforms",
         }
     }
 }
 
 #[derive(Debug, Clone)]
-pub struct RunOptions {
+pub struct StreamOptions {
     /// Worker threads (0 = all cores).
     pub threads: usize,
     /// Show a progress bar (only drawn when stderr is a terminal).
     pub progress: bool,
 }
 
-impl Default for RunOptions {
+impl Default for StreamOptions {
     fn default() -> Self {
-        RunOptions {
+        StreamOptions {
             threads: 0,
             progress: true,
         }
@@ -190,21 +187,20 @@ fn record_reject(r: &crate::model::AeRecord, stage: Stage, reason: String) -> Re
     }
 }
 
-fn process(job: Job, ex: &mut FeatureExtractor, item: Item) -> Out {
+fn process(job: StreamJob, ex: &mut FeatureExtractor, item: Item) -> Out {
     let rec = match item {
         Item::Reject(r) => return Out::Reject(r),
         Item::Record(r) => r,
     };
     if let Err(e) = validate(&rec, ex.config()) {
-        return Out::Reject(record_reject(&rec, Stage::Validate, e));
+        return Out::Reject(record_reject(&rec, Stage::Validate, e.to_string()));
     }
     match job {
-        Job::Waveforms => Out::Row(rec.experiment.clone(), waveform_row(rec)),
-        Job::Features => {
+        StreamJob::Waveforms => Out::Row(rec.experiment.clone(), waveform_row(rec)),
+        StreamJob::Features => {
             let res = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| ex.row(&rec)));
             match res {
-                Ok(Ok(row)) => Out::Row(rec.experiment.clone(), row),
-                Ok(Err(e)) => Out::Reject(record_reject(&rec, Stage::Features, e)),
+                Ok(row) => Out::Row(rec.experiment.clone(), row),
                 Err(p) => {
                     let msg = p
                         .downcast_ref::<String>()
@@ -243,10 +239,10 @@ fn progress_bar(enabled: bool) -> indicatif::ProgressBar {
 /// Writes the job's table and `rejects.parquet` atomically; returns the counts.
 pub fn stream<I>(
     items: I,
-    job: Job,
+    job: StreamJob,
     out_dir: &Path,
     cfg: &PipelineConfig,
-    opts: &RunOptions,
+    opts: &StreamOptions,
 ) -> Result<StreamStats, PipelineError>
 where
     I: Iterator<Item = Item> + Send,
@@ -269,12 +265,12 @@ where
         ("aepipe.job".to_string(), job.name().to_string()),
     ];
     let mut table_meta = meta.clone();
-    if job == Job::Features {
+    if job == StreamJob::Features {
         table_meta.extend(crate::features::features_metadata(cfg));
     }
     let table = match job {
-        Job::Features => features_table(cfg),
-        Job::Waveforms => waveforms_table(),
+        StreamJob::Features => features_table(cfg),
+        StreamJob::Waveforms => waveforms_table(),
     };
     let mut table_w = TableWriter::create(
         &out_dir.join(job.table_file()),
@@ -379,82 +375,20 @@ where
     Ok(st)
 }
 
-pub fn num_cpus() -> usize {
-    std::thread::available_parallelism()
-        .map(|n| n.get())
-        .unwrap_or(1)
-}
-
-/// SHA-256 and size of a file, streamed.
-pub fn file_digest(path: &Path) -> std::io::Result<(u64, String)> {
-    let mut f = std::fs::File::open(path)?;
-    let mut h = Sha256::new();
-    let mut buf = vec![0u8; 1 << 20];
-    let mut size = 0u64;
-    loop {
-        let n = f.read(&mut buf)?;
-        if n == 0 {
-            break;
-        }
-        size += n as u64;
-        h.update(&buf[..n]);
-    }
-    Ok((size, crate::config::hex(&h.finalize())))
-}
-
-/// RFC 3339 UTC timestamp of now (no time-zone database needed).
-pub fn utc_now() -> String {
-    let secs = std::time::SystemTime::now()
-        .duration_since(std::time::UNIX_EPOCH)
-        .map(|d| d.as_secs() as i64)
-        .unwrap_or(0);
-    let (days, rem) = (secs.div_euclid(86400), secs.rem_euclid(86400));
-    // Civil date from days since 1970-01-01 (Howard Hinnant's algorithm).
-    let z = days + 719_468;
-    let era = z.div_euclid(146_097);
-    let doe = z - era * 146_097;
-    let yoe = (doe - doe / 1460 + doe / 36524 - doe / 146_096) / 365;
-    let doy = doe - (365 * yoe + yoe / 4 - yoe / 100);
-    let mp = (5 * doy + 2) / 153;
-    let d = doy - (153 * mp + 2) / 5 + 1;
-    let m = if mp < 10 { mp + 3 } else { mp - 9 };
-    let y = yoe + era * 400 + i64::from(m <= 2);
-    format!(
-        "{y:04}-{m:02}-{d:02}T{:02}:{:02}:{:02}Z",
-        rem / 3600,
-        rem % 3600 / 60,
-        rem % 60
-    )
-}
-
-/// Write a file atomically (temporary name, then rename).
-pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), PipelineError> {
-    let tmp = store::tmp_path_for(path);
-    let io = |source| PipelineError::Io {
-        path: path.display().to_string(),
-        source,
-    };
-    std::fs::write(&tmp, bytes).map_err(io)?;
-    std::fs::rename(&tmp, path).map_err(io)
-}
-
 /// Discover, read, transform and write: the whole `aepipe features` / `aepipe waveforms` job.
 pub fn run(
-    job: Job,
+    job: StreamJob,
     inputs: &[PathBuf],
     out_dir: &Path,
     cfg: &PipelineConfig,
-    opts: &RunOptions,
+    opts: &StreamOptions,
 ) -> Result<RunReport, PipelineError> {
     if inputs.is_empty() {
         return Err(PipelineError::NoInput);
     }
     let started = utc_now();
     let t0 = Instant::now();
-    std::fs::create_dir_all(out_dir).map_err(|source| PipelineError::Io {
-        path: out_dir.display().to_string(),
-        source,
-    })?;
+    std::fs::create_dir_all(out_dir).map_err(|e| IoAt::new(out_dir, e))?;
     store::clean_stale_tmp(out_dir);
     let table_path = out_dir.join(job.table_file());
     let rejects_path = out_dir.join("rejects.parquet");
@@ -531,16 +465,4 @@ pub fn run(
         sources,
         skipped,
     })
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn utc_now_is_well_formed() {
-        let s = utc_now();
-        assert_eq!(s.len(), 20, "{s}");
-        assert!(s.starts_with("20") && s.ends_with('Z'));
-    }
 }

@@ -6,40 +6,46 @@
 //! library is linked. The font is loaded once per process.
 
 use crate::model::AeRecord;
+use ndarray::ArrayView2;
 use plotters::prelude::*;
 use plotters::style::colors::colormaps::ViridisRGB;
 use std::path::Path;
 use std::sync::OnceLock;
 
-const FONT_PATHS: &[&str] = &[
-    "/usr/share/fonts/truetype/dejavu/DejaVuSans.ttf",
-    "/usr/share/fonts/TTF/DejaVuSans.ttf",
-    "/usr/share/fonts/dejavu/DejaVuSans.ttf",
-    "/usr/share/fonts/truetype/liberation/LiberationSans-Regular.ttf",
-    "/usr/share/fonts/liberation-sans/LiberationSans-Regular.ttf",
-];
-
-/// Register a sans-serif font with plotters once; the error says how to get one.
-pub fn ensure_font() -> Result<(), String> {
-    static DONE: OnceLock<Result<(), String>> = OnceLock::new();
-    DONE.get_or_init(|| {
-        let env = std::env::var("AEPIPE_FONT").ok();
-        let candidates = env.iter().map(String::as_str).chain(FONT_PATHS.iter().copied());
-        for p in candidates {
-            if let Ok(bytes) = std::fs::read(p) {
-                let bytes: &'static [u8] = Box::leak(bytes.into_boxed_slice());
-                if plotters::style::register_font("sans-serif", FontStyle::Normal, bytes).is_ok() {
-                    return Ok(());
-                }
-            }
-        }
-        Err("no TrueType font found for the picture's labels: install fonts-dejavu-core (Debian) or set AEPIPE_FONT=/path/to/font.ttf".into())
-    })
-    .clone()
+/// Why a picture was not drawn.
+#[derive(Debug, thiserror::Error)]
+pub enum PlotError {
+    #[error("AEPIPE_FONT={path}: {message}")]
+    Font { path: String, message: String },
+    #[error("{path}: {message}")]
+    Draw { path: String, message: String },
 }
 
-fn err<E: std::fmt::Display>(path: &Path) -> impl Fn(E) -> String + '_ {
-    move |e| format!("{}: {e}", path.display())
+/// Register the sans-serif font with plotters once: the file `AEPIPE_FONT` names, else
+/// DejaVu Sans embedded in the binary (the `dejavu` crate), so pictures never depend on the
+/// machine's fonts.
+pub fn ensure_font() -> Result<(), PlotError> {
+    static DONE: OnceLock<Result<(), (String, String)>> = OnceLock::new();
+    DONE.get_or_init(|| {
+        let bytes: &'static [u8] = match std::env::var("AEPIPE_FONT") {
+            Ok(p) if !p.is_empty() => match std::fs::read(&p) {
+                Ok(b) => Box::leak(b.into_boxed_slice()),
+                Err(e) => return Err((p, e.to_string())),
+            },
+            _ => dejavu::sans::regular(),
+        };
+        plotters::style::register_font("sans-serif", FontStyle::Normal, bytes)
+            .map_err(|_| ("(font)".to_string(), "not a TrueType font".to_string()))
+    })
+    .clone()
+    .map_err(|(path, message)| PlotError::Font { path, message })
+}
+
+fn err<E: std::fmt::Display>(path: &Path) -> impl Fn(E) -> PlotError + '_ {
+    move |e| PlotError::Draw {
+        path: path.display().to_string(),
+        message: e.to_string(),
+    }
 }
 
 /// Draw a record's waveform (top) and CWT magnitude (bottom) into a PNG.
@@ -48,13 +54,15 @@ pub fn cwt_png(
     path: &Path,
     rec: &AeRecord,
     freqs: &[f64],
-    power: &[f32],
+    power: ArrayView2<f32>,
     title: &str,
-) -> Result<(), String> {
+) -> Result<(), PlotError> {
     ensure_font()?;
     let n = rec.samples.len();
     let nf = freqs.len();
-    assert_eq!(power.len(), n * nf);
+    assert_eq!(power.dim(), (nf, n), "power is freqs × samples");
+    let power = power.as_standard_layout();
+    let power = power.as_slice().expect("standard layout");
     let fs = rec.sample_rate_hz;
     let t0 = -(rec.pretrigger as f64) / fs * 1e6; // µs, trigger at 0
     let t1 = t0 + n as f64 / fs * 1e6;
@@ -162,73 +170,6 @@ pub fn cwt_png(
     Ok(())
 }
 
-/// Find a hit in the inputs, analyse it and draw it: the `aepipe cwt` command. Returns a
-/// one-line summary (label, dominant frequency).
-pub fn cwt_of_hit(
-    inputs: &[std::path::PathBuf],
-    cfg: &crate::config::PipelineConfig,
-    experiment: Option<&str>,
-    channel: Option<u32>,
-    hit: u64,
-    png: &Path,
-) -> Result<String, String> {
-    let d = crate::ingest::discover(inputs, &cfg.ingest);
-    let found = d
-        .sources
-        .iter()
-        .filter(|s| {
-            experiment.is_none_or(|e| s.id == e || s.format == crate::ingest::Format::Parquet)
-        })
-        .flat_map(|s| crate::ingest::open(s, &cfg.ingest))
-        .find_map(|it| match it {
-            crate::model::Item::Record(r)
-                if r.hit == hit
-                    && channel.is_none_or(|c| r.channel == c)
-                    && experiment.is_none_or(|e| r.experiment == e) =>
-            {
-                Some(r)
-            }
-            _ => None,
-        });
-    let Some(rec) = found else {
-        return Err(format!(
-            "no hit {hit}{}{} in {}",
-            channel
-                .map(|c| format!(" on channel {c}"))
-                .unwrap_or_default(),
-            experiment.map(|e| format!(" of {e}")).unwrap_or_default(),
-            inputs
-                .iter()
-                .map(|p| p.display().to_string())
-                .collect::<Vec<_>>()
-                .join(", ")
-        ));
-    };
-    crate::features::validate(&rec, cfg).map_err(|e| format!("{}: {e}", rec.id()))?;
-    let mut ex = crate::features::FeatureExtractor::new(cfg);
-    let a = ex.analyse(&rec);
-    let (freqs, power) = ex.full_cwt(&rec);
-    let summary = format!(
-        "{}: {} ({}), dominant {} kHz, peak {:.1} dB_AE",
-        rec.id(),
-        a.label,
-        a.reason,
-        a.components
-            .dominant
-            .map(|d| format!("{:.0}", d.freq_hz / 1e3))
-            .unwrap_or_else(|| "–".into()),
-        a.hit.amplitude_db
-    );
-    cwt_png(
-        png,
-        &rec,
-        &freqs,
-        &power,
-        &format!("{} — {}", rec.id(), a.label),
-    )?;
-    Ok(summary)
-}
-
 /// Fig. 4.18 style: power ratio against AE number for the steepest significant windows of
 /// one experiment × channel, with their fitted lines.
 pub fn trend_png(
@@ -237,7 +178,7 @@ pub fn trend_png(
     experiment: &str,
     channel: i32,
     max_lines: usize,
-) -> Result<bool, String> {
+) -> Result<bool, PlotError> {
     use crate::analysis::trend::window_name;
     ensure_font()?;
     let Some(series) = rep
@@ -411,7 +352,7 @@ fn short_label(l: &str) -> String {
 }
 
 /// U-matrix of a trained map with each node's label (B bond, F fibre, BF both, E erroneous).
-pub fn u_matrix_png(path: &Path, som: &crate::som::Som) -> Result<(), String> {
+pub fn u_matrix_png(path: &Path, som: &crate::som::Som) -> Result<(), PlotError> {
     ensure_font()?;
     let e = err(path);
     let root = BitMapBackend::new(path, (620, 620)).into_drawing_area();
@@ -422,7 +363,7 @@ pub fn u_matrix_png(path: &Path, som: &crate::som::Som) -> Result<(), String> {
         "U-matrix (mean distance to 4-neighbours; light = border) and node labels",
         som.rows,
         som.cols,
-        &u,
+        u.as_slice().expect("a new array is contiguous"),
         &|j| {
             som.labels
                 .get(j)
@@ -430,7 +371,7 @@ pub fn u_matrix_png(path: &Path, som: &crate::som::Som) -> Result<(), String> {
                 .unwrap_or_default()
         },
     )
-    .map_err(|m| format!("{}: {m}", path.display()))?;
+    .map_err(err(path))?;
     root.present().map_err(&e)?;
     Ok(())
 }
@@ -440,7 +381,7 @@ pub fn hit_maps_png(
     path: &Path,
     som: &crate::som::Som,
     hits: &std::collections::BTreeMap<String, Vec<f64>>,
-) -> Result<(), String> {
+) -> Result<(), PlotError> {
     ensure_font()?;
     let e = err(path);
     let n = hits.len().max(1);
@@ -463,7 +404,7 @@ pub fn hit_maps_png(
                 }
             },
         )
-        .map_err(|m| format!("{}: {m}", path.display()))?;
+        .map_err(err(path))?;
     }
     root.present().map_err(&e)?;
     Ok(())

@@ -2,29 +2,104 @@
 //! the inputs and rejects, per-experiment class counts, the trend table and plot (Table 4.3,
 //! Fig. 4.18), a CWT gallery by class (Appendix B), the U-matrix and hit maps, the confusion
 //! (Table 5.4 orientation), the accuracy against ground truth, and the manifest.
+//!
+//! The report renders from what it is handed: the run's [`RunSummary`] and the [`Gathered`]
+//! columns and gallery pictures the workflow read and drew. It reads no input recording and
+//! no table; it only embeds the PNG files it is pointed at.
 
-use crate::workflow::RunSummary;
+use crate::analysis::trend::TrendReport;
+use crate::pipeline::RunReport;
+use crate::som::tables::Confusion;
+use crate::store::HitKey;
+use crate::util::{base64, write_atomic, IoAt};
 use std::collections::{BTreeMap, BTreeSet};
 use std::fmt::Write as _;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
-/// Standard base64 (RFC 4648) of `data`.
-pub fn base64(data: &[u8]) -> String {
-    const A: &[u8; 64] = b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
-    let mut s = String::with_capacity(data.len().div_ceil(3) * 4);
-    for c in data.chunks(3) {
-        let n = (c[0] as u32) << 16
-            | (*c.get(1).unwrap_or(&0) as u32) << 8
-            | *c.get(2).unwrap_or(&0) as u32;
-        for k in 0..4 {
-            if k <= c.len() {
-                s.push(A[(n >> (18 - 6 * k) & 63) as usize] as char);
-            } else {
-                s.push('=');
-            }
+/// Why the report was not written.
+#[derive(Debug, thiserror::Error)]
+pub enum ReportError {
+    #[error(transparent)]
+    Write(#[from] IoAt),
+}
+
+/// What a run produced, for the terminal and the report.
+pub struct RunSummary {
+    pub out: PathBuf,
+    pub inputs: Vec<PathBuf>,
+    pub features: RunReport,
+    pub trend: Option<TrendReport>,
+    pub trend_plots: Vec<(String, PathBuf)>,
+    pub som: Option<SomStage>,
+    pub truth: Option<TruthScore>,
+    pub config: crate::config::PipelineConfig,
+    pub seconds: Vec<(String, f64)>,
+}
+
+/// The SOM stage of a run.
+pub struct SomStage {
+    pub model_dir: PathBuf,
+    pub trained_on: String,
+    pub training_rows: usize,
+    /// Against the criteria labels of the run's hits (Table 5.4 orientation).
+    pub confusion: Confusion,
+    pub classification: PathBuf,
+    pub u_matrix: Option<PathBuf>,
+    pub hit_maps: Option<PathBuf>,
+    /// SOM class → number of hits.
+    pub classes: BTreeMap<String, usize>,
+}
+
+/// Classification against the ground truth (`truth.parquet`).
+pub struct TruthScore {
+    pub path: PathBuf,
+    /// (SOM class, true mechanism) → hits.
+    pub counts: BTreeMap<(String, String), usize>,
+    /// Bond vs fibre failures: hits whose truth is one of the two, and how many the SOM got.
+    pub bond_fibre_total: usize,
+    pub bond_fibre_correct: usize,
+}
+
+impl TruthScore {
+    pub fn accuracy(&self) -> Option<f64> {
+        (self.bond_fibre_total > 0)
+            .then(|| self.bond_fibre_correct as f64 / self.bond_fibre_total as f64)
+    }
+}
+
+/// A CWT picture per chosen hit of each class (`None`: it could not be drawn).
+#[derive(Default)]
+pub struct Gallery {
+    /// "SOM" or "criteria": which labels chose the hits.
+    pub by: &'static str,
+    pub classes: BTreeMap<String, Vec<(HitKey, Option<PathBuf>)>>,
+}
+
+/// What the report shows besides the summary, gathered by the workflow from the run folder.
+#[derive(Default)]
+pub struct Gathered {
+    /// The ch. 4.7 label of every hit.
+    pub criteria: BTreeMap<HitKey, String>,
+    /// The SOM class of every hit (empty without a SOM stage).
+    pub som: BTreeMap<HitKey, String>,
+    pub gallery: Gallery,
+    /// The features stage's `manifest.json`, as text.
+    pub manifest: String,
+}
+
+/// The first `per` hits of each class, in key order: the gallery's choice.
+pub fn choose_gallery(
+    labels: &BTreeMap<HitKey, String>,
+    per: usize,
+) -> BTreeMap<String, Vec<HitKey>> {
+    let mut chosen: BTreeMap<String, Vec<HitKey>> = BTreeMap::new();
+    for (k, c) in labels {
+        let v = chosen.entry(c.clone()).or_default();
+        if v.len() < per {
+            v.push(k.clone());
         }
     }
-    s
+    chosen
 }
 
 fn esc(s: &str) -> String {
@@ -50,22 +125,13 @@ fn img(path: &Path, alt: &str, width: Option<u32>) -> String {
     }
 }
 
-/// Write the report of `s` to `path`.
-pub fn write(s: &RunSummary, path: &Path) -> Result<(), String> {
-    let html = render(s)?;
-    crate::pipeline::write_atomic(path, html.as_bytes())
-        .map_err(|e| format!("{}: {e}", path.display()))
+/// Write the report to `path` (atomically).
+pub fn write(s: &RunSummary, g: &Gathered, path: &Path) -> Result<(), ReportError> {
+    Ok(write_atomic(path, render(s, g).as_bytes())?)
 }
 
-/// Read a string column of a table, keyed by (experiment, channel, hit).
-fn column(path: &Path, name: &str) -> BTreeMap<(String, i32, i64), String> {
-    crate::workflow::keyed_column(path, name)
-        .unwrap_or_default()
-        .into_iter()
-        .collect()
-}
-
-pub fn render(s: &RunSummary) -> Result<String, String> {
+/// The whole page.
+pub fn render(s: &RunSummary, g: &Gathered) -> String {
     let mut h = String::new();
     let title = format!("aepipe run — {}", s.out.display());
     let _ = write!(
@@ -78,6 +144,17 @@ pre{{background:#f6f6f6;padding:8px;overflow-x:auto}}.missing{{color:#b00}}</sty
         esc(&title),
         esc(&title)
     );
+    inputs_section(&mut h, s);
+    classes_section(&mut h, g);
+    trend_section(&mut h, s);
+    som_section(&mut h, s);
+    truth_section(&mut h, s);
+    gallery_section(&mut h, &g.gallery);
+    footer(&mut h, s, g);
+    h
+}
+
+fn inputs_section(h: &mut String, s: &RunSummary) {
     // Inputs and rejects.
     let st = &s.features.stats;
     let _ = write!(
@@ -107,16 +184,12 @@ pre{{background:#f6f6f6;padding:8px;overflow-x:auto}}.missing{{color:#b00}}</sty
             esc(&st.first_rejects.join("\n"))
         );
     }
-    // Class counts per experiment.
-    let crit = column(&s.features.table_path, "criteria_label");
-    let som = s
-        .som
-        .as_ref()
-        .map(|m| column(&m.classification, "som_label"))
-        .unwrap_or_default();
-    let mut classes: BTreeSet<String> = crit.values().cloned().collect();
-    classes.extend(som.values().cloned());
-    let experiments: BTreeSet<String> = crit.keys().map(|k| k.0.clone()).collect();
+}
+
+fn classes_section(h: &mut String, g: &Gathered) {
+    let mut classes: BTreeSet<String> = g.criteria.values().cloned().collect();
+    classes.extend(g.som.values().cloned());
+    let experiments: BTreeSet<String> = g.criteria.keys().map(|k| k.0.clone()).collect();
     let _ = write!(
         h,
         "<h2>Hits by class</h2><table><tr><th class=l>experiment</th><th class=l>labels</th>"
@@ -126,7 +199,7 @@ pre{{background:#f6f6f6;padding:8px;overflow-x:auto}}.missing{{color:#b00}}</sty
     }
     h.push_str("</tr>");
     for e in &experiments {
-        for (name, map) in [("ch. 4.7 criteria", &crit), ("SOM", &som)] {
+        for (name, map) in [("ch. 4.7 criteria", &g.criteria), ("SOM", &g.som)] {
             if map.is_empty() {
                 continue;
             }
@@ -139,6 +212,9 @@ pre{{background:#f6f6f6;padding:8px;overflow-x:auto}}.missing{{color:#b00}}</sty
         }
     }
     h.push_str("</table>");
+}
+
+fn trend_section(h: &mut String, s: &RunSummary) {
     // Trend.
     if let Some(t) = &s.trend {
         let _ = write!(h, "<h2>Trend of the power ratios (ch. 4.5.5)</h2>");
@@ -183,6 +259,9 @@ pre{{background:#f6f6f6;padding:8px;overflow-x:auto}}.missing{{color:#b00}}</sty
             );
         }
     }
+}
+
+fn som_section(h: &mut String, s: &RunSummary) {
     // SOM.
     if let Some(m) = &s.som {
         let _ = write!(
@@ -203,6 +282,9 @@ pre{{background:#f6f6f6;padding:8px;overflow-x:auto}}.missing{{color:#b00}}</sty
             esc(&m.confusion.format())
         );
     }
+}
+
+fn truth_section(h: &mut String, s: &RunSummary) {
     if let Some(t) = &s.truth {
         let truths: BTreeSet<&String> = t.counts.keys().map(|k| &k.1).collect();
         let soms: BTreeSet<&String> = t.counts.keys().map(|k| &k.0).collect();
@@ -240,47 +322,38 @@ pre{{background:#f6f6f6;padding:8px;overflow-x:auto}}.missing{{color:#b00}}</sty
             );
         }
     }
-    // CWT gallery by class.
-    let per = s.config.report.gallery_per_class;
-    if per > 0 {
-        let by = if som.is_empty() { &crit } else { &som };
-        let mut chosen: BTreeMap<String, Vec<(String, i32, i64)>> = BTreeMap::new();
-        for (k, c) in by {
-            let v = chosen.entry(c.clone()).or_default();
-            if v.len() < per {
-                v.push(k.clone());
-            }
-        }
-        let dir = s.out.join("gallery");
-        let pics = crate::workflow::draw_gallery(&s.inputs, &s.config, &chosen, &dir);
-        let _ = write!(
-            h,
-            "<h2>CWT gallery by {} class (Appendix B)</h2>",
-            if som.is_empty() { "criteria" } else { "SOM" }
-        );
-        for (class, keys) in &chosen {
-            let _ = write!(h, "<h3>{}</h3><div class=gallery>", esc(class));
-            for k in keys {
-                let cap = format!("{} ch{} hit {}", k.0, k.1, k.2);
-                match pics.get(k) {
-                    Some(p) => {
-                        let _ = write!(
-                            h,
-                            "<figure>{}<figcaption>{}</figcaption></figure>",
-                            img(p, &cap, Some(270)),
-                            esc(&cap)
-                        );
-                    }
-                    None => {
-                        let _ = write!(h, "<p class=missing>{}: not drawn</p>", esc(&cap));
-                    }
+}
+
+fn gallery_section(h: &mut String, g: &Gallery) {
+    if g.classes.is_empty() {
+        return;
+    }
+    let _ = write!(h, "<h2>CWT gallery by {} class (Appendix B)</h2>", g.by);
+    for (class, pics) in &g.classes {
+        let _ = write!(h, "<h3>{}</h3><div class=gallery>", esc(class));
+        for (k, png) in pics {
+            let cap = format!("{} ch{} hit {}", k.0, k.1, k.2);
+            match png {
+                Some(p) => {
+                    let _ = write!(
+                        h,
+                        "<figure>{}<figcaption>{}</figcaption></figure>",
+                        img(p, &cap, Some(270)),
+                        esc(&cap)
+                    );
+                }
+                None => {
+                    let _ = write!(h, "<p class=missing>{}: not drawn</p>", esc(&cap));
                 }
             }
-            h.push_str("</div>");
         }
+        h.push_str("</div>");
     }
+}
+
+fn footer(h: &mut String, s: &RunSummary, g: &Gathered) {
     // Manifest and timings.
-    let manifest = std::fs::read_to_string(&s.features.manifest_path).unwrap_or_default();
+    let manifest = &g.manifest;
     let _ = write!(
         h,
         "<h2>Run</h2><p>Stages: {}.</p><details><summary>manifest.json</summary><pre>{}</pre></details>\n\
@@ -289,9 +362,8 @@ window.addEventListener('load',function(){{var i=Array.prototype.slice.call(docu
 document.body.setAttribute('data-images-loaded',i.filter(function(x){{return x.complete&&x.naturalWidth>0}}).length+'/'+i.length);}});</script>\
 </body></html>\n",
         esc(&s.seconds.iter().map(|(k, v)| format!("{k} {v:.1} s")).collect::<Vec<_>>().join(", ")),
-        esc(&manifest)
+        esc(manifest)
     );
-    Ok(h)
 }
 
 #[cfg(test)]
@@ -299,17 +371,14 @@ mod tests {
     use super::*;
 
     #[test]
-    fn base64_matches_rfc4648_vectors() {
-        for (i, o) in [
-            ("", ""),
-            ("f", "Zg=="),
-            ("fo", "Zm8="),
-            ("foo", "Zm9v"),
-            ("foob", "Zm9vYg=="),
-            ("fooba", "Zm9vYmE="),
-            ("foobar", "Zm9vYmFy"),
-        ] {
-            assert_eq!(base64(i.as_bytes()), o);
-        }
+    fn gallery_takes_the_first_hits_of_each_class() {
+        let k = |h: i64| ("e".to_string(), 1, h);
+        let labels: BTreeMap<HitKey, String> = [(k(3), "b"), (k(1), "a"), (k(2), "b"), (k(4), "b")]
+            .into_iter()
+            .map(|(k, v)| (k, v.to_string()))
+            .collect();
+        let c = choose_gallery(&labels, 2);
+        assert_eq!(c["a"], vec![k(1)]);
+        assert_eq!(c["b"], vec![k(2), k(3)]);
     }
 }

@@ -7,37 +7,22 @@
 //! This is a signal model, not the physical simulator (that is the `sim` room's job).
 
 use crate::model::{AeRecord, Mechanism};
-use std::f64::consts::PI;
+pub use crate::util::Rng;
 
-/// SplitMix64: small, fast, seedable, good enough for test signals (no dependency).
-#[derive(Debug, Clone)]
-pub struct Rng(u64);
-
-impl Rng {
-    pub fn new(seed: u64) -> Rng {
-        Rng(seed ^ 0x9E37_79B9_7F4A_7C15)
-    }
-    pub fn next_u64(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
-    }
-    /// Uniform in [0, 1).
-    pub fn uniform(&mut self) -> f64 {
-        (self.next_u64() >> 11) as f64 / (1u64 << 53) as f64
-    }
-    pub fn range(&mut self, lo: f64, hi: f64) -> f64 {
-        lo + (hi - lo) * self.uniform()
-    }
-    /// Standard normal (Box–Muller).
-    pub fn normal(&mut self) -> f64 {
-        let u1 = self.uniform().max(1e-300);
-        let u2 = self.uniform();
-        (-2.0 * u1.ln()).sqrt() * (2.0 * PI * u2).cos()
-    }
+/// Why a synthetic experiment could not be made.
+#[derive(Debug, thiserror::Error)]
+pub enum SynthError {
+    /// The reference library is unusable (missing, or without both mechanisms).
+    #[error("{path}: {message}")]
+    Library { path: String, message: String },
+    #[error(transparent)]
+    Sim(#[from] crate::sim::SimError),
+    #[error("{path}: cannot write the Vallen pair: {message}")]
+    Vallen { path: String, message: String },
+    #[error(transparent)]
+    Store(#[from] crate::store::StoreError),
 }
+use std::f64::consts::PI;
 
 /// Parameters of one synthetic hit.
 #[derive(Debug, Clone)]
@@ -265,7 +250,7 @@ pub struct LibrarySignal {
 impl Library {
     /// Read a simulated `waveforms.parquet` (from `aepipe reference`): bond- and
     /// fibre-failure signals sampled at `fs`.
-    pub fn read(path: &std::path::Path, fs: f64) -> Result<Library, String> {
+    pub fn read(path: &std::path::Path, fs: f64) -> Result<Library, SynthError> {
         let cfg = crate::config::PipelineConfig::default();
         let d = crate::ingest::discover(&[path.to_path_buf()], &cfg.ingest);
         let mut lib = Library::default();
@@ -299,13 +284,15 @@ impl Library {
             }
         }
         if lib.bond.is_empty() || lib.fibre.is_empty() {
-            return Err(format!(
-                "{}: the library needs bond_failure and fibre_failure signals at {} MHz (found {} and {})",
-                path.display(),
-                fs / 1e6,
-                lib.bond.len(),
-                lib.fibre.len()
-            ));
+            return Err(SynthError::Library {
+                path: path.display().to_string(),
+                message: format!(
+                    "the library needs bond_failure and fibre_failure signals at {} MHz (found {} and {})",
+                    fs / 1e6,
+                    lib.bond.len(),
+                    lib.fibre.len()
+                ),
+            });
         }
         Ok(lib)
     }
@@ -466,7 +453,7 @@ pub fn synth_experiment(
     seed: u64,
     library: Option<&std::path::Path>,
     progress: bool,
-) -> Result<String, String> {
+) -> Result<String, SynthError> {
     let t0 = std::time::Instant::now();
     let lib_path = match library {
         Some(p) => p.to_path_buf(),
@@ -477,8 +464,7 @@ pub fn synth_experiment(
             let mut f = crate::sim::reference::ReferenceFile::default_library();
             f.reference.seed = seed;
             let out = dir.join("reference");
-            crate::sim::reference::build_library(&f.reference, &out, progress)
-                .map_err(|e| e.to_string())?;
+            crate::sim::reference::build_library(&f.reference, &out, progress)?;
             out.join("waveforms.parquet")
         }
     };
@@ -534,19 +520,21 @@ impl Experiment {
         &self,
         dir: &std::path::Path,
         truth: &std::path::Path,
-    ) -> Result<std::path::PathBuf, String> {
+    ) -> Result<std::path::PathBuf, SynthError> {
         use crate::store::{TableWriter, Value};
         let (recs, sources): (Vec<AeRecord>, Vec<String>) = self.hits().unzip();
         self.write_vallen_records(dir, &recs)
-            .map_err(|e| format!("{}: cannot write the Vallen pair: {e}", dir.display()))?;
+            .map_err(|e| SynthError::Vallen {
+                path: dir.display().to_string(),
+                message: e.to_string(),
+            })?;
         let path = truth.to_path_buf();
         let mut w = TableWriter::create(
             &path,
             truth_table(),
             &[("aepipe.config_sha256".into(), format!("{:064x}", self.seed))],
             65_536,
-        )
-        .map_err(|e| e.to_string())?;
+        )?;
         for (r, src) in recs.iter().zip(sources) {
             w.push(vec![
                 Value::Str(Some(r.experiment.clone())),
@@ -555,10 +543,9 @@ impl Experiment {
                 Value::F64(r.time_s),
                 Value::Str(r.label.clone()),
                 Value::Str(Some(src)),
-            ])
-            .map_err(|e| e.to_string())?;
+            ])?;
         }
-        w.finish().map_err(|e| e.to_string())?;
+        w.finish()?;
         Ok(path)
     }
 }

@@ -1,58 +1,53 @@
 //! `aepipe run`: the whole staged method from one pipeline definition — features → trend →
 //! SOM (trained on a reference library or on criteria-labelled hits) → classification →
-//! accuracy against ground truth when there is one → the HTML report.
+//! accuracy against ground truth when there is one → the HTML report. Also the commands
+//! that read inputs to draw (`aepipe cwt`) and rebuild a report from a run folder.
 
-use crate::config::PipelineConfig;
-use crate::pipeline::{RunOptions, RunReport};
-use crate::som::run::Confusion;
+use crate::analysis::trend::{TrendError, TrendReport};
+use crate::config::{ConfigError, PipelineConfig};
+use crate::pipeline::{PipelineError, RunReport, StreamOptions};
+use crate::report::{Gallery, Gathered};
+pub use crate::report::{RunSummary, SomStage, TruthScore};
+use crate::som::tables::Confusion;
+use crate::som::SomError;
+use crate::store::{HitKey, StoreError, TableScan};
+use crate::util::IoAt;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
-/// What a run produced, for the terminal and the report.
-pub struct RunSummary {
-    pub out: PathBuf,
-    pub inputs: Vec<PathBuf>,
-    pub features: RunReport,
-    pub trend: Option<crate::analysis::trend::TrendReport>,
-    pub trend_plots: Vec<(String, PathBuf)>,
-    pub som: Option<SomStage>,
-    pub truth: Option<TruthScore>,
-    pub config: PipelineConfig,
-    pub seconds: Vec<(String, f64)>,
+/// Why a run (or a report rebuild, or a drawing) failed; each stage's own error inside.
+#[derive(Debug, thiserror::Error)]
+pub enum WorkflowError {
+    #[error(transparent)]
+    Config(#[from] ConfigError),
+    #[error(transparent)]
+    Pipeline(#[from] PipelineError),
+    #[error(transparent)]
+    Trend(#[from] TrendError),
+    #[error(transparent)]
+    Som(#[from] SomError),
+    #[error(transparent)]
+    Sim(#[from] crate::sim::SimError),
+    #[error(transparent)]
+    Synth(#[from] crate::synth::SynthError),
+    #[error(transparent)]
+    Store(#[from] StoreError),
+    #[error(transparent)]
+    Report(#[from] crate::report::ReportError),
+    #[error(transparent)]
+    Plot(#[from] crate::plot::PlotError),
+    #[error(transparent)]
+    Write(#[from] IoAt),
+    /// A folder or file given to a command is not what it should be (e.g. not a run folder).
+    #[error("{path}: {message}")]
+    Input { path: String, message: String },
+    /// The hit asked for is not in the inputs, or cannot be analysed.
+    #[error("{0}")]
+    NoHit(String),
 }
 
-pub struct SomStage {
-    pub model_dir: PathBuf,
-    pub trained_on: String,
-    pub training_rows: usize,
-    /// Against the criteria labels of the run's hits (Table 5.4 orientation).
-    pub confusion: Confusion,
-    pub classification: PathBuf,
-    pub u_matrix: Option<PathBuf>,
-    pub hit_maps: Option<PathBuf>,
-    /// SOM class → number of hits.
-    pub classes: BTreeMap<String, usize>,
-}
-
-/// Classification against the ground truth (`truth.parquet`).
-pub struct TruthScore {
-    pub path: PathBuf,
-    /// (SOM class, true mechanism) → hits.
-    pub counts: BTreeMap<(String, String), usize>,
-    /// Bond vs fibre failures: hits whose truth is one of the two, and how many the SOM got.
-    pub bond_fibre_total: usize,
-    pub bond_fibre_correct: usize,
-}
-
-impl TruthScore {
-    pub fn accuracy(&self) -> Option<f64> {
-        (self.bond_fibre_total > 0)
-            .then(|| self.bond_fibre_correct as f64 / self.bond_fibre_total as f64)
-    }
-}
-
-/// Options that are not part of the pipeline definition.
-pub struct Job<'a> {
+/// What `aepipe run` is given besides the pipeline definition.
+pub struct RunJob<'a> {
     pub config: &'a PipelineConfig,
     pub inputs: &'a [PathBuf],
     pub out: &'a Path,
@@ -62,21 +57,20 @@ pub struct Job<'a> {
 }
 
 /// Run every enabled stage.
-pub fn run(job: &Job) -> Result<RunSummary, String> {
+pub fn run(job: &RunJob) -> Result<RunSummary, WorkflowError> {
     let cfg = job.config;
     let mut seconds = Vec::new();
     let t = std::time::Instant::now();
     let features = crate::pipeline::run(
-        crate::pipeline::Job::Features,
+        crate::pipeline::StreamJob::Features,
         job.inputs,
         &job.out.join("features"),
         cfg,
-        &RunOptions {
+        &StreamOptions {
             threads: job.threads,
             progress: job.progress,
         },
-    )
-    .map_err(|e| e.to_string())?;
+    )?;
     seconds.push(("features".to_string(), t.elapsed().as_secs_f64()));
     let feats = vec![features.table_path.clone()];
 
@@ -112,7 +106,8 @@ pub fn run(job: &Job) -> Result<RunSummary, String> {
     };
     if cfg.report.enabled {
         let t = std::time::Instant::now();
-        crate::report::write(&summary, &job.out.join("report.html"))?;
+        let g = gather(&summary)?;
+        crate::report::write(&summary, &g, &job.out.join("report.html"))?;
         summary
             .seconds
             .push(("report".to_string(), t.elapsed().as_secs_f64()));
@@ -134,7 +129,7 @@ struct RunFile {
     som_training_rows: Option<usize>,
 }
 
-fn write_run_json(s: &RunSummary) -> Result<(), String> {
+fn write_run_json(s: &RunSummary) -> Result<(), WorkflowError> {
     let f = RunFile {
         tool_version: env!("CARGO_PKG_VERSION").into(),
         inputs: s.inputs.clone(),
@@ -145,29 +140,34 @@ fn write_run_json(s: &RunSummary) -> Result<(), String> {
         som_training_rows: s.som.as_ref().map(|m| m.training_rows),
     };
     let p = s.out.join("run.json");
-    crate::pipeline::write_atomic(
+    crate::util::write_atomic(
         &p,
         serde_json::to_string_pretty(&f).expect("json").as_bytes(),
-    )
-    .map_err(|e| format!("{}: {e}", p.display()))
+    )?;
+    Ok(())
+}
+
+fn input_err(p: &Path, m: impl std::fmt::Display) -> WorkflowError {
+    WorkflowError::Input {
+        path: p.display().to_string(),
+        message: m.to_string(),
+    }
 }
 
 /// `aepipe report RUN_DIR`: rebuild the summary of a finished run from its folder (tables,
 /// model, `run.json`; the trend and the classification are recomputed, deterministically)
 /// and write `RUN_DIR/report.html` again.
-pub fn rebuild_report(dir: &Path) -> Result<PathBuf, String> {
+pub fn rebuild_report(dir: &Path) -> Result<PathBuf, WorkflowError> {
     let rp = dir.join("run.json");
     let text = std::fs::read_to_string(&rp)
-        .map_err(|e| format!("{}: {e} (not a folder written by aepipe run)", rp.display()))?;
-    let f: RunFile = serde_json::from_str(&text).map_err(|e| format!("{}: {e}", rp.display()))?;
-    let config =
-        PipelineConfig::from_toml(&f.config).map_err(|e| format!("{}: {e}", rp.display()))?;
+        .map_err(|e| input_err(&rp, format!("{e} (not a folder written by aepipe run)")))?;
+    let f: RunFile = serde_json::from_str(&text).map_err(|e| input_err(&rp, e))?;
+    let config = PipelineConfig::from_toml(&f.config).map_err(|e| input_err(&rp, e))?;
     let fdir = dir.join("features");
     let mp = fdir.join("manifest.json");
-    let m: serde_json::Value = serde_json::from_str(
-        &std::fs::read_to_string(&mp).map_err(|e| format!("{}: {e}", mp.display()))?,
-    )
-    .map_err(|e| format!("{}: {e}", mp.display()))?;
+    let m: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&mp).map_err(|e| input_err(&mp, e))?)
+            .map_err(|e| input_err(&mp, e))?;
     let c = &m["counts"];
     let mut stats = crate::pipeline::StreamStats {
         records_read: c["records_read"].as_u64().unwrap_or(0),
@@ -205,9 +205,9 @@ pub fn rebuild_report(dir: &Path) -> Result<PathBuf, String> {
     let sdir = dir.join("som");
     let mut som = None;
     if config.som.enabled && sdir.join("model/model.json").is_file() {
-        let model = crate::som::run::load_model(&sdir.join("model")).map_err(|e| e.to_string())?;
-        let confusion = crate::som::run::classify(&model, &feats, Some("criteria_label"), &sdir)
-            .map_err(|e| e.to_string())?;
+        let model = crate::som::tables::load_model(&sdir.join("model"))?;
+        let confusion =
+            crate::som::tables::classify_tables(&model, &feats, Some("criteria_label"), &sdir)?;
         let classes = classes_of(&confusion);
         let existing = |p: PathBuf| p.is_file().then_some(p);
         som = Some(SomStage {
@@ -237,8 +237,57 @@ pub fn rebuild_report(dir: &Path) -> Result<PathBuf, String> {
         seconds: f.seconds,
     };
     let out = dir.join("report.html");
-    crate::report::write(&summary, &out)?;
+    let g = gather(&summary)?;
+    crate::report::write(&summary, &g, &out)?;
     Ok(out)
+}
+
+/// Read what the report shows besides the summary (the label columns, the manifest) and draw
+/// the CWT gallery (one pass over the inputs).
+fn gather(s: &RunSummary) -> Result<Gathered, WorkflowError> {
+    let criteria: BTreeMap<HitKey, String> = TableScan::open(&s.features.table_path)?
+        .keyed_strings("criteria_label")?
+        .into_iter()
+        .collect();
+    let som: BTreeMap<HitKey, String> = match &s.som {
+        Some(m) => TableScan::open(&m.classification)?
+            .keyed_strings("som_label")?
+            .into_iter()
+            .collect(),
+        None => BTreeMap::new(),
+    };
+    let per = s.config.report.gallery_per_class;
+    let (by, labels) = if som.is_empty() {
+        ("criteria", &criteria)
+    } else {
+        ("SOM", &som)
+    };
+    let chosen = crate::report::choose_gallery(labels, per);
+    let pics = draw_gallery(&s.inputs, &s.config, &chosen, &s.out.join("gallery"));
+    let gallery = Gallery {
+        by,
+        classes: chosen
+            .into_iter()
+            .map(|(c, keys)| {
+                let v = keys
+                    .into_iter()
+                    .map(|k| {
+                        let p = pics.get(&k).cloned();
+                        (k, p)
+                    })
+                    .collect();
+                (c, v)
+            })
+            .collect(),
+    };
+    let manifest = std::fs::read_to_string(&s.features.manifest_path)
+        .map_err(|e| input_err(&s.features.manifest_path, e))?;
+    Ok(Gathered {
+        criteria,
+        som,
+        gallery,
+        manifest,
+    })
 }
 
 /// The trend statistics of the feature tables into `dir`, with a Fig. 4.18 plot per
@@ -247,21 +296,18 @@ fn trend_stage(
     cfg: &PipelineConfig,
     feats: &[PathBuf],
     dir: &Path,
-) -> Result<(crate::analysis::trend::TrendReport, Vec<(String, PathBuf)>), String> {
+) -> Result<(TrendReport, Vec<(String, PathBuf)>), WorkflowError> {
     let opts = crate::analysis::trend::TrendOptions {
-        cutoff: cfg
-            .trend
-            .cutoff
-            .parse()
-            .map_err(|e: String| format!("trend.cutoff: {e}"))?,
+        cutoff: cfg.trend.cutoff.parse()?,
         alpha: cfg.trend.alpha,
         columns: vec![],
     };
-    let rep = crate::analysis::trend::run_trend(feats, dir, &opts).map_err(|e| e.to_string())?;
+    let rep = crate::analysis::trend::run_trend(feats, dir, &opts)?;
     let mut plots = Vec::new();
     for sel in &rep.selections {
         let png = dir.join(format!("trend_{}_ch{}.png", sel.experiment, sel.channel));
-        if let Ok(true) = crate::plot::trend_png(&png, &rep, &sel.experiment, sel.channel, 4) {
+        // A picture that cannot be written fails the stage (exit 3), it is not skipped quietly.
+        if crate::plot::trend_png(&png, &rep, &sel.experiment, sel.channel, 4)? {
             plots.push((format!("{} ch{}", sel.experiment, sel.channel), png));
         }
     }
@@ -277,32 +323,30 @@ fn classes_of(c: &Confusion) -> BTreeMap<String, usize> {
     classes
 }
 
-fn som_stage(job: &Job, feats: &[PathBuf]) -> Result<SomStage, String> {
-    use crate::som::run::{classify, train, TrainOptions, TrainingSet};
+fn som_stage(job: &RunJob, feats: &[PathBuf]) -> Result<SomStage, WorkflowError> {
+    use crate::som::tables::{classify_tables, train, TrainOptions, TrainingSet};
     let cfg = job.config;
     let som_dir = job.out.join("som");
     let (train_paths, label, fraction, trained_on) = if cfg.som.train_on == "reference" {
         let lib = if cfg.som.reference_library.is_empty() {
             let f = crate::sim::reference::ReferenceFile::default_library();
             let dir = job.out.join("reference");
-            crate::sim::reference::build_library(&f.reference, &dir, job.progress)
-                .map_err(|e| e.to_string())?;
+            crate::sim::reference::build_library(&f.reference, &dir, job.progress)?;
             dir.join("waveforms.parquet")
         } else {
             PathBuf::from(&cfg.som.reference_library)
         };
         // The library's features, with the run's own settings.
         let rep = crate::pipeline::run(
-            crate::pipeline::Job::Features,
+            crate::pipeline::StreamJob::Features,
             std::slice::from_ref(&lib),
             &job.out.join("reference-features"),
             cfg,
-            &RunOptions {
+            &StreamOptions {
                 threads: job.threads,
                 progress: false,
             },
-        )
-        .map_err(|e| e.to_string())?;
+        )?;
         (
             vec![rep.table_path],
             "label".to_string(),
@@ -333,15 +377,13 @@ fn som_stage(job: &Job, feats: &[PathBuf]) -> Result<SomStage, String> {
         ..Default::default()
     };
     let model_dir = som_dir.join("model");
-    let model = train(&train_paths, &model_dir, &o).map_err(|e| e.to_string())?;
-    let confusion =
-        classify(&model, feats, Some("criteria_label"), &som_dir).map_err(|e| e.to_string())?;
+    let model = train(&train_paths, &model_dir, &o)?;
+    let confusion = classify_tables(&model, feats, Some("criteria_label"), &som_dir)?;
     let u = som_dir.join("u_matrix.png");
-    let u_matrix = crate::plot::u_matrix_png(&u, &model.som).ok().map(|_| u);
+    crate::plot::u_matrix_png(&u, &model.som)?;
     let hm = som_dir.join("hit_maps.png");
-    let hit_maps = crate::plot::hit_maps_png(&hm, &model.som, &confusion.hits)
-        .ok()
-        .map(|_| hm);
+    crate::plot::hit_maps_png(&hm, &model.som, &confusion.hits)?;
+    let (u_matrix, hit_maps) = (Some(u), Some(hm));
     let classes = classes_of(&confusion);
     Ok(SomStage {
         model_dir,
@@ -355,18 +397,16 @@ fn som_stage(job: &Job, feats: &[PathBuf]) -> Result<SomStage, String> {
     })
 }
 
-/// A hit's key in every table: (experiment, channel, hit).
-pub type HitKey = (String, i32, i64);
-
 /// Draw the CWT of the chosen hits (one pass over the inputs) into `dir`; returns the PNG
-/// of each hit drawn.
-pub fn draw_gallery(
+/// of each hit drawn (a hit that cannot be read or drawn is left out, and the report says
+/// "not drawn").
+fn draw_gallery(
     inputs: &[PathBuf],
     cfg: &PipelineConfig,
-    chosen: &BTreeMap<String, Vec<(String, i32, i64)>>,
+    chosen: &BTreeMap<String, Vec<HitKey>>,
     dir: &Path,
-) -> BTreeMap<(String, i32, i64), PathBuf> {
-    let want: std::collections::BTreeSet<&(String, i32, i64)> = chosen.values().flatten().collect();
+) -> BTreeMap<HitKey, PathBuf> {
+    let want: std::collections::BTreeSet<&HitKey> = chosen.values().flatten().collect();
     let mut out = BTreeMap::new();
     if want.is_empty() || std::fs::create_dir_all(dir).is_err() {
         return out;
@@ -389,7 +429,7 @@ pub fn draw_gallery(
                 &png,
                 &r,
                 &freqs,
-                &power,
+                power.view(),
                 &format!("{} — {}", r.id(), a.label),
             )
             .is_ok()
@@ -401,55 +441,87 @@ pub fn draw_gallery(
     out
 }
 
-/// Read a string column and the (experiment, channel, hit) key of every row.
-pub fn keyed_column(path: &Path, column: &str) -> Result<Vec<(HitKey, String)>, String> {
-    use arrow::array::{Array, AsArray};
-    use arrow::datatypes::{Int32Type, Int64Type};
-    let (_, _, batches) = crate::store::read_parquet(path).map_err(|e| e.to_string())?;
-    let mut out = Vec::new();
-    for b in batches {
-        let get = |n: &str| {
-            b.column_by_name(n)
-                .ok_or_else(|| format!("{}: no column {n}", path.display()))
-        };
-        let e = get("experiment")?
-            .as_string_opt::<i32>()
-            .ok_or("experiment: not a string")?
-            .clone();
-        let c = get("channel")?
-            .as_primitive_opt::<Int32Type>()
-            .ok_or("channel: not int32")?
-            .clone();
-        let h = get("hit")?
-            .as_primitive_opt::<Int64Type>()
-            .ok_or("hit: not int64")?
-            .clone();
-        let v = get(column)?
-            .as_string_opt::<i32>()
-            .ok_or(format!("{column}: not a string"))?
-            .clone();
-        for i in 0..b.num_rows() {
-            let val = if v.is_null(i) {
-                String::new()
-            } else {
-                v.value(i).to_string()
-            };
-            out.push(((e.value(i).to_string(), c.value(i), h.value(i)), val));
-        }
-    }
-    Ok(out)
+/// Find a hit in the inputs, analyse it and draw it: the `aepipe cwt` command. Returns a
+/// one-line summary (label, dominant frequency).
+pub fn cwt_of_hit(
+    inputs: &[std::path::PathBuf],
+    cfg: &crate::config::PipelineConfig,
+    experiment: Option<&str>,
+    channel: Option<u32>,
+    hit: u64,
+    png: &Path,
+) -> Result<String, WorkflowError> {
+    let d = crate::ingest::discover(inputs, &cfg.ingest);
+    let found = d
+        .sources
+        .iter()
+        .filter(|s| {
+            experiment.is_none_or(|e| s.id == e || s.format == crate::ingest::Format::Parquet)
+        })
+        .flat_map(|s| crate::ingest::open(s, &cfg.ingest))
+        .find_map(|it| match it {
+            crate::model::Item::Record(r)
+                if r.hit == hit
+                    && channel.is_none_or(|c| r.channel == c)
+                    && experiment.is_none_or(|e| r.experiment == e) =>
+            {
+                Some(r)
+            }
+            _ => None,
+        });
+    let Some(rec) = found else {
+        return Err(WorkflowError::NoHit(format!(
+            "no hit {hit}{}{} in {}",
+            channel
+                .map(|c| format!(" on channel {c}"))
+                .unwrap_or_default(),
+            experiment.map(|e| format!(" of {e}")).unwrap_or_default(),
+            inputs
+                .iter()
+                .map(|p| p.display().to_string())
+                .collect::<Vec<_>>()
+                .join(", ")
+        )));
+    };
+    crate::features::validate(&rec, cfg)
+        .map_err(|e| WorkflowError::NoHit(format!("{}: {e}", rec.id())))?;
+    let mut ex = crate::features::FeatureExtractor::new(cfg);
+    let a = ex.analyse(&rec);
+    let (freqs, power) = ex.full_cwt(&rec);
+    let summary = format!(
+        "{}: {} ({}), dominant {} kHz, peak {:.1} dB_AE",
+        rec.id(),
+        a.label,
+        a.reason,
+        a.components
+            .dominant
+            .map(|d| format!("{:.0}", d.freq_hz / 1e3))
+            .unwrap_or_else(|| "–".into()),
+        a.hit.amplitude_db
+    );
+    crate::plot::cwt_png(
+        png,
+        &rec,
+        &freqs,
+        power.view(),
+        &format!("{} — {}", rec.id(), a.label),
+    )?;
+    Ok(summary)
 }
 
 /// Compare the SOM classes with `truth.parquet`.
-pub fn score_truth(truth: &Path, classification: &Path) -> Result<TruthScore, String> {
-    let t: BTreeMap<_, _> = keyed_column(truth, "mechanism")?.into_iter().collect();
+pub fn score_truth(truth: &Path, classification: &Path) -> Result<TruthScore, WorkflowError> {
+    let t: BTreeMap<_, _> = TableScan::open(truth)?
+        .keyed_strings("mechanism")?
+        .into_iter()
+        .collect();
     let mut s = TruthScore {
         path: truth.to_path_buf(),
         counts: BTreeMap::new(),
         bond_fibre_total: 0,
         bond_fibre_correct: 0,
     };
-    for (key, class) in keyed_column(classification, "som_label")? {
+    for (key, class) in TableScan::open(classification)?.keyed_strings("som_label")? {
         let Some(m) = t.get(&key) else { continue };
         *s.counts.entry((class.clone(), m.clone())).or_insert(0) += 1;
         if m == "bond_failure" || m == "fibre_failure" {
@@ -460,6 +532,33 @@ pub fn score_truth(truth: &Path, classification: &Path) -> Result<TruthScore, St
         }
     }
     Ok(s)
+}
+
+/// The tables whose columns `aepipe schema` prints.
+pub const TABLES: &[&str] = &[
+    "features",
+    "waveforms",
+    "rejects",
+    "trend",
+    "classification",
+    "sim_waveforms",
+    "sim_trajectories",
+    "truth",
+];
+
+/// The schema of a written table by name (one of [`TABLES`]).
+pub fn table_schema(name: &str, cfg: &PipelineConfig) -> Option<crate::store::TableSchema> {
+    Some(match name {
+        "features" => crate::features::features_table(cfg),
+        "waveforms" => crate::store::waveforms_table(),
+        "rejects" => crate::store::rejects_table(),
+        "trend" => crate::analysis::trend::trend_table(),
+        "classification" => crate::som::tables::classification_table(),
+        "sim_waveforms" => crate::sim::output::sim_waveforms_table(),
+        "sim_trajectories" => crate::sim::output::trajectory_table(),
+        "truth" => crate::synth::truth_table(),
+        _ => return None,
+    })
 }
 
 /// Terminal lines: the headline numbers.

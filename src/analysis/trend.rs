@@ -8,7 +8,8 @@
 
 use super::stats::{linear_trend, LinearTrend};
 use crate::store::{ColType, ColumnSpec, Row, TableSchema, TableWriter, Value};
-use polars::prelude::*;
+use crate::store::{StoreError, TableScan};
+use polars::prelude::col;
 use std::path::{Path, PathBuf};
 
 #[derive(Debug, thiserror::Error)]
@@ -21,33 +22,7 @@ pub enum TrendError {
     Usage(String),
 }
 
-/// Which hits enter the statistics.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub enum Cutoff {
-    None,
-    /// Hits up to (and including) the one at the highest load.
-    PeakLoad,
-    /// Hits with `time_s ≤` this.
-    Time(f64),
-    /// The first N hits.
-    Hits(usize),
-}
-
-impl std::str::FromStr for Cutoff {
-    type Err = String;
-    fn from_str(s: &str) -> Result<Cutoff, String> {
-        let bad = || format!("cut-off '{s}': expected none, peak-load, time:SECONDS or hits:N");
-        match s {
-            "none" => Ok(Cutoff::None),
-            "peak-load" => Ok(Cutoff::PeakLoad),
-            _ => match s.split_once(':') {
-                Some(("time", v)) => v.parse().map(Cutoff::Time).map_err(|_| bad()),
-                Some(("hits", v)) => v.parse().map(Cutoff::Hits).map_err(|_| bad()),
-                _ => Err(bad()),
-            },
-        }
-    }
-}
+pub use crate::config::Cutoff;
 
 /// Trend options.
 #[derive(Debug, Clone)]
@@ -137,7 +112,7 @@ fn row_cells(t: &TrendRow, sel: &Selection) -> Row {
 
 /// The per-hit data of one experiment × channel, in hit order.
 #[derive(Debug, Clone, Default)]
-pub struct Series {
+pub struct TrendSeries {
     pub experiment: String,
     pub channel: i32,
     pub hit: Vec<i64>,
@@ -147,42 +122,31 @@ pub struct Series {
     pub values: Vec<Vec<Option<f64>>>,
 }
 
-fn read_err(p: &Path) -> impl Fn(PolarsError) -> TrendError + '_ {
-    move |e| TrendError::Read {
-        path: p.display().to_string(),
-        message: e.to_string().replace('\n', " "),
-    }
-}
-
-/// Read feature tables with Polars: identity, time, load and the tested columns, grouped by
-/// experiment × channel and sorted by hit. Returns the column names tested too.
+/// Read feature tables through the store's reader: identity, time, load and the tested
+/// columns, grouped by experiment × channel and sorted by hit. Returns the column names
+/// tested too.
 pub fn read_series(
     paths: &[PathBuf],
     wanted: &[String],
-) -> Result<(Vec<String>, Vec<Series>), TrendError> {
-    let mut frames = Vec::new();
+) -> Result<(Vec<String>, Vec<TrendSeries>), TrendError> {
+    let read = |e: StoreError| match e {
+        StoreError::Read { path, message } => TrendError::Read { path, message },
+        other => TrendError::Store(other),
+    };
     let mut columns: Vec<String> = wanted.to_vec();
+    let mut groups: std::collections::BTreeMap<(String, i32), TrendSeries> = Default::default();
     for p in paths {
-        let lf = LazyFrame::scan_parquet(
-            PlRefPath::try_from_path(p).map_err(read_err(p))?,
-            ScanArgsParquet::default(),
+        let t = TableScan::open(p).map_err(read)?;
+        t.require(
+            &["experiment", "channel", "hit", "time_s", "load_n"],
+            ": not an aepipe features table",
         )
-        .map_err(read_err(p))?;
-        let mut lf = lf;
-        let schema = lf.collect_schema().map_err(read_err(p))?;
-        for need in ["experiment", "channel", "hit", "time_s", "load_n"] {
-            if schema.get(need).is_none() {
-                return Err(TrendError::Read {
-                    path: p.display().to_string(),
-                    message: format!("no column {need}: not an aepipe features table"),
-                });
-            }
-        }
+        .map_err(read)?;
         if columns.is_empty() {
-            columns = schema
-                .iter_names()
+            columns = t
+                .column_names()
+                .into_iter()
                 .filter(|n| n.starts_with("pr_"))
-                .map(|n| n.to_string())
                 .collect();
             if columns.is_empty() {
                 return Err(TrendError::Read {
@@ -193,7 +157,7 @@ pub fn read_series(
             }
         }
         for c in &columns {
-            match schema.get(c.as_str()) {
+            match t.dtype(c) {
                 None => {
                     return Err(TrendError::Read {
                         path: p.display().to_string(),
@@ -216,54 +180,30 @@ pub fn read_series(
             col("time_s"),
             col("load_n"),
         ];
-        sel.extend(
-            columns
-                .iter()
-                .map(|c| col(c.as_str()).cast(DataType::Float64)),
-        );
-        frames.push(lf.select(sel).collect().map_err(read_err(p))?);
-    }
-    let mut groups: std::collections::BTreeMap<(String, i32), Series> = Default::default();
-    for (df, p) in frames.iter().zip(paths) {
-        let e = read_err(p);
-        let exp = df
-            .column("experiment")
-            .and_then(|c| c.str().cloned())
-            .map_err(&e)?;
-        let ch = df
-            .column("channel")
-            .and_then(|c| c.i32().cloned())
-            .map_err(&e)?;
-        let hit = df
-            .column("hit")
-            .and_then(|c| c.i64().cloned())
-            .map_err(&e)?;
-        let time = df
-            .column("time_s")
-            .and_then(|c| c.f64().cloned())
-            .map_err(&e)?;
-        let load = df
-            .column("load_n")
-            .and_then(|c| c.f64().cloned())
-            .map_err(&e)?;
-        let vals: Vec<Float64Chunked> = columns
+        sel.extend(columns.iter().map(|c| col(c.as_str())));
+        let df = t.select(sel).map_err(read)?;
+        let keys = t.hit_keys(&df).map_err(read)?;
+        let time = t.f64s(&df, "time_s").map_err(read)?;
+        let load = t.f64s(&df, "load_n").map_err(read)?;
+        let vals: Vec<Vec<Option<f64>>> = columns
             .iter()
-            .map(|c| df.column(c.as_str()).and_then(|c| c.f64().cloned()))
+            .map(|c| t.f64s(&df, c))
             .collect::<Result<_, _>>()
-            .map_err(&e)?;
-        for i in 0..df.height() {
-            let key = (exp.get(i).unwrap_or("").to_string(), ch.get(i).unwrap_or(0));
-            let s = groups.entry(key.clone()).or_insert_with(|| Series {
-                experiment: key.0.clone(),
-                channel: key.1,
-                values: vec![Vec::new(); columns.len()],
-                ..Default::default()
-            });
-            s.hit.push(hit.get(i).unwrap_or(0));
-            s.time_s.push(time.get(i));
-            s.load_n.push(load.get(i));
+            .map_err(read)?;
+        for (i, (exp, ch, hit)) in keys.into_iter().enumerate() {
+            let s = groups
+                .entry((exp.clone(), ch))
+                .or_insert_with(|| TrendSeries {
+                    experiment: exp,
+                    channel: ch,
+                    values: vec![Vec::new(); columns.len()],
+                    ..Default::default()
+                });
+            s.hit.push(hit);
+            s.time_s.push(time[i]);
+            s.load_n.push(load[i]);
             for (k, v) in vals.iter().enumerate() {
-                s.values[k].push(v.get(i));
+                s.values[k].push(v[i]);
             }
         }
     }
@@ -281,7 +221,7 @@ pub fn read_series(
 }
 
 /// How many leading hits of a series the cut-off keeps, and the description.
-pub fn select(s: &Series, cutoff: Cutoff) -> Selection {
+pub fn select(s: &TrendSeries, cutoff: Cutoff) -> Selection {
     let total = s.hit.len();
     let mut sel = Selection {
         experiment: s.experiment.clone(),
@@ -345,7 +285,7 @@ pub fn select(s: &Series, cutoff: Cutoff) -> Selection {
 }
 
 /// Statistics of every tested column of one series.
-pub fn trends(s: &Series, columns: &[String], sel: &Selection, alpha: f64) -> Vec<TrendRow> {
+pub fn trends(s: &TrendSeries, columns: &[String], sel: &Selection, alpha: f64) -> Vec<TrendRow> {
     let k = sel.hits_used;
     columns
         .iter()
@@ -381,7 +321,7 @@ pub fn trends(s: &Series, columns: &[String], sel: &Selection, alpha: f64) -> Ve
 pub struct TrendReport {
     pub rows: Vec<TrendRow>,
     pub selections: Vec<Selection>,
-    pub series: Vec<Series>,
+    pub series: Vec<TrendSeries>,
     pub columns: Vec<String>,
     pub table_path: PathBuf,
 }
@@ -427,13 +367,13 @@ pub fn run_trend(
     let manifest = serde_json::json!({
         "tool": {"name": "aepipe", "version": env!("CARGO_PKG_VERSION")},
         "job": "trend",
-        "finished_utc": crate::pipeline::utc_now(),
+        "finished_utc": crate::util::utc_now(),
         "inputs": inputs.iter().map(|p| p.display().to_string()).collect::<Vec<_>>(),
         "alpha": opts.alpha,
         "columns": columns,
         "selections": selections,
     });
-    crate::pipeline::write_atomic(
+    crate::util::write_atomic(
         &out_dir.join("trend_manifest.json"),
         serde_json::to_string_pretty(&manifest)
             .expect("json")
@@ -508,8 +448,8 @@ pub fn window_name(column: &str) -> String {
 mod tests {
     use super::*;
 
-    fn series(loads: &[Option<f64>]) -> Series {
-        Series {
+    fn series(loads: &[Option<f64>]) -> TrendSeries {
+        TrendSeries {
             experiment: "e".into(),
             channel: 1,
             hit: (1..=loads.len() as i64).collect(),
@@ -533,7 +473,7 @@ mod tests {
         let none = select(&series(&[None, None, None]), Cutoff::PeakLoad);
         assert_eq!(none.hits_used, 3);
         assert!(none.note.unwrap().contains("no load channel"));
-        assert_eq!("time:2.5".parse::<Cutoff>(), Ok(Cutoff::Time(2.5)));
+        assert_eq!("time:2.5".parse::<Cutoff>().unwrap(), Cutoff::Time(2.5));
         assert!("peak".parse::<Cutoff>().is_err());
     }
 

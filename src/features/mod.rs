@@ -22,39 +22,56 @@ use crate::store::{
     identity_columns, identity_values, ColType, ColumnSpec, Row, TableSchema, Value,
 };
 use criteria::{acquisition_fault, decide, Component, Components};
+use ndarray::Array2;
 
 /// Why a record cannot become a feature row (stage `validate`).
-pub fn validate(r: &AeRecord, cfg: &PipelineConfig) -> Result<(), String> {
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum FeatureError {
+    #[error("record has 0 samples")]
+    Empty,
+    #[error("record has {samples} samples, fewer than validate.min_samples = {min}")]
+    TooShort { samples: usize, min: usize },
+    #[error("sample rate {0} Hz is not a positive number")]
+    SampleRate(f64),
+    #[error("{count} non-finite samples (NaN or inf), first at index {first} ({value})")]
+    NonFinite {
+        count: usize,
+        first: usize,
+        value: f32,
+    },
+    #[error("pretrigger {pretrigger} is longer than the record ({samples} samples)")]
+    Pretrigger { pretrigger: u64, samples: usize },
+}
+
+/// Check a record before the transform: it must have samples, a rate, finite values and a
+/// pretrigger inside it.
+pub fn validate(r: &AeRecord, cfg: &PipelineConfig) -> Result<(), FeatureError> {
     if r.samples.is_empty() {
-        return Err("record has 0 samples".into());
+        return Err(FeatureError::Empty);
     }
     if r.samples.len() < cfg.validate.min_samples {
-        return Err(format!(
-            "record has {} samples, fewer than validate.min_samples = {}",
-            r.samples.len(),
-            cfg.validate.min_samples
-        ));
+        return Err(FeatureError::TooShort {
+            samples: r.samples.len(),
+            min: cfg.validate.min_samples,
+        });
     }
     if !(r.sample_rate_hz.is_finite() && r.sample_rate_hz > 0.0) {
-        return Err(format!(
-            "sample rate {} Hz is not a positive number",
-            r.sample_rate_hz
-        ));
+        return Err(FeatureError::SampleRate(r.sample_rate_hz));
     }
-    let bad = r.samples.iter().filter(|s| !s.is_finite()).count();
-    if bad > 0 {
+    let count = r.samples.iter().filter(|s| !s.is_finite()).count();
+    if count > 0 {
         let first = r.samples.iter().position(|s| !s.is_finite()).unwrap_or(0);
-        return Err(format!(
-            "{bad} non-finite samples (NaN or inf), first at index {first} ({})",
-            r.samples[first]
-        ));
+        return Err(FeatureError::NonFinite {
+            count,
+            first,
+            value: r.samples[first],
+        });
     }
     if r.pretrigger as usize > r.samples.len() {
-        return Err(format!(
-            "pretrigger {} is longer than the record ({} samples)",
-            r.pretrigger,
-            r.samples.len()
-        ));
+        return Err(FeatureError::Pretrigger {
+            pretrigger: r.pretrigger as u64,
+            samples: r.samples.len(),
+        });
     }
     Ok(())
 }
@@ -315,11 +332,13 @@ impl FeatureExtractor {
 
     /// The full-resolution CWT power of a record (n_freqs × n_samples, row-major) after
     /// conditioning, with the frequency grid: for pictures.
-    pub fn full_cwt(&mut self, r: &AeRecord) -> (Vec<f64>, Vec<f32>) {
+    pub fn full_cwt(&mut self, r: &AeRecord) -> (Vec<f64>, Array2<f32>) {
         condition(&r.samples, r.pretrigger as usize, &mut self.cond);
         self.cwt.load(&self.cond, r.sample_rate_hz);
-        let mut out = vec![0.0; self.cwt.bank().freqs_hz.len() * self.cond.len()];
-        self.cwt.full_power(&self.cond, r.sample_rate_hz, &mut out);
+        let shape = (self.cwt.bank().freqs_hz.len(), self.cond.len());
+        let mut out = Array2::zeros(shape);
+        let slice = out.as_slice_mut().expect("a new array is contiguous");
+        self.cwt.full_power(&self.cond, r.sample_rate_hz, slice);
         (self.cwt.bank().freqs_hz.clone(), out)
     }
 
@@ -423,7 +442,7 @@ impl FeatureExtractor {
     }
 
     /// The feature row of a validated record, in [`features_table`] order.
-    pub fn row(&mut self, r: &AeRecord) -> Result<Row, String> {
+    pub fn row(&mut self, r: &AeRecord) -> Row {
         let an = self.analyse(r);
         let fs = r.sample_rate_hz;
         let h = &an.hit;
@@ -460,7 +479,7 @@ impl FeatureExtractor {
         row.push(Value::F64(k.dominant.map(|d| d.arrival_s)));
         row.push(Value::F64(k.low.map(|d| d.duration_s)));
         row.push(Value::F64(k.high.map(|d| d.duration_s)));
-        Ok(row)
+        row
     }
 }
 
@@ -497,7 +516,7 @@ mod tests {
         let t = features_table(&cfg);
         let spec = HitSpec::new(Mechanism::BondFailure);
         let r = rec(waveform(&spec, &mut Rng::new(1)), spec.pretrigger as u32);
-        let row = FeatureExtractor::new(&cfg).row(&r).unwrap();
+        let row = FeatureExtractor::new(&cfg).row(&r);
         assert_eq!(row.len(), t.columns.len());
         let ratios: f64 = (0..25)
             .map(|i| match get(&row, &t, &band_column(i, 100e3)) {
@@ -519,7 +538,7 @@ mod tests {
         let mut s = vec![0.5f32; 100];
         s[60] = 0.5 + 0.01;
         s[70] = 0.5 - 0.02;
-        let row = FeatureExtractor::new(&cfg).row(&rec(s, 50)).unwrap();
+        let row = FeatureExtractor::new(&cfg).row(&rec(s, 50));
         let t = features_table(&cfg);
         let Value::F64(Some(p)) = get(&row, &t, "peak_amplitude_v") else {
             panic!()
@@ -597,7 +616,7 @@ mod tests {
                 let t = i as f64 / fs - t0;
                 let w = (t / g.window_s + 1e-9).floor();
                 if w >= 0.0 && (w as usize) < g.n_windows {
-                    bins[band * g.n_windows + w as usize] += p[fi * n + i] as f64;
+                    bins[band * g.n_windows + w as usize] += p[[fi, i]] as f64;
                 }
             }
         }

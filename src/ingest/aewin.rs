@@ -5,7 +5,7 @@
 //!
 //! Sample rate and pretrigger are not in the files; they come from `[ingest.aewin]`.
 
-use super::{file_err, gain_factor, text, IngestError, Series, Source};
+use super::{file_err, gain_factor, text, IngestError, Source, TimeSeries};
 use crate::config::IngestConfig;
 use crate::model::{AeRecord, Item, Reject, Stage};
 use std::path::{Path, PathBuf};
@@ -50,8 +50,8 @@ fn parse_decimal(s: &str) -> Option<f64> {
 /// The test machine's log: load (N) and extension (m) against time (s).
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct MachineLog {
-    pub load_n: Series,
-    pub extension_m: Series,
+    pub load_n: TimeSeries,
+    pub extension_m: TimeSeries,
 }
 
 impl MachineLog {
@@ -111,12 +111,12 @@ impl MachineLog {
         }
         let (ft, fl, fe) = factors;
         Ok(MachineLog {
-            load_n: Series::from_pairs(
+            load_n: TimeSeries::from_pairs(
                 rows.iter()
                     .filter_map(|r| r.1.map(|v| (r.0 * ft, v * fl)))
                     .collect(),
             ),
-            extension_m: Series::from_pairs(
+            extension_m: TimeSeries::from_pairs(
                 rows.iter()
                     .filter_map(|r| r.2.map(|v| (r.0 * ft, v * fe)))
                     .collect(),

@@ -140,7 +140,7 @@ fn head(p: &Path, n: usize) -> std::io::Result<String> {
     Ok(String::from_utf8_lossy(&buf).into_owned())
 }
 
-fn classify(p: &Path, forced: FormatChoice) -> std::io::Result<Kind> {
+fn detect_format(p: &Path, forced: FormatChoice) -> std::io::Result<Kind> {
     let ext = ext_lower(p);
     let name = p
         .file_name()
@@ -284,7 +284,7 @@ pub fn discover(inputs: &[PathBuf], cfg: &IngestConfig) -> Discovery {
 
     let mut kinds: Vec<(PathBuf, Kind)> = Vec::new();
     for (p, explicit) in files {
-        let kind = match classify(&p, cfg.format) {
+        let kind = match detect_format(&p, cfg.format) {
             Ok(k) => k,
             Err(e) => {
                 d.rejects.push(whole_file_reject(
@@ -469,16 +469,16 @@ pub fn open(src: &Source, cfg: &IngestConfig) -> Box<dyn Iterator<Item = Item> +
 /// linear interpolation. Outside the recorded span the value is unknown (`None`): a load
 /// extrapolated past the end of the log would be invented.
 #[derive(Debug, Clone, Default, PartialEq)]
-pub struct Series {
+pub struct TimeSeries {
     pub t: Vec<f64>,
     pub v: Vec<f64>,
 }
 
-impl Series {
-    pub fn from_pairs(mut pairs: Vec<(f64, f64)>) -> Series {
+impl TimeSeries {
+    pub fn from_pairs(mut pairs: Vec<(f64, f64)>) -> TimeSeries {
         pairs.retain(|(t, v)| t.is_finite() && v.is_finite());
         pairs.sort_by(|a, b| a.0.total_cmp(&b.0));
-        Series {
+        TimeSeries {
             t: pairs.iter().map(|p| p.0).collect(),
             v: pairs.iter().map(|p| p.1).collect(),
         }
@@ -519,14 +519,14 @@ mod tests {
 
     #[test]
     fn series_interpolates_inside_and_refuses_outside() {
-        let s = Series::from_pairs(vec![(1.0, 10.0), (0.0, 0.0), (2.0, 30.0)]);
+        let s = TimeSeries::from_pairs(vec![(1.0, 10.0), (0.0, 0.0), (2.0, 30.0)]);
         assert_eq!(s.at(0.5), Some(5.0));
         assert_eq!(s.at(1.5), Some(20.0));
         assert_eq!(s.at(2.0), Some(30.0));
         assert_eq!(s.at(0.0), Some(0.0));
         assert_eq!(s.at(-0.1), None);
         assert_eq!(s.at(2.1), None);
-        assert_eq!(Series::default().at(0.0), None);
+        assert_eq!(TimeSeries::default().at(0.0), None);
     }
 
     #[test]

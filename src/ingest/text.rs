@@ -20,7 +20,7 @@ pub fn looks_like_values(head: &str) -> bool {
 
 /// Read one value per line; a first line that is not a number is taken as a header.
 /// Any later line that is not a number is an error naming the line.
-pub fn read_values(path: &Path) -> Result<Vec<f64>, String> {
+pub(crate) fn read_values(path: &Path) -> Result<Vec<f64>, String> {
     let text = std::fs::read(path).map_err(|e| format!("cannot read: {e}"))?;
     let text = String::from_utf8_lossy(&text);
     let mut out = Vec::with_capacity(text.len() / 10);

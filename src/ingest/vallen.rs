@@ -12,7 +12,7 @@
 //! The reader first lists `(Chan, TRAI, SetID)` (integers only), then fetches each waveform by
 //! its primary key: ordered output without asking SQLite to sort blobs, one waveform in memory.
 
-use super::{file_err, IngestError, Series, Source};
+use super::{file_err, IngestError, Source, TimeSeries};
 use crate::config::IngestConfig;
 use crate::model::{AeRecord, Item, Reject, Stage};
 use rusqlite::{Connection, OpenFlags, OptionalExtension};
@@ -71,8 +71,8 @@ pub struct PriInfo {
     pub trai_chan: BTreeMap<i64, i64>,
     /// Hits without a transient record (TRAI 0 or null).
     pub hits_without_waveform: u64,
-    pub load: Series,
-    pub extension: Series,
+    pub load: TimeSeries,
+    pub extension: TimeSeries,
     /// Parametric inputs present (`PA0`, `PA1`, …).
     pub parametric: Vec<String>,
 }
@@ -83,9 +83,9 @@ fn parametric_series(
     param: &str,
     time_base: f64,
     scale: f64,
-) -> Series {
+) -> TimeSeries {
     if param.is_empty() || !cols.iter().any(|c| c == param) {
-        return Series::default();
+        return TimeSeries::default();
     }
     let has_mv = columns(conn, "ae_params")
         .iter()
@@ -100,7 +100,7 @@ fn parametric_series(
          WHERE d.SetType = 1 AND d.{param} IS NOT NULL ORDER BY d.Time"
     );
     let Ok(mut st) = conn.prepare(&sql) else {
-        return Series::default();
+        return TimeSeries::default();
     };
     let pairs: Vec<(f64, f64)> = st
         .query_map([], |r| {
@@ -112,7 +112,7 @@ fn parametric_series(
                 .collect()
         })
         .unwrap_or_default();
-    Series::from_pairs(pairs)
+    TimeSeries::from_pairs(pairs)
 }
 
 /// Read the hit index and parametric series of a `.pridb`.
@@ -155,7 +155,7 @@ pub fn read_pridb(path: &Path, cfg: &IngestConfig) -> Result<PriInfo, IngestErro
 }
 
 /// Decode one `tr_data` blob into ADC counts.
-pub fn decode_blob(format: i64, data: &[u8], samples: usize) -> Result<Vec<i32>, String> {
+pub(crate) fn decode_blob(format: i64, data: &[u8], samples: usize) -> Result<Vec<i32>, String> {
     let adc: Vec<i32> = match format {
         0 => {
             if data.len() != samples * 2 {

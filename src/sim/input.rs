@@ -11,7 +11,7 @@ use std::path::Path;
 /// Read a model from `path`: `.toml` as TOML, anything else as the sectioned format.
 pub fn read_model(path: &Path) -> Result<ModelFile, SimError> {
     let text = std::fs::read_to_string(path)
-        .map_err(|e| SimError::Io(format!("{}: {e}", path.display())))?;
+        .map_err(|e| SimError::Read(format!("{}: {e}", path.display())))?;
     let name = path
         .file_stem()
         .map(|s| s.to_string_lossy().into_owned())

@@ -28,13 +28,17 @@ pub enum SimError {
     },
     #[error("solver: {0}")]
     Solver(String),
+    /// A model or library definition could not be read.
+    #[error("{0}")]
+    Read(String),
+    /// An output could not be written.
     #[error("{0}")]
     Io(String),
 }
 
 /// What to keep besides the sensor signals.
 #[derive(Debug, Clone, Default)]
-pub struct RunOptions {
+pub struct SimOptions {
     /// Node positions every this many mass/spring steps.
     pub trajectory_every: Option<usize>,
     /// Pressure field every this many acoustic steps.
@@ -63,7 +67,7 @@ pub struct SimOutput {
 }
 
 /// Run a model. Damage events fire at the first step whose time reaches theirs.
-pub fn simulate(model: &ModelFile, opts: &RunOptions) -> Result<SimOutput, SimError> {
+pub fn simulate(model: &ModelFile, opts: &SimOptions) -> Result<SimOutput, SimError> {
     model.check()?;
     let sys = &model.system;
     let mut mech = Mech::new(model);
@@ -226,7 +230,7 @@ pub fn dominant_frequency(x: &[f64], fs: f64) -> f64 {
 
 /// What `aepipe simulate` runs.
 #[derive(Debug, Clone)]
-pub struct Job {
+pub struct SimJob {
     /// A model file, or a scenario name.
     pub model: Option<std::path::PathBuf>,
     pub scenario: Option<String>,
@@ -235,13 +239,13 @@ pub struct Job {
     pub sweep: Option<(String, i64, i64)>,
     pub solver: Option<model::Solver>,
     pub out: std::path::PathBuf,
-    pub run: RunOptions,
+    pub run: SimOptions,
     pub scale_v_per_pa: f64,
 }
 
 /// Run a job into `job.out`: `waveforms.parquet` (the sensors, when the model has a grid),
 /// `trajectories.parquet` and `snapshots/*.png` when asked. Returns the lines to print.
-pub fn run_job(job: &Job) -> Result<Vec<String>, SimError> {
+pub fn run_job(job: &SimJob) -> Result<Vec<String>, SimError> {
     let io = |e: std::io::Error| SimError::Io(format!("{}: {e}", job.out.display()));
     std::fs::create_dir_all(&job.out).map_err(io)?;
     let values: Vec<Option<(String, f64)>> = match &job.sweep {

@@ -5,7 +5,7 @@
 
 use super::model::SensorSpec;
 use super::scenario::{self, Params};
-use super::{output, simulate, RunOptions, SimError};
+use super::{output, simulate, SimError, SimOptions};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
@@ -74,7 +74,7 @@ impl ReferenceFile {
 
     pub fn read(path: &Path) -> Result<ReferenceFile, SimError> {
         let text = std::fs::read_to_string(path)
-            .map_err(|e| SimError::Io(format!("{}: {e}", path.display())))?;
+            .map_err(|e| SimError::Read(format!("{}: {e}", path.display())))?;
         ReferenceFile::parse(&text, path)
     }
 
@@ -109,7 +109,7 @@ impl ReferenceFile {
 
 /// Every run of the library: scenario name and parameters.
 pub fn expand(cfg: &ReferenceConfig) -> Vec<(String, Params)> {
-    let mut rng = crate::synth::Rng::new(cfg.seed);
+    let mut rng = crate::util::Rng::new(cfg.seed);
     let mut runs = Vec::new();
     for g in &cfg.scenario {
         let mut combos: Vec<Vec<(String, f64)>> = vec![vec![]];
@@ -175,7 +175,7 @@ pub fn build_library(
                 m.check()?;
             }
             m.name = "reference".into();
-            let o = simulate(&m, &RunOptions::default())?;
+            let o = simulate(&m, &SimOptions::default())?;
             pb.inc(1);
             Ok((m, o, format!("scenario:{name}"), p.to_json()))
         })

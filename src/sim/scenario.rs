@@ -38,16 +38,32 @@ impl Params {
     }
 
     /// Parse `key=value`.
-    pub fn parse_one(s: &str) -> Result<(String, f64), String> {
+    pub fn parse_one(s: &str) -> Result<(String, f64), SimError> {
         let (k, v) = s
             .split_once('=')
-            .ok_or_else(|| format!("--param {s}: expected key=value"))?;
+            .ok_or_else(|| SimError::Model(format!("--param {s}: expected key=value")))?;
         let v: f64 = v
             .trim()
             .parse()
-            .map_err(|_| format!("--param {s}: {v} is not a number"))?;
+            .map_err(|_| SimError::Model(format!("--param {s}: {v} is not a number")))?;
         Ok((k.trim().to_string(), v))
     }
+}
+
+/// `key=LO..HI` with integer bounds: `--sweep point=1..12`.
+pub fn parse_sweep(s: &str) -> Result<(String, i64, i64), SimError> {
+    let bad = || {
+        SimError::Model(format!(
+            "--sweep {s}: expected key=LO..HI with integers, e.g. point=1..12"
+        ))
+    };
+    let (k, r) = s.split_once('=').ok_or_else(bad)?;
+    let (lo, hi) = r.split_once("..").ok_or_else(bad)?;
+    Ok((
+        k.trim().to_string(),
+        lo.trim().parse().map_err(|_| bad())?,
+        hi.trim().parse().map_err(|_| bad())?,
+    ))
 }
 
 /// Paper fibre material of Table 4.1: E 35 GPa, t 2.8 µm, w 35 µm, ν 0.28, density 1.5 g/cm³.

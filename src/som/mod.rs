@@ -10,9 +10,10 @@
 //! Hyper-parameters are checked once into [`SomParams::check`] → [`ValidParams`] (linfa's
 //! way), then [`Som::fit`] trains and [`Som::bmu`] / [`Som::classify`] predict.
 
-pub mod run;
+pub mod tables;
 
-use crate::synth::Rng;
+use crate::util::Rng;
+use ndarray::{Array2, ArrayView2};
 
 #[derive(Debug, thiserror::Error, PartialEq)]
 pub enum SomError {
@@ -20,13 +21,19 @@ pub enum SomError {
     Params(String),
     #[error("som: {0}")]
     Data(String),
+    /// A model or feature table could not be read.
     #[error("{path}: {message}")]
     File { path: String, message: String },
+    /// A model, classification or picture could not be written.
+    #[error("{path}: {message}")]
+    Write { path: String, message: String },
+    #[error("SOM_PAK codebook: {0}")]
+    Codebook(String),
 }
 
 /// One training stage.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
-pub struct Stage {
+pub struct TrainingStage {
     pub alpha: f64,
     pub sigma: f64,
     pub iterations: usize,
@@ -114,7 +121,7 @@ pub fn principal_components(
 pub struct SomParams {
     pub rows: usize,
     pub cols: usize,
-    pub stages: Vec<Stage>,
+    pub stages: Vec<TrainingStage>,
     pub seed: u64,
     pub init: Init,
 }
@@ -125,12 +132,12 @@ impl Default for SomParams {
             rows: 10,
             cols: 10,
             stages: vec![
-                Stage {
+                TrainingStage {
                     alpha: 0.05,
                     sigma: 10.0,
                     iterations: 1000,
                 },
-                Stage {
+                TrainingStage {
                     alpha: 0.01,
                     sigma: 3.0,
                     iterations: 10_000,
@@ -303,10 +310,15 @@ impl Som {
         &self.weights[j * self.dim..(j + 1) * self.dim]
     }
 
-    /// Train on `data` (`n × dim`, row-major), logging the quantisation error before training
-    /// and after each stage, and the final topographic error.
-    pub fn fit(params: &ValidParams, data: &[f64], dim: usize) -> Result<Som, SomError> {
-        Som::fit_with(params, data, dim, true)
+    /// The codebook, `nodes × dim` (node `r·cols + c`), a view of the weights.
+    pub fn codebook(&self) -> ArrayView2<'_, f64> {
+        ArrayView2::from_shape((self.nodes(), self.dim), &self.weights).expect("nodes × dim")
+    }
+
+    /// Train on `data` (`n × dim`), logging the quantisation error before training and after
+    /// each stage, and the final topographic error.
+    pub fn fit(params: &ValidParams, data: ArrayView2<f64>) -> Result<Som, SomError> {
+        Som::fit_with(params, data, true)
     }
 
     /// [`Som::fit`] with the quality passes optional: each costs as much as ~600 training
@@ -314,10 +326,12 @@ impl Som {
     /// quality afterwards. The weights are the same either way.
     pub fn fit_with(
         params: &ValidParams,
-        data: &[f64],
-        dim: usize,
+        data: ArrayView2<f64>,
         track_quality: bool,
     ) -> Result<Som, SomError> {
+        let dim = data.ncols();
+        let data = data.as_standard_layout();
+        let data = data.as_slice().expect("standard layout");
         let p = &params.0;
         if dim == 0 || data.is_empty() || !data.len().is_multiple_of(dim) {
             return Err(SomError::Data(format!(
@@ -401,7 +415,7 @@ impl Som {
         };
         let mut qe = Vec::new();
         if track_quality {
-            qe.push(som.quantisation_error(data));
+            qe.push(som.quantisation_error_of(data));
         }
         // The sample of every iteration is drawn one step ahead, so that the pass that updates
         // the weights also finds the next sample's BMU (one sweep over the codebook per
@@ -448,14 +462,14 @@ impl Som {
                 i = next;
             }
             if track_quality {
-                qe.push(som.quantisation_error(data));
+                qe.push(som.quantisation_error_of(data));
             }
         }
         if track_quality {
             som.log = Some(TrainingLog {
                 n_inputs: n,
                 qe,
-                topographic_error: som.topographic_error(data),
+                topographic_error: som.topographic_error_of(data),
             });
         }
         Ok(som)
@@ -474,7 +488,12 @@ impl Som {
     }
 
     /// Mean distance of each input to its BMU (Eq. 5.4.1).
-    pub fn quantisation_error(&self, data: &[f64]) -> f64 {
+    pub fn quantisation_error(&self, data: ArrayView2<f64>) -> f64 {
+        let data = data.as_standard_layout();
+        self.quantisation_error_of(data.as_slice().expect("standard layout"))
+    }
+
+    fn quantisation_error_of(&self, data: &[f64]) -> f64 {
         let n = data.len() / self.dim;
         data.chunks(self.dim).map(|x| self.bmu(x).1).sum::<f64>() / n.max(1) as f64
     }
@@ -487,7 +506,12 @@ impl Som {
 
     /// Share of inputs whose best and second-best units are not neighbours on the grid
     /// (8-neighbourhood, as MiniSom).
-    pub fn topographic_error(&self, data: &[f64]) -> f64 {
+    pub fn topographic_error(&self, data: ArrayView2<f64>) -> f64 {
+        let data = data.as_standard_layout();
+        self.topographic_error_of(data.as_slice().expect("standard layout"))
+    }
+
+    fn topographic_error_of(&self, data: &[f64]) -> f64 {
         if self.nodes() < 2 {
             return 0.0;
         }
@@ -511,9 +535,9 @@ impl Som {
     }
 
     /// U-matrix (Ultsch): for each node, the mean distance of its weight vector to those of
-    /// its 4-neighbours on the grid. `rows × cols`, row-major.
-    pub fn u_matrix(&self) -> Vec<f64> {
-        (0..self.nodes())
+    /// its 4-neighbours on the grid, `rows × cols`.
+    pub fn u_matrix(&self) -> Array2<f64> {
+        let u: Vec<f64> = (0..self.nodes())
             .map(|j| {
                 let (r, c) = ((j / self.cols) as i64, (j % self.cols) as i64);
                 let nb: Vec<usize> = [(r - 1, c), (r + 1, c), (r, c - 1), (r, c + 1)]
@@ -528,13 +552,20 @@ impl Som {
                     .sum::<f64>()
                     / nb.len().max(1) as f64
             })
-            .collect()
+            .collect();
+        Array2::from_shape_vec((self.rows, self.cols), u).expect("rows × cols")
     }
 
     /// Label nodes by majority vote of the labelled inputs mapped to them (ties: the label
     /// that sorts first); nodes that won no input take the label of the nearest labelled node
     /// in weight space.
-    pub fn label_nodes(&mut self, data: &[f64], labels: &[String]) -> Result<(), SomError> {
+    pub fn label_nodes(
+        &mut self,
+        data: ArrayView2<f64>,
+        labels: &[String],
+    ) -> Result<(), SomError> {
+        let data = data.as_standard_layout();
+        let data = data.as_slice().expect("standard layout");
         if data.len() / self.dim != labels.len() {
             return Err(SomError::Data(format!(
                 "{} inputs but {} labels",
@@ -602,7 +633,11 @@ impl Som {
     }
 
     /// Read a SOM_PAK codebook (rectangular topology).
-    pub fn from_cod(text: &str) -> Result<Som, String> {
+    pub fn from_cod(text: &str) -> Result<Som, SomError> {
+        Som::parse_cod(text).map_err(SomError::Codebook)
+    }
+
+    fn parse_cod(text: &str) -> Result<Som, String> {
         let mut lines = text
             .lines()
             .filter(|l| !l.trim().is_empty() && !l.trim_start().starts_with('#'));
@@ -674,6 +709,10 @@ impl Som {
 mod tests {
     use super::*;
 
+    fn m(data: &[f64], dim: usize) -> ArrayView2<'_, f64> {
+        ArrayView2::from_shape((data.len() / dim, dim), data).unwrap()
+    }
+
     /// An anisotropic Gaussian cloud (σ 3 along (1,1)/√2, σ 1 across, centred at (5, −2)):
     /// PCA recovers the axes and variances, and the linear codebook spans ±σ along them.
     #[test]
@@ -697,7 +736,7 @@ mod tests {
             cols: 4,
             // A stage too weak to move a weight (h < 1e-12 is skipped): the codebook stays
             // as initialised.
-            stages: vec![Stage {
+            stages: vec![TrainingStage {
                 alpha: 1e-13,
                 sigma: 1.0,
                 iterations: 1,
@@ -707,7 +746,7 @@ mod tests {
         }
         .check()
         .unwrap();
-        let som = Som::fit(&params, &data, dim).unwrap();
+        let som = Som::fit(&params, m(&data, dim)).unwrap();
         // First and last row along e1: 2·√λ1 ≈ 6 apart; first and last column ≈ 2 apart.
         let d = |a: usize, b: usize| sq_dist(som.node(a), som.node(b)).sqrt();
         assert!((d(0, 5 * 4) - 6.0).abs() < 0.3, "{}", d(0, 20));
@@ -720,11 +759,12 @@ mod tests {
             }
             .check()
             .unwrap(),
-            &data,
-            dim,
+            m(&data, dim),
         )
         .unwrap();
-        assert!(som.quantisation_error(&data) < 0.5 * random.quantisation_error(&data));
+        assert!(
+            som.quantisation_error(m(&data, dim)) < 0.5 * random.quantisation_error(m(&data, dim))
+        );
     }
 
     /// The run-time dispatched kernel gives the same bits as the portable one, and the fused
@@ -772,7 +812,7 @@ mod tests {
         .check()
         .is_err());
         assert!(SomParams {
-            stages: vec![Stage {
+            stages: vec![TrainingStage {
                 alpha: 0.0,
                 sigma: 1.0,
                 iterations: 5
@@ -789,7 +829,7 @@ mod tests {
         // Thesis Fig. 5.7: 2-D inputs uniform on [0,10]², 10×10 map.
         let mut rng = Rng::new(1);
         let data: Vec<f64> = (0..2000).map(|_| rng.range(0.0, 10.0)).collect();
-        let som = Som::fit(&SomParams::default().check().unwrap(), &data, 2).unwrap();
+        let som = Som::fit(&SomParams::default().check().unwrap(), m(&data, 2)).unwrap();
         let te = som.log.as_ref().unwrap().topographic_error;
         assert!(te < 0.05, "topographic error {te}");
         // Neighbouring weights roughly evenly spaced: spacing ≈ 10/10 = 1, spread small.
@@ -825,10 +865,10 @@ mod tests {
         }
         .check()
         .unwrap();
-        let qe = Som::fit(&random, &data, 20).unwrap().log.unwrap().qe;
+        let qe = Som::fit(&random, m(&data, 20)).unwrap().log.unwrap().qe;
         assert!(qe[0] > qe[1] && qe[1] > qe[2], "QE does not fall: {qe:?}");
-        let mut som = Som::fit(&SomParams::default().check().unwrap(), &data, 20).unwrap();
-        som.label_nodes(&data, &labels).unwrap();
+        let mut som = Som::fit(&SomParams::default().check().unwrap(), m(&data, 20)).unwrap();
+        som.label_nodes(m(&data, 20), &labels).unwrap();
         let right = data
             .chunks(20)
             .zip(&labels)
@@ -836,7 +876,7 @@ mod tests {
             .count();
         assert_eq!(right, 300);
         // Bit-for-bit reproducible with the seed.
-        let again = Som::fit(&SomParams::default().check().unwrap(), &data, 20).unwrap();
+        let again = Som::fit(&SomParams::default().check().unwrap(), m(&data, 20)).unwrap();
         assert_eq!(again.weights, som.weights);
         // A SOM_PAK codebook written and read back classifies the same.
         let back = Som::from_cod(&som.to_cod()).unwrap();
@@ -845,7 +885,7 @@ mod tests {
             .chunks(20)
             .all(|x| back.classify(x).0 == som.classify(x).0));
         // The U-matrix shows the cluster borders: its maximum is well above its median.
-        let mut u = som.u_matrix();
+        let mut u = som.u_matrix().into_raw_vec_and_offset().0;
         u.sort_by(f64::total_cmp);
         assert!(u[u.len() - 1] > 3.0 * u[u.len() / 2]);
     }
@@ -854,12 +894,15 @@ mod tests {
     fn malformed_codebooks_say_why() {
         assert!(Som::from_cod("2 hexa 2 2 gaussian\n")
             .unwrap_err()
+            .to_string()
             .contains("rect"));
         assert!(Som::from_cod("2 rect 1 1 gaussian\n1.0 x\n")
             .unwrap_err()
+            .to_string()
             .contains("node 1"));
         assert!(Som::from_cod("2 rect 2 1 gaussian\n1 2\n")
             .unwrap_err()
+            .to_string()
             .contains("1 nodes"));
     }
 }

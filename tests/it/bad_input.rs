@@ -3,7 +3,7 @@
 
 use crate::{table_rows, TempDir};
 use aepipe::config::PipelineConfig;
-use aepipe::pipeline::{run, Job, RunOptions};
+use aepipe::pipeline::{run, StreamJob, StreamOptions};
 use aepipe::synth::Experiment;
 use std::path::Path;
 
@@ -104,11 +104,11 @@ fn each_bad_input_becomes_a_clear_reject_and_good_hits_are_all_written() {
 
     let out = t.path().join("out");
     let r = run(
-        Job::Features,
+        StreamJob::Features,
         &[d.clone(), unknown.clone(), t.path().join("missing_folder")],
         &out,
         &PipelineConfig::default(),
-        &RunOptions {
+        &StreamOptions {
             threads: 2,
             progress: false,
         },

@@ -122,10 +122,6 @@ fn cwt_command_draws_a_png_and_names_the_label() {
     let data = small_experiment(&t);
     let png = t.path().join("hit.png");
     let (c, so, se) = aepipe(&["cwt", &data, "--hit", "3", "--png", png.to_str().unwrap()]);
-    if c == 1 && se.contains("no TrueType font") {
-        eprintln!("SKIP cwt_command_draws_a_png_and_names_the_label: {se}");
-        return;
-    }
     assert_eq!(c, 0, "{se}");
     assert!(
         so.contains("exp ch1 hit 3:") && so.contains("dominant"),

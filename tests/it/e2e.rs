@@ -59,17 +59,17 @@ fn synthetic_experiment_from_the_library_is_a_readable_vallen_pair_with_truth() 
     let out = match out {
         Ok(o) if o.status.success() => o,
         Ok(o) => {
-            eprintln!(
-                "SKIP vallenae part: {}",
+            crate::skip(
+                "vallenae part",
                 String::from_utf8_lossy(&o.stderr)
                     .lines()
                     .last()
-                    .unwrap_or("")
+                    .unwrap_or(""),
             );
             return;
         }
         Err(e) => {
-            eprintln!("SKIP vallenae part: python3: {e}");
+            crate::skip("vallenae part", &format!("python3: {e}"));
             return;
         }
     };
@@ -102,7 +102,7 @@ fn run_classifies_against_truth_finds_the_trend_and_writes_a_report_a_browser_re
     cfg.som.reference_library = lib.display().to_string();
     cfg.report.gallery_per_class = 2;
     let out = d.path().join("run");
-    let s = aepipe::workflow::run(&aepipe::workflow::Job {
+    let s = aepipe::workflow::run(&aepipe::workflow::RunJob {
         config: &cfg,
         inputs: &[d.path().join("data")],
         out: &out,
@@ -160,7 +160,7 @@ fn run_classifies_against_truth_finds_the_trend_and_writes_a_report_a_browser_re
     let mut crit = cfg.clone();
     crit.som.train_on = "criteria".into();
     crit.report.enabled = false;
-    let c = aepipe::workflow::run(&aepipe::workflow::Job {
+    let c = aepipe::workflow::run(&aepipe::workflow::RunJob {
         config: &crit,
         inputs: &[d.path().join("data")],
         out: &d.path().join("run-criteria"),
@@ -189,8 +189,9 @@ fn run_classifies_against_truth_finds_the_trend_and_writes_a_report_a_browser_re
                 .is_ok_and(|o| o.status.success())
         })
     else {
-        eprintln!(
-            "SKIP browser part: no chromium (Debian package `chromium`; .ci/run installs it)"
+        crate::skip(
+            "browser part",
+            "no chromium (Debian package `chromium`; .ci/run installs it)",
         );
         return;
     };

@@ -3,13 +3,13 @@
 
 use crate::{real_data, table_rows, TempDir};
 use aepipe::config::PipelineConfig;
-use aepipe::pipeline::{run, Job, RunOptions};
+use aepipe::pipeline::{run, StreamJob, StreamOptions};
 use aepipe::store::{arrow_doc_name, parse_schema_markdown, read_parquet};
 use aepipe::synth::Experiment;
 use std::path::{Path, PathBuf};
 
-fn opts(threads: usize) -> RunOptions {
-    RunOptions {
+fn opts(threads: usize) -> StreamOptions {
+    StreamOptions {
         threads,
         progress: false,
     }
@@ -42,8 +42,22 @@ fn features_are_byte_identical_for_one_and_two_threads() {
         inputs.push(real);
     }
     let cfg = demo_cfg();
-    let r1 = run(Job::Features, &inputs, &t.path().join("t1"), &cfg, &opts(1)).unwrap();
-    let r2 = run(Job::Features, &inputs, &t.path().join("t2"), &cfg, &opts(2)).unwrap();
+    let r1 = run(
+        StreamJob::Features,
+        &inputs,
+        &t.path().join("t1"),
+        &cfg,
+        &opts(1),
+    )
+    .unwrap();
+    let r2 = run(
+        StreamJob::Features,
+        &inputs,
+        &t.path().join("t2"),
+        &cfg,
+        &opts(2),
+    )
+    .unwrap();
     assert!(r1.stats.rows >= 350);
     let a = std::fs::read(&r1.table_path).unwrap();
     let b = std::fs::read(&r2.table_path).unwrap();
@@ -110,14 +124,21 @@ fn schema_files_match_written_tables() {
     let data = synthetic(&t.path().join("data"), "exp", 20, 3);
     let cfg = demo_cfg();
     let f = run(
-        Job::Features,
+        StreamJob::Features,
         std::slice::from_ref(&data),
         &t.path().join("f"),
         &cfg,
         &opts(2),
     )
     .unwrap();
-    let w = run(Job::Waveforms, &[data], &t.path().join("w"), &cfg, &opts(2)).unwrap();
+    let w = run(
+        StreamJob::Waveforms,
+        &[data],
+        &t.path().join("w"),
+        &cfg,
+        &opts(2),
+    )
+    .unwrap();
     check_against_schema_file(&f.table_path, "features.md");
     check_against_schema_file(&f.rejects_path, "rejects.md");
     check_against_schema_file(&w.table_path, "waveforms.md");
@@ -149,7 +170,7 @@ fn waveforms_parquet_round_trips_into_identical_features() {
     let data = synthetic(&t.path().join("data"), "exp", 40, 4);
     let cfg = demo_cfg();
     let w = run(
-        Job::Waveforms,
+        StreamJob::Waveforms,
         std::slice::from_ref(&data),
         &t.path().join("w"),
         &cfg,
@@ -157,7 +178,7 @@ fn waveforms_parquet_round_trips_into_identical_features() {
     )
     .unwrap();
     let direct = run(
-        Job::Features,
+        StreamJob::Features,
         &[data],
         &t.path().join("direct"),
         &cfg,
@@ -165,7 +186,7 @@ fn waveforms_parquet_round_trips_into_identical_features() {
     )
     .unwrap();
     let via = run(
-        Job::Features,
+        StreamJob::Features,
         std::slice::from_ref(&w.table_path),
         &t.path().join("via"),
         &cfg,
@@ -314,21 +335,31 @@ fn python_readers_open_every_table() {
         .map(|o| o.status.success())
         .unwrap_or(false);
     if !ok {
-        eprintln!("SKIP python_readers_open_every_table: python3 with polars, pandas and pyarrow is not installed (.ci/run installs them)");
+        crate::skip(
+            "python_readers_open_every_table",
+            "python3 with polars, pandas and pyarrow is not installed (.ci/run installs them)",
+        );
         return;
     }
     let t = TempDir::new("py");
     let data = synthetic(&t.path().join("data"), "exp", 25, 11);
     let cfg = demo_cfg();
     run(
-        Job::Features,
+        StreamJob::Features,
         std::slice::from_ref(&data),
         &t.path().join("f"),
         &cfg,
         &opts(2),
     )
     .unwrap();
-    run(Job::Waveforms, &[data], &t.path().join("w"), &cfg, &opts(2)).unwrap();
+    run(
+        StreamJob::Waveforms,
+        &[data],
+        &t.path().join("w"),
+        &cfg,
+        &opts(2),
+    )
+    .unwrap();
     let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/python/check_tables.py");
     let o = std::process::Command::new("python3")
         .arg(script)

@@ -237,7 +237,7 @@ fn hit_features_agree_with_vallenae() {
     let Some(real) = real_data("hit_features_agree_with_vallenae") else {
         return;
     };
-    use aepipe::pipeline::{run, Job, RunOptions};
+    use aepipe::pipeline::{run, StreamJob, StreamOptions};
     let golden = std::fs::read_to_string(concat!(
         env!("CARGO_MANIFEST_DIR"),
         "/tests/golden/vallenae_hit_features.csv"
@@ -248,11 +248,11 @@ fn hit_features_agree_with_vallenae() {
     let col = |n: &str| head.iter().position(|h| *h == n).unwrap();
     let t = crate::TempDir::new("vallenae");
     let r = run(
-        Job::Features,
+        StreamJob::Features,
         &[real.join("vallen")],
         t.path(),
         &PipelineConfig::default(),
-        &RunOptions {
+        &StreamOptions {
             threads: 2,
             progress: false,
         },

@@ -6,14 +6,14 @@ use crate::TempDir;
 use aepipe::sim::acoustic::Field;
 use aepipe::sim::model::{DamageSpec, ModelFile, Order, Solver};
 use aepipe::sim::scenario::{self, test_grid, Params};
-use aepipe::sim::{simulate, zero_crossing_frequency, RunOptions};
+use aepipe::sim::{simulate, zero_crossing_frequency, SimOptions};
 
 fn params(kv: &[(&str, f64)]) -> Params {
     Params(kv.iter().map(|(k, v)| (k.to_string(), *v)).collect())
 }
 
-fn every_step() -> RunOptions {
-    RunOptions {
+fn every_step() -> SimOptions {
+    SimOptions {
         trajectory_every: Some(1),
         snapshot_every: None,
     }
@@ -255,7 +255,7 @@ fn unstable_grids_are_refused_with_the_limit() {
 #[test]
 fn coupled_sho_radiates_at_its_own_frequency() {
     let m = scenario::build("sho", &params(&[("amplitude", 0.01)])).unwrap();
-    let out = simulate(&m, &RunOptions::default()).unwrap();
+    let out = simulate(&m, &SimOptions::default()).unwrap();
     let f = aepipe::sim::dominant_frequency(&out.sensors[0], out.sample_rate_hz);
     let f0 = sho_frequency();
     assert!(
@@ -432,14 +432,14 @@ fn bond_failure_splits_the_mass_and_fibre_failure_cuts_the_spring() {
 #[test]
 fn simulated_waveforms_feed_the_feature_pipeline_and_match_their_schema() {
     let d = TempDir::new("sim-out");
-    let job = aepipe::sim::Job {
+    let job = aepipe::sim::SimJob {
         model: None,
         scenario: Some("paper-fibre".into()),
         params: params(&[("iterations", 2000.0)]),
         sweep: None,
         solver: None,
         out: d.path().join("sim"),
-        run: RunOptions::default(),
+        run: SimOptions::default(),
         scale_v_per_pa: 1e-3,
     };
     aepipe::sim::run_job(&job).unwrap();
@@ -468,14 +468,14 @@ fn simulated_waveforms_feed_the_feature_pipeline_and_match_their_schema() {
 /// Simulate a scenario (sensor 1 only) and analyse it with the feature extractor.
 fn analyse(name: &str, kv: &[(&str, f64)]) -> aepipe::features::Analysis {
     let d = TempDir::new("sim-analyse");
-    let job = aepipe::sim::Job {
+    let job = aepipe::sim::SimJob {
         model: None,
         scenario: Some(name.into()),
         params: params(kv),
         sweep: None,
         solver: None,
         out: d.path().to_path_buf(),
-        run: RunOptions::default(),
+        run: SimOptions::default(),
         scale_v_per_pa: 1e-3,
     };
     aepipe::sim::run_job(&job).unwrap();

@@ -3,7 +3,7 @@
 
 use crate::{table_rows, TempDir};
 use aepipe::config::PipelineConfig;
-use aepipe::som::run::{classify, load_model, train, TrainOptions};
+use aepipe::som::tables::{classify_tables as classify, load_model, train, TrainOptions};
 use aepipe::som::Som;
 
 #[test]

@@ -5,7 +5,7 @@ use crate::TempDir;
 use aepipe::analysis::stats::linear_trend;
 use aepipe::analysis::trend::{run_trend, Cutoff, TrendOptions};
 use aepipe::config::PipelineConfig;
-use aepipe::pipeline::{run, Job, RunOptions};
+use aepipe::pipeline::{run, StreamJob, StreamOptions};
 use aepipe::synth::{Experiment, Rng};
 
 #[test]
@@ -93,11 +93,11 @@ fn designed_trend_is_found_with_the_right_signs_end_to_end() {
     let mut cfg = PipelineConfig::default();
     cfg.ingest.vallen.load_param = "PA0".into();
     let f = run(
-        Job::Features,
+        StreamJob::Features,
         &[data],
         &t.path().join("f"),
         &cfg,
-        &RunOptions {
+        &StreamOptions {
             threads: 2,
             progress: false,
         },

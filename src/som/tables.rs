@@ -2,21 +2,27 @@
 //! files, classification of every hit and the confusion report of Table 5.4.
 
 use super::{Init, Som, SomError, SomParams};
-use crate::store::{self, ColType, ColumnSpec, TableSchema, TableWriter, Value};
-use arrow::array::{Array, AsArray};
-use arrow::datatypes::{DataType, Float32Type, Float64Type, Int32Type, Int64Type};
+use crate::store::{ColType, ColumnSpec, HitKey, TableScan, TableSchema, TableWriter, Value};
+use ndarray::{Array2, ArrayView2, Axis};
+use polars::prelude::col;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 /// Per-hit vectors read from feature tables.
-#[derive(Debug, Clone, Default)]
+#[derive(Debug, Clone)]
 pub struct SomInput {
-    pub keys: Vec<(String, i32, i64)>,
-    pub dim: usize,
-    pub data: Vec<f64>,
+    pub keys: Vec<HitKey>,
+    /// One row per kept hit.
+    pub data: Array2<f64>,
     pub labels: Vec<Option<String>>,
-    /// Rows left out because a feature was null (flat or empty records).
+    /// Rows left out because a feature was null or not finite (flat or empty records).
     pub skipped: usize,
+}
+
+impl SomInput {
+    pub fn dim(&self) -> usize {
+        self.data.ncols()
+    }
 }
 
 fn ferr(p: &Path, m: impl std::fmt::Display) -> SomError {
@@ -26,107 +32,79 @@ fn ferr(p: &Path, m: impl std::fmt::Display) -> SomError {
     }
 }
 
+/// The store's read errors already name the file.
+fn serr(e: crate::store::StoreError) -> SomError {
+    match e {
+        crate::store::StoreError::Read { path, message } => SomError::File { path, message },
+        other => SomError::Data(other.to_string()),
+    }
+}
+
+fn werr(p: &Path, m: impl std::fmt::Display) -> SomError {
+    SomError::Write {
+        path: p.display().to_string(),
+        message: m.to_string(),
+    }
+}
+
 /// Read `columns` (a fixed-size list such as `tf_bins` expands to its elements; numeric
-/// scalars give one dimension each) and the optional label column.
+/// scalars give one dimension each) and the optional label column, through the store's
+/// table reader.
 pub fn read_inputs(
     paths: &[PathBuf],
     columns: &[String],
     label: Option<&str>,
 ) -> Result<SomInput, SomError> {
-    let mut inp = SomInput::default();
+    let (mut keys, mut labels, mut blocks, mut skipped) = (Vec::new(), Vec::new(), Vec::new(), 0);
     for p in paths {
-        let (_, _, batches) = store::read_parquet(p).map_err(|e| ferr(p, e))?;
-        for b in batches {
-            let get = |n: &str| {
-                b.column_by_name(n)
-                    .ok_or_else(|| ferr(p, format!("no column {n}")))
-            };
-            let exp = get("experiment")?
-                .as_string_opt::<i32>()
-                .ok_or_else(|| ferr(p, "experiment is not a string"))?
-                .clone();
-            let ch = get("channel")?
-                .as_primitive_opt::<Int32Type>()
-                .ok_or_else(|| ferr(p, "channel is not int32"))?
-                .clone();
-            let hit = get("hit")?
-                .as_primitive_opt::<Int64Type>()
-                .ok_or_else(|| ferr(p, "hit is not int64"))?
-                .clone();
-            let lab = match label {
-                Some(l) => Some(
-                    get(l)?
-                        .as_string_opt::<i32>()
-                        .ok_or_else(|| ferr(p, format!("label column {l} is not a string")))?
-                        .clone(),
-                ),
-                None => None,
-            };
-            let cols: Vec<std::sync::Arc<dyn Array>> = columns
-                .iter()
-                .map(|c| get(c).cloned())
-                .collect::<Result<_, _>>()?;
-            let mut row = Vec::new();
-            'rows: for i in 0..b.num_rows() {
-                row.clear();
-                for (c, name) in cols.iter().zip(columns) {
-                    if c.is_null(i) {
-                        inp.skipped += 1;
-                        continue 'rows;
-                    }
-                    match c.data_type() {
-                        DataType::FixedSizeList(_, _) => {
-                            let v = c.as_fixed_size_list().value(i);
-                            let v = v.as_primitive_opt::<Float32Type>().ok_or_else(|| {
-                                ferr(p, format!("{name}: expected float32 elements"))
-                            })?;
-                            row.extend(v.values().iter().map(|&x| x as f64));
-                        }
-                        DataType::Float64 => row.push(c.as_primitive::<Float64Type>().value(i)),
-                        DataType::Float32 => {
-                            row.push(c.as_primitive::<Float32Type>().value(i) as f64)
-                        }
-                        DataType::Int64 => row.push(c.as_primitive::<Int64Type>().value(i) as f64),
-                        DataType::Int32 => row.push(c.as_primitive::<Int32Type>().value(i) as f64),
-                        other => {
-                            return Err(ferr(
-                                p,
-                                format!("{name} is {other}, not a number or a fixed-size list"),
-                            ))
-                        }
-                    }
-                }
-                if inp.dim == 0 {
-                    inp.dim = row.len();
-                } else if row.len() != inp.dim {
-                    return Err(ferr(
-                        p,
-                        format!("rows of dimension {} and {}", inp.dim, row.len()),
-                    ));
-                }
-                if row.iter().any(|v| !v.is_finite()) {
-                    inp.skipped += 1;
-                    continue;
-                }
-                inp.data.extend_from_slice(&row);
-                inp.keys
-                    .push((exp.value(i).to_string(), ch.value(i), hit.value(i)));
-                inp.labels.push(lab.as_ref().and_then(|l| {
-                    if l.is_null(i) {
-                        None
-                    } else {
-                        Some(l.value(i).to_string())
-                    }
-                }));
+        let t = TableScan::open(p).map_err(serr)?;
+        let mut need = vec!["experiment", "channel", "hit"];
+        need.extend(label);
+        t.require(&need, "").map_err(serr)?;
+        let mut sel = vec![col("experiment"), col("channel"), col("hit")];
+        sel.extend(label.map(col));
+        let df = t.select(sel).map_err(serr)?;
+        let k = t.hit_keys(&df).map_err(serr)?;
+        let l = match label {
+            Some(l) => t.strings(&df, l).map_err(serr)?,
+            None => vec![None; k.len()],
+        };
+        let (m, keep) = t.matrix(columns).map_err(serr)?;
+        if let Some(first) = blocks.first().map(|b: &Array2<f64>| b.ncols()) {
+            if m.ncols() != first && m.nrows() > 0 {
+                return Err(ferr(
+                    p,
+                    format!("rows of dimension {first} and {}", m.ncols()),
+                ));
             }
         }
+        for ((key, lab), kept) in k.into_iter().zip(l).zip(&keep) {
+            if *kept {
+                keys.push(key);
+                labels.push(lab);
+            } else {
+                skipped += 1;
+            }
+        }
+        blocks.push(m);
     }
-    if inp.keys.is_empty() {
+    if keys.is_empty() {
         return Err(SomError::Data(
             "no usable rows in the feature tables".into(),
         ));
     }
-    Ok(inp)
+    let views: Vec<_> = blocks
+        .iter()
+        .filter(|b| b.nrows() > 0)
+        .map(|b| b.view())
+        .collect();
+    let data = ndarray::concatenate(Axis(0), &views).map_err(|e| SomError::Data(e.to_string()))?;
+    Ok(SomInput {
+        keys,
+        data,
+        labels,
+        skipped,
+    })
 }
 
 /// How the training set is drawn (ch. 5.4).
@@ -177,7 +155,7 @@ pub fn draw_training(
     let total = ((ts.fraction * inp.keys.len() as f64).round() as usize).max(by_class.len());
     let per = (total / by_class.len()).max(1);
     let n_all: usize = by_class.values().map(Vec::len).sum();
-    let mut rng = crate::synth::Rng::new(ts.seed);
+    let mut rng = crate::util::Rng::new(ts.seed);
     let mut rows = Vec::new();
     let mut comp = Composition::new();
     for (class, mut idx) in by_class {
@@ -211,16 +189,17 @@ pub struct Scaling {
 }
 
 impl Scaling {
-    pub fn fit(data: &[f64], dim: usize) -> Scaling {
-        let n = (data.len() / dim).max(1) as f64;
+    pub fn fit(data: ArrayView2<f64>) -> Scaling {
+        let dim = data.ncols();
+        let n = data.nrows().max(1) as f64;
         let mut mean = vec![0.0; dim];
-        for x in data.chunks(dim) {
+        for x in data.rows() {
             for k in 0..dim {
                 mean[k] += x[k] / n;
             }
         }
-        let mut var = vec![0.0; dim];
-        for x in data.chunks(dim) {
+        let mut var = vec![0.0f64; dim];
+        for x in data.rows() {
             for k in 0..dim {
                 var[k] += (x[k] - mean[k]).powi(2) / n;
             }
@@ -284,18 +263,17 @@ impl Default for TrainOptions {
 pub fn train(paths: &[PathBuf], out: &Path, o: &TrainOptions) -> Result<Model, SomError> {
     let inp = read_inputs(paths, &o.columns, Some(&o.label))?;
     let (rows, comp) = draw_training(&inp, &o.training)?;
-    let dim = inp.dim;
-    let mut data: Vec<f64> = rows
-        .iter()
-        .flat_map(|&i| inp.data[i * dim..(i + 1) * dim].iter().copied())
-        .collect();
+    let dim = inp.dim();
+    let mut data = inp.data.select(Axis(0), &rows);
     let labels: Vec<String> = rows
         .iter()
         .map(|&i| inp.labels[i].clone().expect("training rows are labelled"))
         .collect();
-    let scaling = o.standardise.then(|| Scaling::fit(&data, dim));
+    let scaling = o.standardise.then(|| Scaling::fit(data.view()));
     if let Some(s) = &scaling {
-        data.chunks_mut(dim).for_each(|x| s.apply(x));
+        data.rows_mut()
+            .into_iter()
+            .for_each(|mut x| s.apply(x.as_slice_mut().expect("standard layout")));
     }
     let params = SomParams {
         rows: o.rows,
@@ -306,8 +284,8 @@ pub fn train(paths: &[PathBuf], out: &Path, o: &TrainOptions) -> Result<Model, S
         ..SomParams::default()
     }
     .check()?;
-    let mut som = Som::fit(&params, &data, dim)?;
-    som.label_nodes(&data, &labels)?;
+    let mut som = Som::fit(&params, data.view())?;
+    som.label_nodes(data.view(), &labels)?;
     let model = Model {
         som,
         columns: o.columns.clone(),
@@ -317,15 +295,15 @@ pub fn train(paths: &[PathBuf], out: &Path, o: &TrainOptions) -> Result<Model, S
         composition: comp,
         tool_version: env!("CARGO_PKG_VERSION").into(),
     };
-    std::fs::create_dir_all(out).map_err(|e| ferr(out, e))?;
+    std::fs::create_dir_all(out).map_err(|e| werr(out, e))?;
     let w = |name: &str, text: String| {
-        crate::pipeline::write_atomic(&out.join(name), text.as_bytes())
-            .map_err(|e| ferr(&out.join(name), e))
+        crate::util::write_atomic(&out.join(name), text.as_bytes())
+            .map_err(|e| werr(&out.join(name), e))
     };
     w("model.json", serde_json::to_string(&model).expect("json"))?;
     w("model.cod", model.som.to_cod())?;
     let mut dat = format!("{dim}\n");
-    for (x, l) in data.chunks(dim).zip(&labels) {
+    for (x, l) in data.rows().into_iter().zip(&labels) {
         dat.push_str(
             &x.iter()
                 .map(|v| format!("{v:e}"))
@@ -438,27 +416,28 @@ impl Confusion {
 }
 
 /// Classify every hit of the feature tables; write `DIR/classification.parquet`.
-pub fn classify(
+pub fn classify_tables(
     model: &Model,
     paths: &[PathBuf],
     reference: Option<&str>,
     out: &Path,
 ) -> Result<Confusion, SomError> {
     let inp = read_inputs(paths, &model.columns, reference)?;
-    if inp.dim != model.som.dim {
+    if inp.dim() != model.som.dim {
         return Err(SomError::Data(format!(
             "feature dimension {} differs from the model's {}",
-            inp.dim, model.som.dim
+            inp.dim(),
+            model.som.dim
         )));
     }
-    std::fs::create_dir_all(out).map_err(|e| ferr(out, e))?;
+    std::fs::create_dir_all(out).map_err(|e| werr(out, e))?;
     let path = out.join("classification.parquet");
     let mut w = TableWriter::create(&path, classification_table(), &[], 4096)
-        .map_err(|e| ferr(&path, e))?;
+        .map_err(|e| werr(&path, e))?;
     let mut conf = Confusion::default();
-    let mut x = vec![0.0; inp.dim];
+    let mut x = vec![0.0; inp.dim()];
     for (i, key) in inp.keys.iter().enumerate() {
-        x.copy_from_slice(&inp.data[i * inp.dim..(i + 1) * inp.dim]);
+        x.iter_mut().zip(inp.data.row(i)).for_each(|(a, b)| *a = *b);
         if let Some(s) = &model.scaling {
             s.apply(&mut x);
         }
@@ -484,8 +463,8 @@ pub fn classify(
             Value::Str(Some(l)),
             Value::Str(inp.labels[i].clone()),
         ])
-        .map_err(|e| ferr(&path, e))?;
+        .map_err(|e| werr(&path, e))?;
     }
-    w.finish().map_err(|e| ferr(&path, e))?;
+    w.finish().map_err(|e| werr(&path, e))?;
     Ok(conf)
 }

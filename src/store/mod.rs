@@ -43,6 +43,9 @@ pub enum StoreError {
     },
     #[error("{path}: {message}")]
     Schema { path: String, message: String },
+    /// A table could not be read (missing, not Parquet, a column missing or of another type).
+    #[error("{path}: {message}")]
+    Read { path: String, message: String },
 }
 
 /// The column types aepipe writes.
@@ -273,7 +276,7 @@ fn build_column(spec: &ColumnSpec, col: usize, rows: &[Row]) -> Result<ArrayRef,
 }
 
 /// Turn rows into one Arrow batch of the table's schema.
-pub fn rows_to_batch(table: &TableSchema, rows: &[Row]) -> Result<RecordBatch, String> {
+pub(crate) fn rows_to_batch(table: &TableSchema, rows: &[Row]) -> Result<RecordBatch, String> {
     for (i, r) in rows.iter().enumerate() {
         if r.len() != table.columns.len() {
             return Err(format!(
@@ -304,14 +307,10 @@ pub struct TableWriter {
     rows: u64,
 }
 
-/// The temporary name a table is written under before [`TableWriter::finish`] renames it.
-pub fn tmp_path_for(final_path: &Path) -> PathBuf {
-    let name = final_path
-        .file_name()
-        .map(|n| n.to_string_lossy().to_string())
-        .unwrap_or_default();
-    final_path.with_file_name(format!(".{name}.tmp-{}", std::process::id()))
-}
+pub use crate::util::tmp_path_for;
+
+pub mod read;
+pub use read::{HitKey, TableScan};
 
 /// Remove temporary files left in `dir` by an interrupted earlier run.
 pub fn clean_stale_tmp(dir: &Path) {

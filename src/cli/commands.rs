@@ -1,0 +1,414 @@
+//! One function per command: load what it needs, call the library, print. Errors go up as
+//! `anyhow::Error` holding the room's typed error, which [`super::exit_code`] maps.
+
+use super::print;
+use super::{BenchCmd, Cli, Cmd, InitArg, RunArgs, SomCmd, UsageError};
+use crate::config::PipelineConfig;
+use crate::pipeline::{StreamJob, StreamOptions};
+use anyhow::Result;
+use std::path::{Path, PathBuf};
+
+/// How a command that did not fail ended.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Outcome {
+    Success,
+    /// `--strict` and something was rejected (exit 2).
+    Rejected,
+}
+
+impl Outcome {
+    pub fn code(self) -> u8 {
+        match self {
+            Outcome::Success => 0,
+            Outcome::Rejected => super::exit::STRICT,
+        }
+    }
+}
+
+fn load_config(path: Option<&Path>) -> Result<PipelineConfig> {
+    Ok(match path {
+        None => PipelineConfig::default(),
+        Some(p) => PipelineConfig::from_file(p)?,
+    })
+}
+
+/// Run the parsed command.
+pub fn dispatch(cli: Cli) -> Result<Outcome> {
+    match cli.cmd {
+        Cmd::Waveforms(a) => stream_job(StreamJob::Waveforms, a),
+        Cmd::Features(a) => stream_job(StreamJob::Features, a),
+        Cmd::Inspect { paths, config } => inspect(&paths, config.as_deref()),
+        Cmd::Cwt {
+            inputs,
+            hit,
+            channel,
+            experiment,
+            png,
+            config,
+        } => {
+            let cfg = load_config(config.as_deref())?;
+            let summary = crate::workflow::cwt_of_hit(
+                &inputs,
+                &cfg,
+                experiment.as_deref(),
+                channel,
+                hit,
+                &png,
+            )?;
+            println!("{summary}");
+            println!("wrote {}", png.display());
+            Ok(Outcome::Success)
+        }
+        Cmd::Trend {
+            features,
+            out,
+            cutoff,
+            alpha,
+            columns,
+            no_plots,
+        } => trend(&features, &out, &cutoff, alpha, columns, no_plots),
+        Cmd::Som { which } => som(which),
+        Cmd::Schema { table, config } => {
+            let cfg = load_config(config.as_deref())?;
+            let t = crate::workflow::table_schema(&table, &cfg).ok_or_else(|| {
+                UsageError(format!(
+                    "unknown table '{table}' ({})",
+                    crate::workflow::TABLES.join(", ")
+                ))
+            })?;
+            print!("{}", t.markdown_columns());
+            Ok(Outcome::Success)
+        }
+        Cmd::Simulate {
+            model,
+            scenario,
+            params,
+            sweep,
+            solver,
+            out,
+            trajectories,
+            snapshots,
+            scale,
+        } => {
+            let sweep = sweep
+                .as_deref()
+                .map(crate::sim::scenario::parse_sweep)
+                .transpose()?;
+            let job = crate::sim::SimJob {
+                model,
+                scenario,
+                params: crate::sim::scenario::Params(params),
+                sweep,
+                solver,
+                out,
+                run: crate::sim::SimOptions {
+                    trajectory_every: trajectories,
+                    snapshot_every: snapshots,
+                },
+                scale_v_per_pa: scale,
+            };
+            for l in crate::sim::run_job(&job)? {
+                println!("{l}");
+            }
+            Ok(Outcome::Success)
+        }
+        Cmd::Reference {
+            config,
+            out,
+            threads,
+        } => {
+            use crate::sim::reference::{build_library, ReferenceFile};
+            let f = ReferenceFile::read(&config)?;
+            let (runs, n, secs) =
+                crate::util::with_threads(threads, || build_library(&f.reference, &out, true))?;
+            println!(
+                "{runs} simulations, {n} labelled signals → {} in {secs:.1} s",
+                out.join("waveforms.parquet").display()
+            );
+            Ok(Outcome::Success)
+        }
+        Cmd::Run {
+            inputs,
+            config,
+            out,
+            truth,
+            threads,
+        } => {
+            // `--config P IN…`, or the positional form `P IN…`.
+            let (pipeline, inputs) = match config {
+                Some(p) => (p, inputs),
+                None if inputs.len() >= 2 => (inputs[0].clone(), inputs[1..].to_vec()),
+                None => return Err(UsageError(
+                    "aepipe run needs a pipeline definition (--config FILE) and at least one input"
+                        .into(),
+                )
+                .into()),
+            };
+            let cfg = load_config(Some(&pipeline))?;
+            let s = crate::workflow::run(&crate::workflow::RunJob {
+                config: &cfg,
+                inputs: &inputs,
+                out: &out,
+                truth: truth.as_deref(),
+                threads,
+                progress: true,
+            })?;
+            for l in crate::workflow::headline(&s) {
+                println!("{l}");
+            }
+            if cfg.report.enabled {
+                println!("report: {}", out.join("report.html").display());
+            }
+            Ok(Outcome::Success)
+        }
+        Cmd::Report { run_dir } => {
+            let p = crate::workflow::rebuild_report(&run_dir)?;
+            println!("report: {}", p.display());
+            Ok(Outcome::Success)
+        }
+        Cmd::SynthExperiment {
+            out,
+            hits,
+            seed,
+            library,
+            id,
+        } => {
+            let s =
+                crate::synth::synth_experiment(&out, &id, hits, seed, library.as_deref(), true)?;
+            println!("{s}");
+            Ok(Outcome::Success)
+        }
+        Cmd::Demo {
+            out,
+            hits,
+            seed,
+            threads,
+        } => {
+            let d = crate::demo::run_demo(&out, hits, seed, threads)?;
+            print::demo(&d, &out);
+            Ok(Outcome::Success)
+        }
+        Cmd::Bench { which } => bench(which),
+    }
+}
+
+fn stream_job(job: StreamJob, a: RunArgs) -> Result<Outcome> {
+    let cfg = load_config(a.config.as_deref())?;
+    let opts = StreamOptions {
+        threads: a.threads,
+        progress: !a.quiet,
+    };
+    let report = crate::pipeline::run(job, &a.inputs, &a.out, &cfg, &opts)?;
+    print::stream_run(&report, job.table_file());
+    if a.strict && report.stats.rejects > 0 {
+        eprintln!(
+            "aepipe: {} rejects and --strict given",
+            report.stats.rejects
+        );
+        return Ok(Outcome::Rejected);
+    }
+    Ok(Outcome::Success)
+}
+
+fn inspect(paths: &[PathBuf], config: Option<&Path>) -> Result<Outcome> {
+    let cfg = load_config(config)?;
+    let d = crate::ingest::discover(paths, &cfg.ingest);
+    for s in &d.sources {
+        println!("{}", crate::inspect::summarise(s, &cfg.ingest));
+    }
+    for r in &d.rejects {
+        eprintln!("aepipe: {}: {}", r.source_file, r.reason);
+    }
+    if !d.skipped.is_empty() {
+        println!("passed over (not recordings):");
+        for (p, why) in &d.skipped {
+            println!("  {}: {why}", p.display());
+        }
+    }
+    if d.sources.is_empty() {
+        return Err(UsageError(format!(
+            "no recordings found in {}",
+            paths
+                .iter()
+                .map(|p| p.display().to_string())
+                .collect::<Vec<_>>()
+                .join(", ")
+        ))
+        .into());
+    }
+    Ok(Outcome::Success)
+}
+
+fn trend(
+    features: &[PathBuf],
+    out: &Path,
+    cutoff: &str,
+    alpha: f64,
+    columns: Vec<String>,
+    no_plots: bool,
+) -> Result<Outcome> {
+    use crate::analysis::trend;
+    let opts = trend::TrendOptions {
+        cutoff: cutoff.parse()?,
+        alpha,
+        columns,
+    };
+    let rep = trend::run_trend(features, out, &opts)?;
+    print!("{}", trend::format_table(&rep));
+    if !no_plots {
+        for sel in &rep.selections {
+            let png = out.join(format!("trend_{}_ch{}.png", sel.experiment, sel.channel));
+            if crate::plot::trend_png(&png, &rep, &sel.experiment, sel.channel, 4)? {
+                println!("plot: {}", png.display());
+            }
+        }
+    }
+    println!(
+        "wrote {} and {}",
+        rep.table_path.display(),
+        out.join("trend_manifest.json").display()
+    );
+    Ok(Outcome::Success)
+}
+
+fn som(which: SomCmd) -> Result<Outcome> {
+    use crate::som::tables::{classify_tables, load_model, train, TrainOptions, TrainingSet};
+    match which {
+        SomCmd::Train {
+            features,
+            label,
+            out,
+            columns,
+            fraction,
+            standardise,
+            rows,
+            cols,
+            seed,
+            init,
+        } => {
+            let o = TrainOptions {
+                columns,
+                label,
+                standardise,
+                rows,
+                cols,
+                seed,
+                init: match init {
+                    InitArg::Samples => crate::som::Init::Samples,
+                    InitArg::Random => crate::som::Init::Random,
+                    InitArg::Linear => crate::som::Init::Linear,
+                },
+                training: TrainingSet {
+                    fraction,
+                    ..Default::default()
+                },
+            };
+            let m = train(&features, &out, &o)?;
+            print::som_trained(&m);
+            crate::plot::u_matrix_png(&out.join("u_matrix.png"), &m.som)?;
+            println!(
+                "wrote {}/model.json, model.cod, train.dat, u_matrix.png",
+                out.display()
+            );
+        }
+        SomCmd::Classify {
+            model,
+            features,
+            out,
+            reference,
+        } => {
+            let m = load_model(&model)?;
+            let reference = reference.unwrap_or_else(|| m.label_column.clone());
+            let conf = classify_tables(&m, &features, Some(&reference), &out)?;
+            println!(
+                "SOM class (rows) against {reference} (columns), share of the SOM class's hits:"
+            );
+            print!("{}", conf.format());
+            let png = out.join("hit_maps.png");
+            crate::plot::hit_maps_png(&png, &m.som, &conf.hits)?;
+            println!(
+                "wrote {} and {}",
+                out.join("classification.parquet").display(),
+                png.display()
+            );
+        }
+        SomCmd::Show { model, png } => {
+            let m = load_model(&model)?;
+            print::som_map(&m);
+            let png = png.unwrap_or_else(|| model.join("u_matrix.png"));
+            crate::plot::u_matrix_png(&png, &m.som)?;
+            println!("wrote {}", png.display());
+        }
+    }
+    Ok(Outcome::Success)
+}
+
+fn bench(which: BenchCmd) -> Result<Outcome> {
+    match which {
+        BenchCmd::Sim {
+            masses,
+            steps,
+            repeats,
+        } => {
+            let rows = crate::bench::sim_scale(&masses, steps)?;
+            print::sim_scale(&rows, steps);
+            let t = crate::bench::sim_mesh(repeats)?;
+            println!("mesh3x3-bond-failure, 250×250 grid, 40 µs (relaxation + 4 000 implicit steps + 400 FDTD steps): median {t:.3} s");
+        }
+        BenchCmd::Som {
+            inputs,
+            peers,
+            python,
+            repeats,
+        } => {
+            let (t, qe, te) = crate::bench::som_bench(&inputs, repeats)?;
+            println!("aepipe SOM (1 thread): median {t:.4} s, QE {qe:.4}, TE8 {te:.4}");
+            if let Some(peers) = peers {
+                match crate::bench::run_minisom(&python, &peers) {
+                    Ok((pt, pqe)) => println!("MiniSom (same run): median {pt:.4} s, QE {pqe:.4} -> aepipe is {:.1}x faster, QE {:+.2} %", pt / t, (qe / pqe - 1.0) * 100.0),
+                    Err(e) => println!("MiniSom failed: {e}"),
+                }
+            }
+        }
+        BenchCmd::Cwt {
+            inputs,
+            peers,
+            python,
+            threads,
+            repeats,
+            skip_full,
+        } => {
+            let ours = crate::bench::cwt_bench(&inputs, &threads, repeats, skip_full)?;
+            print::cwt_bench(&ours);
+            if let Some(peers) = peers {
+                print::cwt_peers(&ours, &python, &peers);
+            }
+        }
+        BenchCmd::Stream {
+            hits,
+            samples,
+            threads,
+            out,
+        } => {
+            println!(
+                "streaming synthetic hits of {samples} samples through the feature pipeline (threads: {})",
+                if threads == 0 { crate::util::num_cpus() } else { threads }
+            );
+            println!(
+                "{:>10} {:>10} {:>12} {:>14}",
+                "hits", "seconds", "hits/s", "peak RSS MiB"
+            );
+            let mut sizes = vec![hits / 100, hits / 10, hits];
+            sizes.retain(|&n| n > 0);
+            sizes.dedup();
+            for n in sizes {
+                let p = crate::bench::stream_point(n, samples, threads, &out)?;
+                println!(
+                    "{:>10} {:>10.2} {:>12.0} {:>14.1}",
+                    p.hits, p.seconds, p.hits_per_s, p.peak_rss_mb
+                );
+            }
+        }
+    }
+    Ok(Outcome::Success)
+}

@@ -1,0 +1,320 @@
+//! The command line: the argument structs (clap, parsed in one place), the dispatch to the
+//! library, the terminal printing, and the one map from an error to an exit code
+//! ([`exit_code`], the README's table). `main.rs` only parses and calls [`dispatch`].
+
+mod commands;
+mod exit;
+mod print;
+
+pub use commands::{dispatch, Outcome};
+pub use exit::{exit_code, UsageError};
+
+use clap::{Parser, Subcommand};
+use std::path::PathBuf;
+
+#[derive(Parser)]
+#[command(
+    name = "aepipe",
+    version,
+    about = "Acoustic-emission recordings of paper tensile tests -> Parquet features, trends, classes, reports"
+)]
+pub struct Cli {
+    #[command(subcommand)]
+    pub cmd: Cmd,
+}
+
+#[derive(clap::Args)]
+pub struct RunArgs {
+    /// Files or folders (searched recursively): Vallen .pridb/.tradb, AEwin, WaveExplorer, WAV, CSV, text, waveforms.parquet
+    #[arg(required = true)]
+    pub inputs: Vec<PathBuf>,
+    /// Output folder
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Pipeline definition (TOML, see pipelines/)
+    #[arg(long)]
+    pub config: Option<PathBuf>,
+    /// Worker threads (0 = all cores)
+    #[arg(long, default_value_t = 0)]
+    pub threads: usize,
+    /// Exit with code 2 when any hit or file was rejected
+    #[arg(long)]
+    pub strict: bool,
+    /// No progress bar
+    #[arg(long)]
+    pub quiet: bool,
+}
+
+#[derive(Subcommand)]
+pub enum Cmd {
+    /// Convert recordings into the canonical waveform table DIR/waveforms.parquet
+    Waveforms(RunArgs),
+    /// Run the streaming feature pipeline: DIR/features.parquet, rejects.parquet, manifest.json
+    Features(RunArgs),
+    /// Summarise experiments: format, channels, hits, rates, lengths, time span, load/extension
+    Inspect {
+        #[arg(required = true)]
+        paths: Vec<PathBuf>,
+        #[arg(long)]
+        config: Option<PathBuf>,
+    },
+    /// Draw one hit's waveform and full-resolution CWT into a PNG
+    Cwt {
+        /// Files or folders holding the hit
+        #[arg(required = true)]
+        inputs: Vec<PathBuf>,
+        /// Hit number (Vallen TRAI, AEwin hit #, event #)
+        #[arg(long)]
+        hit: u64,
+        /// Channel (default: the first channel that has this hit)
+        #[arg(long)]
+        channel: Option<u32>,
+        /// Experiment id (default: the first experiment that has this hit)
+        #[arg(long)]
+        experiment: Option<String>,
+        #[arg(long)]
+        png: PathBuf,
+        #[arg(long)]
+        config: Option<PathBuf>,
+    },
+    /// Trend statistics (ch. 4.5.5): r, p, slope, intercept of each power ratio vs AE number
+    Trend {
+        /// features.parquet files
+        #[arg(required = true)]
+        features: Vec<PathBuf>,
+        #[arg(long)]
+        out: PathBuf,
+        /// none | peak-load | time:SECONDS | hits:N
+        #[arg(long, default_value = "peak-load")]
+        cutoff: String,
+        /// Significance level
+        #[arg(long, default_value_t = 0.01)]
+        alpha: f64,
+        /// Columns to test (default: every pr_* power ratio), e.g. peak_freq_hz,centroid_freq_hz
+        #[arg(long, value_delimiter = ',')]
+        columns: Vec<String>,
+        /// Skip the PNG plots
+        #[arg(long)]
+        no_plots: bool,
+    },
+    /// Self-organising map (ch. 5): train, classify, show
+    Som {
+        #[command(subcommand)]
+        which: SomCmd,
+    },
+    /// Print the column table of an output table (features, waveforms, rejects, trend, classification)
+    Schema {
+        #[arg(default_value = "features")]
+        table: String,
+        #[arg(long)]
+        config: Option<PathBuf>,
+    },
+    /// Simulate AEs with the hybrid mass/spring + acoustic model (ch. 3–4): DIR/waveforms.parquet
+    Simulate {
+        /// Model file: the thesis's sectioned format (Appendix A) or .toml
+        model: Option<PathBuf>,
+        /// Built-in scenario instead of a file: sho, five-mass-fibre, fibre-single-constraint,
+        /// rubber-band, paper-fibre, mesh3x3-bond-failure, structure2x1-fibre-failure
+        #[arg(long)]
+        scenario: Option<String>,
+        /// Scenario parameter key=value (repeatable), e.g. point=7, stretch=0.01, dt=1e-8
+        #[arg(long = "param", value_parser = crate::sim::scenario::Params::parse_one)]
+        params: Vec<(String, f64)>,
+        /// Run once per integer value: key=LO..HI (e.g. point=1..12), one hit each
+        #[arg(long)]
+        sweep: Option<String>,
+        #[arg(long, value_enum)]
+        solver: Option<crate::sim::model::Solver>,
+        #[arg(long)]
+        out: PathBuf,
+        /// Write node trajectories every N mass/spring steps (DIR/trajectories.parquet)
+        #[arg(long)]
+        trajectories: Option<usize>,
+        /// Write a pressure-field PNG every N acoustic steps (DIR/snapshots/)
+        #[arg(long)]
+        snapshots: Option<usize>,
+        /// Sensor sensitivity, V/Pa (samples_v = pressure × this)
+        #[arg(long, default_value_t = 1.0)]
+        scale: f64,
+    },
+    /// Build the labelled reference library: the simulator over a grid of scenarios, in
+    /// parallel, into DIR/waveforms.parquet
+    Reference {
+        /// Library definition (see pipelines/reference-library.toml)
+        #[arg(long, default_value = "pipelines/reference-library.toml")]
+        config: PathBuf,
+        #[arg(long)]
+        out: PathBuf,
+        #[arg(long, default_value_t = 0)]
+        threads: usize,
+    },
+    /// A synthetic notched-paper test built from reference-library signals: DIR/<id>.pridb,
+    /// .tradb (Vallen) and DIR/truth.parquet
+    SynthExperiment {
+        #[arg(long)]
+        out: PathBuf,
+        #[arg(long, default_value_t = 651)]
+        hits: usize,
+        #[arg(long, default_value_t = 2026)]
+        seed: u64,
+        /// Reference library (waveforms.parquet of `aepipe reference`); default: build the
+        /// embedded pipelines/reference-library.toml into DIR/reference
+        #[arg(long)]
+        library: Option<PathBuf>,
+        #[arg(long, default_value = "synthetic_notched_paper")]
+        id: String,
+    },
+    /// The whole method from a pipeline definition: features → trend → SOM → classification →
+    /// DIR/report.html
+    Run {
+        /// Inputs (files or folders). Without --config the first one is the pipeline
+        /// definition (the older positional form: `aepipe run PIPELINE.toml INPUT…`)
+        #[arg(required = true)]
+        inputs: Vec<PathBuf>,
+        /// Pipeline definition (pipelines/notched-paper.toml, pipelines/demo.toml, …)
+        #[arg(long)]
+        config: Option<PathBuf>,
+        #[arg(long)]
+        out: PathBuf,
+        /// Ground truth (truth.parquet of `aepipe synth-experiment`) to score the classes
+        #[arg(long)]
+        truth: Option<PathBuf>,
+        #[arg(long, default_value_t = 0)]
+        threads: usize,
+    },
+    /// Write RUN_DIR/report.html again from a finished `aepipe run` folder
+    Report { run_dir: PathBuf },
+    /// Make a synthetic experiment and run the pipeline on it (the README's first command)
+    Demo {
+        /// Folder for the demo's data and outputs
+        #[arg(long, default_value = "aepipe-demo")]
+        out: PathBuf,
+        #[arg(long, default_value_t = 651)]
+        hits: usize,
+        #[arg(long, default_value_t = 2026)]
+        seed: u64,
+        #[arg(long, default_value_t = 0)]
+        threads: usize,
+    },
+    /// Benchmarks (print numbers, never pass/fail)
+    Bench {
+        #[command(subcommand)]
+        which: BenchCmd,
+    },
+}
+
+#[derive(Clone, Copy, clap::ValueEnum)]
+pub enum InitArg {
+    Samples,
+    Random,
+    Linear,
+}
+
+#[derive(Subcommand)]
+pub enum SomCmd {
+    /// Train a map on a balanced ~10 % of the labelled hits (ch. 5.4): MODEL_DIR/model.json, model.cod, train.dat, u_matrix.png
+    Train {
+        #[arg(required = true)]
+        features: Vec<PathBuf>,
+        /// Column holding the training labels (criteria_label, or label for simulator truth)
+        #[arg(long, default_value = "criteria_label")]
+        label: String,
+        #[arg(long)]
+        out: PathBuf,
+        /// Feature columns (tf_bins expands to its 200 elements; numeric scalars add one each)
+        #[arg(long, default_value = "tf_bins", value_delimiter = ',')]
+        columns: Vec<String>,
+        /// Share of the hits in the training set
+        #[arg(long, default_value_t = 0.1)]
+        fraction: f64,
+        /// Standardise each dimension (z-score on the training set)
+        #[arg(long)]
+        standardise: bool,
+        #[arg(long, default_value_t = 10)]
+        rows: usize,
+        #[arg(long, default_value_t = 10)]
+        cols: usize,
+        #[arg(long, default_value_t = 2008)]
+        seed: u64,
+        /// Initial codebook: random training vectors, uniform random, or linear (PCA plane)
+        #[arg(long, value_enum, default_value_t = InitArg::Samples)]
+        init: InitArg,
+    },
+    /// Classify every hit: DIR/classification.parquet, the Table 5.4 confusion report, hit maps
+    Classify {
+        model: PathBuf,
+        #[arg(required = true)]
+        features: Vec<PathBuf>,
+        #[arg(long)]
+        out: PathBuf,
+        /// Reference column for the confusion report (default: the model's label column)
+        #[arg(long)]
+        reference: Option<String>,
+    },
+    /// Summarise a model and draw its U-matrix with node labels
+    Show {
+        model: PathBuf,
+        #[arg(long)]
+        png: Option<PathBuf>,
+    },
+}
+
+#[derive(Subcommand)]
+pub enum BenchCmd {
+    /// Simulator scale: implicit steps of random fibre networks (cost per spring), and the
+    /// mesh3x3-bond-failure scenario with its 250×250 grid over 40 µs
+    Sim {
+        #[arg(long, default_value = "1000,2500,5000,10000", value_delimiter = ',')]
+        masses: Vec<usize>,
+        #[arg(long, default_value_t = 200)]
+        steps: usize,
+        #[arg(long, default_value_t = 3)]
+        repeats: usize,
+    },
+    /// W3 SOM training (651 × 200-D, 10×10, Table 5.2 schedule, the peers' initial codebook);
+    /// with --peers, MiniSom in the same run
+    Som {
+        /// Folder written by the peers' export_inputs.py
+        #[arg(long)]
+        inputs: PathBuf,
+        #[arg(long)]
+        peers: Option<PathBuf>,
+        #[arg(long, default_value = "python3")]
+        python: PathBuf,
+        #[arg(long, default_value_t = 5)]
+        repeats: usize,
+    },
+    /// W1 CWT + feature path + W2 spectrum on the peers' exact inputs; with --peers, runs
+    /// fCWT, the numpy baseline and numpy rfft in the same run and prints the ratios
+    Cwt {
+        /// Folder written by the peers' export_inputs.py (w1_signals_f32.bin, w1_freqs_hz_f64.bin)
+        #[arg(long)]
+        inputs: PathBuf,
+        /// The peers' folder (../shared/bench/peers or a writable copy) to run them too
+        #[arg(long)]
+        peers: Option<PathBuf>,
+        /// Python with the peers' packages (their setup_env.sh venv)
+        #[arg(long, default_value = "python3")]
+        python: PathBuf,
+        #[arg(long, default_value = "1,2", value_delimiter = ',')]
+        threads: Vec<usize>,
+        #[arg(long, default_value_t = 5)]
+        repeats: usize,
+        /// Leave out the full-resolution CWT (2.5 GB output): feature path and spectrum only
+        #[arg(long)]
+        skip_full: bool,
+    },
+    /// Stream synthetic hits through the feature pipeline: hits/s and peak RSS at growing hit counts
+    Stream {
+        /// Largest number of hits; the benchmark also runs 1/10 and 1/100 of it first
+        #[arg(long, default_value_t = 100_000)]
+        hits: u64,
+        #[arg(long, default_value_t = 4096)]
+        samples: usize,
+        #[arg(long, default_value_t = 0)]
+        threads: usize,
+        /// Where to write the (small) feature tables
+        #[arg(long, default_value = "target/bench-stream")]
+        out: PathBuf,
+    },
+}

@@ -1,0 +1,181 @@
+//! What the commands print on the terminal.
+
+use crate::bench::{CwtBenchRow, SimScale};
+use crate::pipeline::RunReport;
+use crate::som::tables::Model;
+use std::path::Path;
+
+/// The summary of a streaming run (`aepipe features`, `aepipe waveforms`).
+pub fn stream_run(report: &RunReport, what: &str) {
+    let s = &report.stats;
+    println!(
+        "{what}: {} rows, {} rejects, {} records read, {:.2} s ({:.0} hits/s)",
+        s.rows,
+        s.rejects,
+        s.records_read,
+        s.seconds,
+        s.rows as f64 / s.seconds.max(1e-9)
+    );
+    for (exp, c) in &s.by_experiment {
+        println!(
+            "  {:<40} {:>7} rows {:>6} rejects",
+            if exp.is_empty() {
+                "(no experiment)"
+            } else {
+                exp
+            },
+            c.rows,
+            c.rejects
+        );
+    }
+    if !report.skipped.is_empty() {
+        println!("  {} file(s) in the input folders are not recordings and were passed over (listed in the manifest)", report.skipped.len());
+    }
+    for r in &s.first_rejects {
+        eprintln!("  reject: {r}");
+    }
+    if s.rejects as usize > s.first_rejects.len() {
+        eprintln!(
+            "  … {} more in {}",
+            s.rejects as usize - s.first_rejects.len(),
+            report.rejects_path.display()
+        );
+    }
+    println!(
+        "  wrote {}, {}, {}",
+        report.table_path.display(),
+        report.rejects_path.display(),
+        report.manifest_path.display()
+    );
+}
+
+pub fn demo(d: &crate::demo::DemoResult, out: &Path) {
+    println!(
+        "aepipe demo: synthetic notched-paper experiment built from simulated reference signals"
+    );
+    println!("{}\n", d.synth);
+    for s in &d.inspect {
+        println!("{s}");
+    }
+    stream_run(&d.run.features, "features");
+    println!();
+    for l in crate::workflow::headline(&d.run) {
+        println!("{l}");
+    }
+    println!("report: {}", out.join("run/report.html").display());
+    println!("\ndemo finished in {:.1} s", d.seconds);
+}
+
+pub fn som_trained(m: &Model) {
+    println!(
+        "trained a {}×{} map on {}-D inputs",
+        m.som.rows, m.som.cols, m.som.dim
+    );
+    println!(
+        "training set ({} rows):",
+        m.composition.values().map(|c| c.1).sum::<usize>()
+    );
+    for (c, (distinct, rows)) in &m.composition {
+        println!(
+            "  {c:<16} {distinct:>4} hits, {rows:>4} rows{}",
+            if rows > distinct {
+                format!(" (repeated ×{:.1})", *rows as f64 / *distinct as f64)
+            } else {
+                String::new()
+            }
+        );
+    }
+    if let Some(l) = &m.som.log {
+        println!(
+            "quantisation error: {}",
+            l.qe.iter()
+                .map(|q| format!("{q:.5}"))
+                .collect::<Vec<_>>()
+                .join(" → ")
+        );
+        println!("topographic error: {:.4}", l.topographic_error);
+    }
+}
+
+/// The map's node labels, one grid row per line.
+pub fn som_map(m: &Model) {
+    println!(
+        "{}×{} map, {}-D inputs ({}), labels from {}",
+        m.som.rows,
+        m.som.cols,
+        m.som.dim,
+        m.columns.join(", "),
+        m.label_column
+    );
+    for r in 0..m.som.rows {
+        let row: Vec<String> = (0..m.som.cols)
+            .map(|c| {
+                format!(
+                    "{:>14}",
+                    m.som
+                        .labels
+                        .get(r * m.som.cols + c)
+                        .map(String::as_str)
+                        .unwrap_or("-")
+                )
+            })
+            .collect();
+        println!("{}", row.join(""));
+    }
+}
+
+pub fn sim_scale(rows: &[SimScale], steps: usize) {
+    println!("implicit Euler on random fibre networks (Δt 10 ns, {steps} steps, 1 thread):");
+    println!(
+        "{:>8} {:>8} {:>10} {:>14} {:>13} {:>22}",
+        "masses", "springs", "ms/step", "µs/step/1k sp", "BiCGSTAB it", "ns/spring/iteration"
+    );
+    for r in rows {
+        println!(
+            "{:>8} {:>8} {:>10.3} {:>14.2} {:>13.1} {:>22.2}",
+            r.masses,
+            r.springs,
+            r.seconds_per_step * 1e3,
+            r.seconds_per_step * 1e6 / (r.springs as f64 / 1e3),
+            r.solver_iterations_per_step,
+            r.seconds_per_step * 1e9 / (r.springs as f64 * r.solver_iterations_per_step.max(1.0))
+        );
+    }
+}
+
+pub fn cwt_bench(ours: &[CwtBenchRow]) {
+    println!(
+        "{:<72} {:>7} {:>9} {:>11}",
+        "aepipe (651 signals × 4096 samples)", "threads", "median s", "ms/signal"
+    );
+    for r in ours {
+        println!(
+            "{:<72} {:>7} {:>9.3} {:>11.3}",
+            r.what, r.threads, r.seconds, r.per_signal_ms
+        );
+    }
+}
+
+/// Run the CWT peers in the same run and print their times against ours.
+pub fn cwt_peers(ours: &[CwtBenchRow], python: &Path, peers: &Path) {
+    let find = |prefix: &str, t: usize| {
+        ours.iter()
+            .find(|r| r.what.starts_with(prefix) && r.threads == t)
+            .map(|r| r.seconds)
+    };
+    println!(
+        "\n{:<40} {:>9} {:>34}",
+        "peer (same inputs, same run)", "median s", "peer / aepipe (same threads)"
+    );
+    for p in crate::bench::CWT_PEERS {
+        match crate::bench::run_peer(python, peers, p.script, p.args) {
+            Ok(secs) => {
+                let ratio = find(p.workload, p.threads)
+                    .map(|o| format!("{:.2}x", secs / o))
+                    .unwrap_or_else(|| "–".into());
+                println!("{:<40} {secs:>9.3} {ratio:>34}", p.name);
+            }
+            Err(e) => println!("{:<40} failed: {e}", p.name),
+        }
+    }
+}

@@ -1,0 +1,211 @@
+//! The one reader of the tables aepipe wrote, for the analysis side (trend, SOM, workflow,
+//! report): Polars lazy scans that read only the selected columns. The streaming write path
+//! (and the streaming ingest of `waveforms.parquet`) stays arrow-rs.
+//!
+//! Columns come back as plain vectors keyed by [`HitKey`], and the `tf_bins` fixed-size list
+//! (or any set of numeric columns) as an `ndarray` matrix, one row per hit.
+
+use super::StoreError;
+use ndarray::Array2;
+use polars::prelude::*;
+use std::path::{Path, PathBuf};
+
+/// A hit's key in every table: (experiment, channel, hit).
+pub type HitKey = (String, i32, i64);
+
+/// A lazily scanned table and its schema.
+pub struct TableScan {
+    path: PathBuf,
+    lf: LazyFrame,
+    schema: SchemaRef,
+}
+
+fn read_err(p: &Path, m: impl std::fmt::Display) -> StoreError {
+    StoreError::Read {
+        path: p.display().to_string(),
+        message: m.to_string().replace('\n', " "),
+    }
+}
+
+impl TableScan {
+    /// Open `path` for scanning; fails when it is not a readable Parquet file.
+    pub fn open(path: &Path) -> Result<TableScan, StoreError> {
+        if !path.is_file() {
+            return Err(read_err(path, "no such file"));
+        }
+        let mut lf = LazyFrame::scan_parquet(
+            PlRefPath::try_from_path(path).map_err(|e| read_err(path, e))?,
+            ScanArgsParquet::default(),
+        )
+        .map_err(|e| read_err(path, e))?;
+        let schema = lf.collect_schema().map_err(|e| read_err(path, e))?;
+        Ok(TableScan {
+            path: path.to_path_buf(),
+            lf,
+            schema,
+        })
+    }
+
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
+    /// Column names in table order.
+    pub fn column_names(&self) -> Vec<String> {
+        self.schema.iter_names().map(|n| n.to_string()).collect()
+    }
+
+    pub fn dtype(&self, name: &str) -> Option<&DataType> {
+        self.schema.get(name)
+    }
+
+    /// Fails naming the first of `names` the table lacks, with `why` appended.
+    pub fn require(&self, names: &[&str], why: &str) -> Result<(), StoreError> {
+        match names.iter().find(|n| self.schema.get(n).is_none()) {
+            Some(n) => Err(read_err(&self.path, format!("no column {n}{why}"))),
+            None => Ok(()),
+        }
+    }
+
+    /// Read the selected expressions into memory.
+    pub fn select(&self, exprs: Vec<Expr>) -> Result<DataFrame, StoreError> {
+        self.lf
+            .clone()
+            .select(exprs)
+            .collect()
+            .map_err(|e| read_err(&self.path, e))
+    }
+
+    fn err(&self, m: impl std::fmt::Display) -> StoreError {
+        read_err(&self.path, m)
+    }
+
+    /// The (experiment, channel, hit) key of every row of a frame holding those columns.
+    pub fn hit_keys(&self, df: &DataFrame) -> Result<Vec<HitKey>, StoreError> {
+        let e = |x: PolarsError| self.err(x);
+        let exp = df
+            .column("experiment")
+            .and_then(|c| c.str().cloned())
+            .map_err(e)?;
+        let ch = df
+            .column("channel")
+            .and_then(|c| c.i32().cloned())
+            .map_err(e)?;
+        let hit = df.column("hit").and_then(|c| c.i64().cloned()).map_err(e)?;
+        Ok((0..df.height())
+            .map(|i| {
+                (
+                    exp.get(i).unwrap_or("").to_string(),
+                    ch.get(i).unwrap_or(0),
+                    hit.get(i).unwrap_or(0),
+                )
+            })
+            .collect())
+    }
+
+    /// A string column (nulls as `None`).
+    pub fn strings(&self, df: &DataFrame, name: &str) -> Result<Vec<Option<String>>, StoreError> {
+        let c = df
+            .column(name)
+            .and_then(|c| c.str().cloned())
+            .map_err(|e| self.err(format!("{name}: {e}")))?;
+        Ok((0..c.len()).map(|i| c.get(i).map(str::to_string)).collect())
+    }
+
+    /// A numeric column as f64 (nulls as `None`).
+    pub fn f64s(&self, df: &DataFrame, name: &str) -> Result<Vec<Option<f64>>, StoreError> {
+        let c = df
+            .column(name)
+            .and_then(|c| c.cast(&DataType::Float64))
+            .and_then(|c| c.f64().cloned())
+            .map_err(|e| self.err(format!("{name}: {e}")))?;
+        Ok((0..c.len()).map(|i| c.get(i)).collect())
+    }
+
+    /// Every row's key and the string in `column` (empty for null).
+    pub fn keyed_strings(&self, column: &str) -> Result<Vec<(HitKey, String)>, StoreError> {
+        self.require(&["experiment", "channel", "hit", column], "")?;
+        let df = self.select(vec![
+            col("experiment"),
+            col("channel"),
+            col("hit"),
+            col(column),
+        ])?;
+        let keys = self.hit_keys(&df)?;
+        let vals = self.strings(&df, column)?;
+        Ok(keys
+            .into_iter()
+            .zip(vals)
+            .map(|(k, v)| (k, v.unwrap_or_default()))
+            .collect())
+    }
+
+    /// The numeric feature matrix of `columns` (a fixed-size list such as `tf_bins` gives its
+    /// elements, a numeric scalar one dimension), one row per hit, as f64. Rows where a
+    /// value is null or not finite are left out; the mask says which rows are kept.
+    pub fn matrix(&self, columns: &[String]) -> Result<(Array2<f64>, Vec<bool>), StoreError> {
+        let names: Vec<&str> = columns.iter().map(String::as_str).collect();
+        self.require(&names, "")?;
+        let df = self.select(columns.iter().map(|c| col(c.as_str())).collect())?;
+        let n = df.height();
+        // Per column: its width and a row-major block of values (NaN for null).
+        let mut blocks: Vec<(usize, Vec<f64>)> = Vec::with_capacity(columns.len());
+        for name in columns {
+            let c = df.column(name).map_err(|e| self.err(e))?;
+            match c.dtype() {
+                DataType::Array(inner, width) if inner.is_primitive_numeric() => {
+                    let ca = c.array().map_err(|e| self.err(e))?.rechunk();
+                    let nn = ca.is_not_null();
+                    let valid: Vec<bool> = (0..nn.len()).map(|i| nn.get(i) == Some(true)).collect();
+                    let inner = ca
+                        .get_inner()
+                        .cast(&DataType::Float64)
+                        .map_err(|e| self.err(format!("{name}: {e}")))?;
+                    let vals = inner.f64().map_err(|e| self.err(format!("{name}: {e}")))?;
+                    if vals.len() != n * width {
+                        return Err(self.err(format!(
+                            "{name}: {} values for {n} rows of width {width}",
+                            vals.len()
+                        )));
+                    }
+                    let mut v: Vec<f64> = (0..vals.len())
+                        .map(|i| vals.get(i).unwrap_or(f64::NAN))
+                        .collect();
+                    for (i, ok) in valid.iter().enumerate() {
+                        if !ok {
+                            v[i * width..(i + 1) * width].fill(f64::NAN);
+                        }
+                    }
+                    blocks.push((*width, v));
+                }
+                dt if dt.is_primitive_numeric() => {
+                    let v = self.f64s(&df, name)?;
+                    blocks.push((1, v.into_iter().map(|x| x.unwrap_or(f64::NAN)).collect()));
+                }
+                other => {
+                    return Err(self.err(format!(
+                        "{name} is {other}, not a number or a fixed-size list of numbers"
+                    )))
+                }
+            }
+        }
+        let dim: usize = blocks.iter().map(|b| b.0).sum();
+        let mut keep = vec![true; n];
+        let mut data = Vec::with_capacity(n * dim);
+        let mut row = Vec::with_capacity(dim);
+        for (i, k) in keep.iter_mut().enumerate() {
+            row.clear();
+            for (w, v) in &blocks {
+                row.extend_from_slice(&v[i * w..(i + 1) * w]);
+            }
+            if row.iter().all(|x| x.is_finite()) {
+                data.extend_from_slice(&row);
+            } else {
+                *k = false;
+            }
+        }
+        let rows = data.len() / dim.max(1);
+        let m = Array2::from_shape_vec((rows, dim), data).map_err(|e| self.err(e))?;
+        Ok((m, keep))
+    }
+}

@@ -1,0 +1,221 @@
+//! The house's directions: no import cycle between the library's top-level modules, and a
+//! thin binary. Read from the source text (`crate::room` paths outside `#[cfg(test)]`), so a
+//! cycle that comes back fails here before anyone has to find it.
+
+use std::collections::{BTreeMap, BTreeSet};
+use std::path::{Path, PathBuf};
+
+fn src() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("src")
+}
+
+fn rust_files(dir: &Path, out: &mut Vec<PathBuf>) {
+    for e in std::fs::read_dir(dir).unwrap().flatten() {
+        let p = e.path();
+        if p.is_dir() {
+            rust_files(&p, out);
+        } else if p.extension().is_some_and(|x| x == "rs") {
+            out.push(p);
+        }
+    }
+}
+
+/// The top-level module a file belongs to (`src/som/tables.rs` → `som`).
+fn room_of(file: &Path) -> Option<String> {
+    let rel = file.strip_prefix(src()).ok()?;
+    let first = rel
+        .components()
+        .next()?
+        .as_os_str()
+        .to_string_lossy()
+        .to_string();
+    let room = first.trim_end_matches(".rs").to_string();
+    (room != "lib" && room != "main").then_some(room)
+}
+
+/// Top-level rooms named by `crate::x` (also inside `use crate::{x, y::z}`) in the code
+/// before any `#[cfg(test)]`.
+fn uses(text: &str) -> BTreeSet<String> {
+    let code = text.split("#[cfg(test)]").next().unwrap_or("");
+    let code: String = code
+        .lines()
+        .filter(|l| !l.trim_start().starts_with("//"))
+        .collect::<Vec<_>>()
+        .join("\n");
+    let ident = |s: &str| -> String {
+        s.chars()
+            .take_while(|c| c.is_ascii_alphanumeric() || *c == '_')
+            .collect()
+    };
+    let mut out = BTreeSet::new();
+    for (i, _) in code.match_indices("crate::") {
+        let rest = &code[i + 7..];
+        if let Some(group) = rest.strip_prefix('{') {
+            let end = group.find('}').unwrap_or(group.len());
+            // Top-level names of the group: split on commas at brace depth 0.
+            let mut depth = 0;
+            let mut start = 0;
+            let g = &group[..end.min(group.len())];
+            for (k, ch) in g.char_indices() {
+                match ch {
+                    '{' => depth += 1,
+                    '}' => depth -= 1,
+                    ',' if depth == 0 => {
+                        out.insert(ident(g[start..k].trim()));
+                        start = k + 1;
+                    }
+                    _ => {}
+                }
+            }
+            out.insert(ident(g[start..].trim()));
+        } else {
+            out.insert(ident(rest));
+        }
+    }
+    out.retain(|s| !s.is_empty());
+    out
+}
+
+fn graph() -> BTreeMap<String, BTreeSet<String>> {
+    let mut files = Vec::new();
+    rust_files(&src(), &mut files);
+    let mut g: BTreeMap<String, BTreeSet<String>> = BTreeMap::new();
+    for f in files {
+        let Some(room) = room_of(&f) else { continue };
+        let text = std::fs::read_to_string(&f).unwrap();
+        let deps = g.entry(room.clone()).or_default();
+        for u in uses(&text) {
+            if u != room {
+                deps.insert(u);
+            }
+        }
+    }
+    g
+}
+
+/// A cycle through `start`, if any (depth-first search).
+fn find_cycle(g: &BTreeMap<String, BTreeSet<String>>) -> Option<Vec<String>> {
+    fn visit(
+        n: &str,
+        g: &BTreeMap<String, BTreeSet<String>>,
+        state: &mut BTreeMap<String, u8>,
+        stack: &mut Vec<String>,
+    ) -> Option<Vec<String>> {
+        state.insert(n.to_string(), 1);
+        stack.push(n.to_string());
+        for d in g.get(n).into_iter().flatten() {
+            match state.get(d.as_str()).copied().unwrap_or(0) {
+                1 => {
+                    let i = stack.iter().position(|s| s == d).unwrap();
+                    let mut c = stack[i..].to_vec();
+                    c.push(d.clone());
+                    return Some(c);
+                }
+                0 => {
+                    if let Some(c) = visit(d, g, state, stack) {
+                        return Some(c);
+                    }
+                }
+                _ => {}
+            }
+        }
+        stack.pop();
+        state.insert(n.to_string(), 2);
+        None
+    }
+    let mut state = BTreeMap::new();
+    for n in g.keys() {
+        if state.get(n.as_str()).copied().unwrap_or(0) == 0 {
+            if let Some(c) = visit(n, g, &mut state, &mut Vec::new()) {
+                return Some(c);
+            }
+        }
+    }
+    None
+}
+
+#[test]
+fn the_cycle_finder_finds_a_planted_cycle_and_reads_grouped_imports() {
+    // The checker itself must be able to fail.
+    // The signature check: a map with String values is fine, a String error is not.
+    let sig = |s: &str| {
+        s.find("-> Result<")
+            .map(|k| s[k..].trim_end())
+            .is_some_and(|r| r.ends_with(", String>"))
+    };
+    assert!(sig("pub fn f(x: u8) -> Result<Vec<u8>, String> "));
+    assert!(!sig("pub fn f(x: u8) -> BTreeMap<u8, String> "));
+    assert!(!sig("pub fn f(x: u8) -> Result<BTreeMap<u8, String>, E> "));
+    let u = uses("use crate::{config::X, util::{a, b}};\nfn f() { crate::store::g() }\n#[cfg(test)]\nuse crate::synth;");
+    assert_eq!(
+        u.into_iter().collect::<Vec<_>>(),
+        vec!["config", "store", "util"]
+    );
+    let mut g = BTreeMap::new();
+    g.insert("a".to_string(), BTreeSet::from(["b".to_string()]));
+    g.insert("b".to_string(), BTreeSet::from(["c".to_string()]));
+    g.insert("c".to_string(), BTreeSet::from(["a".to_string()]));
+    assert_eq!(find_cycle(&g).unwrap().len(), 4);
+    g.get_mut("c").unwrap().clear();
+    assert!(find_cycle(&g).is_none());
+}
+
+#[test]
+fn no_import_cycle_between_top_level_modules() {
+    let g = graph();
+    assert!(g.len() > 10, "read {} rooms", g.len());
+    if let Some(c) = find_cycle(&g) {
+        panic!("import cycle: {}", c.join(" → "));
+    }
+    // The leaves stay leaves.
+    for leaf in ["util", "model"] {
+        assert!(
+            g.get(leaf).is_none_or(|d| d.is_empty()),
+            "{leaf} uses {:?}",
+            g[leaf]
+        );
+    }
+    assert!(
+        g["config"].iter().all(|d| d == "util" || d == "model"),
+        "config uses {:?}",
+        g["config"]
+    );
+    // The report renders what it is handed: it reads no inputs and knows no workflow.
+    for far in ["workflow", "ingest", "features", "cli"] {
+        assert!(!g["report"].contains(far), "report uses {far}");
+    }
+}
+
+#[test]
+fn the_binary_only_parses_and_dispatches() {
+    let main = std::fs::read_to_string(src().join("main.rs")).unwrap();
+    assert!(
+        main.lines().count() <= 150,
+        "{} lines",
+        main.lines().count()
+    );
+}
+
+#[test]
+fn no_string_errors_in_public_functions() {
+    let mut files = Vec::new();
+    rust_files(&src(), &mut files);
+    let mut bad = Vec::new();
+    for f in files {
+        let text = std::fs::read_to_string(&f).unwrap();
+        let code = text.split("#[cfg(test)]").next().unwrap_or("");
+        // Signatures may span lines: join each `pub fn` up to its body.
+        for (i, _) in code.match_indices("pub fn ") {
+            let sig = &code[i..code[i..].find('{').map_or(code.len(), |e| i + e)];
+            let ret = sig.find("-> Result<").map(|k| sig[k..].trim_end());
+            if ret.is_some_and(|r| r.ends_with(", String>")) {
+                bad.push(format!(
+                    "{}: {}",
+                    f.display(),
+                    sig.lines().next().unwrap_or("")
+                ));
+            }
+        }
+    }
+    assert!(bad.is_empty(), "{}", bad.join("\n"));
+}
