@@ -301,6 +301,76 @@ mod kernel {
     }
 }
 
+/// The codebook before training (`Init`): given, uniform in the data's bounding box, the
+/// plane of the two leading principal components, or random training vectors. Draws from
+/// `rng` first, so training continues the same stream.
+fn initial_codebook(
+    p: &SomParams,
+    data: &[f64],
+    dim: usize,
+    rng: &mut Rng,
+) -> Result<Vec<f64>, SomError> {
+    let n = data.len() / dim;
+    let nodes = p.rows * p.cols;
+    Ok(match &p.init {
+        Init::Given(w) => {
+            if w.len() != nodes * dim {
+                return Err(SomError::Params(format!(
+                    "initial codebook has {} values, need {}",
+                    w.len(),
+                    nodes * dim
+                )));
+            }
+            w.clone()
+        }
+        Init::Random => {
+            let (mut lo, mut hi) = (vec![f64::INFINITY; dim], vec![f64::NEG_INFINITY; dim]);
+            for x in data.chunks(dim) {
+                for k in 0..dim {
+                    lo[k] = lo[k].min(x[k]);
+                    hi[k] = hi[k].max(x[k]);
+                }
+            }
+            (0..nodes * dim)
+                .map(|i| rng.range(lo[i % dim], hi[i % dim]))
+                .collect()
+        }
+        Init::Linear => {
+            let (mean, pcs) = principal_components(data, dim, p.seed);
+            let spread = |i: usize, len: usize| {
+                if len < 2 {
+                    0.0
+                } else {
+                    2.0 * i as f64 / (len - 1) as f64 - 1.0
+                }
+            };
+            let axis = |k: usize| {
+                pcs.get(k)
+                    .map(|(l, e)| e.iter().map(|x| x * l.max(0.0).sqrt()).collect())
+                    .unwrap_or_else(|| vec![0.0; dim])
+            };
+            // The longer side of the grid follows the first component.
+            let (row_axis, col_axis): (Vec<f64>, Vec<f64>) = if p.rows >= p.cols {
+                (axis(0), axis(1))
+            } else {
+                (axis(1), axis(0))
+            };
+            let mut w = Vec::with_capacity(nodes * dim);
+            for j in 0..nodes {
+                let (a, b) = (spread(j / p.cols, p.rows), spread(j % p.cols, p.cols));
+                w.extend((0..dim).map(|k| mean[k] + a * row_axis[k] + b * col_axis[k]));
+            }
+            w
+        }
+        Init::Samples => (0..nodes)
+            .flat_map(|_| {
+                let i = (rng.next_u64() % n as u64) as usize;
+                data[i * dim..(i + 1) * dim].to_vec()
+            })
+            .collect(),
+    })
+}
+
 impl Som {
     pub fn nodes(&self) -> usize {
         self.rows * self.cols
@@ -345,65 +415,8 @@ impl Som {
             ));
         }
         let n = data.len() / dim;
-        let nodes = p.rows * p.cols;
         let mut rng = Rng::new(p.seed);
-        let weights = match &p.init {
-            Init::Given(w) => {
-                if w.len() != nodes * dim {
-                    return Err(SomError::Params(format!(
-                        "initial codebook has {} values, need {}",
-                        w.len(),
-                        nodes * dim
-                    )));
-                }
-                w.clone()
-            }
-            Init::Random => {
-                let (mut lo, mut hi) = (vec![f64::INFINITY; dim], vec![f64::NEG_INFINITY; dim]);
-                for x in data.chunks(dim) {
-                    for k in 0..dim {
-                        lo[k] = lo[k].min(x[k]);
-                        hi[k] = hi[k].max(x[k]);
-                    }
-                }
-                (0..nodes * dim)
-                    .map(|i| rng.range(lo[i % dim], hi[i % dim]))
-                    .collect()
-            }
-            Init::Linear => {
-                let (mean, pcs) = principal_components(data, dim, p.seed);
-                let spread = |i: usize, len: usize| {
-                    if len < 2 {
-                        0.0
-                    } else {
-                        2.0 * i as f64 / (len - 1) as f64 - 1.0
-                    }
-                };
-                let axis = |k: usize| {
-                    pcs.get(k)
-                        .map(|(l, e)| e.iter().map(|x| x * l.max(0.0).sqrt()).collect())
-                        .unwrap_or_else(|| vec![0.0; dim])
-                };
-                // The longer side of the grid follows the first component.
-                let (row_axis, col_axis): (Vec<f64>, Vec<f64>) = if p.rows >= p.cols {
-                    (axis(0), axis(1))
-                } else {
-                    (axis(1), axis(0))
-                };
-                let mut w = Vec::with_capacity(nodes * dim);
-                for j in 0..nodes {
-                    let (a, b) = (spread(j / p.cols, p.rows), spread(j % p.cols, p.cols));
-                    w.extend((0..dim).map(|k| mean[k] + a * row_axis[k] + b * col_axis[k]));
-                }
-                w
-            }
-            Init::Samples => (0..nodes)
-                .flat_map(|_| {
-                    let i = (rng.next_u64() % n as u64) as usize;
-                    data[i * dim..(i + 1) * dim].to_vec()
-                })
-                .collect(),
-        };
+        let weights = initial_codebook(p, data, dim, &mut rng)?;
         let mut som = Som {
             rows: p.rows,
             cols: p.cols,
@@ -413,6 +426,24 @@ impl Som {
             params: p.clone(),
             log: None,
         };
+        let qe = som.train_stages(data, &mut rng, track_quality);
+        if track_quality {
+            som.log = Some(TrainingLog {
+                n_inputs: n,
+                qe,
+                topographic_error: som.topographic_error_of(data),
+            });
+        }
+        Ok(som)
+    }
+
+    /// The online training of Table 5.2's stages (Eq. 5.3.3), continuing `rng`; returns the
+    /// quantisation error before training and after each stage (empty unless tracked).
+    fn train_stages(&mut self, data: &[f64], rng: &mut Rng, track_quality: bool) -> Vec<f64> {
+        let p = self.params.clone();
+        let (dim, nodes) = (self.dim, self.nodes());
+        let n = data.len() / dim;
+        let som = self;
         let mut qe = Vec::new();
         if track_quality {
             qe.push(som.quantisation_error_of(data));
@@ -465,14 +496,7 @@ impl Som {
                 qe.push(som.quantisation_error_of(data));
             }
         }
-        if track_quality {
-            som.log = Some(TrainingLog {
-                n_inputs: n,
-                qe,
-                topographic_error: som.topographic_error_of(data),
-            });
-        }
-        Ok(som)
+        qe
     }
 
     /// Best-matching unit and its Euclidean distance (Eq. 5.3.1).
