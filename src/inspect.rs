@@ -15,7 +15,11 @@ pub struct Summary {
     pub files: usize,
     pub companions: Vec<String>,
     pub channels: BTreeSet<u32>,
+    /// Hit rows (the acquisition system's hits).
     pub hits: u64,
+    /// Transient records (waveforms) read.
+    pub transients: u64,
+    pub notes: Vec<String>,
     pub rejects: u64,
     pub first_reject: Option<String>,
     pub sample_rates_hz: BTreeSet<u64>,
@@ -53,23 +57,29 @@ pub fn summarise(src: &Source, cfg: &IngestConfig) -> Summary {
     };
     for item in ingest::open(src, cfg) {
         match item {
-            Item::Record(r) => {
+            Item::Hit(h) => {
                 s.hits += 1;
+                s.channels.insert(h.channel);
+                s.experiments.insert(h.experiment.clone());
+                if let Some(t) = h.time_s {
+                    widen(&mut s.time_span_s, t);
+                }
+                if let Some(l) = h.load_n {
+                    widen(&mut s.load_n, l);
+                    s.hits_with_load += 1;
+                }
+                if let Some(e) = h.extension_m {
+                    widen(&mut s.extension_m, e);
+                }
+            }
+            Item::Note(n) => s.notes.push(n.message),
+            Item::Record(r) => {
+                s.transients += 1;
                 s.channels.insert(r.channel);
                 s.experiments.insert(r.experiment.clone());
                 s.sample_rates_hz.insert(r.sample_rate_hz.round() as u64);
                 s.min_len = s.min_len.min(r.samples.len());
                 s.max_len = s.max_len.max(r.samples.len());
-                if let Some(t) = r.time_s {
-                    widen(&mut s.time_span_s, t);
-                }
-                if let Some(l) = r.load_n {
-                    widen(&mut s.load_n, l);
-                    s.hits_with_load += 1;
-                }
-                if let Some(e) = r.extension_m {
-                    widen(&mut s.extension_m, e);
-                }
                 if let Some(l) = r.label {
                     s.labels.insert(l);
                 }
@@ -87,7 +97,7 @@ pub fn summarise(src: &Source, cfg: &IngestConfig) -> Summary {
             }
         }
     }
-    if s.hits == 0 {
+    if s.transients == 0 {
         s.min_len = 0;
     }
     s
@@ -126,6 +136,7 @@ impl fmt::Display for Summary {
             )?;
         }
         writeln!(f, "  hits           {}", self.hits)?;
+        writeln!(f, "  transients     {}", self.transients)?;
         writeln!(
             f,
             "  channels       {}",
@@ -167,6 +178,9 @@ impl fmt::Display for Summary {
                 "  labels         {}",
                 self.labels.iter().cloned().collect::<Vec<_>>().join(", ")
             )?;
+        }
+        for n in &self.notes {
+            writeln!(f, "  note           {n}")?;
         }
         if self.rejects > 0 {
             writeln!(

@@ -87,11 +87,108 @@ impl fmt::Display for Stage {
     }
 }
 
-/// What a reader yields: a hit, or the reason a hit (or file) could not be read.
+/// Which acquisition system recorded a hit row's features.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum HitSource {
+    /// Vallen `.pridb` (`ae_data`, `SetType` 2).
+    Vallen,
+    /// MISTRAS `.DTA` (message 1).
+    Mistras,
+    /// MISTRAS AEwin ASCII hit list (`<EXP>.TXT`).
+    AewinList,
+    /// A format without a hit list: the hit is its transient record, no hardware features.
+    #[default]
+    Record,
+}
+
+impl HitSource {
+    pub fn as_str(self) -> &'static str {
+        match self {
+            HitSource::Vallen => "vallen",
+            HitSource::Mistras => "mistras",
+            HitSource::AewinList => "aewin",
+            HitSource::Record => "record",
+        }
+    }
+}
+
+/// One hit as the acquisition system recorded it: a row of `hits.parquet`. The features
+/// are the system's own (not recomputed), in SI units; `None` where the system does not
+/// record one. `transient` is the `hit` of its transient record in the feature and waveform
+/// tables, `None` when the hit has no transient.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct HitRow {
+    pub experiment: String,
+    /// 1-based: a Vallen database restarted into the same file holds several.
+    pub acquisition: u32,
+    pub channel: u32,
+    /// 1-based order of the hit in its experiment, as the system stored them.
+    pub hit: u64,
+    pub time_s: Option<f64>,
+    pub amplitude_db: Option<f64>,
+    pub threshold_db: Option<f64>,
+    pub rise_time_s: Option<f64>,
+    pub duration_s: Option<f64>,
+    pub counts: Option<i64>,
+    pub counts_to_peak: Option<i64>,
+    /// Vallen energy, eu (1 eu = 1e-14 V²s).
+    pub energy_eu: Option<f64>,
+    /// MISTRAS `ENER`, the system's energy counts.
+    pub energy_counts: Option<f64>,
+    /// MISTRAS `ABS-ENERGY`, attojoules.
+    pub abs_energy_aj: Option<f64>,
+    pub signal_strength_vs: Option<f64>,
+    pub rms_v: Option<f64>,
+    pub avg_freq_hz: Option<f64>,
+    pub centroid_freq_hz: Option<f64>,
+    pub peak_freq_hz: Option<f64>,
+    pub load_n: Option<f64>,
+    pub extension_m: Option<f64>,
+    /// The hit's parametric inputs as a JSON object of volts (`{"PA0": 1.2}`), if any.
+    pub parametric: Option<String>,
+    pub transient: Option<u64>,
+    /// Vallen's transient index as stored (restarts with each acquisition).
+    pub trai: Option<i64>,
+    pub source: HitSource,
+    pub source_file: String,
+}
+
+impl HitRow {
+    /// The hit row of a transient record from a format without a hit list.
+    pub fn of_record(r: &AeRecord) -> HitRow {
+        HitRow {
+            experiment: r.experiment.clone(),
+            acquisition: 1,
+            channel: r.channel,
+            hit: r.hit,
+            time_s: r.time_s,
+            threshold_db: r.threshold_v.filter(|t| *t > 0.0).map(db_ae),
+            load_n: r.load_n,
+            extension_m: r.extension_m,
+            transient: Some(r.hit),
+            source: HitSource::Record,
+            source_file: r.source_file.clone(),
+            ..Default::default()
+        }
+    }
+}
+
+/// Something a reader wants the manifest to say about a file (a default it had to assume).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Note {
+    pub experiment: String,
+    pub source_file: String,
+    pub message: String,
+}
+
+/// What a reader yields: a transient record, a hit row, the reason a transient (or file)
+/// could not be read, or a note for the manifest.
 #[derive(Debug, Clone)]
 pub enum Item {
     Record(AeRecord),
+    Hit(Box<HitRow>),
     Reject(Reject),
+    Note(Note),
 }
 
 /// The damage mechanisms of the thesis (ch. 4.7, Table 5.1) plus the two bookkeeping classes.

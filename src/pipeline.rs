@@ -80,9 +80,11 @@ impl Default for StreamOptions {
     }
 }
 
-/// Row and reject counts of one experiment.
+/// Counts of one experiment. The accounting rule: hits in = `hits` (rows of
+/// `hits.parquet`); transients in = `rows` + `rejects`.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, serde::Serialize)]
 pub struct Counts {
+    pub hits: u64,
     pub rows: u64,
     pub rejects: u64,
 }
@@ -92,6 +94,8 @@ pub struct Counts {
 pub struct StreamStats {
     /// Records the readers produced (before validation).
     pub records_read: u64,
+    /// Rows of `hits.parquet`.
+    pub hits: u64,
     pub rows: u64,
     pub rejects: u64,
     pub by_experiment: BTreeMap<String, Counts>,
@@ -99,6 +103,8 @@ pub struct StreamStats {
     pub by_stage: BTreeMap<String, u64>,
     /// The first few reject lines, for the terminal.
     pub first_rejects: Vec<String>,
+    /// What readers had to assume (at most 1 000, for the manifest).
+    pub notes: Vec<crate::model::Note>,
     pub seconds: f64,
 }
 
@@ -107,6 +113,7 @@ pub struct StreamStats {
 pub struct RunReport {
     pub stats: StreamStats,
     pub table_path: PathBuf,
+    pub hits_path: PathBuf,
     pub rejects_path: PathBuf,
     pub manifest_path: PathBuf,
     pub sources: Vec<Source>,
@@ -115,7 +122,9 @@ pub struct RunReport {
 
 enum Out {
     Row(String, Row),
+    Hit(Box<crate::model::HitRow>),
     Reject(Reject),
+    Note(crate::model::Note),
 }
 
 /// Per-worker states, checked out for a parallel job and returned afterwards, so that plans
@@ -190,6 +199,8 @@ fn record_reject(r: &crate::model::AeRecord, stage: Stage, reason: String) -> Re
 fn process(job: StreamJob, ex: &mut FeatureExtractor, item: Item) -> Out {
     let rec = match item {
         Item::Reject(r) => return Out::Reject(r),
+        Item::Hit(h) => return Out::Hit(h),
+        Item::Note(n) => return Out::Note(n),
         Item::Record(r) => r,
     };
     if let Err(e) = validate(&rec, ex.config()) {
@@ -284,6 +295,12 @@ where
         &meta,
         cfg.pipeline.row_group_rows,
     )?;
+    let mut hits_w = TableWriter::create(
+        &out_dir.join("hits.parquet"),
+        store::hits_table(),
+        &meta,
+        cfg.pipeline.row_group_rows,
+    )?;
     let (tx_in, rx_in) = crossbeam_channel::bounded::<Vec<Item>>(q);
     let (tx_out, rx_out) = crossbeam_channel::bounded::<Vec<Out>>(q);
     let states: StatePool<FeatureExtractor> = StatePool::default();
@@ -322,6 +339,16 @@ where
                             st.rows += 1;
                             st.by_experiment.entry(exp).or_default().rows += 1;
                         }
+                        Out::Hit(h) => {
+                            hits_w.push(store::hit_row(&h))?;
+                            st.hits += 1;
+                            st.by_experiment.entry(h.experiment).or_default().hits += 1;
+                        }
+                        Out::Note(n) => {
+                            if st.notes.len() < 1000 {
+                                st.notes.push(n);
+                            }
+                        }
                         Out::Reject(r) => {
                             rej_w.push(reject_row(&r))?;
                             st.rejects += 1;
@@ -348,6 +375,7 @@ where
             }
             table_w.finish()?;
             rej_w.finish()?;
+            hits_w.finish()?;
             Ok(st)
         });
         for batch in rx_in {
@@ -392,10 +420,11 @@ pub fn run(
     store::clean_stale_tmp(out_dir);
     let table_path = out_dir.join(job.table_file());
     let rejects_path = out_dir.join("rejects.parquet");
+    let hits_path = out_dir.join("hits.parquet");
     let manifest_path = out_dir.join("manifest.json");
     // Outputs of an earlier run are removed first: the files in `out_dir` always belong to
     // one complete run (an interrupted run leaves none rather than a stale mixture).
-    for p in [&table_path, &rejects_path, &manifest_path] {
+    for p in [&table_path, &rejects_path, &hits_path, &manifest_path] {
         let _ = std::fs::remove_file(p);
     }
 
@@ -445,9 +474,12 @@ pub fn run(
         "outputs": {
             "table": {"path": table_path.display().to_string(), "rows": stats.rows},
             "rejects": {"path": rejects_path.display().to_string(), "rows": stats.rejects},
+            "hits": {"path": hits_path.display().to_string(), "rows": stats.hits},
         },
+        "notes": stats.notes.iter().map(|n| json!({"experiment": n.experiment, "file": n.source_file, "note": n.message})).collect::<Vec<_>>(),
         "counts": {
             "records_read": stats.records_read,
+            "hits_written": stats.hits,
             "rows_written": stats.rows,
             "rejects": stats.rejects,
             "rejects_by_stage": stats.by_stage,
@@ -460,6 +492,7 @@ pub fn run(
     Ok(RunReport {
         stats,
         table_path,
+        hits_path,
         rejects_path,
         manifest_path,
         sources,

@@ -439,6 +439,8 @@ impl Experiment {
             sample_rate_hz: r.sample_rate_hz,
             pretrigger: r.pretrigger,
             samples_v: &r.samples,
+            restart: false,
+            transient: true,
         });
         crate::ingest::vallen::write_pair(&dir.join(&self.id), hits, &par, 1e-3, 1e-4)
     }

@@ -171,6 +171,7 @@ pub fn rebuild_report(dir: &Path) -> Result<PathBuf, WorkflowError> {
     let c = &m["counts"];
     let mut stats = crate::pipeline::StreamStats {
         records_read: c["records_read"].as_u64().unwrap_or(0),
+        hits: c["hits_written"].as_u64().unwrap_or(0),
         rows: c["rows_written"].as_u64().unwrap_or(0),
         rejects: c["rejects"].as_u64().unwrap_or(0),
         ..Default::default()
@@ -180,6 +181,7 @@ pub fn rebuild_report(dir: &Path) -> Result<PathBuf, WorkflowError> {
             stats.by_experiment.insert(
                 k.clone(),
                 crate::pipeline::Counts {
+                    hits: v["hits"].as_u64().unwrap_or(0),
                     rows: v["rows"].as_u64().unwrap_or(0),
                     rejects: v["rejects"].as_u64().unwrap_or(0),
                 },
@@ -189,6 +191,7 @@ pub fn rebuild_report(dir: &Path) -> Result<PathBuf, WorkflowError> {
     let features = RunReport {
         stats,
         table_path: fdir.join("features.parquet"),
+        hits_path: fdir.join("hits.parquet"),
         rejects_path: fdir.join("rejects.parquet"),
         manifest_path: mp,
         sources: vec![],
@@ -539,6 +542,7 @@ pub const TABLES: &[&str] = &[
     "features",
     "waveforms",
     "rejects",
+    "hits",
     "trend",
     "classification",
     "sim_waveforms",
@@ -552,6 +556,7 @@ pub fn table_schema(name: &str, cfg: &PipelineConfig) -> Option<crate::store::Ta
         "features" => crate::features::features_table(cfg),
         "waveforms" => crate::store::waveforms_table(),
         "rejects" => crate::store::rejects_table(),
+        "hits" => crate::store::hits_table(),
         "trend" => crate::analysis::trend::trend_table(),
         "classification" => crate::som::tables::classification_table(),
         "sim_waveforms" => crate::sim::output::sim_waveforms_table(),

@@ -15,7 +15,7 @@ mod waveexplorer;
 pub mod wavfmt;
 
 use crate::config::{FormatChoice, IngestConfig};
-use crate::model::{Item, Reject, Stage};
+use crate::model::{HitRow, Item, Reject, Stage};
 use std::path::{Path, PathBuf};
 
 pub use aewin::MachineLog;
@@ -82,6 +82,15 @@ pub struct Source {
 }
 
 impl Source {
+    /// Whether the source stores its hits apart from its transients (a Vallen `.pridb`);
+    /// then its reader yields the hit rows, otherwise every transient is also its hit.
+    pub fn has_hit_list(&self) -> bool {
+        match self.format {
+            Format::Vallen => !self.companions.is_empty(),
+            _ => false,
+        }
+    }
+
     /// Every file this source reads (for the manifest).
     pub fn all_files(&self) -> impl Iterator<Item = &PathBuf> {
         self.files.iter().chain(self.companions.iter())
@@ -453,6 +462,18 @@ pub(crate) fn whole_file_reject(p: &Path, stage: Stage, reason: String) -> Rejec
 
 /// Read a source: an iterator of records and reject rows, in (experiment, channel, hit) order.
 pub fn open(src: &Source, cfg: &IngestConfig) -> Box<dyn Iterator<Item = Item> + Send> {
+    let items = open_format(src, cfg);
+    if src.has_hit_list() {
+        return items;
+    }
+    // A format without a hit list: each transient read is also its hit.
+    Box::new(items.flat_map(|it| match it {
+        Item::Record(r) => vec![Item::Hit(Box::new(HitRow::of_record(&r))), Item::Record(r)],
+        other => vec![other],
+    }))
+}
+
+fn open_format(src: &Source, cfg: &IngestConfig) -> Box<dyn Iterator<Item = Item> + Send> {
     match src.format {
         Format::Vallen => vallen::open(src, cfg),
         Format::Aewin => aewin::open(src, cfg),

@@ -14,9 +14,9 @@
 
 use super::{file_err, IngestError, Source, TimeSeries};
 use crate::config::IngestConfig;
-use crate::model::{AeRecord, Item, Reject, Stage};
+use crate::model::{db_ae, AeRecord, HitRow, HitSource, Item, Reject, Stage};
 use rusqlite::{Connection, OpenFlags, OptionalExtension};
-use std::collections::{BTreeMap, VecDeque};
+use std::collections::{HashMap, HashSet, VecDeque};
 use std::path::{Path, PathBuf};
 
 pub(crate) fn open_ro(path: &Path) -> Result<Connection, IngestError> {
@@ -64,17 +64,51 @@ fn time_base(conn: &Connection, table: &str) -> f64 {
     .unwrap_or(1e7)
 }
 
-/// What the `.pridb` tells about the hits: TRAI → channel, and the parametric series.
+/// What the `.pridb` tells about the hits: their acquisitions, the transient each one
+/// links to, and the parametric series.
 #[derive(Debug, Default)]
 pub struct PriInfo {
-    /// TRAI → channel of every hit that should have a waveform.
-    pub trai_chan: BTreeMap<i64, i64>,
-    /// Hits without a transient record (TRAI 0 or null).
-    pub hits_without_waveform: u64,
+    /// Hits (`SetType` 2) in the file.
+    pub hits: u64,
+    /// First `SetID` of each acquisition after the first (a section-start marker, or a
+    /// `TRAI` that does not rise).
+    pub acq_starts: Vec<i64>,
+    /// Largest `TRAI` of each acquisition.
+    pub acq_max_trai: Vec<i64>,
+    /// (TRAI, channel, time in ticks) → acquisition of every hit that has a transient index.
+    pub link: HashMap<(i64, i64, i64), u32>,
     pub load: TimeSeries,
     pub extension: TimeSeries,
     /// Parametric inputs present (`PA0`, `PA1`, …).
     pub parametric: Vec<String>,
+}
+
+impl PriInfo {
+    /// 1-based acquisition of the set `setid`.
+    pub fn acquisition_of(&self, setid: i64) -> u32 {
+        self.acq_starts.partition_point(|&s| s <= setid) as u32 + 1
+    }
+}
+
+/// Transient numbers unique in an experiment: `TRAI` in the first acquisition, `TRAI` plus
+/// the largest `TRAI` of the earlier acquisitions after a restart.
+#[derive(Debug, Clone, Default)]
+pub struct TraiOffsets(Vec<i64>);
+
+impl TraiOffsets {
+    pub fn new(acq_max_trai: &[i64]) -> TraiOffsets {
+        let mut off = Vec::with_capacity(acq_max_trai.len());
+        let mut sum = 0i64;
+        for &m in acq_max_trai {
+            off.push(sum);
+            sum += m.max(0);
+        }
+        TraiOffsets(off)
+    }
+    pub fn number(&self, acquisition: u32, trai: i64) -> u64 {
+        let k = (acquisition.max(1) - 1) as usize;
+        (trai + self.0.get(k).copied().unwrap_or(0)).max(0) as u64
+    }
 }
 
 fn parametric_series(
@@ -131,23 +165,48 @@ pub fn read_pridb(path: &Path, cfg: &IngestConfig) -> Result<PriInfo, IngestErro
             .collect(),
         ..Default::default()
     };
+    // One pass over the sets in storage order: section-start markers (SetType 6) and a
+    // TRAI that does not rise begin a new acquisition.
     let mut st = conn
-        .prepare("SELECT TRAI, Chan FROM ae_data WHERE SetType = 2")
+        .prepare("SELECT SetID, SetType, Time, Chan, TRAI FROM ae_data ORDER BY SetID")
         .map_err(|e| file_err(path, format!("cannot read hits: {e}")))?;
     let rows = st
         .query_map([], |r| {
-            Ok((r.get::<_, Option<i64>>(0)?, r.get::<_, Option<i64>>(1)?))
+            Ok((
+                r.get::<_, i64>(0)?,
+                r.get::<_, Option<i64>>(1)?.unwrap_or(0),
+                r.get::<_, Option<i64>>(2)?.unwrap_or(0),
+                r.get::<_, Option<i64>>(3)?.unwrap_or(0),
+                r.get::<_, Option<i64>>(4)?.unwrap_or(0),
+            ))
         })
         .map_err(|e| file_err(path, format!("cannot read hits: {e}")))?;
+    let (mut seen_hit, mut marker_pending, mut max_trai) = (false, false, 0i64);
     for row in rows {
-        let (trai, chan) = row.map_err(|e| file_err(path, format!("cannot read hits: {e}")))?;
-        match trai {
-            Some(t) if t > 0 => {
-                info.trai_chan.insert(t, chan.unwrap_or(0));
+        let (setid, set_type, time, chan, trai) =
+            row.map_err(|e| file_err(path, format!("cannot read hits: {e}")))?;
+        match set_type {
+            6 => marker_pending = true,
+            2 => {
+                let restart = trai > 0 && trai <= max_trai;
+                if seen_hit && (marker_pending || restart) {
+                    info.acq_starts.push(setid);
+                    info.acq_max_trai.push(max_trai);
+                    max_trai = 0;
+                }
+                marker_pending = false;
+                seen_hit = true;
+                info.hits += 1;
+                if trai > 0 {
+                    max_trai = max_trai.max(trai);
+                    let acq = info.acq_starts.len() as u32 + 1;
+                    info.link.insert((trai, chan, time), acq);
+                }
             }
-            _ => info.hits_without_waveform += 1,
+            _ => {}
         }
     }
+    info.acq_max_trai.push(max_trai);
     let v = &cfg.vallen;
     info.load = parametric_series(&conn, &cols, &v.load_param, tb, v.load_n_per_mv);
     info.extension = parametric_series(&conn, &cols, &v.extension_param, tb, v.extension_m_per_mv);
@@ -193,19 +252,180 @@ pub(crate) fn decode_blob(format: i64, data: &[u8], samples: usize) -> Result<Ve
     Ok(adc)
 }
 
+/// The hit rows of a `.pridb`, read in chunks of 1 024 sets (bounded memory).
+struct HitRows {
+    conn: Connection,
+    sql: String,
+    path: String,
+    time_base: f64,
+    last_setid: i64,
+    number: u64,
+    done: bool,
+}
+
+impl HitRows {
+    fn open(path: &Path, time_base: f64) -> Result<HitRows, IngestError> {
+        let conn = open_ro(path)?;
+        let view = columns(&conn, "view_ae_data");
+        // The view applies the file's own scaling (ae_params, ae_fieldinfo); a column the
+        // view lacks is null.
+        let pick = |c: &str| {
+            if view.iter().any(|v| v == c) {
+                format!("v.{c}")
+            } else {
+                "NULL".to_string()
+            }
+        };
+        let sql = if view.is_empty() {
+            "SELECT d.SetID, d.Time, d.Chan, NULL, NULL, NULL, NULL, NULL, NULL, NULL, NULL, d.TRAI \
+             FROM ae_data d WHERE d.SetType = 2 AND d.SetID > ?1 ORDER BY d.SetID LIMIT 1024"
+                .to_string()
+        } else {
+            format!(
+                "SELECT d.SetID, d.Time, d.Chan, {}, {}, {}, {}, {}, {}, {}, {}, d.TRAI \
+                 FROM ae_data d JOIN view_ae_data v ON v.SetID = d.SetID \
+                 WHERE d.SetType = 2 AND d.SetID > ?1 ORDER BY d.SetID LIMIT 1024",
+                pick("Thr"),
+                pick("Amp"),
+                pick("RiseT"),
+                pick("Dur"),
+                pick("Eny"),
+                pick("SS"),
+                pick("RMS"),
+                pick("Counts"),
+            )
+        };
+        Ok(HitRows {
+            conn,
+            sql,
+            path: path.display().to_string(),
+            time_base,
+            last_setid: i64::MIN,
+            number: 0,
+            done: false,
+        })
+    }
+
+    /// The next chunk: (SetID, time ticks, hit row without experiment-level links).
+    fn chunk(&mut self) -> Result<Vec<(i64, i64, HitRow)>, String> {
+        if self.done {
+            return Ok(vec![]);
+        }
+        let mut st = self
+            .conn
+            .prepare_cached(&self.sql)
+            .map_err(|e| e.to_string())?;
+        let db = |uv: Option<f64>| uv.filter(|v| *v > 0.0).map(|v| db_ae(v * 1e-6));
+        let rows: Vec<_> = st
+            .query_map([self.last_setid], |r| {
+                Ok((
+                    r.get::<_, i64>(0)?,
+                    r.get::<_, Option<i64>>(1)?.unwrap_or(0),
+                    r.get::<_, Option<i64>>(2)?.unwrap_or(0),
+                    r.get::<_, Option<f64>>(3)?,
+                    r.get::<_, Option<f64>>(4)?,
+                    r.get::<_, Option<f64>>(5)?,
+                    r.get::<_, Option<f64>>(6)?,
+                    r.get::<_, Option<f64>>(7)?,
+                    r.get::<_, Option<f64>>(8)?,
+                    r.get::<_, Option<f64>>(9)?,
+                    r.get::<_, Option<i64>>(10)?,
+                    r.get::<_, Option<i64>>(11)?,
+                ))
+            })
+            .and_then(|it| it.collect::<Result<Vec<_>, _>>())
+            .map_err(|e| e.to_string())?;
+        if rows.len() < 1024 {
+            self.done = true;
+        }
+        let mut out = Vec::with_capacity(rows.len());
+        for (setid, time, chan, thr, amp, rise, dur, eny, ss, rms, counts, trai) in rows {
+            self.last_setid = setid;
+            self.number += 1;
+            out.push((
+                setid,
+                time,
+                HitRow {
+                    channel: chan.max(0) as u32,
+                    hit: self.number,
+                    time_s: Some(time as f64 / self.time_base),
+                    amplitude_db: db(amp),
+                    threshold_db: db(thr),
+                    rise_time_s: rise.map(|v| v * 1e-6),
+                    duration_s: dur.map(|v| v * 1e-6),
+                    counts,
+                    energy_eu: eny,
+                    signal_strength_vs: ss.map(|v| v * 1e-9),
+                    rms_v: rms.map(|v| v * 1e-6),
+                    trai: trai.filter(|t| *t > 0),
+                    source: HitSource::Vallen,
+                    source_file: self.path.clone(),
+                    ..Default::default()
+                },
+            ));
+        }
+        Ok(out)
+    }
+}
+
 struct Reader {
     experiment: String,
+    hits: Option<HitRows>,
+    pending_hits: VecDeque<Item>,
     tradb: PathBuf,
     conn: Option<Connection>,
     time_base: f64,
-    keys: VecDeque<(i64, i64, i64)>,
+    /// (channel, transient number, SetID, TRAI), in output order.
+    keys: VecDeque<(i64, u64, i64, i64)>,
+    /// (TRAI, channel, time) of every transient in the `.tradb`.
+    have: HashSet<(i64, i64, i64)>,
+    offsets: TraiOffsets,
     info: PriInfo,
-    /// Rejects to emit at the end: pridb hits whose TRAI the tradb does not hold.
+    /// Rejects to emit at the end: pridb hits whose transient the tradb does not hold.
     tail: VecDeque<Reject>,
 }
 
 impl Reader {
-    fn fetch(&mut self, chan: i64, trai: i64, setid: i64) -> Item {
+    fn next_hits(&mut self) -> bool {
+        let Some(h) = self.hits.as_mut() else {
+            return false;
+        };
+        match h.chunk() {
+            Ok(rows) if rows.is_empty() => {
+                self.hits = None;
+                false
+            }
+            Ok(rows) => {
+                for (setid, ticks, mut row) in rows {
+                    row.experiment = self.experiment.clone();
+                    row.acquisition = self.info.acquisition_of(setid);
+                    if let Some(t) = row.trai {
+                        if self.have.contains(&(t, row.channel as i64, ticks)) {
+                            row.transient = Some(self.offsets.number(row.acquisition, t));
+                        }
+                    }
+                    row.load_n = row.time_s.and_then(|t| self.info.load.at(t));
+                    row.extension_m = row.time_s.and_then(|t| self.info.extension.at(t));
+                    self.pending_hits.push_back(Item::Hit(Box::new(row)));
+                }
+                true
+            }
+            Err(e) => {
+                let path = h.path.clone();
+                self.hits = None;
+                self.pending_hits.push_back(Item::Reject(Reject {
+                    experiment: self.experiment.clone(),
+                    source_file: path,
+                    record_id: String::new(),
+                    stage: Stage::Read,
+                    reason: format!("hit rows after the first ones unreadable: {e}"),
+                }));
+                true
+            }
+        }
+    }
+
+    fn fetch(&mut self, chan: i64, number: u64, setid: i64, trai: i64) -> Item {
         let conn = self.conn.as_ref().expect("open while keys remain");
         let row = conn.query_row(
             "SELECT d.Time, d.Pretrigger, d.SampleRate, d.Samples, d.DataFormat, d.Data, p.TR_mV, d.Thr * p.\"ADC_µV\" \
@@ -228,7 +448,11 @@ impl Reader {
             Item::Reject(Reject {
                 experiment: self.experiment.clone(),
                 source_file: self.tradb.display().to_string(),
-                record_id: format!("TRAI {trai}"),
+                record_id: if number == trai as u64 {
+                    format!("TRAI {trai}")
+                } else {
+                    format!("TRAI {trai} (transient {number})")
+                },
                 stage: Stage::Read,
                 reason,
             })
@@ -253,7 +477,7 @@ impl Reader {
         Item::Record(AeRecord {
             experiment: self.experiment.clone(),
             channel: chan.max(0) as u32,
-            hit: trai as u64,
+            hit: number,
             time_s,
             sample_rate_hz: rate,
             pretrigger: pre.unwrap_or(0).max(0) as u32,
@@ -270,15 +494,25 @@ impl Reader {
 impl Iterator for Reader {
     type Item = Item;
     fn next(&mut self) -> Option<Item> {
-        if let Some((chan, trai, setid)) = self.keys.pop_front() {
-            return Some(self.fetch(chan, trai, setid));
+        loop {
+            if let Some(h) = self.pending_hits.pop_front() {
+                return Some(h);
+            }
+            if !self.next_hits() {
+                break;
+            }
+        }
+        if let Some((chan, number, setid, trai)) = self.keys.pop_front() {
+            return Some(self.fetch(chan, number, setid, trai));
         }
         self.conn = None;
         self.tail.pop_front().map(Item::Reject)
     }
 }
 
-/// Open a Vallen source (its `.tradb`, and the `.pridb` when present).
+/// Open a Vallen source: the hit rows of its `.pridb` (every acquisition), then its
+/// transient records in (channel, transient number) order, then a reject for each hit whose
+/// transient the `.tradb` lacks.
 pub fn open(src: &Source, cfg: &IngestConfig) -> Box<dyn Iterator<Item = Item> + Send> {
     let experiment = src.id.clone();
     let pridb = src.companions.first().cloned();
@@ -291,77 +525,143 @@ pub fn open(src: &Source, cfg: &IngestConfig) -> Box<dyn Iterator<Item = Item> +
         stage: Stage::Read,
         reason,
     };
-    let info = match &pridb {
-        Some(p) => match read_pridb(p, cfg) {
-            Ok(i) => i,
+    let (info, hits) = match &pridb {
+        Some(p) => match read_pridb(p, cfg).and_then(|i| {
+            let tb = open_ro(p).map(|c| time_base(&c, "ae_globalinfo"))?;
+            Ok((i, HitRows::open(p, tb)?))
+        }) {
+            Ok((i, h)) => (i, Some(h)),
             Err(e) => {
                 first.push(Item::Reject(file_reject(
                     p,
                     format!("hits and load ignored: {e}"),
                 )));
-                PriInfo::default()
+                (PriInfo::default(), None)
             }
         },
-        None => PriInfo::default(),
+        None => (PriInfo::default(), None),
     };
     let pridb_name = pridb
         .as_ref()
         .map(|p| p.display().to_string())
         .unwrap_or_default();
     let missing =
-        |info: &PriInfo, have: &std::collections::HashSet<i64>, why: &str| -> VecDeque<Reject> {
-            info.trai_chan
+        |info: &PriInfo, have: &HashSet<(i64, i64, i64)>, why: &str| -> VecDeque<Reject> {
+            let mut m: Vec<(u32, i64, i64, i64)> = info
+                .link
                 .iter()
-                .filter(|(t, _)| !have.contains(t))
-                .map(|(t, c)| Reject {
+                .filter(|(k, _)| !have.contains(k))
+                .map(|(&(t, c, time), &a)| (a, t, c, time))
+                .collect();
+            m.sort_unstable();
+            m.into_iter()
+                .map(|(a, t, c, _)| Reject {
                     experiment: experiment.clone(),
                     source_file: pridb_name.clone(),
-                    record_id: format!("TRAI {t}"),
+                    record_id: if a > 1 {
+                        format!("TRAI {t} ch{c} acquisition {a}")
+                    } else {
+                        format!("TRAI {t} ch{c}")
+                    },
                     stage: Stage::Read,
-                    reason: format!("hit on channel {c} has no waveform: {why}"),
+                    reason: format!("hit on channel {c} has no transient: {why}"),
                 })
                 .collect()
         };
+    let offsets = TraiOffsets::new(&info.acq_max_trai);
+    let reader = |tradb: PathBuf,
+                  conn: Option<Connection>,
+                  time_base: f64,
+                  keys: VecDeque<(i64, u64, i64, i64)>,
+                  have: HashSet<(i64, i64, i64)>,
+                  tail: VecDeque<Reject>,
+                  info: PriInfo| Reader {
+        experiment: experiment.clone(),
+        hits,
+        pending_hits: VecDeque::new(),
+        tradb,
+        conn,
+        time_base,
+        keys,
+        have,
+        offsets: offsets.clone(),
+        info,
+        tail,
+    };
     let Some(tradb) = tradb else {
-        let tail = missing(&info, &Default::default(), "no .tradb beside the .pridb");
-        return Box::new(first.into_iter().chain(tail.into_iter().map(Item::Reject)));
+        let tail = missing(&info, &HashSet::new(), "no .tradb beside the .pridb");
+        let r = reader(
+            PathBuf::new(),
+            None,
+            1e7,
+            VecDeque::new(),
+            HashSet::new(),
+            tail,
+            info,
+        );
+        return Box::new(first.into_iter().chain(r));
     };
     let opened = open_ro(&tradb).and_then(|conn| {
         let mut st = conn
-            .prepare("SELECT Chan, TRAI, SetID FROM tr_data ORDER BY Chan, TRAI, SetID")
+            .prepare("SELECT SetID, Time, Chan, TRAI FROM tr_data ORDER BY SetID")
             .map_err(|e| file_err(&tradb, format!("not a Vallen .tradb: {e}")))?;
-        let keys = st
+        let raw = st
             .query_map([], |r| {
                 Ok((
-                    r.get::<_, Option<i64>>(0)?.unwrap_or(0),
+                    r.get::<_, i64>(0)?,
                     r.get::<_, Option<i64>>(1)?.unwrap_or(0),
-                    r.get::<_, i64>(2)?,
+                    r.get::<_, Option<i64>>(2)?.unwrap_or(0),
+                    r.get::<_, Option<i64>>(3)?.unwrap_or(0),
                 ))
             })
-            .and_then(|it| it.collect::<Result<VecDeque<_>, _>>())
+            .and_then(|it| it.collect::<Result<Vec<_>, _>>())
             .map_err(|e| file_err(&tradb, format!("cannot list records: {e}")))?;
         drop(st);
-        Ok((conn, keys))
+        Ok((conn, raw))
     });
     match opened {
-        Ok((conn, keys)) => {
-            let have: std::collections::HashSet<i64> = keys.iter().map(|k| k.1).collect();
-            let tail = missing(&info, &have, "its TRAI is not in the .tradb");
+        Ok((conn, raw)) => {
+            let have: HashSet<(i64, i64, i64)> = raw.iter().map(|k| (k.3, k.2, k.1)).collect();
+            // A transient's number: through its hit's acquisition when the .pridb knows it,
+            // else from the .tradb's own TRAI restarts (a .tradb read alone).
+            let (mut own_acq, mut own_max, mut own_maxima) = (1u32, 0i64, Vec::new());
+            let mut keys: Vec<(i64, u64, i64, i64)> = Vec::with_capacity(raw.len());
+            for &(setid, time, chan, trai) in &raw {
+                if trai > 0 && trai <= own_max {
+                    own_maxima.push(own_max);
+                    own_acq += 1;
+                    own_max = 0;
+                }
+                own_max = own_max.max(trai);
+                let number = match info.link.get(&(trai, chan, time)) {
+                    Some(&acq) => offsets.number(acq, trai),
+                    None => {
+                        let mut m = own_maxima.clone();
+                        m.push(0);
+                        TraiOffsets::new(&m).number(own_acq, trai)
+                    }
+                };
+                keys.push((chan, number, setid, trai));
+            }
+            keys.sort_unstable();
+            let tail = missing(&info, &have, "it is not in the .tradb");
             let tb = time_base(&conn, "tr_globalinfo");
-            Box::new(first.into_iter().chain(Reader {
-                experiment: experiment.clone(),
-                tradb,
-                conn: Some(conn),
-                time_base: tb,
-                keys,
-                info,
-                tail,
-            }))
+            let r = reader(tradb, Some(conn), tb, keys.into(), have, tail, info);
+            Box::new(first.into_iter().chain(r))
         }
         Err(e) => {
             first.push(Item::Reject(file_reject(&tradb, e.to_string())));
-            let tail = missing(&info, &Default::default(), "the .tradb cannot be read");
-            Box::new(first.into_iter().chain(tail.into_iter().map(Item::Reject)))
+            let tail = missing(&info, &HashSet::new(), "the .tradb cannot be read");
+            let r = reader(
+                tradb,
+                None,
+                1e7,
+                VecDeque::new(),
+                HashSet::new(),
+                tail,
+                info,
+            );
+            Box::new(first.into_iter().chain(r))
         }
     }
 }
@@ -375,6 +675,11 @@ pub struct HitToWrite<'a> {
     pub pretrigger: u32,
     /// Volts; quantised to int16 with the pair's `TR_mV`.
     pub samples_v: &'a [f32],
+    /// Recording was restarted into the database before this hit: a section-start marker
+    /// (`SetType` 6) precedes it, and the caller restarts `trai` and `time_s`.
+    pub restart: bool,
+    /// Write the transient (`tr_data` row); `false` leaves the hit without one.
+    pub transient: bool,
 }
 
 /// Write a Vallen `.pridb`/`.tradb` pair (raw int16 waveforms, `DataFormat` 0) with the
@@ -428,16 +733,24 @@ pub fn write_pair<'a>(
         Par(f64, f64, f64),
         Hit(HitToWrite<'a>),
     }
-    let mut rows: Vec<Row> = parametric
+    // Each acquisition in time order; the parametric rows belong to the first.
+    let mut acquisitions: Vec<Vec<Row>> = vec![parametric
         .iter()
         .map(|&(t, a, b)| Row::Par(t, a, b))
-        .collect();
-    rows.extend(hits.into_iter().map(Row::Hit));
+        .collect()];
+    for h in hits {
+        if h.restart {
+            acquisitions.push(Vec::new());
+        }
+        acquisitions.last_mut().expect("one").push(Row::Hit(h));
+    }
     let t_of = |r: &Row| match r {
         Row::Par(t, ..) => *t,
         Row::Hit(h) => h.time_s,
     };
-    rows.sort_by(|a, b| t_of(a).total_cmp(&t_of(b)));
+    for a in &mut acquisitions {
+        a.sort_by(|a, b| t_of(a).total_cmp(&t_of(b)));
+    }
     let to_ticks = |t: f64| (t * 1e7).round() as i64;
     let scale = 1e3 / tr_mv; // volts -> ADC counts
     let thr_adc = (threshold_v * 1e6 / adc_uv).round() as i64;
@@ -453,51 +766,63 @@ pub fn write_pair<'a>(
              VALUES (?1, ?2, 0, 2, ?3, ?4, ?5, ?6, ?7, 0, ?8)",
         )?;
         let mut blob = Vec::new();
-        for r in rows {
-            match r {
-                Row::Par(t, a, b) => {
-                    ins_pri.execute(rusqlite::params![
-                        1,
-                        to_ticks(t),
-                        Option::<i64>::None,
-                        1,
-                        Option::<i64>::None,
-                        Option::<i64>::None,
-                        Option::<i64>::None,
-                        (a * 1e3).round() as i64,
-                        (b * 1e3).round() as i64
-                    ])?;
-                }
-                Row::Hit(h) => {
-                    blob.clear();
-                    let mut peak = 0i64;
-                    for &v in h.samples_v {
-                        let q = (v as f64 * scale).round().clamp(-32768.0, 32767.0) as i16;
-                        peak = peak.max((q as i64).abs());
-                        blob.extend_from_slice(&q.to_le_bytes());
+        let mut marker = ptx.prepare("INSERT INTO ae_data (SetType, Time) VALUES (6, 0)")?;
+        for (k, rows) in acquisitions.into_iter().enumerate() {
+            if k > 0 {
+                marker.execute([])?;
+                ptx.execute(
+                    "INSERT INTO ae_markers (SetID, Number, Data) VALUES (last_insert_rowid(), ?1, '')",
+                    [k as i64 + 1],
+                )?;
+            }
+            for r in rows {
+                match r {
+                    Row::Par(t, a, b) => {
+                        ins_pri.execute(rusqlite::params![
+                            1,
+                            to_ticks(t),
+                            Option::<i64>::None,
+                            1,
+                            Option::<i64>::None,
+                            Option::<i64>::None,
+                            Option::<i64>::None,
+                            (a * 1e3).round() as i64,
+                            (b * 1e3).round() as i64
+                        ])?;
                     }
-                    let amp = (peak as f64 * tr_mv * 1e3 / adc_uv).round() as i64;
-                    ins_pri.execute(rusqlite::params![
-                        2,
-                        to_ticks(h.time_s),
-                        h.channel,
-                        2,
-                        thr_adc,
-                        amp,
-                        h.trai as i64,
-                        Option::<i64>::None,
-                        Option::<i64>::None
-                    ])?;
-                    ins_tra.execute(rusqlite::params![
-                        to_ticks(h.time_s),
-                        h.trai as i64,
-                        h.channel,
-                        h.pretrigger,
-                        thr_adc,
-                        h.sample_rate_hz.round() as i64,
-                        h.samples_v.len() as i64,
-                        &blob
-                    ])?;
+                    Row::Hit(h) => {
+                        blob.clear();
+                        let mut peak = 0i64;
+                        for &v in h.samples_v {
+                            let q = (v as f64 * scale).round().clamp(-32768.0, 32767.0) as i16;
+                            peak = peak.max((q as i64).abs());
+                            blob.extend_from_slice(&q.to_le_bytes());
+                        }
+                        let amp = (peak as f64 * tr_mv * 1e3 / adc_uv).round() as i64;
+                        ins_pri.execute(rusqlite::params![
+                            2,
+                            to_ticks(h.time_s),
+                            h.channel,
+                            2,
+                            thr_adc,
+                            amp,
+                            h.trai as i64,
+                            Option::<i64>::None,
+                            Option::<i64>::None
+                        ])?;
+                        if h.transient {
+                            ins_tra.execute(rusqlite::params![
+                                to_ticks(h.time_s),
+                                h.trai as i64,
+                                h.channel,
+                                h.pretrigger,
+                                thr_adc,
+                                h.sample_rate_hz.round() as i64,
+                                h.samples_v.len() as i64,
+                                &blob
+                            ])?;
+                        }
+                    }
                 }
             }
         }

@@ -623,6 +623,103 @@ pub fn rejects_table() -> TableSchema {
     }
 }
 
+/// The hit table: one row per hit of every source, with the acquisition system's own
+/// features (see `data-schema/hits.md` for each vendor's name of each column).
+pub fn hits_table() -> TableSchema {
+    let f = |name: &str, unit: &str, doc: &str| {
+        ColumnSpec::new(name, ColType::Float64, unit, doc).nullable()
+    };
+    TableSchema {
+        name: "hits".into(),
+        columns: vec![
+            ColumnSpec::new("experiment", ColType::Utf8, "", "experiment id"),
+            ColumnSpec::new(
+                "acquisition",
+                ColType::Int32,
+                "",
+                "1-based acquisition in the experiment (a Vallen database restarted into the same file holds several)",
+            ),
+            ColumnSpec::new("channel", ColType::Int32, "", "sensor channel"),
+            ColumnSpec::new(
+                "hit",
+                ColType::Int64,
+                "",
+                "1-based order of the hit in its experiment, as the system stored the hits",
+            ),
+            f("time_s", "s", "hit time since the start of the acquisition"),
+            f("amplitude_db", "dB_AE", "peak amplitude, dB re 1 µV at the sensor"),
+            f("threshold_db", "dB_AE", "detection threshold"),
+            f("rise_time_s", "s", "rise time"),
+            f("duration_s", "s", "duration"),
+            ColumnSpec::new("counts", ColType::Int64, "", "threshold crossings").nullable(),
+            ColumnSpec::new("counts_to_peak", ColType::Int64, "", "crossings up to the peak").nullable(),
+            f("energy_eu", "eu", "Vallen energy (1 eu = 1e-14 V²s)"),
+            f("energy_counts", "", "MISTRAS energy counts (ENER)"),
+            f("abs_energy_aj", "aJ", "MISTRAS absolute energy"),
+            f("signal_strength_vs", "V·s", "signal strength"),
+            f("rms_v", "V", "RMS of the signal"),
+            f("avg_freq_hz", "Hz", "average frequency (counts / duration)"),
+            f("centroid_freq_hz", "Hz", "frequency centroid"),
+            f("peak_freq_hz", "Hz", "peak frequency"),
+            f("load_n", "N", "test-machine load at the hit"),
+            f("extension_m", "m", "test-machine extension at the hit"),
+            ColumnSpec::new(
+                "parametric",
+                ColType::Utf8,
+                "",
+                "the hit's parametric inputs as a JSON object of volts",
+            )
+            .nullable(),
+            ColumnSpec::new(
+                "transient",
+                ColType::Int64,
+                "",
+                "`hit` of this hit's transient in features/waveforms/rejects; null: no transient",
+            )
+            .nullable(),
+            ColumnSpec::new("trai", ColType::Int64, "", "Vallen TRAI as stored").nullable(),
+            ColumnSpec::new(
+                "source",
+                ColType::Utf8,
+                "",
+                "who recorded the features: vallen, mistras, aewin, or record (a format without a hit list)",
+            ),
+            ColumnSpec::new("source_file", ColType::Utf8, "", "the file the hit came from"),
+        ],
+    }
+}
+
+pub fn hit_row(h: &crate::model::HitRow) -> Row {
+    vec![
+        Value::Str(Some(h.experiment.clone())),
+        Value::I32(Some(h.acquisition as i32)),
+        Value::I32(Some(h.channel as i32)),
+        Value::I64(Some(h.hit as i64)),
+        Value::F64(h.time_s),
+        Value::F64(h.amplitude_db),
+        Value::F64(h.threshold_db),
+        Value::F64(h.rise_time_s),
+        Value::F64(h.duration_s),
+        Value::I64(h.counts),
+        Value::I64(h.counts_to_peak),
+        Value::F64(h.energy_eu),
+        Value::F64(h.energy_counts),
+        Value::F64(h.abs_energy_aj),
+        Value::F64(h.signal_strength_vs),
+        Value::F64(h.rms_v),
+        Value::F64(h.avg_freq_hz),
+        Value::F64(h.centroid_freq_hz),
+        Value::F64(h.peak_freq_hz),
+        Value::F64(h.load_n),
+        Value::F64(h.extension_m),
+        Value::Str(h.parametric.clone()),
+        Value::I64(h.transient.map(|t| t as i64)),
+        Value::I64(h.trai),
+        Value::Str(Some(h.source.as_str().to_string())),
+        Value::Str(Some(h.source_file.clone())),
+    ]
+}
+
 pub fn reject_row(r: &crate::model::Reject) -> Row {
     vec![
         Value::Str(Some(r.experiment.clone())),

@@ -9,6 +9,7 @@ mod cli;
 mod e2e;
 mod exit_codes;
 mod formats;
+mod hits;
 mod pipeline;
 mod real_data;
 mod sim;
@@ -134,6 +135,7 @@ pub fn read_all(
             match it {
                 aepipe::model::Item::Record(r) => recs.push(r),
                 aepipe::model::Item::Reject(r) => rejs.push(r),
+                aepipe::model::Item::Hit(_) | aepipe::model::Item::Note(_) => {}
             }
         }
     }

@@ -141,7 +141,9 @@ fn schema_files_match_written_tables() {
     .unwrap();
     check_against_schema_file(&f.table_path, "features.md");
     check_against_schema_file(&f.rejects_path, "rejects.md");
+    check_against_schema_file(&f.hits_path, "hits.md");
     check_against_schema_file(&w.table_path, "waveforms.md");
+    check_against_schema_file(&w.hits_path, "hits.md");
     // The manifest records the same config hash as the Parquet metadata.
     let m: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&f.manifest_path).unwrap()).unwrap();
@@ -372,9 +374,10 @@ fn python_readers_open_every_table() {
         "{so}{}",
         String::from_utf8_lossy(&o.stderr)
     );
+    // features, waveforms, and the hits and rejects of each run.
     assert_eq!(
         so.lines().filter(|l| l.starts_with("ok ")).count(),
-        4,
+        6,
         "{so}"
     );
 }
