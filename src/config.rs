@@ -64,6 +64,7 @@ pub enum FormatChoice {
     Csv,
     Text,
     Parquet,
+    Mistras,
 }
 
 #[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
@@ -310,6 +311,32 @@ pub struct IngestConfig {
     pub vallen: VallenConfig,
     pub aewin: AewinConfig,
     pub waveexplorer: WaveExplorerConfig,
+    pub mistras: MistrasConfig,
+}
+
+/// How MISTRAS `.DTA` parametric inputs (PID 1 = PARA1, …) map to load and extension.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct MistrasConfig {
+    /// Parametric input carrying the load (PID, e.g. 1 for PARA1); 0 = no load channel.
+    pub load_param: u8,
+    /// Newtons per volt of that input.
+    pub load_n_per_v: f64,
+    /// Parametric input carrying the extension; 0 = none.
+    pub extension_param: u8,
+    /// Metres per volt of that input.
+    pub extension_m_per_v: f64,
+}
+
+impl Default for MistrasConfig {
+    fn default() -> Self {
+        MistrasConfig {
+            load_param: 0,
+            load_n_per_v: 1.0,
+            extension_param: 0,
+            extension_m_per_v: 1e-3,
+        }
+    }
 }
 
 /// How Vallen parametric inputs (PA0, PA1, …) map to the test machine's load and extension.
@@ -375,6 +402,7 @@ impl Default for IngestConfig {
             vallen: VallenConfig::default(),
             aewin: AewinConfig::default(),
             waveexplorer: WaveExplorerConfig::default(),
+            mistras: MistrasConfig::default(),
         }
     }
 }

@@ -8,6 +8,7 @@
 
 mod aewin;
 mod csvfmt;
+pub mod dta;
 mod parquetfmt;
 mod text;
 pub mod vallen;
@@ -52,6 +53,8 @@ pub enum Format {
     Text,
     /// aepipe's own `waveforms.parquet`.
     Parquet,
+    /// MISTRAS AEwin binary `.DTA` (hits, waveforms, parametric rows), chains as one.
+    Mistras,
 }
 
 impl Format {
@@ -65,6 +68,7 @@ impl Format {
             Format::CsvLong => "csv (long table)",
             Format::Text => "text (one hit per file)",
             Format::Parquet => "parquet (waveforms)",
+            Format::Mistras => "mistras dta",
         }
     }
 }
@@ -87,6 +91,7 @@ impl Source {
     pub fn has_hit_list(&self) -> bool {
         match self.format {
             Format::Vallen => !self.companions.is_empty(),
+            Format::Mistras => true,
             _ => false,
         }
     }
@@ -123,6 +128,7 @@ enum Kind {
     AewinWave,
     WaveExplorer,
     Text,
+    Dta,
     Other(String),
 }
 
@@ -160,6 +166,20 @@ fn detect_format(p: &Path, forced: FormatChoice) -> std::io::Result<Kind> {
         "tradb" => return Ok(Kind::Tradb),
         "parquet" => return Ok(Kind::Parquet),
         "wav" => return Ok(Kind::Wav),
+        "dta" => {
+            use std::io::Read;
+            let mut b = [0u8; 3];
+            let n = std::fs::File::open(p)?.read(&mut b)?;
+            return Ok(
+                if dta::looks_like_dta(&b[..n]) || forced == FormatChoice::Mistras {
+                    Kind::Dta
+                } else {
+                    Kind::Other(
+                        "a .DTA file that does not start like a MISTRAS message stream".into(),
+                    )
+                },
+            );
+        }
         "csv" | "txt" | "dat" | "tsv" => {}
         _ => return Ok(Kind::Other(format!("unknown file type '.{ext}'"))),
     }
@@ -328,6 +348,9 @@ pub fn discover(inputs: &[PathBuf], cfg: &IngestConfig) -> Discovery {
         Default::default();
     let mut logs = Vec::new();
     let mut hitlists = Vec::new();
+    // MISTRAS chains by (folder, base name).
+    let mut chains: std::collections::BTreeMap<(PathBuf, String), Vec<PathBuf>> =
+        Default::default();
     for (p, k) in kinds {
         let parent = p.parent().map(Path::to_path_buf).unwrap_or_default();
         match k {
@@ -361,6 +384,10 @@ pub fn discover(inputs: &[PathBuf], cfg: &IngestConfig) -> Discovery {
             Kind::CsvPerHit => groups.entry((parent, "csv")).or_default().push(p),
             Kind::Text => groups.entry((parent, "text")).or_default().push(p),
             Kind::AewinWave => groups.entry((parent, "aewin")).or_default().push(p),
+            Kind::Dta => chains
+                .entry((parent, dta::chain_key(&p).0))
+                .or_default()
+                .push(p),
             Kind::MachineLog => logs.push(p),
             Kind::AewinHitList => hitlists.push(p),
             Kind::Other(_) => unreachable!("filtered above"),
@@ -388,6 +415,15 @@ pub fn discover(inputs: &[PathBuf], cfg: &IngestConfig) -> Discovery {
             }),
             (None, None) => {}
         }
+    }
+    for ((_, id), mut files) in chains {
+        files.sort_by_key(|p| dta::chain_key(p).1);
+        d.sources.push(Source {
+            id,
+            format: Format::Mistras,
+            files,
+            companions: vec![],
+        });
     }
     let mut used_logs = vec![false; logs.len()];
     let mut used_lists = vec![false; hitlists.len()];
@@ -483,6 +519,7 @@ fn open_format(src: &Source, cfg: &IngestConfig) -> Box<dyn Iterator<Item = Item
         Format::CsvLong => csvfmt::open_long(src, cfg),
         Format::Text => text::open(src, cfg),
         Format::Parquet => parquetfmt::open(src, cfg),
+        Format::Mistras => dta::open(src, cfg),
     }
 }
 

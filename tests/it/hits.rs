@@ -175,7 +175,7 @@ fn the_accounting_rule_holds_on_every_real_data_set() {
     .unwrap();
     let by = &r.stats.by_experiment;
     // Independent counts: SQLite for Vallen, the header for WaveExplorer, the files and the
-    // hit list for AEwin.
+    // hit list for AEwin, the data README for MISTRAS.
     let mut expected: BTreeMap<String, (u64, u64)> = BTreeMap::new();
     for (dir, id) in [
         ("vallen/steel_plate", "sample"),
@@ -212,6 +212,9 @@ fn the_accounting_rule_holds_on_every_real_data_set() {
         .count() as u64;
     assert_eq!(list, aewin);
     expected.insert("EXP2009".into(), (list, aewin));
+    // MISTRAS: 8 hits and 8 waveforms, as MistrasDTA 0.1.7 reads them (the data README).
+    expected.insert("210527-CH1-15".into(), (8, 8));
+    assert_eq!(by.len(), expected.len(), "{by:?}");
     for (id, &(hits, transients)) in &expected {
         let c = by
             .get(id)

@@ -6,6 +6,7 @@
 mod architecture;
 mod bad_input;
 mod cli;
+mod dta;
 mod e2e;
 mod exit_codes;
 mod formats;

@@ -27,7 +27,7 @@ fn hit_counts_equal_the_data_readme() {
     };
     let c = counts(&real);
     // Numbers from ../shared/data/real/README.md (TRA records for Vallen, events for
-    // WaveExplorer, waveform files for AEwin).
+    // WaveExplorer, waveform files for AEwin, waveform messages for MISTRAS).
     let expected = [
         ("sample", 4),
         ("sample_plain", 4),
@@ -42,6 +42,7 @@ fn hit_counts_equal_the_data_readme() {
         ("220426_30deg_4mm_wave", 113),
         ("220426_36deg_4mm_wave", 150),
         ("220426_40deg_4mm_wave", 152),
+        ("210527-CH1-15", 8),
     ];
     for (id, n) in expected {
         assert_eq!(c.get(id), Some(&n), "experiment {id}: {c:?}");

@@ -1,0 +1,341 @@
+//! MISTRAS `.DTA`: the real file against MistrasDTA (the independent reader on PyPI), and
+//! files written here byte by byte: a chain, four channels with their gains, a hit without a
+//! waveform, a waveform without a hit, hits out of time order, a truncated last message and
+//! a continuation file read alone.
+
+use crate::{table_rows, TempDir};
+use aepipe::config::PipelineConfig;
+use aepipe::model::{AeRecord, HitRow, Item};
+use aepipe::pipeline::{run, StreamJob, StreamOptions};
+use std::path::{Path, PathBuf};
+
+/// Every item the ingest yields for `inputs`.
+fn items(inputs: &[PathBuf]) -> (Vec<HitRow>, Vec<AeRecord>, Vec<String>, Vec<String>) {
+    let cfg = PipelineConfig::default();
+    let d = aepipe::ingest::discover(inputs, &cfg.ingest);
+    let (mut h, mut r, mut rej, mut notes) = (vec![], vec![], vec![], vec![]);
+    for s in &d.sources {
+        for it in aepipe::ingest::open(s, &cfg.ingest) {
+            match it {
+                Item::Hit(x) => h.push(*x),
+                Item::Record(x) => r.push(x),
+                Item::Reject(x) => rej.push(format!("{} {}", x.record_id, x.reason)),
+                Item::Note(n) => notes.push(n.message),
+            }
+        }
+    }
+    (h, r, rej, notes)
+}
+
+#[test]
+fn the_real_dta_gives_the_hits_and_samples_mistrasdta_gives() {
+    let Some(real) = crate::real_data("the_real_dta_gives_the_hits_and_samples_mistrasdta_gives")
+    else {
+        return;
+    };
+    let file = real.join("mistras_dta/210527-CH1-15.DTA");
+    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/python/mistras_read.py");
+    let out = std::process::Command::new("python3")
+        .arg(&script)
+        .arg(&file)
+        .output();
+    let out = match out {
+        Ok(o) if o.status.success() => o,
+        Ok(o) => {
+            let e = String::from_utf8_lossy(&o.stderr)
+                .lines()
+                .last()
+                .unwrap_or("")
+                .to_string();
+            crate::skip(
+                "MistrasDTA comparison",
+                &format!("{e} (pip install MistrasDTA)"),
+            );
+            return;
+        }
+        Err(e) => {
+            crate::skip("MistrasDTA comparison", &format!("python3: {e}"));
+            return;
+        }
+    };
+    let theirs: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let (hits, recs, rejects, _) = items(std::slice::from_ref(&file));
+    assert!(rejects.is_empty(), "{rejects:?}");
+    let th = theirs["hits"].as_array().unwrap();
+    assert_eq!(hits.len(), th.len());
+    assert_eq!(hits.len(), 8);
+    for (h, t) in hits.iter().zip(th) {
+        let f = |k: &str| t[k].as_f64().unwrap();
+        assert!((h.time_s.unwrap() - f("SSSSSSSS.mmmuuun")).abs() < 1e-9);
+        assert_eq!(h.channel as f64, f("CH"));
+        assert_eq!(h.amplitude_db, Some(f("AMP")));
+        assert_eq!(h.counts, Some(f("COUN") as i64));
+        assert_eq!(h.energy_counts, Some(f("ENER")));
+        assert!((h.duration_s.unwrap() - f("DURATION") * 1e-6).abs() < 1e-12);
+        assert!((h.rise_time_s.unwrap() - f("RISE") * 1e-6).abs() < 1e-12);
+        assert!(
+            (h.abs_energy_aj.unwrap() - f("ABS-ENERGY")).abs()
+                <= 1e-9 * f("ABS-ENERGY").abs().max(1.0)
+        );
+        assert_eq!(h.centroid_freq_hz, Some(f("FRQ-C") * 1e3));
+        assert_eq!(h.peak_freq_hz, Some(f("P-FRQ") * 1e3));
+        // Each hit is paired with the waveform of the same time and channel.
+        let r = &recs[(h.transient.unwrap() - 1) as usize];
+        assert_eq!((r.channel, r.time_s), (h.channel, h.time_s));
+    }
+    let tw = theirs["waves"].as_array().unwrap();
+    assert_eq!(recs.len(), tw.len());
+    for (r, t) in recs.iter().zip(tw) {
+        assert!((r.time_s.unwrap() - t["time"].as_f64().unwrap()).abs() < 1e-9);
+        assert_eq!(r.channel as i64, t["ch"].as_i64().unwrap());
+        assert_eq!(r.sample_rate_hz, t["srate"].as_f64().unwrap());
+        assert_eq!(r.pretrigger as i64, -t["tdly"].as_i64().unwrap());
+        let v = t["v"].as_array().unwrap();
+        assert!(v.len() <= r.samples.len() && v.len() > 3000, "{}", v.len());
+        // The message holds 3 072 samples (its length, not MistrasDTA's truncated bytes).
+        assert_eq!(r.samples.len(), 3072);
+        for (a, b) in r.samples.iter().zip(v) {
+            let b = b.as_f64().unwrap();
+            assert!(
+                (*a as f64 - b).abs() <= 1e-7 * b.abs().max(1e-6),
+                "{a} vs {b}"
+            );
+        }
+    }
+    // Through the pipeline: hits.parquet holds the 8 hits, each linked to its transient.
+    let t = TempDir::new("dta-real");
+    let run = run(
+        StreamJob::Features,
+        &[file],
+        t.path(),
+        &PipelineConfig::default(),
+        &StreamOptions {
+            threads: 2,
+            progress: false,
+        },
+    )
+    .unwrap();
+    let c = run.stats.by_experiment["210527-CH1-15"];
+    assert_eq!((c.hits, c.rows, c.rejects), (8, 8, 0));
+    let (names, rows) = table_rows(&run.hits_path);
+    let tr = names.iter().position(|n| n == "transient").unwrap();
+    assert!(rows.iter().all(|r| !r[tr].is_empty()));
+}
+
+// --- A DTA writer for fixtures (the message layout of Appendix II) -----------------------
+
+fn msg(mid: u8, body: &[u8]) -> Vec<u8> {
+    let two_byte_id = (40..=49).contains(&mid);
+    let len = body.len() + 1 + two_byte_id as usize;
+    let mut v = (len as u16).to_le_bytes().to_vec();
+    v.push(mid);
+    if two_byte_id {
+        v.push(0);
+    }
+    v.extend_from_slice(body);
+    v
+}
+
+fn ticks(t_s: f64) -> [u8; 6] {
+    let t = (t_s / 0.25e-6).round() as u64;
+    let b = t.to_le_bytes();
+    [b[0], b[1], b[2], b[3], b[4], b[5]]
+}
+
+/// The features the fixtures record: RISE, COUN, DURATION, AMP, ABS-ENERGY, FRQ-C.
+const CHIDS: [u8; 6] = [1, 3, 5, 6, 21, 23];
+
+/// Product, start time and hardware setup: the CHID list, each channel's gain (unless
+/// `gains` is false) and waveform hardware (10 MHz, 128 pretrigger samples).
+fn setup(channels: &[(u8, u8)], gains: bool) -> Vec<u8> {
+    let mut f = msg(41, &[200, 0, b'T', b'E', b'S', b'T', b'\r', b'\n']);
+    f.extend(msg(99, b"Thu May 27 10:53:54 2021\n\0"));
+    let mut body = vec![103, 0];
+    let mut sub = |id: u8, b: &[u8]| {
+        body.extend(((b.len() + 1) as u16).to_le_bytes());
+        body.push(id);
+        body.extend_from_slice(b);
+    };
+    let mut ev = vec![CHIDS.len() as u8];
+    ev.extend(CHIDS);
+    ev.push(0);
+    sub(5, &ev);
+    for &(ch, g) in channels {
+        if gains {
+            sub(23, &[ch, g]);
+        }
+        let mut hw = vec![42, 1, 0, 0, 0, 0];
+        hw.extend(0u16.to_le_bytes()); // SLEN
+        hw.push(ch);
+        hw.extend(0u16.to_le_bytes()); // HLK
+        hw.extend([0, 0]);
+        hw.extend(10_000u16.to_le_bytes()); // SRATE, kHz
+        hw.extend(0u16.to_le_bytes());
+        hw.extend(0u16.to_le_bytes());
+        hw.extend((-128i16).to_le_bytes()); // TDLY
+        hw.extend(0u16.to_le_bytes());
+        hw.extend(0u16.to_le_bytes());
+        sub(173, &hw);
+    }
+    f.extend(msg(42, &body));
+    f.extend(msg(128, &[0; 6]));
+    f
+}
+
+/// A hit: rise 10 µs, counts, duration 100 µs, amplitude, absolute energy, centroid.
+fn hit(t: f64, ch: u8, amp: u8, counts: u16) -> Vec<u8> {
+    let mut b = ticks(t).to_vec();
+    b.push(ch);
+    b.extend(10u16.to_le_bytes());
+    b.extend(counts.to_le_bytes());
+    b.extend(100u32.to_le_bytes());
+    b.push(amp);
+    b.extend(1000.0f32.to_le_bytes());
+    b.extend(300u16.to_le_bytes());
+    msg(1, &b)
+}
+
+fn wave(t: f64, ch: u8, counts: &[i16]) -> Vec<u8> {
+    let mut b = vec![1];
+    b.extend(ticks(t));
+    b.push(ch);
+    b.push(0);
+    for c in counts {
+        b.extend(c.to_le_bytes());
+    }
+    msg(173, &b)
+}
+
+fn counts(k: i16) -> Vec<i16> {
+    (0..1024)
+        .map(|i| ((i % 37) as i16 - 18) * (k + 1))
+        .collect()
+}
+
+#[test]
+fn written_dta_files_four_channels_a_chain_and_bad_endings() {
+    let t = TempDir::new("dta");
+    let dir = t.path().join("run");
+    std::fs::create_dir_all(&dir).unwrap();
+    let chans = [(1u8, 0u8), (2, 20), (3, 40), (4, 6)];
+    // First file of the chain: 4 channels; hit 3 has no waveform; a waveform without a hit;
+    // hits 4 and 5 stored out of time order, each after its waveform.
+    let mut a = setup(&chans, true);
+    a.extend(wave(1.0, 1, &counts(0)));
+    a.extend(hit(1.0, 1, 60, 5));
+    a.extend(hit(2.0, 2, 61, 6));
+    a.extend(wave(2.0, 2, &counts(1)));
+    a.extend(hit(3.0, 3, 62, 7)); // no waveform
+    a.extend(wave(3.5, 4, &counts(3))); // no hit
+    a.extend(wave(5.0, 4, &counts(4)));
+    a.extend(hit(5.0, 4, 64, 9));
+    a.extend(wave(4.0, 3, &counts(2)));
+    a.extend(hit(4.0, 3, 63, 8));
+    std::fs::write(dir.join("X.DTA"), &a).unwrap();
+    // Continuation: MID 8, the setup again, two hits; its last message is cut short.
+    let mut b = msg(8, &[0; 8]);
+    b.extend(setup(&chans, true));
+    b.extend(wave(6.0, 2, &counts(5)));
+    b.extend(hit(6.0, 2, 65, 10));
+    let cut = wave(7.0, 1, &counts(6));
+    b.extend(&cut[..cut.len() / 2]);
+    std::fs::write(dir.join("X__2.DTA"), &b).unwrap();
+
+    let (hits, recs, rejects, notes) = items(std::slice::from_ref(&dir));
+    assert!(notes.is_empty(), "{notes:?}");
+    // One experiment: 6 hits in storage order, numbers running across the chain.
+    assert_eq!(
+        hits.iter().map(|h| h.hit).collect::<Vec<_>>(),
+        [1, 2, 3, 4, 5, 6]
+    );
+    assert!(hits.iter().all(|h| h.experiment == "X"));
+    assert_eq!(
+        hits.iter()
+            .map(|h| h.amplitude_db.unwrap())
+            .collect::<Vec<_>>(),
+        [60.0, 61.0, 62.0, 64.0, 63.0, 65.0]
+    );
+    assert_eq!(hits[0].counts, Some(5));
+    assert!((hits[0].rise_time_s.unwrap() - 10e-6).abs() < 1e-15);
+    assert!((hits[0].duration_s.unwrap() - 100e-6).abs() < 1e-15);
+    assert_eq!(hits[0].centroid_freq_hz, Some(300e3));
+    assert!((hits[0].abs_energy_aj.unwrap() - 1000.0 * 9.31e-4).abs() < 1e-9);
+    // Hit 3 has no transient; every other hit is linked to the waveform of its time/channel.
+    assert_eq!(hits[2].transient, None);
+    for h in hits.iter().filter(|h| h.transient.is_some()) {
+        let r = recs.iter().find(|r| Some(r.hit) == h.transient).unwrap();
+        assert_eq!(
+            (r.channel, r.time_s),
+            (h.channel, h.time_s),
+            "hit {}",
+            h.hit
+        );
+    }
+    // Six waveforms read (one without a hit); the cut one is a reject naming its byte.
+    assert_eq!(recs.len(), 6);
+    assert!(recs.iter().any(|r| r.time_s == Some(3.5)));
+    assert_eq!(rejects.len(), 1, "{rejects:?}");
+    assert!(
+        rejects[0].starts_with("byte ") && rejects[0].contains("past the end"),
+        "{rejects:?}"
+    );
+    // Volts = counts × 10 V / (10^(gain/20) × 32 768), with each channel's own gain.
+    for r in &recs {
+        let gain = chans.iter().find(|c| c.0 as u32 == r.channel).unwrap().1 as f64;
+        // The first count of each written waveform is −18·(k + 1), k by its time.
+        let k = [(1.0, 0), (2.0, 1), (4.0, 2), (3.5, 3), (5.0, 4), (6.0, 5)]
+            .iter()
+            .find(|(t, _)| Some(*t) == r.time_s)
+            .unwrap()
+            .1;
+        let c0 = r.samples[0] as f64 * 10f64.powf(gain / 20.0) * 32768.0 / 10.0;
+        assert!(
+            (c0 + 18.0 * (k as f64 + 1.0)).abs() < 1e-3 * (k as f64 + 1.0) * 18.0,
+            "ch{} {c0}",
+            r.channel
+        );
+        assert_eq!(r.sample_rate_hz, 10e6);
+        assert_eq!(r.pretrigger, 128);
+    }
+
+    // The continuation file read alone, without gains in its setup: its hits and waveform
+    // are read, 0 dB assumed and said.
+    let alone = t.path().join("alone");
+    std::fs::create_dir_all(&alone).unwrap();
+    let mut c = msg(8, &[0; 8]);
+    c.extend(setup(&chans, false));
+    c.extend(wave(6.0, 2, &counts(5)));
+    c.extend(hit(6.0, 2, 65, 10));
+    std::fs::write(alone.join("Y__3.DTA"), &c).unwrap();
+    let (h2, r2, rej2, notes2) = items(std::slice::from_ref(&alone));
+    assert_eq!((h2.len(), r2.len(), rej2.len()), (1, 1, 0));
+    assert_eq!(h2[0].experiment, "Y");
+    assert!(
+        notes2.iter().any(|n| n.contains("0 dB assumed")),
+        "{notes2:?}"
+    );
+    let c0 = r2[0].samples[0] as f64 * 32768.0 / 10.0;
+    assert!((c0 - (-18.0 * 6.0)).abs() < 1e-3, "{c0}");
+
+    // Through the pipeline: the accounting rule, and the note in the manifest.
+    let r = run(
+        StreamJob::Features,
+        &[dir, alone],
+        &t.path().join("out"),
+        &PipelineConfig::default(),
+        &StreamOptions {
+            threads: 2,
+            progress: false,
+        },
+    )
+    .unwrap();
+    let x = r.stats.by_experiment["X"];
+    assert_eq!((x.hits, x.rows + x.rejects), (6, 7));
+    let m: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&r.manifest_path).unwrap()).unwrap();
+    assert!(
+        m["notes"][0]["note"].as_str().unwrap().contains("0 dB"),
+        "{}",
+        m["notes"]
+    );
+}
