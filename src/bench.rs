@@ -41,10 +41,44 @@ pub fn rss_bytes() -> Option<u64> {
     Some(kb * 1024)
 }
 
-/// A lazy source of `n` synthetic hits of `len` samples: a few distinct waveforms are made
-/// once and cycled, so the benchmark measures the pipeline, not the signal generator.
-pub fn synthetic_items(n: u64, len: usize) -> impl Iterator<Item = Item> + Send {
+/// What the streaming benchmark feeds the pipeline.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Workload {
+    /// Every record `len` samples at 10 MHz, with 500 pretrigger samples or none.
+    Fixed { len: usize, pretrigger: bool },
+    /// Record lengths like a Vallen LinWave/AMSY-6 test (records last until the hit ends):
+    /// 2 250 to 220 000 samples at 5 MHz, mostly short — 80 % log-uniform in 2 250–8 000,
+    /// 15 % in 8 000–50 000, 5 % in 50 000–220 000 — with 400 pretrigger samples.
+    LinWave,
+}
+
+impl Workload {
+    pub fn describe(&self) -> String {
+        match self {
+            Workload::Fixed { len, pretrigger } => format!(
+                "{len}-sample records at 10 MHz, {}",
+                if *pretrigger {
+                    "500 pretrigger samples"
+                } else {
+                    "no pretrigger"
+                }
+            ),
+            Workload::LinWave => "LinWave-like records: 2 250–220 000 samples at 5 MHz (80 % under 8 000), 400 pretrigger samples".into(),
+        }
+    }
+}
+
+/// A lazy source of `n` synthetic hits: a few distinct waveforms per length class are made
+/// once and reused (cut to each record's length), so the benchmark measures the pipeline,
+/// not the signal generator.
+pub fn synthetic_items(n: u64, w: Workload) -> impl Iterator<Item = Item> + Send {
     let mut rng = Rng::new(42);
+    let (fs, pre, max_len) = match w {
+        Workload::Fixed { len, pretrigger } => {
+            (10e6, if pretrigger { len.min(500) } else { 0 }, len)
+        }
+        Workload::LinWave => (5e6, 400, 220_000),
+    };
     let protos: Vec<Vec<f32>> = [
         Mechanism::BondFailure,
         Mechanism::FibreFailure,
@@ -54,20 +88,39 @@ pub fn synthetic_items(n: u64, len: usize) -> impl Iterator<Item = Item> + Send 
     .iter()
     .map(|m| {
         let mut s = HitSpec::new(*m);
-        s.n_samples = len;
-        s.pretrigger = len.min(500);
+        s.sample_rate_hz = fs;
+        s.n_samples = max_len;
+        s.pretrigger = pre.max(1).min(max_len);
         waveform(&s, &mut rng)
     })
     .collect();
+    let mut lrng = Rng::new(7);
     (0..n).map(move |i| {
+        let len = match w {
+            Workload::Fixed { len, .. } => len,
+            Workload::LinWave => {
+                let u = lrng.uniform();
+                let (lo, hi) = if u < 0.80 {
+                    (2_250.0f64, 8_000.0f64)
+                } else if u < 0.95 {
+                    (8_000.0, 50_000.0)
+                } else {
+                    (50_000.0, 220_000.0)
+                };
+                (lo.ln() + (hi.ln() - lo.ln()) * lrng.uniform())
+                    .exp()
+                    .round() as usize
+            }
+        };
+        let proto = &protos[(i % protos.len() as u64) as usize];
         Item::Record(crate::model::AeRecord {
             experiment: "bench".into(),
             channel: 1,
             hit: i + 1,
             time_s: Some(i as f64 * 1e-3),
-            sample_rate_hz: 10e6,
-            pretrigger: len.min(500) as u32,
-            samples: protos[(i % protos.len() as u64) as usize].clone(),
+            sample_rate_hz: fs,
+            pretrigger: pre as u32,
+            samples: proto[..len.min(proto.len())].to_vec(),
             load_n: None,
             extension_m: None,
             label: None,
@@ -90,14 +143,14 @@ pub struct StreamPoint {
 /// Stream `hits` synthetic hits of `len` samples into `out_dir` (features job).
 pub fn stream_point(
     hits: u64,
-    len: usize,
+    workload: Workload,
     threads: usize,
     out_dir: &Path,
 ) -> Result<StreamPoint, crate::pipeline::PipelineError> {
     let cfg = PipelineConfig::default();
     std::fs::create_dir_all(out_dir).map_err(|e| crate::util::IoAt::new(out_dir, e))?;
     let stats = stream(
-        synthetic_items(hits, len),
+        synthetic_items(hits, workload),
         StreamJob::Features,
         out_dir,
         &cfg,

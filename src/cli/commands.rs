@@ -387,12 +387,27 @@ fn bench(which: BenchCmd) -> Result<Outcome> {
         BenchCmd::Stream {
             hits,
             samples,
+            no_pretrigger,
+            linwave,
             threads,
             out,
         } => {
+            let w = if linwave {
+                crate::bench::Workload::LinWave
+            } else {
+                crate::bench::Workload::Fixed {
+                    len: samples,
+                    pretrigger: !no_pretrigger,
+                }
+            };
             println!(
-                "streaming synthetic hits of {samples} samples through the feature pipeline (threads: {})",
-                if threads == 0 { crate::util::num_cpus() } else { threads }
+                "streaming synthetic hits through the feature pipeline ({}; threads: {})",
+                w.describe(),
+                if threads == 0 {
+                    crate::util::num_cpus()
+                } else {
+                    threads
+                }
             );
             println!(
                 "{:>10} {:>10} {:>12} {:>14}",
@@ -402,7 +417,7 @@ fn bench(which: BenchCmd) -> Result<Outcome> {
             sizes.retain(|&n| n > 0);
             sizes.dedup();
             for n in sizes {
-                let p = crate::bench::stream_point(n, samples, threads, &out)?;
+                let p = crate::bench::stream_point(n, w, threads, &out)?;
                 println!(
                     "{:>10} {:>10.2} {:>12.0} {:>14.1}",
                     p.hits, p.seconds, p.hits_per_s, p.peak_rss_mb

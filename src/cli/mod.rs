@@ -309,8 +309,16 @@ pub enum BenchCmd {
         /// Largest number of hits; the benchmark also runs 1/10 and 1/100 of it first
         #[arg(long, default_value_t = 100_000)]
         hits: u64,
+        /// Fixed record length (10 MHz)
         #[arg(long, default_value_t = 4096)]
         samples: usize,
+        /// Fixed-length records without a pretrigger
+        #[arg(long)]
+        no_pretrigger: bool,
+        /// Variable record lengths like a Vallen LinWave test (2 250–220 000 samples, 5 MHz)
+        /// instead of fixed ones
+        #[arg(long)]
+        linwave: bool,
         #[arg(long, default_value_t = 0)]
         threads: usize,
         /// Where to write the (small) feature tables

@@ -28,6 +28,20 @@ use std::sync::Arc;
 const FWHM_SIGMAS: f64 = 2.354_820_045_030_949_4;
 /// How many σ of the wavelet are kept (in frequency: filter support; in time: segment margin).
 const SUPPORT_SIGMAS: f64 = 5.0;
+/// Cache bounds, per engine (one per worker). Records of any length map to few padded FFT
+/// lengths (3-smooth), so these are rarely reached; when one is, that cache starts afresh.
+const MAX_PLANS: usize = 96;
+const MAX_GROUP_SETS: usize = 256;
+/// Filter taps kept (f32 each): 8 Mi taps = 32 MiB per worker.
+const MAX_FILTER_TAPS: usize = 8 << 20;
+/// A segment shorter than this fraction of the padded record is transformed on its own
+/// even where it reaches past the record (read as zeros there), instead of transforming the
+/// whole record: the cost of a frequency stays bounded by its wavelet, not the record.
+const WHOLE_RECORD_RATIO: usize = 4;
+/// Segment margin, in wavelet supports, of a filter cut at Nyquist, and how much longer
+/// than that segment a record must be before the segment replaces the whole record.
+const CUT_MARGIN: f64 = 8.0;
+const LONG_RECORD_RATIO: usize = 32;
 
 /// The wavelet family and frequency grid.
 #[derive(Debug, Clone, PartialEq)]
@@ -75,8 +89,9 @@ struct Band {
 struct Group {
     /// Segment length (FFT size); equal to the record length for whole-record groups.
     m: usize,
-    /// First sample of the segment in the record.
-    start: usize,
+    /// First sample of the segment in the record (negative, or running past the record's
+    /// end, where the record is read as zeros).
+    start: isize,
     whole_record: bool,
     freqs: Vec<usize>,
 }
@@ -96,10 +111,13 @@ pub struct Cwt {
     planner: FftPlanner<f32>,
     plans: HashMap<(usize, bool), Arc<dyn Fft<f32>>>,
     filters: HashMap<(usize, u64), Arc<Vec<Band>>>,
+    /// Filter taps held by `filters` (their memory bound).
+    filter_taps: usize,
     groups: HashMap<(usize, u64, usize, usize), Arc<Vec<Group>>>,
-    /// Spectrum of the whole record loaded by [`Cwt::load`].
+    /// Spectrum of the whole record loaded by [`Cwt::load`], zero-padded to a fast length.
     full: Vec<Complex32>,
-    loaded: Option<(usize, u64)>,
+    /// (record length, padded length, sample rate bits) of the loaded record.
+    loaded: Option<(usize, usize, u64)>,
     seg: Vec<Complex32>,
     work: Vec<Complex32>,
     scratch: Vec<Complex32>,
@@ -113,6 +131,7 @@ impl Cwt {
             planner: FftPlanner::new(),
             plans: HashMap::new(),
             filters: HashMap::new(),
+            filter_taps: 0,
             groups: HashMap::new(),
             full: Vec::new(),
             loaded: None,
@@ -128,6 +147,11 @@ impl Cwt {
     }
 
     fn plan(&mut self, m: usize, inverse: bool) -> Arc<dyn Fft<f32>> {
+        if self.plans.len() >= MAX_PLANS && !self.plans.contains_key(&(m, inverse)) {
+            self.plans.clear();
+            // The planner keeps its own copies of every plan it made: start it afresh too.
+            self.planner = FftPlanner::new();
+        }
         let planner = &mut self.planner;
         self.plans
             .entry((m, inverse))
@@ -142,8 +166,16 @@ impl Cwt {
     }
 
     fn filter_set(&mut self, m: usize, fs: f64) -> Arc<Vec<Band>> {
+        if let Some(f) = self.filters.get(&(m, fs.to_bits())) {
+            return f.clone();
+        }
+        if self.filter_taps > MAX_FILTER_TAPS {
+            self.filters.clear();
+            self.filter_taps = 0;
+        }
         let bank = &self.bank;
-        self.filters
+        let set = self
+            .filters
             .entry((m, fs.to_bits()))
             .or_insert_with(|| {
                 let df = fs / m as f64;
@@ -172,36 +204,58 @@ impl Cwt {
                         .collect(),
                 )
             })
-            .clone()
+            .clone();
+        self.filter_taps += set.iter().map(|b| b.taps.len()).sum::<usize>();
+        set
     }
 
-    /// Forward FFT of `x` into `out` (resized to `x.len()`).
-    fn forward_into(&mut self, x: &[f32], which_full: bool) {
-        let m = x.len();
+    /// Forward FFT of `x[start .. start + m]` into the segment buffer, reading the record as
+    /// zeros outside `0..x.len()`.
+    fn forward_segment(&mut self, x: &[f32], start: isize, m: usize) {
         let plan = self.plan(m, false);
-        let buf = if which_full {
-            &mut self.full
-        } else {
-            &mut self.seg
-        };
-        buf.clear();
-        buf.extend(x.iter().map(|&v| Complex32::new(v, 0.0)));
+        self.seg.clear();
+        self.seg.extend((0..m).map(|i| {
+            let k = start + i as isize;
+            let v = if k >= 0 && (k as usize) < x.len() {
+                x[k as usize]
+            } else {
+                0.0
+            };
+            Complex32::new(v, 0.0)
+        }));
         let need = plan.get_inplace_scratch_len();
         if self.scratch.len() < need {
             self.scratch.resize(need, Complex32::default());
         }
-        plan.process_with_scratch(buf, &mut self.scratch[..need]);
+        plan.process_with_scratch(&mut self.seg, &mut self.scratch[..need]);
     }
 
     /// Load a record: one forward FFT of the whole record, kept for the spectrum features
     /// and for the whole-record CWT. Must precede [`full_power`](Self::full_power) and
     /// [`window_power`](Self::window_power) for the same record.
     pub fn load(&mut self, x: &[f32], fs: f64) {
-        self.forward_into(x, true);
-        self.loaded = Some((x.len(), fs.to_bits()));
+        let n = x.len();
+        let padded = super::next_fast_len(n);
+        let plan = self.plan(padded, false);
+        self.full.clear();
+        self.full.extend(x.iter().map(|&v| Complex32::new(v, 0.0)));
+        self.full.resize(padded, Complex32::default());
+        let need = plan.get_inplace_scratch_len();
+        if self.scratch.len() < need {
+            self.scratch.resize(need, Complex32::default());
+        }
+        plan.process_with_scratch(&mut self.full, &mut self.scratch[..need]);
+        self.loaded = Some((n, padded, fs.to_bits()));
     }
 
-    /// The whole record's spectrum (unnormalised DFT), after [`load`](Self::load).
+    /// Length of the loaded record's spectrum: the record zero-padded to the next 2^a·3^b
+    /// (the record itself when its length is one), so any record length maps to few FFT
+    /// sizes and plans.
+    pub fn padded_len(&self) -> usize {
+        self.loaded.map_or(0, |l| l.1)
+    }
+
+    /// The whole (padded) record's spectrum (unnormalised DFT), after [`load`](Self::load).
     pub fn spectrum(&self) -> &[Complex32] {
         &self.full
     }
@@ -240,7 +294,7 @@ impl Cwt {
 
     fn check_loaded(&self, x: &[f32], fs: f64) {
         assert_eq!(
-            self.loaded,
+            self.loaded.map(|l| (l.0, l.2)),
             Some((x.len(), fs.to_bits())),
             "Cwt::load must be called with this record first"
         );
@@ -257,11 +311,12 @@ impl Cwt {
             nf * n,
             "full_power needs n_freqs × n_samples outputs"
         );
+        let padded = self.padded_len();
         for fi in 0..nf {
             self.band_power(
                 fi,
                 Seg {
-                    m: n,
+                    m: padded,
                     fs,
                     whole: true,
                 },
@@ -272,10 +327,23 @@ impl Cwt {
         }
     }
 
-    fn groups(&mut self, n: usize, fs: f64, a: usize, b: usize) -> Arc<Vec<Group>> {
+    /// How the frequencies of a window `a..b` of a record padded to `padded` samples are
+    /// computed: frequencies that need the same segment length share one forward FFT of a
+    /// segment centred on the window. A segment as long as a quarter of the padded record or
+    /// more is replaced by the whole (padded) record, as the full path computes it; a shorter
+    /// one that reaches past the record reads zeros there, so no frequency costs more than
+    /// its wavelet. At 10 MHz and the default grid no filter reaches Nyquist; at lower rates
+    /// the filters cut at Nyquist ring past 5σ_t, and their short segments truncate that
+    /// ringing (documented in the README).
+    fn groups(&mut self, padded: usize, fs: f64, a: usize, b: usize) -> Arc<Vec<Group>> {
+        if self.groups.len() >= MAX_GROUP_SETS
+            && !self.groups.contains_key(&(padded, fs.to_bits(), a, b))
+        {
+            self.groups.clear();
+        }
         let bank = &self.bank;
         self.groups
-            .entry((n, fs.to_bits(), a, b))
+            .entry((padded, fs.to_bits(), a, b))
             .or_insert_with(|| {
                 let w = b - a;
                 let mut by_m: std::collections::BTreeMap<usize, Vec<usize>> = Default::default();
@@ -284,32 +352,40 @@ impl Cwt {
                     if f <= 0.0 || f > fs / 2.0 {
                         continue;
                     }
-                    let t = (SUPPORT_SIGMAS * bank.sigma_t(f) * fs).ceil() as usize;
+                    let cut_at_nyquist = f + SUPPORT_SIGMAS * bank.sigma_f(f) > fs / 2.0;
+                    // A filter cut at Nyquist is not compact in time: its segment keeps
+                    // CUT_MARGIN times the support, where the ringing has died down.
+                    let k = if cut_at_nyquist { CUT_MARGIN } else { 1.0 };
+                    let t = (k * SUPPORT_SIGMAS * bank.sigma_t(f) * fs).ceil() as usize;
                     let m = next_fast_len(w + 2 * t);
                     let margin = (m - w) / 2;
-                    // The segment must hold the window plus the wavelet support on both
-                    // sides inside the record; otherwise use the whole record (as the full
-                    // path does, circular ends included). A filter cut off at Nyquist is
-                    // not compact in time (it rings past 5σ_t): whole record too.
-                    let cut_at_nyquist = f + SUPPORT_SIGMAS * bank.sigma_f(f) > fs / 2.0;
-                    if cut_at_nyquist || m >= n || a < margin || a - margin + m > n {
-                        whole.push(fi);
+                    let inside = a >= margin && a - margin + m <= padded;
+                    // A filter cut at Nyquist takes the whole record (its ringing reaches far)
+                    // unless the record is long; then its wide segment's truncation costs
+                    // ~0.1 % of a bin within 5σ of Nyquist.
+                    let short = if cut_at_nyquist {
+                        m * LONG_RECORD_RATIO <= padded
                     } else {
+                        m * WHOLE_RECORD_RATIO <= padded
+                    };
+                    if (inside && !cut_at_nyquist) || short {
                         by_m.entry(m).or_default().push(fi);
+                    } else {
+                        whole.push(fi);
                     }
                 }
                 let mut gs: Vec<Group> = by_m
                     .into_iter()
                     .map(|(m, freqs)| Group {
                         m,
-                        start: a - (m - w) / 2,
+                        start: a as isize - ((m - w) / 2) as isize,
                         whole_record: false,
                         freqs,
                     })
                     .collect();
                 if !whole.is_empty() {
                     gs.push(Group {
-                        m: n,
+                        m: padded,
                         start: 0,
                         whole_record: true,
                         freqs: whole,
@@ -340,14 +416,15 @@ impl Cwt {
         if a == b {
             return;
         }
-        let groups = self.groups(n, fs, a, b);
+        let groups = self.groups(self.padded_len(), fs, a, b);
         let mut row = std::mem::take(&mut self.row);
         row.resize(b - a, 0.0);
         for g in groups.iter() {
             if !g.whole_record {
-                self.forward_into(&x[g.start..g.start + g.m], false);
+                self.forward_segment(x, g.start, g.m);
             }
-            let (lo, hi) = (a - g.start, b - g.start);
+            let lo = (a as isize - g.start) as usize;
+            let hi = lo + (b - a);
             for &fi in &g.freqs {
                 self.band_power(
                     fi,
@@ -380,11 +457,12 @@ impl Cwt {
         self.check_loaded(x, fs);
         out.clear();
         out.resize(b - a, 0.0);
-        let groups = self.groups(x.len(), fs, a, b);
+        let groups = self.groups(self.padded_len(), fs, a, b);
         if let Some(g) = groups.iter().find(|g| g.freqs.contains(&fi)) {
             if !g.whole_record {
-                self.forward_into(&x[g.start..g.start + g.m], false);
+                self.forward_segment(x, g.start, g.m);
             }
+            let lo = (a as isize - g.start) as usize;
             self.band_power(
                 fi,
                 Seg {
@@ -392,8 +470,8 @@ impl Cwt {
                     fs,
                     whole: g.whole_record,
                 },
-                a - g.start,
-                b - g.start,
+                lo,
+                lo + (b - a),
                 out,
             );
         }
@@ -556,5 +634,64 @@ mod tests {
         );
         // A clear valley between them.
         assert!(at(500e3) < 0.1 * at(750e3), "valley {}", at(500e3));
+    }
+
+    #[test]
+    fn caches_stay_bounded_whatever_the_record_lengths() {
+        let fs = 5e6;
+        let mut cwt = Cwt::new(bank());
+        let mut rng = crate::util::Rng::new(3);
+        let mut padded = std::collections::BTreeSet::new();
+        for _ in 0..300 {
+            let n = 2250 + (rng.next_u64() % 40_000) as usize;
+            let x = sine(n, 300e3, fs, 0.1);
+            cwt.load(&x, fs);
+            padded.insert(cwt.padded_len());
+            cwt.window_power(&x, fs, 400, 600, |_, _| {});
+        }
+        // Many lengths, few FFT sizes, and every cache within its bound.
+        assert!(padded.len() < 60, "{} padded lengths", padded.len());
+        assert!(cwt.plans.len() <= MAX_PLANS);
+        assert!(cwt.groups.len() <= MAX_GROUP_SETS);
+        assert!(cwt.filter_taps <= 2 * MAX_FILTER_TAPS);
+    }
+
+    #[test]
+    fn a_record_without_pretrigger_reads_as_zeros_before_its_start() {
+        // The same burst with 600 zeros in front (window at 600) and without (window at 0):
+        // the short segments of the second read zeros before the record, so both agree.
+        let fs = 10e6;
+        let burst: Vec<f32> = (0..8192)
+            .map(|i| {
+                let t = i as f64 / fs;
+                (0.1 * (2.0 * PI * 700e3 * t).sin() * (-t / 2e-5).exp()) as f32
+            })
+            .collect();
+        let mut padded_x = vec![0.0f32; 600];
+        padded_x.extend_from_slice(&burst);
+        padded_x.truncate(8192);
+        let b = bank();
+        let mut with_zeros = std::collections::BTreeMap::new();
+        let mut cwt = Cwt::new(b.clone());
+        cwt.load(&padded_x, fs);
+        cwt.window_power(&padded_x, fs, 600, 1000, |fi, p| {
+            with_zeros.insert(fi, p.to_vec());
+        });
+        let mut cwt2 = Cwt::new(b.clone());
+        cwt2.load(&burst, fs);
+        let (mut compared, mut worst) = (0, 0.0f64);
+        let peak = with_zeros.values().flatten().fold(0.0f32, |m, &v| m.max(v)) as f64;
+        cwt2.window_power(&burst, fs, 0, 400, |fi, p| {
+            let f = b.freqs_hz[fi];
+            let margin = SUPPORT_SIGMAS * b.sigma_t(f) * fs;
+            if margin < 550.0 {
+                compared += 1;
+                for (u, v) in p.iter().zip(&with_zeros[&fi]) {
+                    worst = worst.max((*u as f64 - *v as f64).abs() / peak);
+                }
+            }
+        });
+        assert!(compared > 150, "{compared}");
+        assert!(worst < 1e-4, "worst difference {worst} of the peak");
     }
 }

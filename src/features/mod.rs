@@ -354,11 +354,12 @@ impl FeatureExtractor {
         };
         let hit = hit_features(&self.cond, fs, thr);
 
-        // Spectrum: one FFT of the whole record, shared with the whole-record CWT.
+        // Spectrum: one FFT of the whole record (zero-padded to a fast length, so the band
+        // powers of Eq. 4.5.4 stay those of the whole hit), shared with the whole-record CWT.
         self.cwt.load(&self.cond, fs);
         let spec = power_ratios(
             self.cwt.spectrum(),
-            n,
+            self.cwt.padded_len(),
             fs,
             self.cfg.dsp.band_hz,
             &mut self.ratios,
