@@ -55,7 +55,26 @@ pub fn summarise(src: &Source, cfg: &IngestConfig) -> Summary {
         min_len: usize::MAX,
         ..Default::default()
     };
-    for item in ingest::open(src, cfg) {
+    // Vallen: the transients are summarised from the .tradb's integer columns and only the
+    // hit rows are read, so inspecting a large database decodes no waveform.
+    let vallen_stats = match (src.format, src.files.first()) {
+        (ingest::Format::Vallen, Some(tradb)) if src.has_hit_list() => {
+            ingest::vallen::transient_stats(tradb).ok()
+        }
+        _ => None,
+    };
+    let items = match &vallen_stats {
+        Some(t) => {
+            s.transients = t.transients;
+            s.min_len = t.shortest;
+            s.max_len = t.longest;
+            s.sample_rates_hz.extend(t.sample_rates_hz.iter().copied());
+            s.channels.extend(t.channels.iter().copied());
+            ingest::vallen::open_hits(src, cfg)
+        }
+        None => ingest::open(src, cfg),
+    };
+    for item in items {
         match item {
             Item::Hit(h) => {
                 s.hits += 1;

@@ -37,11 +37,10 @@ const MAX_FILTER_TAPS: usize = 8 << 20;
 /// A segment shorter than this fraction of the padded record is transformed on its own
 /// even where it reaches past the record (read as zeros there), instead of transforming the
 /// whole record: the cost of a frequency stays bounded by its wavelet, not the record.
-const WHOLE_RECORD_RATIO: usize = 4;
-/// Segment margin, in wavelet supports, of a filter cut at Nyquist, and how much longer
-/// than that segment a record must be before the segment replaces the whole record.
-const CUT_MARGIN: f64 = 8.0;
-const LONG_RECORD_RATIO: usize = 32;
+const WHOLE_RECORD_RATIO: usize = 2;
+/// Segment margin, in wavelet supports, of a filter that reaches Nyquist (its roll-off
+/// widens the wavelet in time by about √2).
+const CUT_MARGIN: f64 = 2.0;
 
 /// The wavelet family and frequency grid.
 #[derive(Debug, Clone, PartialEq)]
@@ -105,12 +104,45 @@ struct Seg {
     whole: bool,
 }
 
+/// The filter of frequency `fi` of `bank` on an `m`-point DFT grid at `fs`.
+fn make_band(bank: &WaveletBank, fi: usize, m: usize, fs: f64) -> Band {
+    let f = bank.freqs_hz[fi];
+    let nyq = fs / 2.0;
+    if f <= 0.0 || f > nyq {
+        return Band::default(); // above Nyquist: nothing to see
+    }
+    let df = fs / m as f64;
+    let half = m / 2;
+    let s = bank.sigma_f(f);
+    let lo = (((f - SUPPORT_SIGMAS * s) / df).ceil().max(1.0)) as usize;
+    let hi = (((f + SUPPORT_SIGMAS * s) / df).floor() as usize).min(half);
+    if hi < lo {
+        return Band::default();
+    }
+    let cut = f + SUPPORT_SIGMAS * s > nyq;
+    let taps = (lo..=hi)
+        .map(|k| {
+            let nu = k as f64 * df;
+            let d = nu - f;
+            let mut h = 2.0 * (-d * d / (2.0 * s * s)).exp();
+            if cut {
+                // Smooth roll-off to 0 at Nyquist (width σ_f), so the wavelet stays compact
+                // in time instead of ringing from a step.
+                let e = nyq - nu;
+                h *= 1.0 - (-e * e / (2.0 * s * s)).exp();
+            }
+            (h / m as f64) as f32
+        })
+        .collect();
+    Band { k0: lo, taps }
+}
+
 /// Per-worker CWT engine: plans, filters and buffers, reused across records.
 pub struct Cwt {
     bank: WaveletBank,
     planner: FftPlanner<f32>,
     plans: HashMap<(usize, bool), Arc<dyn Fft<f32>>>,
-    filters: HashMap<(usize, u64), Arc<Vec<Band>>>,
+    filters: HashMap<(usize, u64, usize), Arc<Band>>,
     /// Filter taps held by `filters` (their memory bound).
     filter_taps: usize,
     groups: HashMap<(usize, u64, usize, usize), Arc<Vec<Group>>>,
@@ -165,48 +197,21 @@ impl Cwt {
             .clone()
     }
 
-    fn filter_set(&mut self, m: usize, fs: f64) -> Arc<Vec<Band>> {
-        if let Some(f) = self.filters.get(&(m, fs.to_bits())) {
-            return f.clone();
+    /// The filter of frequency `fi` on an `m`-point grid at `fs`, made on first use (only the
+    /// frequencies a grid is used for get taps there).
+    fn band(&mut self, fi: usize, m: usize, fs: f64) -> Arc<Band> {
+        let key = (m, fs.to_bits(), fi);
+        if let Some(b) = self.filters.get(&key) {
+            return b.clone();
         }
         if self.filter_taps > MAX_FILTER_TAPS {
             self.filters.clear();
             self.filter_taps = 0;
         }
-        let bank = &self.bank;
-        let set = self
-            .filters
-            .entry((m, fs.to_bits()))
-            .or_insert_with(|| {
-                let df = fs / m as f64;
-                let half = m / 2;
-                Arc::new(
-                    bank.freqs_hz
-                        .iter()
-                        .map(|&f| {
-                            if f <= 0.0 || f > fs / 2.0 {
-                                return Band::default(); // above Nyquist: nothing to see
-                            }
-                            let s = bank.sigma_f(f);
-                            let lo = (((f - SUPPORT_SIGMAS * s) / df).ceil().max(1.0)) as usize;
-                            let hi = (((f + SUPPORT_SIGMAS * s) / df).floor() as usize).min(half);
-                            if hi < lo {
-                                return Band::default();
-                            }
-                            let taps = (lo..=hi)
-                                .map(|k| {
-                                    let d = k as f64 * df - f;
-                                    (2.0 * (-d * d / (2.0 * s * s)).exp() / m as f64) as f32
-                                })
-                                .collect();
-                            Band { k0: lo, taps }
-                        })
-                        .collect(),
-                )
-            })
-            .clone();
-        self.filter_taps += set.iter().map(|b| b.taps.len()).sum::<usize>();
-        set
+        let band = Arc::new(make_band(&self.bank, fi, m, fs));
+        self.filter_taps += band.taps.len();
+        self.filters.insert(key, band.clone());
+        band
     }
 
     /// Forward FFT of `x[start .. start + m]` into the segment buffer, reading the record as
@@ -214,15 +219,14 @@ impl Cwt {
     fn forward_segment(&mut self, x: &[f32], start: isize, m: usize) {
         let plan = self.plan(m, false);
         self.seg.clear();
-        self.seg.extend((0..m).map(|i| {
-            let k = start + i as isize;
-            let v = if k >= 0 && (k as usize) < x.len() {
-                x[k as usize]
-            } else {
-                0.0
-            };
-            Complex32::new(v, 0.0)
-        }));
+        // The part of the segment inside the record, with zeros before and after it.
+        let lo = start.clamp(0, x.len() as isize) as usize;
+        let hi = (start + m as isize).clamp(0, x.len() as isize) as usize;
+        let before = (lo as isize - start) as usize;
+        self.seg.resize(before, Complex32::default());
+        self.seg
+            .extend(x[lo..hi].iter().map(|&v| Complex32::new(v, 0.0)));
+        self.seg.resize(m, Complex32::default());
         let need = plan.get_inplace_scratch_len();
         if self.scratch.len() < need {
             self.scratch.resize(need, Complex32::default());
@@ -268,8 +272,7 @@ impl Cwt {
             fs,
             whole: from_full,
         } = seg;
-        let filters = self.filter_set(m, fs);
-        let band = &filters[fi];
+        let band = self.band(fi, m, fs);
         if band.taps.is_empty() {
             out.fill(0.0);
             return;
@@ -360,15 +363,8 @@ impl Cwt {
                     let m = next_fast_len(w + 2 * t);
                     let margin = (m - w) / 2;
                     let inside = a >= margin && a - margin + m <= padded;
-                    // A filter cut at Nyquist takes the whole record (its ringing reaches far)
-                    // unless the record is long; then its wide segment's truncation costs
-                    // ~0.1 % of a bin within 5σ of Nyquist.
-                    let short = if cut_at_nyquist {
-                        m * LONG_RECORD_RATIO <= padded
-                    } else {
-                        m * WHOLE_RECORD_RATIO <= padded
-                    };
-                    if (inside && !cut_at_nyquist) || short {
+                    let short = m * WHOLE_RECORD_RATIO <= padded;
+                    if inside || short {
                         by_m.entry(m).or_default().push(fi);
                     } else {
                         whole.push(fi);

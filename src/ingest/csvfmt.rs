@@ -27,7 +27,8 @@ const VALUE: &[&str] = &[
     "u_v",
     "u",
 ];
-const TIME: &[&str] = &["time_s", "time", "t", "t_s"];
+/// Time columns: `time` or `t`, optionally with a unit (`time_us`, `time [ms]`, `t/ns`, …).
+const TIME: &[&str] = &["time", "t"];
 const HIT: &[&str] = &["hit", "hit_id", "hit_no", "event", "trai", "record"];
 const CHAN: &[&str] = &["channel", "chan", "ch"];
 
@@ -54,8 +55,34 @@ struct Layout {
     has_header: bool,
     value: usize,
     time: Option<usize>,
+    /// Seconds per unit of the time column, when its header names the unit.
+    time_unit: Option<f64>,
     hit: Option<usize>,
     chan: Option<usize>,
+}
+
+/// Split a header like `time_us`, `time (µs)`, `t [ms]`, `time/s` into its name and the
+/// seconds per unit it names.
+fn name_and_unit(h: &str) -> (String, Option<f64>) {
+    let cut = h.find(['_', '(', '[', '/', ' ']).unwrap_or(h.len());
+    let (name, rest) = h.split_at(cut);
+    let unit = rest.trim_matches(|c: char| matches!(c, '_' | '(' | ')' | '[' | ']' | '/' | ' '));
+    let scale = match unit {
+        "s" | "sec" => Some(1.0),
+        "ms" => Some(1e-3),
+        "us" | "µs" | "μs" => Some(1e-6),
+        "ns" => Some(1e-9),
+        _ => None,
+    };
+    (name.to_string(), scale)
+}
+
+/// The time column: its index and the seconds per unit its header names.
+fn time_column(header: &[String]) -> Option<(usize, Option<f64>)> {
+    header.iter().enumerate().find_map(|(i, h)| {
+        let (name, unit) = name_and_unit(h);
+        (TIME.contains(&name.as_str()) && (unit.is_some() || name == *h)).then_some((i, unit))
+    })
 }
 
 fn find(header: &[String], names: &[&str]) -> Option<usize> {
@@ -82,6 +109,7 @@ fn layout(head: &str) -> Result<Layout, String> {
                 has_header: false,
                 value: 0,
                 time: None,
+                time_unit: None,
                 hit: None,
                 chan: None,
             })
@@ -100,11 +128,13 @@ fn layout(head: &str) -> Result<Layout, String> {
             VALUE.join(", ")
         ));
     };
+    let time = time_column(&header);
     Ok(Layout {
         delim,
         has_header: true,
         value,
-        time: find(&header, TIME),
+        time: time.map(|t| t.0),
+        time_unit: time.and_then(|t| t.1),
         hit: find(&header, HIT),
         chan: find(&header, CHAN),
     })
@@ -131,9 +161,22 @@ fn reader(path: &Path) -> Result<(Layout, csv::Reader<std::fs::File>), String> {
     Ok((l, r))
 }
 
-/// Rate and pretrigger from sample times: rate from the mean step, pretrigger = samples
-/// before t = 0.
-fn timing(times: &[f64], default_rate: f64, default_pre: u32) -> (f64, u32) {
+/// Seconds per unit of a time column whose header names no unit: the first of s, µs, ms, ns
+/// that puts the sampling rate between 100 kHz and 1 GHz (AE rates); seconds otherwise.
+/// (A bare `time` column stepping by 0.1 is 0.1 µs at 10 MHz, not 0.1 s at 10 Hz.)
+pub(crate) fn infer_time_unit(step: f64) -> f64 {
+    [1.0, 1e-6, 1e-3, 1e-9]
+        .into_iter()
+        .find(|u| {
+            let rate = 1.0 / (step * u);
+            (1e5..=1e9).contains(&rate)
+        })
+        .unwrap_or(1.0)
+}
+
+/// Rate and pretrigger from sample times (in the column's unit, `unit` seconds each, or
+/// inferred from the spacing): rate from the mean step, pretrigger = samples before t = 0.
+fn timing(times: &[f64], unit: Option<f64>, default_rate: f64, default_pre: u32) -> (f64, u32) {
     if times.len() < 2 {
         return (default_rate, default_pre);
     }
@@ -141,7 +184,9 @@ fn timing(times: &[f64], default_rate: f64, default_pre: u32) -> (f64, u32) {
     if span.is_nan() || span <= 0.0 {
         return (default_rate, default_pre);
     }
-    let rate = (times.len() - 1) as f64 / span;
+    let step = span / (times.len() - 1) as f64;
+    let unit = unit.unwrap_or_else(|| infer_time_unit(step));
+    let rate = 1.0 / (step * unit);
     let pre = if times[0] < 0.0 {
         times.iter().take_while(|t| **t < 0.0).count() as u32
     } else {
@@ -150,11 +195,19 @@ fn timing(times: &[f64], default_rate: f64, default_pre: u32) -> (f64, u32) {
     (rate, pre)
 }
 
+/// A number, with a decimal comma accepted (`0,0125` in a `;`- or tab-separated file).
 fn cell(rec: &csv::StringRecord, i: usize, line: u64, what: &str) -> Result<f64, String> {
     let s = rec
         .get(i)
         .ok_or_else(|| format!("line {line}: missing {what} column"))?;
     s.parse::<f64>()
+        .or_else(|e| {
+            if s.contains(',') && !s.contains('.') {
+                s.replacen(',', ".", 1).parse::<f64>()
+            } else {
+                Err(e)
+            }
+        })
         .map_err(|_| format!("line {line}: {what} '{s}' is not a number"))
 }
 
@@ -171,7 +224,7 @@ fn read_per_hit(path: &Path, cfg: &IngestConfig) -> Result<(Vec<f32>, f64, u32),
             t.push(cell(&rec, ti, line, "time")?);
         }
     }
-    let (rate, pre) = timing(&t, cfg.sample_rate_hz, cfg.pretrigger_samples);
+    let (rate, pre) = timing(&t, l.time_unit, cfg.sample_rate_hz, cfg.pretrigger_samples);
     Ok((v, rate, pre))
 }
 
@@ -319,7 +372,12 @@ impl Iterator for LongReader {
         if let Some(e) = err {
             return Some(self.reject(id, e));
         }
-        let (rate, pre) = timing(&t, self.cfg.sample_rate_hz, self.cfg.pretrigger_samples);
+        let (rate, pre) = timing(
+            &t,
+            self.l.time_unit,
+            self.cfg.sample_rate_hz,
+            self.cfg.pretrigger_samples,
+        );
         Some(Item::Record(AeRecord {
             experiment: self.experiment.clone(),
             channel: key.0.max(0) as u32,
@@ -383,8 +441,47 @@ mod tests {
     #[test]
     fn timing_from_times() {
         let t: Vec<f64> = (-3..7).map(|i| i as f64 * 1e-7).collect();
-        let (rate, pre) = timing(&t, 1.0, 0);
+        let (rate, pre) = timing(&t, None, 1.0, 0);
         assert!((rate - 1e7).abs() < 1e-3);
         assert_eq!(pre, 3);
+    }
+
+    #[test]
+    fn time_units_from_the_header_or_the_spacing() {
+        let unit = |h: &str| layout(&format!("{h},voltage_v\n0,0\n")).unwrap().time_unit;
+        assert_eq!(unit("time_us"), Some(1e-6));
+        assert_eq!(unit("Time (µs)"), Some(1e-6));
+        assert_eq!(unit("t [ms]"), Some(1e-3));
+        assert_eq!(unit("time/ns"), Some(1e-9));
+        assert_eq!(unit("time_s"), Some(1.0));
+        assert_eq!(unit("time"), None);
+        // The same 10 MHz record written in µs, ms, s and with a bare column.
+        let steps = |d: f64| (-2..8).map(|i| i as f64 * d).collect::<Vec<_>>();
+        for (times, u) in [
+            (steps(0.1), Some(1e-6)),
+            (steps(1e-4), Some(1e-3)),
+            (steps(1e-7), Some(1.0)),
+            (steps(0.1), None),
+            (steps(1e-7), None),
+        ] {
+            let (rate, pre) = timing(&times, u, 1.0, 0);
+            assert!((rate / 1e7 - 1.0).abs() < 1e-9, "{rate} from {u:?}");
+            assert_eq!(pre, 2);
+        }
+        // A bare column stepping by 0.2 (ms would be 5 kHz, s 5 Hz): µs, 5 MHz.
+        assert_eq!(infer_time_unit(0.2), 1e-6);
+    }
+
+    #[test]
+    fn decimal_commas_in_a_semicolon_file() {
+        let dir = std::env::temp_dir().join(format!("aepipe-csv-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let p = dir.join("h1.csv");
+        std::fs::write(&p, "time_us;voltage_v\n-0,1;0,5\n0,0;-0,25\n0,1;1,0E-3\n").unwrap();
+        let (v, rate, pre) = read_per_hit(&p, &IngestConfig::default()).unwrap();
+        assert_eq!(v, vec![0.5, -0.25, 0.001]);
+        assert!((rate / 1e7 - 1.0).abs() < 1e-9);
+        assert_eq!(pre, 1);
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 }

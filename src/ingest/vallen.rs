@@ -514,6 +514,61 @@ impl Iterator for Reader {
 /// transient records in (channel, transient number) order, then a reject for each hit whose
 /// transient the `.tradb` lacks.
 pub fn open(src: &Source, cfg: &IngestConfig) -> Box<dyn Iterator<Item = Item> + Send> {
+    open_with(src, cfg, true)
+}
+
+/// The hit rows (and the rejects of missing transients) of a Vallen source, without
+/// decoding a single waveform: what `aepipe inspect` reads.
+pub fn open_hits(src: &Source, cfg: &IngestConfig) -> Box<dyn Iterator<Item = Item> + Send> {
+    open_with(src, cfg, false)
+}
+
+/// What a `.tradb` holds, from its integer columns only.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TransientStats {
+    pub transients: u64,
+    pub shortest: usize,
+    pub longest: usize,
+    pub sample_rates_hz: Vec<u64>,
+    pub channels: Vec<u32>,
+}
+
+/// Count and describe the transients of a `.tradb` without decoding one.
+pub fn transient_stats(tradb: &Path) -> Result<TransientStats, IngestError> {
+    let conn = open_ro(tradb)?;
+    let e = |x: rusqlite::Error| file_err(tradb, format!("not a Vallen .tradb: {x}"));
+    let (n, lo, hi): (i64, Option<i64>, Option<i64>) = conn
+        .query_row(
+            "SELECT count(*), min(Samples), max(Samples) FROM tr_data",
+            [],
+            |r| Ok((r.get(0)?, r.get(1)?, r.get(2)?)),
+        )
+        .map_err(e)?;
+    let list = |sql: &str| -> Result<Vec<i64>, IngestError> {
+        let mut st = conn.prepare(sql).map_err(e)?;
+        let v = st
+            .query_map([], |r| r.get::<_, Option<i64>>(0))
+            .map_err(e)?
+            .filter_map(|x| x.ok().flatten())
+            .collect();
+        Ok(v)
+    };
+    let rates = list("SELECT DISTINCT SampleRate FROM tr_data ORDER BY 1")?;
+    let chans = list("SELECT DISTINCT Chan FROM tr_data ORDER BY 1")?;
+    Ok(TransientStats {
+        transients: n.max(0) as u64,
+        shortest: lo.unwrap_or(0).max(0) as usize,
+        longest: hi.unwrap_or(0).max(0) as usize,
+        sample_rates_hz: rates.into_iter().map(|r| r.max(0) as u64).collect(),
+        channels: chans.into_iter().map(|c| c.max(0) as u32).collect(),
+    })
+}
+
+fn open_with(
+    src: &Source,
+    cfg: &IngestConfig,
+    decode: bool,
+) -> Box<dyn Iterator<Item = Item> + Send> {
     let experiment = src.id.clone();
     let pridb = src.companions.first().cloned();
     let tradb = src.files.first().cloned();
@@ -645,6 +700,9 @@ pub fn open(src: &Source, cfg: &IngestConfig) -> Box<dyn Iterator<Item = Item> +
             }
             keys.sort_unstable();
             let tail = missing(&info, &have, "it is not in the .tradb");
+            if !decode {
+                keys.clear();
+            }
             let tb = time_base(&conn, "tr_globalinfo");
             let r = reader(tradb, Some(conn), tb, keys.into(), have, tail, info);
             Box::new(first.into_iter().chain(r))

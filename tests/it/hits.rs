@@ -230,3 +230,47 @@ fn the_accounting_rule_holds_on_every_real_data_set() {
     assert_eq!(by["PLBS4_CP090_PCLO1"].hits, 73);
     assert_eq!(by["PLBS4_CP090_PCLO1"].rows, 69);
 }
+
+#[test]
+fn inspect_counts_hits_and_transients_without_decoding_a_waveform() {
+    let t = TempDir::new("inspect-nodecode");
+    let sig: Vec<f32> = (0..300).map(|i| (i as f32 * 0.2).sin() * 0.01).collect();
+    let hits = (1..=5).map(|k| HitToWrite {
+        channel: 1 + (k % 2) as u32,
+        trai: k,
+        time_s: k as f64 * 0.1,
+        sample_rate_hz: 5e6,
+        pretrigger: 50,
+        samples_v: &sig,
+        restart: false,
+        transient: true,
+    });
+    let data = t.path().join("d");
+    std::fs::create_dir_all(&data).unwrap();
+    let (_, tradb) = write_pair(&data.join("x"), hits, &[], 1e-3, 1e-4).unwrap();
+    // Break one waveform's blob: decoding it must fail, counting it must not.
+    rusqlite::Connection::open(&tradb)
+        .unwrap()
+        .execute("UPDATE tr_data SET Data = x'00' WHERE TRAI = 3", [])
+        .unwrap();
+    let cfg = PipelineConfig::default();
+    let d = aepipe::ingest::discover(std::slice::from_ref(&data), &cfg.ingest);
+    let s = aepipe::inspect::summarise(&d.sources[0], &cfg.ingest);
+    assert_eq!((s.hits, s.transients, s.rejects), (5, 5, 0), "{s}");
+    assert_eq!((s.min_len, s.max_len), (300, 300));
+    assert_eq!(
+        s.sample_rates_hz.iter().copied().collect::<Vec<_>>(),
+        [5_000_000]
+    );
+    // The feature run decodes it and rejects exactly that one.
+    let r = run(
+        StreamJob::Features,
+        &[data],
+        &t.path().join("f"),
+        &cfg,
+        &opts(),
+    )
+    .unwrap();
+    let c = r.stats.by_experiment["x"];
+    assert_eq!((c.hits, c.rows, c.rejects), (5, 4, 1));
+}
