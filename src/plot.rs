@@ -27,15 +27,15 @@ pub enum PlotError {
 pub fn ensure_font() -> Result<(), PlotError> {
     static DONE: OnceLock<Result<(), (String, String)>> = OnceLock::new();
     DONE.get_or_init(|| {
-        let bytes: &'static [u8] = match std::env::var("AEPIPE_FONT") {
+        let (name, bytes): (String, &'static [u8]) = match std::env::var("AEPIPE_FONT") {
             Ok(p) if !p.is_empty() => match std::fs::read(&p) {
-                Ok(b) => Box::leak(b.into_boxed_slice()),
+                Ok(b) => (p, Box::leak(b.into_boxed_slice())),
                 Err(e) => return Err((p, e.to_string())),
             },
-            _ => dejavu::sans::regular(),
+            _ => ("(embedded DejaVu Sans)".into(), dejavu::sans::regular()),
         };
         plotters::style::register_font("sans-serif", FontStyle::Normal, bytes)
-            .map_err(|_| ("(font)".to_string(), "not a TrueType font".to_string()))
+            .map_err(|_| (name, "not a TrueType font".to_string()))
     })
     .clone()
     .map_err(|(path, message)| PlotError::Font { path, message })

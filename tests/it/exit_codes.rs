@@ -327,3 +327,37 @@ fn simulator_and_workflow_commands_fail_with_the_right_code() {
     expect(0, &["--help"]);
     expect(0, &["--version"]);
 }
+
+#[test]
+fn pictures_need_no_system_font_and_a_bad_font_override_is_a_usage_error() {
+    let f = Fixture::new();
+    let png = f.p("hit.png");
+    // No AEPIPE_FONT and no font directories: the embedded DejaVu Sans draws the labels.
+    let o = Command::new(env!("CARGO_BIN_EXE_aepipe"))
+        .args(["cwt", &f.p("data"), "--hit", "2", "--png", &png])
+        .env_remove("AEPIPE_FONT")
+        .env("XDG_DATA_DIRS", f.p("nothing"))
+        .env("FONTCONFIG_PATH", f.p("nothing"))
+        .output()
+        .unwrap();
+    assert_eq!(
+        o.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    let bytes = std::fs::read(&png).unwrap();
+    assert!(bytes.starts_with(b"\x89PNG") && bytes.len() > 10_000);
+    // AEPIPE_FONT naming a file that is not a font: exit 1, the variable named.
+    let o = Command::new(env!("CARGO_BIN_EXE_aepipe"))
+        .args(["cwt", &f.p("data"), "--hit", "2", "--png", &png])
+        .env("AEPIPE_FONT", f.p("file"))
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(1));
+    let se = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        se.contains("AEPIPE_FONT") && se.contains("file: not a TrueType font"),
+        "{se}"
+    );
+}
