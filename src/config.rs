@@ -308,6 +308,10 @@ pub struct IngestConfig {
     pub pretrigger_samples: u32,
     /// Preamplifier gain (dB) to divide out of text/CSV/WAV volts (0 = already at the sensor).
     pub gain_db: f64,
+    /// The longest record accepted, samples: a size read from a file (a Vallen `Samples`, a
+    /// WaveExplorer or WAV header) above it is a reject, checked before anything is
+    /// allocated. 50 M samples = 10 s at 5 MHz (200 MiB as f32).
+    pub max_samples_per_record: u64,
     pub vallen: VallenConfig,
     pub aewin: AewinConfig,
     pub waveexplorer: WaveExplorerConfig,
@@ -399,6 +403,7 @@ impl Default for IngestConfig {
             sample_rate_hz: 10e6,
             pretrigger_samples: 0,
             gain_db: 0.0,
+            max_samples_per_record: 50_000_000,
             vallen: VallenConfig::default(),
             aewin: AewinConfig::default(),
             waveexplorer: WaveExplorerConfig::default(),
@@ -475,6 +480,11 @@ impl PipelineConfig {
 
     /// The checks that serde cannot express.
     pub fn validate(&self) -> Result<(), ConfigError> {
+        if self.ingest.max_samples_per_record == 0 {
+            return Err(ConfigError::Invalid(
+                "ingest.max_samples_per_record must be ≥ 1".into(),
+            ));
+        }
         let pos = |v: f64, what: &str| {
             if v.is_finite() && v > 0.0 {
                 Ok(())

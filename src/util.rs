@@ -56,6 +56,28 @@ pub fn with_threads<R: Send>(threads: usize, f: impl FnOnce() -> R + Send) -> R 
     }
 }
 
+/// A string made safe as one file-name component: characters other than letters, digits,
+/// `-`, `_` and `.` become `_`, and leading dots go (no `..`, no path separators, no hidden
+/// files). The tables keep the original id; only names on disk use this.
+pub fn file_safe(id: &str) -> String {
+    let s: String = id
+        .chars()
+        .map(|c| {
+            if c.is_ascii_alphanumeric() || matches!(c, '-' | '_' | '.') {
+                c
+            } else {
+                '_'
+            }
+        })
+        .collect();
+    let s = s.trim_start_matches('.');
+    if s.is_empty() {
+        "_".into()
+    } else {
+        s.into()
+    }
+}
+
 /// Lower-case hex of bytes.
 pub fn hex(bytes: &[u8]) -> String {
     bytes.iter().map(|b| format!("{b:02x}")).collect()
@@ -181,6 +203,21 @@ mod tests {
             ("foobar", "Zm9vYmFy"),
         ] {
             assert_eq!(base64(i.as_bytes()), o);
+        }
+    }
+
+    #[test]
+    fn ids_become_safe_file_names() {
+        assert_eq!(file_safe("../../etc/passwd"), "_.._etc_passwd");
+        assert_eq!(file_safe("exp 1/ch2"), "exp_1_ch2");
+        assert_eq!(file_safe(".."), "_");
+        assert_eq!(file_safe("PLBS4_CP090.x-1"), "PLBS4_CP090.x-1");
+        for id in ["../a", "/abs", "a/../../b", "..", "."] {
+            let f = file_safe(id);
+            assert!(
+                !f.contains('/') && !f.starts_with('.') && !f.is_empty(),
+                "{id} -> {f}"
+            );
         }
     }
 

@@ -308,13 +308,22 @@ fn trend_stage(
     let rep = crate::analysis::trend::run_trend(feats, dir, &opts)?;
     let mut plots = Vec::new();
     for sel in &rep.selections {
-        let png = dir.join(format!("trend_{}_ch{}.png", sel.experiment, sel.channel));
+        let png = trend_png_path(dir, &sel.experiment, sel.channel);
         // A picture that cannot be written fails the stage (exit 3), it is not skipped quietly.
         if crate::plot::trend_png(&png, &rep, &sel.experiment, sel.channel, 4)? {
             plots.push((format!("{} ch{}", sel.experiment, sel.channel), png));
         }
     }
     Ok((rep, plots))
+}
+
+/// Where the Fig. 4.18 plot of one experiment × channel goes (the id made file-safe: an
+/// experiment id read from a table never writes outside `dir`).
+pub fn trend_png_path(dir: &Path, experiment: &str, channel: i32) -> PathBuf {
+    dir.join(format!(
+        "trend_{}_ch{channel}.png",
+        crate::util::file_safe(experiment)
+    ))
 }
 
 /// Hits per SOM class.
@@ -427,7 +436,12 @@ fn draw_gallery(
             }
             let a = ex.analyse(&r);
             let (freqs, power) = ex.full_cwt(&r);
-            let png = dir.join(format!("{}_ch{}_hit{}.png", key.0, key.1, key.2));
+            let png = dir.join(format!(
+                "{}_ch{}_hit{}.png",
+                crate::util::file_safe(&key.0),
+                key.1,
+                key.2
+            ));
             if crate::plot::cwt_png(
                 &png,
                 &r,

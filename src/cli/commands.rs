@@ -257,7 +257,7 @@ fn trend(
     print!("{}", trend::format_table(&rep));
     if !no_plots {
         for sel in &rep.selections {
-            let png = out.join(format!("trend_{}_ch{}.png", sel.experiment, sel.channel));
+            let png = crate::workflow::trend_png_path(out, &sel.experiment, sel.channel);
             if crate::plot::trend_png(&png, &rep, &sel.experiment, sel.channel, 4)? {
                 println!("plot: {}", png.display());
             }

@@ -245,7 +245,41 @@ pub(crate) fn natural_key(s: &str) -> Vec<(u8, u64, String)> {
     out
 }
 
-fn walk(dir: &Path, out: &mut Vec<PathBuf>, errs: &mut Vec<(PathBuf, String)>) {
+/// A file's identity on disk (device, inode), so that a folder or file reached through
+/// several links is read once.
+fn file_id(p: &Path) -> Option<(u64, u64)> {
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::MetadataExt;
+        std::fs::metadata(p).ok().map(|m| (m.dev(), m.ino()))
+    }
+    #[cfg(not(unix))]
+    {
+        let c = std::fs::canonicalize(p).ok()?;
+        let mut h = std::collections::hash_map::DefaultHasher::new();
+        std::hash::Hash::hash(&c, &mut h);
+        Some((0, std::hash::Hasher::finish(&h)))
+    }
+}
+
+/// Every file below `dir`, each folder visited once (a symlink loop ends at the folder it
+/// leads back to, with a note in `skipped`).
+fn walk(
+    dir: &Path,
+    seen: &mut std::collections::HashSet<(u64, u64)>,
+    out: &mut Vec<PathBuf>,
+    errs: &mut Vec<(PathBuf, String)>,
+    skipped: &mut Vec<(PathBuf, String)>,
+) {
+    if let Some(id) = file_id(dir) {
+        if !seen.insert(id) {
+            skipped.push((
+                dir.to_path_buf(),
+                "folder already read through another path (a link back to it)".into(),
+            ));
+            return;
+        }
+    }
     let rd = match std::fs::read_dir(dir) {
         Ok(rd) => rd,
         Err(e) => {
@@ -264,7 +298,7 @@ fn walk(dir: &Path, out: &mut Vec<PathBuf>, errs: &mut Vec<(PathBuf, String)>) {
             continue; // hidden files, our own temporary files, virtualenvs
         }
         if p.is_dir() {
-            walk(&p, out, errs);
+            walk(&p, seen, out, errs, skipped);
         } else {
             out.push(p);
         }
@@ -289,11 +323,12 @@ pub fn discover(inputs: &[PathBuf], cfg: &IngestConfig) -> Discovery {
     let mut d = Discovery::default();
     // (path, explicitly named?)
     let mut files: Vec<(PathBuf, bool)> = Vec::new();
+    let mut seen_dirs = std::collections::HashSet::new();
     for inp in inputs {
         if inp.is_dir() {
             let mut found = Vec::new();
             let mut errs = Vec::new();
-            walk(inp, &mut found, &mut errs);
+            walk(inp, &mut seen_dirs, &mut found, &mut errs, &mut d.skipped);
             for (p, why) in errs {
                 d.rejects.push(whole_file_reject(&p, Stage::Discover, why));
             }
@@ -310,6 +345,21 @@ pub fn discover(inputs: &[PathBuf], cfg: &IngestConfig) -> Discovery {
     }
     files.sort();
     files.dedup_by(|a, b| a.0 == b.0);
+    // The same file reached through two links is read once (the first path, in order).
+    let mut seen_files = std::collections::HashSet::new();
+    files.retain(|(p, _)| match file_id(p) {
+        Some(id) => {
+            let first = seen_files.insert(id);
+            if !first {
+                d.skipped.push((
+                    p.clone(),
+                    "the same file as one read through another path".into(),
+                ));
+            }
+            first
+        }
+        None => true,
+    });
 
     let mut kinds: Vec<(PathBuf, Kind)> = Vec::new();
     for (p, explicit) in files {
@@ -496,9 +546,70 @@ pub(crate) fn whole_file_reject(p: &Path, stage: Stage, reason: String) -> Rejec
     }
 }
 
-/// Read a source: an iterator of records and reject rows, in (experiment, channel, hit) order.
+/// A reader under a guard: a panic inside it (while it opens its files or reads a record)
+/// becomes one reject row for the rest of its source (stage `read`, the panic's message),
+/// and the batch goes on with the next source.
+type Items = Box<dyn Iterator<Item = Item> + Send>;
+
+struct Guarded {
+    open: Option<Box<dyn FnOnce() -> Items + Send>>,
+    inner: Option<Items>,
+    experiment: String,
+    file: String,
+    done: bool,
+}
+
+impl Iterator for Guarded {
+    type Item = Item;
+    fn next(&mut self) -> Option<Item> {
+        if self.done {
+            return None;
+        }
+        let r = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+            if let Some(open) = self.open.take() {
+                self.inner = Some(open());
+            }
+            self.inner.as_mut().and_then(|i| i.next())
+        }));
+        match r {
+            Ok(it) => it,
+            Err(p) => {
+                self.done = true;
+                self.inner = None;
+                let msg = p
+                    .downcast_ref::<String>()
+                    .cloned()
+                    .or_else(|| p.downcast_ref::<&str>().map(|s| s.to_string()))
+                    .unwrap_or_default();
+                Some(Item::Reject(Reject {
+                    experiment: self.experiment.clone(),
+                    source_file: self.file.clone(),
+                    record_id: String::new(),
+                    stage: Stage::Read,
+                    reason: format!(
+                        "the reader failed (please report): {msg}; the rest of this source is not read"
+                    ),
+                }))
+            }
+        }
+    }
+}
+
+/// Read a source: an iterator of records, hit rows and reject rows, in (experiment,
+/// channel, hit) order. The reader runs under a guard (a panic is a reject row).
 pub fn open(src: &Source, cfg: &IngestConfig) -> Box<dyn Iterator<Item = Item> + Send> {
-    let items = open_format(src, cfg);
+    let (s, c) = (src.clone(), cfg.clone());
+    let items: Box<dyn Iterator<Item = Item> + Send> = Box::new(Guarded {
+        open: Some(Box::new(move || open_format(&s, &c))),
+        inner: None,
+        experiment: src.id.clone(),
+        file: src
+            .all_files()
+            .next()
+            .map(|p| p.display().to_string())
+            .unwrap_or_default(),
+        done: false,
+    });
     if src.has_hit_list() {
         return items;
     }
@@ -592,5 +703,35 @@ mod tests {
         let mut v = vec!["hit_10.wav", "hit_2.wav", "hit_1.wav"];
         v.sort_by_key(|s| natural_key(s));
         assert_eq!(v, vec!["hit_1.wav", "hit_2.wav", "hit_10.wav"]);
+    }
+
+    #[test]
+    fn a_panicking_reader_becomes_one_reject_and_ends_its_source() {
+        let mut n = 0;
+        let inner = std::iter::from_fn(move || {
+            n += 1;
+            if n == 2 {
+                panic!("index out of bounds: the len is 3 but the index is 7");
+            }
+            Some(Item::Note(crate::model::Note {
+                experiment: "e".into(),
+                source_file: "f".into(),
+                message: format!("item {n}"),
+            }))
+        });
+        let g = Guarded {
+            open: None,
+            inner: Some(Box::new(inner)),
+            experiment: "e".into(),
+            file: "f.bin".into(),
+            done: false,
+        };
+        let items: Vec<Item> = g.collect();
+        assert_eq!(items.len(), 2);
+        let Item::Reject(r) = &items[1] else {
+            panic!("{:?}", items[1])
+        };
+        assert_eq!((r.stage, r.source_file.as_str()), (Stage::Read, "f.bin"));
+        assert!(r.reason.contains("index out of bounds"), "{}", r.reason);
     }
 }

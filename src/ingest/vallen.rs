@@ -231,7 +231,9 @@ pub(crate) fn decode_blob(format: i64, data: &[u8], samples: usize) -> Result<Ve
         2 => {
             let mut reader = claxon::FlacReader::new(std::io::Cursor::new(data))
                 .map_err(|e| format!("corrupt FLAC blob: {e}"))?;
-            let mut out = Vec::with_capacity(samples);
+            // `samples` is a claim of the database: never reserve more than the blob can hold
+            // (FLAC of 16-bit samples is not smaller than 1/64 of them).
+            let mut out = Vec::with_capacity(samples.min(data.len().saturating_mul(64)));
             for s in reader.samples() {
                 out.push(s.map_err(|e| format!("corrupt FLAC blob: {e}"))?);
             }
@@ -381,6 +383,7 @@ struct Reader {
     have: HashSet<(i64, i64, i64)>,
     offsets: TraiOffsets,
     info: PriInfo,
+    max_samples: u64,
     /// Rejects to emit at the end: pridb hits whose transient the tradb does not hold.
     tail: VecDeque<Reject>,
 }
@@ -467,7 +470,14 @@ impl Reader {
         let Some(rate) = rate.filter(|r| *r > 0.0) else {
             return reject("SampleRate missing or not positive".into());
         };
-        let n = n.unwrap_or(0).max(0) as usize;
+        let n = n.unwrap_or(0).max(0) as u64;
+        if n > self.max_samples {
+            return reject(format!(
+                "Samples = {n} exceeds ingest.max_samples_per_record = {}",
+                self.max_samples
+            ));
+        }
+        let n = n as usize;
         let adc = match decode_blob(fmt.unwrap_or(-1), data.as_deref().unwrap_or(&[]), n) {
             Ok(a) => a,
             Err(e) => return reject(e),
@@ -642,6 +652,7 @@ fn open_with(
         offsets: offsets.clone(),
         info,
         tail,
+        max_samples: cfg.max_samples_per_record,
     };
     let Some(tradb) = tradb else {
         let tail = missing(&info, &HashSet::new(), "no .tradb beside the .pridb");

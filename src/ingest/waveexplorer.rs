@@ -173,6 +173,22 @@ pub fn open(src: &Source, cfg: &IngestConfig) -> Box<dyn Iterator<Item = Item> +
             first.trim()
         ));
     };
+    // The header is a claim: every value takes at least two bytes ("0\n"), so the file
+    // cannot hold more than half its size in values; and no record may exceed the limit.
+    let file_len = std::fs::metadata(&path).map(|m| m.len()).unwrap_or(0);
+    let promised = (events as u128) * (len as u128) * (channels as u128);
+    if promised > (file_len / 2) as u128 {
+        return reject(format!(
+            "header promises {events} events × {channels} channel(s) × {len} samples = {promised} values; the file of {file_len} bytes holds at most {}",
+            file_len / 2
+        ));
+    }
+    if len as u64 > cfg.max_samples_per_record {
+        return reject(format!(
+            "records of {len} samples exceed ingest.max_samples_per_record = {}",
+            cfg.max_samples_per_record
+        ));
+    }
     Box::new(Reader {
         experiment: src.id.clone(),
         label: label_from_name(&path),

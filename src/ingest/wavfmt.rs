@@ -7,12 +7,27 @@ use crate::config::IngestConfig;
 use crate::model::{AeRecord, Item, Reject, Stage};
 use std::path::Path;
 
-fn read_wav(path: &Path) -> Result<(f64, Vec<Vec<f32>>), String> {
+fn read_wav(path: &Path, max_samples: u64) -> Result<(f64, Vec<Vec<f32>>), String> {
     let mut r =
         hound::WavReader::open(path).map_err(|e| format!("not a readable WAV file: {e}"))?;
     let spec = r.spec();
     let ch = spec.channels.max(1) as usize;
-    let mut chans = vec![Vec::with_capacity(r.duration() as usize); ch];
+    // The header's length is a claim: check it against the file and the limit first.
+    let file_len = std::fs::metadata(path).map(|m| m.len()).unwrap_or(0);
+    let bytes = (spec.bits_per_sample as u64).div_ceil(8).max(1) * ch as u64;
+    let promised = r.duration() as u64;
+    if promised > file_len / bytes {
+        return Err(format!(
+            "header promises {promised} samples per channel; the file of {file_len} bytes holds at most {}",
+            file_len / bytes
+        ));
+    }
+    if promised > max_samples {
+        return Err(format!(
+            "{promised} samples per channel exceed ingest.max_samples_per_record = {max_samples}"
+        ));
+    }
+    let mut chans = vec![Vec::with_capacity(promised as usize); ch];
     match spec.sample_format {
         hound::SampleFormat::Float => {
             for (i, s) in r.samples::<f32>().enumerate() {
@@ -34,10 +49,11 @@ pub fn open(src: &Source, cfg: &IngestConfig) -> Box<dyn Iterator<Item = Item> +
     let experiment = src.id.clone();
     let gain = gain_factor(cfg.gain_db) as f32;
     let pre = cfg.pretrigger_samples;
+    let max_samples = cfg.max_samples_per_record;
     let files = src.files.clone();
     Box::new(files.into_iter().enumerate().flat_map(move |(i, p)| {
         let hit = i as u64 + 1;
-        let items: Vec<Item> = match read_wav(&p) {
+        let items: Vec<Item> = match read_wav(&p, max_samples) {
             Ok((rate, chans)) => chans
                 .into_iter()
                 .enumerate()

@@ -225,3 +225,162 @@ fn truncated_waveexplorer_file_reports_every_missing_event() {
     );
     assert_eq!(rejs[1].record_id, "event 3");
 }
+
+/// Run the binary with a time limit: a hang (a symlink loop, a header promising 10¹²
+/// values) fails the test instead of stalling it.
+fn aepipe_within(args: &[&str], secs: u64) -> (i32, String, String) {
+    let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_aepipe"))
+        .args(args)
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let t0 = std::time::Instant::now();
+    loop {
+        if child.try_wait().unwrap().is_some() {
+            break;
+        }
+        if t0.elapsed().as_secs() > secs {
+            let _ = child.kill();
+            panic!("aepipe {} still running after {secs} s", args.join(" "));
+        }
+        std::thread::sleep(std::time::Duration::from_millis(50));
+    }
+    let o = child.wait_with_output().unwrap();
+    (
+        o.status.code().unwrap_or(-1),
+        String::from_utf8_lossy(&o.stdout).into_owned(),
+        String::from_utf8_lossy(&o.stderr).into_owned(),
+    )
+}
+
+#[test]
+#[cfg(unix)]
+fn hostile_sizes_and_symlink_loops_are_rejects_and_the_batch_goes_on() {
+    let t = TempDir::new("hostile");
+    let d = t.path().join("in");
+    std::fs::create_dir_all(&d).unwrap();
+    vallen(&d, "good", 10, 1);
+    // Two links back to the folder itself: read once, not recursively forever.
+    std::os::unix::fs::symlink(&d, d.join("loop1")).unwrap();
+    std::os::unix::fs::symlink(&d, d.join("loop2")).unwrap();
+    // A WaveExplorer header promising 10¹² events in a few bytes.
+    std::fs::write(
+        d.join("huge_wave.txt"),
+        "10\t1000000000000\t1024\t1\n0.1\n0.2\n",
+    )
+    .unwrap();
+    // A Vallen record whose Samples claims 10¹² (FLAC): checked before anything is reserved.
+    vallen(&d, "bigsamples", 3, 2);
+    rusqlite::Connection::open(d.join("bigsamples.tradb"))
+        .unwrap()
+        .execute(
+            "UPDATE tr_data SET Samples = 1000000000000, DataFormat = 2 WHERE TRAI = 2",
+            [],
+        )
+        .unwrap();
+    // A 44-byte WAV whose data chunk claims 4 GiB.
+    let w = d.join("wav");
+    std::fs::create_dir_all(&w).unwrap();
+    let mut wav = Vec::new();
+    wav.extend(b"RIFF");
+    wav.extend(36u32.to_le_bytes());
+    wav.extend(b"WAVEfmt ");
+    wav.extend(16u32.to_le_bytes());
+    wav.extend(1u16.to_le_bytes()); // PCM
+    wav.extend(1u16.to_le_bytes()); // 1 channel
+    wav.extend(10_000_000u32.to_le_bytes());
+    wav.extend(20_000_000u32.to_le_bytes());
+    wav.extend(2u16.to_le_bytes());
+    wav.extend(16u16.to_le_bytes());
+    wav.extend(b"data");
+    wav.extend(0xFFFF_FFF0u32.to_le_bytes());
+    std::fs::write(w.join("bad.wav"), &wav).unwrap();
+
+    let out = t.path().join("out");
+    let (c, _, se) = aepipe_within(
+        &[
+            "features",
+            d.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+            "--quiet",
+        ],
+        120,
+    );
+    assert_eq!(c, 0, "{se}");
+    let m: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("manifest.json")).unwrap()).unwrap();
+    let by = &m["counts"]["by_experiment"];
+    // Every good hit once (not once per link).
+    assert_eq!(by["good"]["rows"], 10, "{by}");
+    assert_eq!(by["good"]["hits"], 10, "{by}");
+    assert_eq!(by["bigsamples"]["rows"], 2, "{by}");
+    let skipped = m["skipped"].to_string();
+    assert!(skipped.contains("already read"), "{skipped}");
+    let rej = Rejects::read(&out.join("rejects.parquet"));
+    let huge = rej.about("huge_wave.txt");
+    assert_eq!(huge.len(), 1, "{huge:?}");
+    assert!(
+        huge[0].4.contains("promises") && huge[0].4.contains("1000000000000"),
+        "{huge:?}"
+    );
+    let big = rej.about("bigsamples.tradb");
+    assert_eq!(big.len(), 1, "{big:?}");
+    assert!(big[0].4.contains("max_samples_per_record"), "{big:?}");
+    let bad = rej.about("bad.wav");
+    assert_eq!(bad.len(), 1, "{bad:?}");
+    assert!(bad[0].4.contains("header promises"), "{bad:?}");
+}
+
+#[test]
+fn an_experiment_id_never_writes_outside_the_output_folder() {
+    let t = TempDir::new("escape");
+    let mut e = Experiment::new("x", 30, 4);
+    e.n_samples = 512;
+    let items = e.records().map(|mut r| {
+        r.experiment = "../../escape".into();
+        aepipe::model::Item::Record(r)
+    });
+    let f = t.path().join("a/b/f");
+    std::fs::create_dir_all(&f).unwrap();
+    aepipe::pipeline::stream(
+        items,
+        StreamJob::Features,
+        &f,
+        &PipelineConfig::default(),
+        &StreamOptions {
+            threads: 2,
+            progress: false,
+        },
+    )
+    .unwrap();
+    let out = t.path().join("a/b/trend");
+    let (c, _, se) = aepipe_within(
+        &[
+            "trend",
+            f.join("features.parquet").to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+            "--cutoff",
+            "none",
+        ],
+        60,
+    );
+    assert_eq!(c, 0, "{se}");
+    // Whatever the trend drew is inside `out`, and nothing appeared two levels up.
+    let names: Vec<String> = std::fs::read_dir(&out)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().to_string())
+        .collect();
+    assert!(names.iter().any(|n| n == "trend.parquet"), "{names:?}");
+    for dir in [t.path().to_path_buf(), t.path().join("a")] {
+        for e in std::fs::read_dir(dir).unwrap() {
+            let n = e.unwrap().file_name().to_string_lossy().to_string();
+            assert!(
+                !n.contains("escape"),
+                "{n} written outside the output folder"
+            );
+        }
+    }
+}
