@@ -654,85 +654,91 @@ fn open_with(
         tail,
         max_samples: cfg.max_samples_per_record,
     };
-    let Some(tradb) = tradb else {
-        let tail = missing(&info, &HashSet::new(), "no .tradb beside the .pridb");
-        let r = reader(
-            PathBuf::new(),
+    // The transients to read (none when the .tradb is missing or unreadable; then every
+    // transient a hit promises is a reject that says why).
+    let no_transients = |why: &str| {
+        (
             None,
             1e7,
             VecDeque::new(),
             HashSet::new(),
-            tail,
-            info,
-        );
-        return Box::new(first.into_iter().chain(r));
+            missing(&info, &HashSet::new(), why),
+        )
     };
-    let opened = open_ro(&tradb).and_then(|conn| {
-        let mut st = conn
-            .prepare("SELECT SetID, Time, Chan, TRAI FROM tr_data ORDER BY SetID")
-            .map_err(|e| file_err(&tradb, format!("not a Vallen .tradb: {e}")))?;
-        let raw = st
-            .query_map([], |r| {
-                Ok((
-                    r.get::<_, i64>(0)?,
-                    r.get::<_, Option<i64>>(1)?.unwrap_or(0),
-                    r.get::<_, Option<i64>>(2)?.unwrap_or(0),
-                    r.get::<_, Option<i64>>(3)?.unwrap_or(0),
-                ))
-            })
-            .and_then(|it| it.collect::<Result<Vec<_>, _>>())
-            .map_err(|e| file_err(&tradb, format!("cannot list records: {e}")))?;
-        drop(st);
-        Ok((conn, raw))
-    });
-    match opened {
-        Ok((conn, raw)) => {
-            let have: HashSet<(i64, i64, i64)> = raw.iter().map(|k| (k.3, k.2, k.1)).collect();
-            // A transient's number: through its hit's acquisition when the .pridb knows it,
-            // else from the .tradb's own TRAI restarts (a .tradb read alone).
-            let (mut own_acq, mut own_max, mut own_maxima) = (1u32, 0i64, Vec::new());
-            let mut keys: Vec<(i64, u64, i64, i64)> = Vec::with_capacity(raw.len());
-            for &(setid, time, chan, trai) in &raw {
-                if trai > 0 && trai <= own_max {
-                    own_maxima.push(own_max);
-                    own_acq += 1;
-                    own_max = 0;
+    let (tradb, (conn, tb, keys, have, tail)) = match tradb {
+        None => (PathBuf::new(), no_transients("no .tradb beside the .pridb")),
+        Some(tradb) => match list_transients(&tradb) {
+            Ok((conn, raw)) => {
+                let have: HashSet<(i64, i64, i64)> = raw.iter().map(|k| (k.3, k.2, k.1)).collect();
+                let mut keys = transient_keys(&raw, &info, &offsets);
+                let tail = missing(&info, &have, "it is not in the .tradb");
+                if !decode {
+                    keys.clear();
                 }
-                own_max = own_max.max(trai);
-                let number = match info.link.get(&(trai, chan, time)) {
-                    Some(&acq) => offsets.number(acq, trai),
-                    None => {
-                        let mut m = own_maxima.clone();
-                        m.push(0);
-                        TraiOffsets::new(&m).number(own_acq, trai)
-                    }
-                };
-                keys.push((chan, number, setid, trai));
+                let tb = time_base(&conn, "tr_globalinfo");
+                (tradb, (Some(conn), tb, keys.into(), have, tail))
             }
-            keys.sort_unstable();
-            let tail = missing(&info, &have, "it is not in the .tradb");
-            if !decode {
-                keys.clear();
+            Err(e) => {
+                first.push(Item::Reject(file_reject(&tradb, e.to_string())));
+                (tradb, no_transients("the .tradb cannot be read"))
             }
-            let tb = time_base(&conn, "tr_globalinfo");
-            let r = reader(tradb, Some(conn), tb, keys.into(), have, tail, info);
-            Box::new(first.into_iter().chain(r))
+        },
+    };
+    let r = reader(tradb, conn, tb, keys, have, tail, info);
+    Box::new(first.into_iter().chain(r))
+}
+
+/// (SetID, Time, Chan, TRAI) of every transient of a `.tradb`, in storage order.
+#[allow(clippy::type_complexity)]
+fn list_transients(tradb: &Path) -> Result<(Connection, Vec<(i64, i64, i64, i64)>), IngestError> {
+    let conn = open_ro(tradb)?;
+    let mut st = conn
+        .prepare("SELECT SetID, Time, Chan, TRAI FROM tr_data ORDER BY SetID")
+        .map_err(|e| file_err(tradb, format!("not a Vallen .tradb: {e}")))?;
+    let raw = st
+        .query_map([], |r| {
+            Ok((
+                r.get::<_, i64>(0)?,
+                r.get::<_, Option<i64>>(1)?.unwrap_or(0),
+                r.get::<_, Option<i64>>(2)?.unwrap_or(0),
+                r.get::<_, Option<i64>>(3)?.unwrap_or(0),
+            ))
+        })
+        .and_then(|it| it.collect::<Result<Vec<_>, _>>())
+        .map_err(|e| file_err(tradb, format!("cannot list records: {e}")))?;
+    drop(st);
+    Ok((conn, raw))
+}
+
+/// The output order of the transients, (channel, number, SetID, TRAI): a transient's number
+/// comes through its hit's acquisition when the `.pridb` knows it, else from the `.tradb`'s
+/// own TRAI restarts (a `.tradb` read alone).
+fn transient_keys(
+    raw: &[(i64, i64, i64, i64)],
+    info: &PriInfo,
+    offsets: &TraiOffsets,
+) -> Vec<(i64, u64, i64, i64)> {
+    let (mut own_acq, mut own_max, mut own_maxima) = (1u32, 0i64, Vec::new());
+    let mut keys: Vec<(i64, u64, i64, i64)> = Vec::with_capacity(raw.len());
+    for &(setid, time, chan, trai) in raw {
+        if trai > 0 && trai <= own_max {
+            own_maxima.push(own_max);
+            own_acq += 1;
+            own_max = 0;
         }
-        Err(e) => {
-            first.push(Item::Reject(file_reject(&tradb, e.to_string())));
-            let tail = missing(&info, &HashSet::new(), "the .tradb cannot be read");
-            let r = reader(
-                tradb,
-                None,
-                1e7,
-                VecDeque::new(),
-                HashSet::new(),
-                tail,
-                info,
-            );
-            Box::new(first.into_iter().chain(r))
-        }
+        own_max = own_max.max(trai);
+        let number = match info.link.get(&(trai, chan, time)) {
+            Some(&acq) => offsets.number(acq, trai),
+            None => {
+                let mut m = own_maxima.clone();
+                m.push(0);
+                TraiOffsets::new(&m).number(own_acq, trai)
+            }
+        };
+        keys.push((chan, number, setid, trai));
     }
+    keys.sort_unstable();
+    keys
 }
 
 /// One hit to write into a Vallen pair (see [`write_pair`]).

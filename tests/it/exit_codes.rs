@@ -3,9 +3,8 @@
 //! cannot be written. "Cannot be written" is made the same way everywhere: `--out` (or the
 //! output file) lies under a regular file, so creating it fails even for root.
 //!
-//! Success of the heavy commands (`demo`, `run`, `reference`, `synth-experiment`,
-//! `simulate`, `bench sim`) is checked by their own tests (e2e, sim, cli) and by the README's
-//! demo command; here they get their 1 and 3.
+//! Every command's 0 is here too: the heavy ones on small inputs (`demo --hits 60`, a
+//! four-simulation library, benchmarks on a few signals).
 
 use crate::TempDir;
 use std::path::Path;
@@ -360,4 +359,120 @@ fn pictures_need_no_system_font_and_a_bad_font_override_is_a_usage_error() {
         se.contains("AEPIPE_FONT") && se.contains("file: not a TrueType font"),
         "{se}"
     );
+}
+
+#[test]
+fn the_library_synthesis_run_report_and_bench_commands_exit_0() {
+    let f = Fixture::new();
+    // A tiny reference library through the binary.
+    let lib_toml = f.p("lib.toml");
+    std::fs::write(
+        &lib_toml,
+        "[reference]\nsensors = [[125, 100]]\n\
+         [[reference.scenario]]\nname = \"mesh3x3-bond-failure\"\nparams = { t2 = [-1], iterations = [3000] }\n\
+         [[reference.scenario]]\nname = \"structure2x1-fibre-failure\"\nparams = { point = [2, 7], iterations = [3000] }\n",
+    )
+    .unwrap();
+    expect(
+        0,
+        &[
+            "reference",
+            "--config",
+            &lib_toml,
+            "--out",
+            &f.p("lib"),
+            "--threads",
+            "2",
+        ],
+    );
+    let lib = f.p("lib/waveforms.parquet");
+    expect(
+        0,
+        &[
+            "synth-experiment",
+            "--out",
+            &f.p("x"),
+            "--hits",
+            "40",
+            "--library",
+            &lib,
+        ],
+    );
+    // run --config with that library, then report from the run folder.
+    let pipe = f.p("pipe.toml");
+    std::fs::write(
+        &pipe,
+        format!("[som]\nreference_library = \"{lib}\"\n[report]\ngallery_per_class = 1\n"),
+    )
+    .unwrap();
+    let run = f.p("run");
+    expect(
+        0,
+        &[
+            "run",
+            "--config",
+            &pipe,
+            &f.p("x/data"),
+            "--out",
+            &run,
+            "--truth",
+            &f.p("x/truth.parquet"),
+        ],
+    );
+    assert!(Path::new(&run).join("report.html").is_file());
+    expect(0, &["report", &run]);
+    // Benchmarks on inputs written here (the peers' file layout, small).
+    let inputs = f.t.path().join("peers");
+    std::fs::create_dir_all(&inputs).unwrap();
+    let f32s = |v: &[f32]| v.iter().flat_map(|x| x.to_le_bytes()).collect::<Vec<u8>>();
+    let f64s = |v: &[f64]| v.iter().flat_map(|x| x.to_le_bytes()).collect::<Vec<u8>>();
+    let sig: Vec<f32> = (0..2 * 4096).map(|i| ((i as f32) * 0.05).sin()).collect();
+    std::fs::write(inputs.join("w1_signals_f32.bin"), f32s(&sig)).unwrap();
+    let freqs: Vec<f64> = (1..=250).map(|k| k as f64 * 1e4).collect();
+    std::fs::write(inputs.join("w1_freqs_hz_f64.bin"), f64s(&freqs)).unwrap();
+    let data: Vec<f64> = (0..30 * 200)
+        .map(|i| ((i * 7919) % 101) as f64 / 100.0)
+        .collect();
+    std::fs::write(inputs.join("w3_som_data_f64.bin"), f64s(&data)).unwrap();
+    std::fs::write(
+        inputs.join("w3_som_init_f64.bin"),
+        &f64s(&data[..]).repeat(4)[..100 * 200 * 8],
+    )
+    .unwrap();
+    let dir = inputs.to_str().unwrap();
+    expect(
+        0,
+        &[
+            "bench",
+            "cwt",
+            "--inputs",
+            dir,
+            "--threads",
+            "1",
+            "--repeats",
+            "1",
+            "--skip-full",
+        ],
+    );
+    expect(0, &["bench", "som", "--inputs", dir, "--repeats", "1"]);
+    expect(
+        0,
+        &[
+            "bench",
+            "sim",
+            "--masses",
+            "100",
+            "--steps",
+            "2",
+            "--repeats",
+            "1",
+        ],
+    );
+    // The README's main job, small: simulation, synthesis, features, trend, SOM, report.
+    let demo = f.p("demo");
+    expect(
+        0,
+        &["demo", "--out", &demo, "--hits", "60", "--threads", "2"],
+    );
+    assert!(Path::new(&demo).join("run/report.html").is_file());
 }
