@@ -149,6 +149,9 @@ pub struct HitRow {
     pub transient: Option<u64>,
     /// Vallen's transient index as stored (restarts with each acquisition).
     pub trai: Option<i64>,
+    /// Further features the system recorded, as a JSON object under the vendor's names with
+    /// their units (a Vallen `.trfdb`, MISTRAS CHIDs without a column here).
+    pub vendor_features: Option<String>,
     pub source: HitSource,
     pub source_file: String,
 }

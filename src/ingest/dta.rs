@@ -627,6 +627,7 @@ impl DtaSource {
                 .collect();
             row.parametric = serde_json::to_string(&m).ok();
         }
+        let mut other = BTreeMap::new();
         for f in &h.features {
             let v = Some(f.value);
             match f.chid {
@@ -643,8 +644,13 @@ impl DtaSource {
                 21 => row.abs_energy_aj = v,
                 23 => row.centroid_freq_hz = v,
                 24 => row.peak_freq_hz = v,
-                _ => {}
+                c => {
+                    other.insert(chid_name(c).to_string(), f.value);
+                }
             }
+        }
+        if !other.is_empty() {
+            row.vendor_features = serde_json::to_string(&other).ok();
         }
         row
     }

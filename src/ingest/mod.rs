@@ -449,12 +449,22 @@ pub fn discover(inputs: &[PathBuf], cfg: &IngestConfig) -> Discovery {
             .map(|s| s.to_string_lossy().to_string())
             .unwrap_or_default();
         match (pri, tra) {
-            (pri, Some(tra)) => d.sources.push(Source {
-                id,
-                format: Format::Vallen,
-                files: vec![tra],
-                companions: pri.into_iter().collect(),
-            }),
+            (pri, Some(tra)) => {
+                // The .pridb first; a VisualAE .trfdb beside it is read too (its features
+                // join the hit rows), so it is a companion, not a passed-over file.
+                let mut companions: Vec<PathBuf> = pri.into_iter().collect();
+                let trf = base.with_extension("trfdb");
+                if !companions.is_empty() && trf.is_file() {
+                    d.skipped.retain(|(p, _)| p != &trf);
+                    companions.push(trf);
+                }
+                d.sources.push(Source {
+                    id,
+                    format: Format::Vallen,
+                    files: vec![tra],
+                    companions,
+                })
+            }
             // A .pridb alone: its hits' waveforms are missing. The reader turns each hit
             // that should have a transient record into a reject row.
             (Some(pri), None) => d.sources.push(Source {

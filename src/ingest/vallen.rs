@@ -254,6 +254,61 @@ pub(crate) fn decode_blob(format: i64, data: &[u8], samples: usize) -> Result<Ve
     Ok(adc)
 }
 
+/// The features of a VisualAE `.trfdb` beside the `.pridb`, per TRAI, as JSON objects keyed
+/// `name [unit]` (the file's own `trf_fieldinfo`). Empty when there is none.
+pub fn read_trfdb(path: &Path) -> Result<HashMap<i64, String>, IngestError> {
+    let conn = open_ro(path)?;
+    let cols = columns(&conn, "trf_data");
+    if !cols.iter().any(|c| c == "TRAI") {
+        return Err(file_err(
+            path,
+            "no trf_data table with a TRAI: not a .trfdb",
+        ));
+    }
+    let units: HashMap<String, String> = conn
+        .prepare("SELECT * FROM trf_fieldinfo")
+        .and_then(|mut st| {
+            st.query_map([], |r| {
+                Ok((r.get::<_, String>(0)?, r.get::<_, Option<String>>(2)?))
+            })
+            .map(|it| {
+                it.flatten()
+                    .filter_map(|(n, u)| u.map(|u| (n, u.trim_matches(['[', ']']).to_string())))
+                    .collect()
+            })
+        })
+        .unwrap_or_default();
+    let names: Vec<&String> = cols.iter().filter(|c| *c != "TRAI").collect();
+    let sql = format!(
+        "SELECT TRAI, {} FROM trf_data",
+        names
+            .iter()
+            .map(|c| format!("\"{c}\""))
+            .collect::<Vec<_>>()
+            .join(", ")
+    );
+    let mut st = conn
+        .prepare(&sql)
+        .map_err(|e| file_err(path, format!("cannot read trf_data: {e}")))?;
+    let rows = st
+        .query_map([], |r| {
+            let trai: i64 = r.get(0)?;
+            let mut m = serde_json::Map::new();
+            for (k, name) in names.iter().enumerate() {
+                if let Some(v) = r.get::<_, Option<f64>>(k + 1)? {
+                    let key = match units.get(*name) {
+                        Some(u) if !u.is_empty() => format!("{name} [{u}]"),
+                        _ => name.to_string(),
+                    };
+                    m.insert(key, serde_json::json!(v));
+                }
+            }
+            Ok((trai, serde_json::Value::Object(m).to_string()))
+        })
+        .map_err(|e| file_err(path, format!("cannot read trf_data: {e}")))?;
+    Ok(rows.flatten().collect())
+}
+
 /// The hit rows of a `.pridb`, read in chunks of 1 024 sets (bounded memory).
 struct HitRows {
     conn: Connection,
@@ -384,6 +439,9 @@ struct Reader {
     offsets: TraiOffsets,
     info: PriInfo,
     max_samples: u64,
+    /// `.trfdb` features per TRAI (applied only in a single-acquisition file, where TRAI
+    /// is a key).
+    trf: HashMap<i64, String>,
     /// Rejects to emit at the end: pridb hits whose transient the tradb does not hold.
     tail: VecDeque<Reject>,
 }
@@ -406,6 +464,9 @@ impl Reader {
                         if self.have.contains(&(t, row.channel as i64, ticks)) {
                             row.transient = Some(self.offsets.number(row.acquisition, t));
                         }
+                    }
+                    if self.info.acq_starts.is_empty() {
+                        row.vendor_features = row.trai.and_then(|t| self.trf.get(&t).cloned());
                     }
                     row.load_n = row.time_s.and_then(|t| self.info.load.at(t));
                     row.extension_m = row.time_s.and_then(|t| self.info.extension.at(t));
@@ -634,6 +695,21 @@ fn open_with(
                 .collect()
         };
     let offsets = TraiOffsets::new(&info.acq_max_trai);
+    // VisualAE features beside the .pridb (X.trfdb), joined to the hits by TRAI.
+    let trf = match pridb.as_ref().map(|p| p.with_extension("trfdb")) {
+        Some(t) if t.is_file() => match read_trfdb(&t) {
+            Ok(m) => m,
+            Err(e) => {
+                first.push(Item::Note(crate::model::Note {
+                    experiment: experiment.clone(),
+                    source_file: t.display().to_string(),
+                    message: format!("features not joined: {e}"),
+                }));
+                HashMap::new()
+            }
+        },
+        _ => HashMap::new(),
+    };
     let reader = |tradb: PathBuf,
                   conn: Option<Connection>,
                   time_base: f64,
@@ -653,6 +729,7 @@ fn open_with(
         info,
         tail,
         max_samples: cfg.max_samples_per_record,
+        trf: trf.clone(),
     };
     // The transients to read (none when the .tradb is missing or unreadable; then every
     // transient a hit promises is a reject that says why).

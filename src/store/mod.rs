@@ -679,6 +679,13 @@ pub fn hits_table() -> TableSchema {
             .nullable(),
             ColumnSpec::new("trai", ColType::Int64, "", "Vallen TRAI as stored").nullable(),
             ColumnSpec::new(
+                "vendor_features",
+                ColType::Utf8,
+                "",
+                "further features the system recorded, a JSON object under the vendor's names and units (Vallen .trfdb, other MISTRAS CHIDs)",
+            )
+            .nullable(),
+            ColumnSpec::new(
                 "source",
                 ColType::Utf8,
                 "",
@@ -715,6 +722,7 @@ pub fn hit_row(h: &crate::model::HitRow) -> Row {
         Value::Str(h.parametric.clone()),
         Value::I64(h.transient.map(|t| t as i64)),
         Value::I64(h.trai),
+        Value::Str(h.vendor_features.clone()),
         Value::Str(Some(h.source.as_str().to_string())),
         Value::Str(Some(h.source_file.clone())),
     ]

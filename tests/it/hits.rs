@@ -274,3 +274,42 @@ fn inspect_counts_hits_and_transients_without_decoding_a_waveform() {
     let c = r.stats.by_experiment["x"];
     assert_eq!((c.hits, c.rows, c.rejects), (5, 4, 1));
 }
+
+#[test]
+fn the_steel_plate_trfdb_features_join_its_hits_by_trai() {
+    let Some(real) = crate::real_data("the_steel_plate_trfdb_features_join_its_hits_by_trai")
+    else {
+        return;
+    };
+    let cfg = PipelineConfig::default();
+    let dir = real.join("vallen/steel_plate");
+    let d = aepipe::ingest::discover(std::slice::from_ref(&dir), &cfg.ingest);
+    let src = d.sources.iter().find(|s| s.id == "sample").unwrap();
+    assert!(
+        src.companions.iter().any(|p| p.ends_with("sample.trfdb")),
+        "{src:?}"
+    );
+    assert!(d.skipped.iter().all(|(p, _)| !p.ends_with("sample.trfdb")));
+    // Independent: the trf_data row of each TRAI, read here with SQLite.
+    let trf = rusqlite::Connection::open(dir.join("sample.trfdb")).unwrap();
+    let mut checked = 0;
+    for it in aepipe::ingest::open(src, &cfg.ingest) {
+        let aepipe::model::Item::Hit(h) = it else {
+            continue;
+        };
+        let trai = h.trai.unwrap();
+        let (cog, pa): (f64, f64) = trf
+            .query_row(
+                "SELECT FFT_CoG, PA FROM trf_data WHERE TRAI = ?1",
+                [trai],
+                |r| Ok((r.get(0)?, r.get(1)?)),
+            )
+            .unwrap();
+        let v: serde_json::Value =
+            serde_json::from_str(h.vendor_features.as_deref().unwrap()).unwrap();
+        assert_eq!(v["FFT_CoG [kHz]"].as_f64(), Some(cog), "TRAI {trai}: {v}");
+        assert_eq!(v["PA [mV]"].as_f64(), Some(pa), "TRAI {trai}: {v}");
+        checked += 1;
+    }
+    assert_eq!(checked, 4);
+}
