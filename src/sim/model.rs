@@ -29,6 +29,12 @@ pub enum Order {
     Fourth,
 }
 
+/// Limits on the sizes a model file states (checked in [`ModelFile::check`]): 10⁸
+/// mass/spring steps, 10⁶ masses, 16.8 M acoustic cells (4 096², about 1 GiB of fields).
+pub const MAX_ITERATIONS: usize = 100_000_000;
+pub const MAX_NODES: usize = 1_000_000;
+pub const MAX_GRID_CELLS: usize = 1 << 24;
+
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct System {
@@ -234,6 +240,19 @@ impl ModelFile {
     /// Check every index, length and the acoustic stability condition once.
     pub fn check(&self) -> Result<(), SimError> {
         let s = &self.system;
+        // Sizes are claims of an input file: bounded before anything is allocated or looped.
+        if s.iterations > MAX_ITERATIONS {
+            return Err(bad(format!(
+                "system.iterations = {} exceeds the limit of {MAX_ITERATIONS}",
+                s.iterations
+            )));
+        }
+        if self.nodes.len() > MAX_NODES {
+            return Err(bad(format!(
+                "{} nodes exceed the limit of {MAX_NODES}",
+                self.nodes.len()
+            )));
+        }
         if !(s.dt > 0.0 && s.dt.is_finite()) {
             return Err(bad(format!("system.dt must be > 0, got {}", s.dt)));
         }
@@ -311,6 +330,12 @@ impl ModelFile {
             }
         }
         if let Some(g) = &self.grid {
+            if g.nx.checked_mul(g.ny).is_none_or(|c| c > MAX_GRID_CELLS) {
+                return Err(bad(format!(
+                    "grid: {} × {} cells exceed the limit of {MAX_GRID_CELLS}",
+                    g.nx, g.ny
+                )));
+            }
             if g.nx < 8
                 || g.ny < 8
                 || g.x2 <= g.x1

@@ -139,6 +139,12 @@ pub fn draw_training(
     inp: &SomInput,
     ts: &TrainingSet,
 ) -> Result<(Vec<usize>, Composition), SomError> {
+    if !(ts.fraction > 0.0 && ts.fraction <= 1.0) {
+        return Err(SomError::Params(format!(
+            "training fraction must be in (0, 1], got {}",
+            ts.fraction
+        )));
+    }
     let mut by_class: BTreeMap<String, Vec<usize>> = BTreeMap::new();
     for (i, l) in inp.labels.iter().enumerate() {
         if let Some(l) = l {

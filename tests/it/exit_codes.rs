@@ -160,6 +160,18 @@ fn analysis_commands() {
     );
     expect(1, &["som", "train", &feats, "--out", &model, "--rows", "0"]);
     expect(
+        1,
+        &[
+            "som",
+            "train",
+            &feats,
+            "--out",
+            &model,
+            "--fraction",
+            "1e30",
+        ],
+    );
+    expect(
         3,
         &[
             "som",
@@ -242,6 +254,19 @@ fn simulator_and_workflow_commands_fail_with_the_right_code() {
         ],
     );
     expect(1, &["simulate", "--scenario", "nope", "--out", &f.p("s")]);
+    // Absurd sizes are refused before anything runs (iterations 1e30 saturates to usize::MAX).
+    expect(
+        1,
+        &[
+            "simulate",
+            "--scenario",
+            "sho",
+            "--param",
+            "iterations=1e30",
+            "--out",
+            &f.p("s"),
+        ],
+    );
     expect(
         3,
         &[

@@ -585,3 +585,17 @@ fn reference_library_runs_the_grid_with_varied_material() {
         "{e}"
     );
 }
+
+#[test]
+fn absurd_model_sizes_are_refused_before_anything_is_allocated() {
+    let mut m = aepipe::sim::scenario::build("mesh3x3-bond-failure", &Default::default()).unwrap();
+    m.check().unwrap();
+    let g = m.grid.as_mut().unwrap();
+    g.nx = 1 << 40;
+    g.ny = 1 << 40;
+    let e = m.check().unwrap_err().to_string();
+    assert!(e.contains("exceed the limit"), "{e}");
+    let mut m = aepipe::sim::scenario::build("sho", &Default::default()).unwrap();
+    m.system.iterations = usize::MAX;
+    assert!(m.check().unwrap_err().to_string().contains("iterations"));
+}
