@@ -540,19 +540,22 @@ impl PipelineConfig {
                 "dsp.cwt: need f_max_hz ≥ f_min_hz and n_freqs ≥ 1".into(),
             ));
         }
-        if d.bins.n_windows == 0 {
-            return Err(ConfigError::Invalid(
-                "dsp.bins.n_windows must be ≥ 1".into(),
-            ));
+        // The feature path sums at most 64 windows (a fixed edge table): more would leave
+        // the later bins silently zero.
+        if d.bins.n_windows == 0 || d.bins.n_windows > 64 {
+            return Err(ConfigError::Invalid(format!(
+                "dsp.bins.n_windows must be 1 to 64, got {}",
+                d.bins.n_windows
+            )));
         }
         let bands = d.band_max_hz / d.band_hz;
-        if (bands - bands.round()).abs() > 1e-9 || bands.round() > 1000.0 {
+        if (bands - bands.round()).abs() > 1e-9 || bands.round() > 1000.0 || bands.round() < 1.0 {
             return Err(ConfigError::Invalid(format!(
                 "dsp.band_max_hz / dsp.band_hz must be a whole number of bands (≤ 1000), got {bands}"
             )));
         }
         let bin_bands = d.band_max_hz / d.bins.band_hz;
-        if (bin_bands - bin_bands.round()).abs() > 1e-9 {
+        if (bin_bands - bin_bands.round()).abs() > 1e-9 || bin_bands.round() < 1.0 {
             return Err(ConfigError::Invalid(format!(
                 "dsp.band_max_hz / dsp.bins.band_hz must be a whole number, got {bin_bands}"
             )));
@@ -616,5 +619,19 @@ mod tests {
         assert!(PipelineConfig::from_toml("[ingest]\nsample_rate_hz = -1.0\n").is_err());
         assert!(PipelineConfig::from_toml("[ingest.vallen]\nload_param = \"X7\"\n").is_err());
         assert!(PipelineConfig::from_toml("[pipeline]\nbatch_size = 0\n").is_err());
+    }
+
+    #[test]
+    fn layouts_that_would_leave_bins_empty_are_refused() {
+        let mut c = PipelineConfig::default();
+        c.dsp.bins.n_windows = 65;
+        assert!(c.validate().unwrap_err().to_string().contains("n_windows"));
+        let mut c = PipelineConfig::default();
+        c.dsp.bins.band_hz = 1e13; // band_max / band_hz ≈ 2.5e-7: zero bands
+        assert!(c.validate().is_err());
+        let mut c = PipelineConfig::default();
+        c.dsp.band_hz = 1e13;
+        assert!(c.validate().is_err());
+        assert!(PipelineConfig::default().validate().is_ok());
     }
 }
