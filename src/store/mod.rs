@@ -557,7 +557,7 @@ pub fn identity_columns() -> Vec<ColumnSpec> {
     vec![
         ColumnSpec::new("experiment", ColType::Utf8, "", "experiment id: file stem of a Vallen pair or multi-hit file, folder name for one-hit-per-file folders"),
         ColumnSpec::new("channel", ColType::Int32, "", "sensor channel as numbered by the acquisition system (0 = unknown)"),
-        ColumnSpec::new("hit", ColType::Int64, "", "hit number inside the experiment (Vallen TRAI, AEwin hit #, event #), 1-based"),
+        ColumnSpec::new("hit", ColType::Int64, "", "transient number inside the experiment, 1-based: Vallen TRAI (plus the largest TRAI of the earlier acquisitions after a restart), MISTRAS waveform #, AEwin hit #, event #; hits.parquet links each hit to it"),
         ColumnSpec::new("time_s", ColType::Float64, "s", "trigger time since the start of the acquisition (null: the format does not record it)").nullable(),
         ColumnSpec::new("sample_rate_hz", ColType::Float64, "Hz", "sampling rate"),
         ColumnSpec::new("pretrigger_samples", ColType::Int32, "samples", "samples recorded before the trigger"),
