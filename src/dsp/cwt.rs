@@ -34,7 +34,7 @@ const MAX_PLANS: usize = 96;
 const MAX_GROUP_SETS: usize = 256;
 /// Filter taps kept (f32 each): 8 Mi taps = 32 MiB per worker.
 const MAX_FILTER_TAPS: usize = 8 << 20;
-/// A segment shorter than this fraction of the padded record is transformed on its own
+/// A segment at most 1/this of the padded record is transformed on its own
 /// even where it reaches past the record (read as zeros there), instead of transforming the
 /// whole record: the cost of a frequency stays bounded by its wavelet, not the record.
 const WHOLE_RECORD_RATIO: usize = 2;
@@ -332,12 +332,11 @@ impl Cwt {
 
     /// How the frequencies of a window `a..b` of a record padded to `padded` samples are
     /// computed: frequencies that need the same segment length share one forward FFT of a
-    /// segment centred on the window. A segment as long as a quarter of the padded record or
-    /// more is replaced by the whole (padded) record, as the full path computes it; a shorter
-    /// one that reaches past the record reads zeros there, so no frequency costs more than
-    /// its wavelet. At 10 MHz and the default grid no filter reaches Nyquist; at lower rates
-    /// the filters cut at Nyquist ring past 5σ_t, and their short segments truncate that
-    /// ringing (documented in the README).
+    /// segment centred on the window. A segment that fits inside the record is used as it
+    /// is; one that reaches past the record reads zeros there if it is at most half the
+    /// padded record, else the whole (padded) record is used, as the full path computes it.
+    /// So no frequency costs more than its wavelet. Filters that reach Nyquist roll off
+    /// smoothly there (see `make_band`) and get `CUT_MARGIN` times the support.
     fn groups(&mut self, padded: usize, fs: f64, a: usize, b: usize) -> Arc<Vec<Group>> {
         if self.groups.len() >= MAX_GROUP_SETS
             && !self.groups.contains_key(&(padded, fs.to_bits(), a, b))
