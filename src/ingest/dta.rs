@@ -529,7 +529,8 @@ struct Pending {
     ticks: u64,
     channel: u8,
     hit: Option<HitRow>,
-    wave: Option<(u64, AeRecord)>,
+    /// Its `hit` is the waveform's number.
+    wave: Option<AeRecord>,
 }
 
 struct DtaSource {
@@ -715,23 +716,21 @@ impl DtaSource {
 
     /// Emit a pending pair (or a lone hit or waveform).
     fn emit(&mut self, p: Pending) {
-        let transient = p.wave.as_ref().map(|w| w.0);
-        if let Some(mut h) = p.hit {
-            h.transient = transient;
+        let Pending { hit, wave, .. } = p;
+        let record = wave.map(|mut r| {
+            // A paired waveform takes its hit's threshold, and its load where it has none.
+            if let Some(h) = &hit {
+                r.threshold_v = h.threshold_db.map(|db| 1e-6 * 10f64.powf(db / 20.0));
+                r.load_n = r.load_n.or(h.load_n);
+                r.extension_m = r.extension_m.or(h.extension_m);
+            }
+            r
+        });
+        if let Some(mut h) = hit {
+            h.transient = record.as_ref().map(|r| r.hit);
             self.out.push_back(Item::Hit(Box::new(h)));
         }
-        if let Some((_, mut r)) = p.wave {
-            if let Some(Item::Hit(h)) = self.out.back() {
-                if h.transient == Some(r.hit) {
-                    r.threshold_v = h.threshold_db.map(|db| 1e-6 * 10f64.powf(db / 20.0));
-                    if r.load_n.is_none() {
-                        r.load_n = h.load_n;
-                    }
-                    if r.extension_m.is_none() {
-                        r.extension_m = h.extension_m;
-                    }
-                }
-            }
+        if let Some(r) = record {
             self.out.push_back(Item::Record(r));
         }
     }
@@ -739,13 +738,7 @@ impl DtaSource {
     /// Pair a hit with the waveform of the same time and channel. Items leave in the order
     /// they were stored (a pair when its first part was): the front waits for its partner
     /// until [`PAIR_WINDOW`] later items have arrived, then goes out alone.
-    fn pair(
-        &mut self,
-        ticks: u64,
-        channel: u8,
-        hit: Option<HitRow>,
-        wave: Option<(u64, AeRecord)>,
-    ) {
+    fn pair(&mut self, ticks: u64, channel: u8, hit: Option<HitRow>, wave: Option<AeRecord>) {
         let open = |p: &Pending| {
             p.ticks == ticks
                 && p.channel == channel
@@ -819,8 +812,7 @@ impl DtaSource {
                 let (ticks, ch) = (w.ticks, w.channel);
                 match self.record(&file, w) {
                     Ok(rec) => {
-                        let n = self.waves;
-                        self.pair(ticks, ch, None, Some((n, rec)));
+                        self.pair(ticks, ch, None, Some(rec));
                     }
                     Err(rej) => self.out.push_back(*rej),
                 }

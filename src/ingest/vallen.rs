@@ -81,6 +81,8 @@ pub struct PriInfo {
     pub extension: TimeSeries,
     /// Parametric inputs present (`PA0`, `PA1`, …).
     pub parametric: Vec<String>,
+    /// Ticks per second of the `Time` column (`ae_globalinfo`).
+    pub time_base: f64,
 }
 
 impl PriInfo {
@@ -158,6 +160,7 @@ pub fn read_pridb(path: &Path, cfg: &IngestConfig) -> Result<PriInfo, IngestErro
     }
     let tb = time_base(&conn, "ae_globalinfo");
     let mut info = PriInfo {
+        time_base: tb,
         parametric: cols
             .iter()
             .filter(|c| c.starts_with("PA"))
@@ -653,8 +656,8 @@ fn open_with(
     };
     let (info, hits) = match &pridb {
         Some(p) => match read_pridb(p, cfg).and_then(|i| {
-            let tb = open_ro(p).map(|c| time_base(&c, "ae_globalinfo"))?;
-            Ok((i, HitRows::open(p, tb)?))
+            let h = HitRows::open(p, i.time_base)?;
+            Ok((i, h))
         }) {
             Ok((i, h)) => (i, Some(h)),
             Err(e) => {
@@ -795,22 +798,19 @@ fn transient_keys(
     info: &PriInfo,
     offsets: &TraiOffsets,
 ) -> Vec<(i64, u64, i64, i64)> {
-    let (mut own_acq, mut own_max, mut own_maxima) = (1u32, 0i64, Vec::new());
+    // The .tradb's own acquisitions: a TRAI that does not rise adds the largest TRAI so far
+    // to the offset (what TraiOffsets does for the .pridb's acquisitions).
+    let (mut own_offset, mut own_max) = (0i64, 0i64);
     let mut keys: Vec<(i64, u64, i64, i64)> = Vec::with_capacity(raw.len());
     for &(setid, time, chan, trai) in raw {
         if trai > 0 && trai <= own_max {
-            own_maxima.push(own_max);
-            own_acq += 1;
+            own_offset += own_max;
             own_max = 0;
         }
         own_max = own_max.max(trai);
         let number = match info.link.get(&(trai, chan, time)) {
             Some(&acq) => offsets.number(acq, trai),
-            None => {
-                let mut m = own_maxima.clone();
-                m.push(0);
-                TraiOffsets::new(&m).number(own_acq, trai)
-            }
+            None => (trai + own_offset).max(0) as u64,
         };
         keys.push((chan, number, setid, trai));
     }
