@@ -140,7 +140,6 @@ fn make_band(bank: &WaveletBank, fi: usize, m: usize, fs: f64) -> Band {
 /// Per-worker CWT engine: plans, filters and buffers, reused across records.
 pub struct Cwt {
     bank: WaveletBank,
-    planner: FftPlanner<f32>,
     plans: HashMap<(usize, bool), Arc<dyn Fft<f32>>>,
     filters: HashMap<(usize, u64, usize), Arc<Band>>,
     /// Filter taps held by `filters` (their memory bound).
@@ -160,7 +159,6 @@ impl Cwt {
     pub fn new(bank: WaveletBank) -> Cwt {
         Cwt {
             bank,
-            planner: FftPlanner::new(),
             plans: HashMap::new(),
             filters: HashMap::new(),
             filter_taps: 0,
@@ -178,16 +176,19 @@ impl Cwt {
         &self.bank
     }
 
+    /// The plan of an `m`-point FFT. Each length is planned by a fresh planner: RustFFT's
+    /// planner rebuilds a new length on the largest step it already holds, so a shared one
+    /// makes the plan (and the last bits of every result) depend on which lengths a worker
+    /// met before. A fresh one gives each length the same plan on every worker, thread
+    /// count and shard: the tables are byte-identical however the batch is split.
     fn plan(&mut self, m: usize, inverse: bool) -> Arc<dyn Fft<f32>> {
         if self.plans.len() >= MAX_PLANS && !self.plans.contains_key(&(m, inverse)) {
             self.plans.clear();
-            // The planner keeps its own copies of every plan it made: start it afresh too.
-            self.planner = FftPlanner::new();
         }
-        let planner = &mut self.planner;
         self.plans
             .entry((m, inverse))
             .or_insert_with(|| {
+                let mut planner = FftPlanner::new();
                 if inverse {
                     planner.plan_fft_inverse(m)
                 } else {
