@@ -216,16 +216,21 @@ pub fn read_pridb(path: &Path, cfg: &IngestConfig) -> Result<PriInfo, IngestErro
     Ok(info)
 }
 
-/// Decode one `tr_data` blob into ADC counts.
-pub(crate) fn decode_blob(format: i64, data: &[u8], samples: usize) -> Result<Vec<i32>, String> {
+/// Why a `tr_data` blob could not be decoded (the reason of the record's reject row).
+#[derive(Debug, thiserror::Error)]
+#[error("{0}")]
+pub struct BlobError(String);
+
+/// Decode one `tr_data` blob into ADC counts. `samples` is the database's claim and is
+/// checked against the blob, never trusted for an allocation. Public for `fuzz/`.
+pub fn decode_blob(format: i64, data: &[u8], samples: usize) -> Result<Vec<i32>, BlobError> {
     let adc: Vec<i32> = match format {
         0 => {
-            if data.len() != samples * 2 {
-                return Err(format!(
-                    "raw blob holds {} bytes, Samples says {samples} int16 ({} bytes)",
+            if samples.checked_mul(2) != Some(data.len()) {
+                return Err(BlobError(format!(
+                    "raw blob holds {} bytes, Samples says {samples} int16",
                     data.len(),
-                    samples * 2
-                ));
+                )));
             }
             data.chunks_exact(2)
                 .map(|c| i16::from_le_bytes([c[0], c[1]]) as i32)
@@ -233,25 +238,31 @@ pub(crate) fn decode_blob(format: i64, data: &[u8], samples: usize) -> Result<Ve
         }
         2 => {
             let mut reader = claxon::FlacReader::new(std::io::Cursor::new(data))
-                .map_err(|e| format!("corrupt FLAC blob: {e}"))?;
+                .map_err(|e| BlobError(format!("corrupt FLAC blob: {e}")))?;
             // `samples` is a claim of the database: never reserve more than the blob can hold
             // (FLAC of 16-bit samples is not smaller than 1/64 of them).
             let mut out = Vec::with_capacity(samples.min(data.len().saturating_mul(64)));
             for s in reader.samples() {
-                out.push(s.map_err(|e| format!("corrupt FLAC blob: {e}"))?);
+                out.push(s.map_err(|e| BlobError(format!("corrupt FLAC blob: {e}")))?);
+                if out.len() > samples {
+                    // The stream holds more than the database says: stop decoding here.
+                    return Err(BlobError(format!(
+                        "FLAC blob decodes to more than the {samples} samples Samples says"
+                    )));
+                }
             }
             if out.len() != samples {
-                return Err(format!(
+                return Err(BlobError(format!(
                     "FLAC blob decodes to {} samples, Samples says {samples}",
                     out.len()
-                ));
+                )));
             }
             out
         }
         f => {
-            return Err(format!(
+            return Err(BlobError(format!(
                 "unknown DataFormat {f} (known: 0 raw int16, 2 FLAC)"
-            ))
+            )))
         }
     };
     Ok(adc)
@@ -544,7 +555,7 @@ impl Reader {
         let n = n as usize;
         let adc = match decode_blob(fmt.unwrap_or(-1), data.as_deref().unwrap_or(&[]), n) {
             Ok(a) => a,
-            Err(e) => return reject(e),
+            Err(e) => return reject(e.to_string()),
         };
         let scale = tr_mv * 1e-3;
         let time_s = time.map(|t| t as f64 / self.time_base);
