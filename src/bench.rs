@@ -157,6 +157,7 @@ pub fn stream_point(
         &StreamOptions {
             threads,
             progress: false,
+            resume: false,
         },
     )?;
     Ok(StreamPoint {

@@ -52,6 +52,7 @@ pub fn run_demo(
         truth: Some(&truth),
         threads,
         progress: true,
+        resume: false,
     })?;
     Ok(DemoResult {
         data_dir,

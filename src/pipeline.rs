@@ -69,6 +69,8 @@ pub struct StreamOptions {
     pub threads: usize,
     /// Show a progress bar (only drawn when stderr is a terminal).
     pub progress: bool,
+    /// [`run`]: reuse the finished, unchanged per-experiment parts of an earlier run.
+    pub resume: bool,
 }
 
 impl Default for StreamOptions {
@@ -76,13 +78,14 @@ impl Default for StreamOptions {
         StreamOptions {
             threads: 0,
             progress: true,
+            resume: false,
         }
     }
 }
 
 /// Counts of one experiment. The accounting rule: hits in = `hits` (rows of
 /// `hits.parquet`); transients in = `rows` + `rejects`.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, serde::Serialize)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub struct Counts {
     pub hits: u64,
     pub rows: u64,
@@ -106,6 +109,29 @@ pub struct StreamStats {
     /// What readers had to assume (at most 1 000, for the manifest).
     pub notes: Vec<crate::model::Note>,
     pub seconds: f64,
+}
+
+impl StreamStats {
+    fn add_reject(&mut self, r: &Reject) {
+        self.rejects += 1;
+        self.by_experiment
+            .entry(r.experiment.clone())
+            .or_default()
+            .rejects += 1;
+        *self
+            .by_stage
+            .entry(r.stage.as_str().to_string())
+            .or_default() += 1;
+        if self.first_rejects.len() < 10 {
+            let id = if r.record_id.is_empty() {
+                String::new()
+            } else {
+                format!(" [{}]", r.record_id)
+            };
+            self.first_rejects
+                .push(format!("{}{id}: {} ({})", r.source_file, r.reason, r.stage));
+        }
+    }
 }
 
 /// What [`run`] did, including where it wrote.
@@ -246,6 +272,22 @@ fn progress_bar(enabled: bool) -> indicatif::ProgressBar {
     pb
 }
 
+/// The Parquet key-value metadata of the job's table and of the other tables.
+fn table_metadata(
+    job: StreamJob,
+    cfg: &PipelineConfig,
+) -> (store::KeyValues, store::KeyValues) {
+    let meta = vec![
+        ("aepipe.config_sha256".to_string(), cfg.hash()),
+        ("aepipe.job".to_string(), job.name().to_string()),
+    ];
+    let mut table_meta = meta.clone();
+    if job == StreamJob::Features {
+        table_meta.extend(crate::features::features_metadata(cfg));
+    }
+    (table_meta, meta)
+}
+
 /// Stream items through validation and the per-record transform into `out_dir`.
 /// Writes the job's table and `rejects.parquet` atomically; returns the counts.
 pub fn stream<I>(
@@ -271,14 +313,7 @@ where
         .map_err(|e| PipelineError::Pool(e.to_string()))?;
     let q = cfg.pipeline.queue_batches;
     let bs = cfg.pipeline.batch_size;
-    let meta = vec![
-        ("aepipe.config_sha256".to_string(), cfg.hash()),
-        ("aepipe.job".to_string(), job.name().to_string()),
-    ];
-    let mut table_meta = meta.clone();
-    if job == StreamJob::Features {
-        table_meta.extend(crate::features::features_metadata(cfg));
-    }
+    let (table_meta, meta) = table_metadata(job, cfg);
     let table = match job {
         StreamJob::Features => features_table(cfg),
         StreamJob::Waveforms => waveforms_table(),
@@ -351,23 +386,7 @@ where
                         }
                         Out::Reject(r) => {
                             rej_w.push(reject_row(&r))?;
-                            st.rejects += 1;
-                            st.by_experiment
-                                .entry(r.experiment.clone())
-                                .or_default()
-                                .rejects += 1;
-                            *st.by_stage.entry(r.stage.as_str().to_string()).or_default() += 1;
-                            if st.first_rejects.len() < 10 {
-                                let id = if r.record_id.is_empty() {
-                                    String::new()
-                                } else {
-                                    format!(" [{}]", r.record_id)
-                                };
-                                st.first_rejects.push(format!(
-                                    "{}{id}: {} ({})",
-                                    r.source_file, r.reason, r.stage
-                                ));
-                            }
+                            st.add_reject(&r);
                         }
                     }
                     pb2.inc(1);
@@ -403,7 +422,140 @@ where
     Ok(st)
 }
 
+/// What `OUT/parts/<key>/part.json` records of one finished experiment: enough to reuse
+/// it on `--resume` only when nothing it depends on has changed.
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize, PartialEq)]
+struct PartRecord {
+    tool_version: String,
+    job: String,
+    config_sha256: String,
+    /// The source ids of the part (one experiment id).
+    experiment: String,
+    /// `(path, sha256)` of every input file the part read.
+    inputs: Vec<(String, String)>,
+    /// `(file name, sha256)` of each table in the part folder.
+    outputs: Vec<(String, String)>,
+    stats: PartStats,
+}
+
+/// The counts of one part (the serialisable half of [`StreamStats`]).
+#[derive(Debug, Clone, Default, serde::Serialize, serde::Deserialize, PartialEq)]
+struct PartStats {
+    records_read: u64,
+    hits: u64,
+    rows: u64,
+    rejects: u64,
+    by_experiment: BTreeMap<String, Counts>,
+    by_stage: BTreeMap<String, u64>,
+    first_rejects: Vec<String>,
+    notes: Vec<(String, String, String)>,
+}
+
+impl PartStats {
+    fn of(s: &StreamStats) -> PartStats {
+        PartStats {
+            records_read: s.records_read,
+            hits: s.hits,
+            rows: s.rows,
+            rejects: s.rejects,
+            by_experiment: s.by_experiment.clone(),
+            by_stage: s.by_stage.clone(),
+            first_rejects: s.first_rejects.clone(),
+            notes: s
+                .notes
+                .iter()
+                .map(|n| {
+                    (
+                        n.experiment.clone(),
+                        n.source_file.clone(),
+                        n.message.clone(),
+                    )
+                })
+                .collect(),
+        }
+    }
+
+    /// Add this part's counts to the batch's.
+    fn add_to(&self, st: &mut StreamStats) {
+        st.records_read += self.records_read;
+        st.hits += self.hits;
+        st.rows += self.rows;
+        st.rejects += self.rejects;
+        for (k, c) in &self.by_experiment {
+            let e = st.by_experiment.entry(k.clone()).or_default();
+            e.hits += c.hits;
+            e.rows += c.rows;
+            e.rejects += c.rejects;
+        }
+        for (k, n) in &self.by_stage {
+            *st.by_stage.entry(k.clone()).or_default() += n;
+        }
+        for r in &self.first_rejects {
+            if st.first_rejects.len() < 10 {
+                st.first_rejects.push(r.clone());
+            }
+        }
+        for (e, f, m) in &self.notes {
+            if st.notes.len() < 1000 {
+                st.notes.push(crate::model::Note {
+                    experiment: e.clone(),
+                    source_file: f.clone(),
+                    message: m.clone(),
+                });
+            }
+        }
+    }
+}
+
+/// The folder of one experiment's part: its file-safe id and a short hash of the id itself,
+/// so two ids that sanitise alike never share a folder.
+fn part_dir(parts: &Path, id: &str) -> PathBuf {
+    let h = crate::util::sha256_hex(id.as_bytes());
+    parts.join(format!("{}-{}", crate::util::file_safe(id), &h[..8]))
+}
+
+/// The tables a part folder holds, in assembly order.
+fn part_tables(job: StreamJob) -> [&'static str; 3] {
+    [job.table_file(), "hits.parquet", "rejects.parquet"]
+}
+
+/// A finished part that may be reused: its record parses and matches `want` (tool, job,
+/// config, inputs), and every table still has the hash it was written with.
+fn reusable_part(dir: &Path, want: &PartRecord) -> Option<PartStats> {
+    let text = std::fs::read_to_string(dir.join("part.json")).ok()?;
+    let rec: PartRecord = serde_json::from_str(&text).ok()?;
+    if (
+        &rec.tool_version,
+        &rec.job,
+        &rec.config_sha256,
+        &rec.experiment,
+        &rec.inputs,
+    ) != (
+        &want.tool_version,
+        &want.job,
+        &want.config_sha256,
+        &want.experiment,
+        &want.inputs,
+    ) {
+        return None;
+    }
+    for (name, sha) in &rec.outputs {
+        match file_digest(&dir.join(name)) {
+            Ok((_, h)) if &h == sha => {}
+            _ => return None,
+        }
+    }
+    Some(rec.stats)
+}
+
 /// Discover, read, transform and write: the whole `aepipe features` / `aepipe waveforms` job.
+///
+/// Each experiment is streamed into its own part folder (`OUT/parts/<id>-<hash>/`: the
+/// tables and, written last, `part.json`), then the whole-batch tables are assembled from
+/// the parts in experiment order. With `resume`, a part whose `part.json` matches the tool,
+/// job, config and input hashes, and whose tables still have their recorded hashes, is
+/// reused as it is; the rest are redone. The assembled tables are the same, byte for byte,
+/// either way.
 pub fn run(
     job: StreamJob,
     inputs: &[PathBuf],
@@ -422,10 +574,15 @@ pub fn run(
     let rejects_path = out_dir.join("rejects.parquet");
     let hits_path = out_dir.join("hits.parquet");
     let manifest_path = out_dir.join("manifest.json");
+    let parts_root = out_dir.join("parts");
     // Outputs of an earlier run are removed first: the files in `out_dir` always belong to
-    // one complete run (an interrupted run leaves none rather than a stale mixture).
+    // one complete run (an interrupted run leaves none rather than a stale mixture). Parts
+    // stay only for `--resume`, which checks each before reusing it.
     for p in [&table_path, &rejects_path, &hits_path, &manifest_path] {
         let _ = std::fs::remove_file(p);
+    }
+    if !opts.resume {
+        let _ = std::fs::remove_dir_all(&parts_root);
     }
 
     let Discovery {
@@ -440,25 +597,131 @@ pub fn run(
         .iter()
         .flat_map(|s| s.all_files().map(move |f| (f.clone(), s)))
         .collect();
-    let digests: Vec<serde_json::Value> = files
+    let digested: Vec<(serde_json::Value, String)> = files
         .par_iter()
         .map(|(f, s)| {
             let (size, sha) = match file_digest(f) {
-                Ok((n, h)) => (json!(n), json!(h)),
-                Err(e) => (json!(null), json!(format!("unreadable: {e}"))),
+                Ok((n, h)) => (json!(n), h),
+                Err(e) => (json!(null), format!("unreadable: {e}")),
             };
-            json!({"path": f.display().to_string(), "experiment": s.id, "format": s.format.as_str(), "size_bytes": size, "sha256": sha})
+            (
+                json!({"path": f.display().to_string(), "experiment": s.id, "format": s.format.as_str(), "size_bytes": size, "sha256": sha}),
+                sha,
+            )
         })
         .collect();
     let t_hash = t1.elapsed().as_secs_f64();
+    let input_hash: BTreeMap<&Path, &str> = files
+        .iter()
+        .zip(&digested)
+        .map(|((f, _), (_, h))| (f.as_path(), h.as_str()))
+        .collect();
 
-    let ingest_cfg = cfg.ingest.clone();
-    let items = discover_rejects.into_iter().map(Item::Reject).chain(
-        sources
+    // Sources are sorted by id: one part per run of equal ids.
+    let mut groups: Vec<&[Source]> = Vec::new();
+    let mut i = 0;
+    while i < sources.len() {
+        let j = i + sources[i..]
             .iter()
-            .flat_map(move |s| ingest::open(s, &ingest_cfg)),
-    );
-    let stats = stream(items, job, out_dir, cfg, opts)?;
+            .take_while(|s| s.id == sources[i].id)
+            .count();
+        groups.push(&sources[i..j]);
+        i = j;
+    }
+
+    let t2 = Instant::now();
+    let mut stats = StreamStats::default();
+    for r in &discover_rejects {
+        stats.add_reject(r);
+    }
+    let mut parts_json = Vec::new();
+    let mut part_dirs = Vec::new();
+    for g in &groups {
+        let id = g[0].id.clone();
+        let dir = part_dir(&parts_root, &id);
+        let mut want = PartRecord {
+            tool_version: env!("CARGO_PKG_VERSION").into(),
+            job: job.name().into(),
+            config_sha256: cfg.hash(),
+            experiment: id.clone(),
+            inputs: g
+                .iter()
+                .flat_map(|s| s.all_files())
+                .map(|f| {
+                    (
+                        f.display().to_string(),
+                        input_hash
+                            .get(f.as_path())
+                            .copied()
+                            .unwrap_or("")
+                            .to_string(),
+                    )
+                })
+                .collect(),
+            outputs: Vec::new(),
+            stats: PartStats::default(),
+        };
+        let reused = if opts.resume {
+            reusable_part(&dir, &want)
+        } else {
+            None
+        };
+        let was_reused = reused.is_some();
+        let part = match reused {
+            Some(p) => p,
+            None => {
+                let _ = std::fs::remove_dir_all(&dir);
+                std::fs::create_dir_all(&dir).map_err(|e| IoAt::new(&dir, e))?;
+                let icfg = cfg.ingest.clone();
+                let items = g.iter().flat_map(move |s| ingest::open(s, &icfg));
+                let st = stream(items, job, &dir, cfg, opts)?;
+                for name in part_tables(job) {
+                    let p = dir.join(name);
+                    let (_, h) = file_digest(&p).map_err(|e| IoAt::new(&p, e))?;
+                    want.outputs.push((name.to_string(), h));
+                }
+                want.stats = PartStats::of(&st);
+                let text = serde_json::to_string_pretty(&want).expect("part record serialises");
+                write_atomic(&dir.join("part.json"), text.as_bytes())?;
+                want.stats
+            }
+        };
+        parts_json.push(
+            json!({"experiment": id, "dir": dir.display().to_string(), "reused": was_reused}),
+        );
+        part.add_to(&mut stats);
+        part_dirs.push(dir);
+    }
+
+    // The whole-batch tables: discover's rejects, then every part in order.
+    let meta = table_metadata(job, cfg);
+    let assemble = |path: &Path, table: store::TableSchema, file: &str, first: &[Reject]| {
+        let mut w = TableWriter::create(path, table, &meta.1, cfg.pipeline.row_group_rows)?;
+        for r in first {
+            w.push(reject_row(r))?;
+        }
+        for d in &part_dirs {
+            w.append_file(&d.join(file))?;
+        }
+        w.finish().map(|_| ())
+    };
+    let t = match job {
+        StreamJob::Features => features_table(cfg),
+        StreamJob::Waveforms => waveforms_table(),
+    };
+    let mut w = TableWriter::create(&table_path, t, &meta.0, cfg.pipeline.row_group_rows)?;
+    for d in &part_dirs {
+        w.append_file(&d.join(job.table_file()))?;
+    }
+    w.finish()?;
+    assemble(&hits_path, store::hits_table(), "hits.parquet", &[])?;
+    assemble(
+        &rejects_path,
+        rejects_table(),
+        "rejects.parquet",
+        &discover_rejects,
+    )?;
+    stats.seconds = t2.elapsed().as_secs_f64();
 
     let manifest = json!({
         "tool": {"name": "aepipe", "version": env!("CARGO_PKG_VERSION")},
@@ -468,7 +731,8 @@ pub fn run(
         "threads": if opts.threads == 0 { num_cpus() } else { opts.threads },
         "config_sha256": cfg.hash(),
         "config": serde_json::to_value(cfg).unwrap_or(json!(null)),
-        "inputs": digests,
+        "inputs": digested.iter().map(|(v, _)| v.clone()).collect::<Vec<_>>(),
+        "parts": parts_json,
         "skipped": skipped.iter().map(|(p, why)| json!({"path": p.display().to_string(), "reason": why})).collect::<Vec<_>>(),
         "experiments": sources.iter().map(|s| json!({"id": s.id, "format": s.format.as_str(), "files": s.files.len(), "companions": s.companions.iter().map(|p| p.display().to_string()).collect::<Vec<_>>()})).collect::<Vec<_>>(),
         "outputs": {

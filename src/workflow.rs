@@ -54,11 +54,18 @@ pub struct RunJob<'a> {
     pub truth: Option<&'a Path>,
     pub threads: usize,
     pub progress: bool,
+    /// Reuse the finished, unchanged per-experiment parts of an earlier run in `out`.
+    pub resume: bool,
 }
 
 /// Run every enabled stage.
 pub fn run(job: &RunJob) -> Result<RunSummary, WorkflowError> {
     let cfg = job.config;
+    // Temporary files of a killed earlier run (every output is written under a temporary
+    // name, then renamed): never read, removed here.
+    for sub in ["", "trend", "som"] {
+        crate::store::clean_stale_tmp(&job.out.join(sub));
+    }
     let mut seconds = Vec::new();
     let t = std::time::Instant::now();
     let features = crate::pipeline::run(
@@ -69,6 +76,7 @@ pub fn run(job: &RunJob) -> Result<RunSummary, WorkflowError> {
         &StreamOptions {
             threads: job.threads,
             progress: job.progress,
+            resume: job.resume,
         },
     )?;
     seconds.push(("features".to_string(), t.elapsed().as_secs_f64()));
@@ -357,6 +365,7 @@ fn som_stage(job: &RunJob, feats: &[PathBuf]) -> Result<SomStage, WorkflowError>
             &StreamOptions {
                 threads: job.threads,
                 progress: false,
+                resume: false,
             },
         )?;
         (

@@ -133,6 +133,7 @@ pub fn dispatch(cli: Cli) -> Result<Outcome> {
             out,
             truth,
             threads,
+            resume,
         } => {
             // `--config P IN…`, or the positional form `P IN…`.
             let (pipeline, inputs) = match config {
@@ -152,6 +153,7 @@ pub fn dispatch(cli: Cli) -> Result<Outcome> {
                 truth: truth.as_deref(),
                 threads,
                 progress: true,
+                resume,
             })?;
             for l in crate::workflow::headline(&s) {
                 println!("{l}");
@@ -197,6 +199,7 @@ fn stream_job(job: StreamJob, a: RunArgs) -> Result<Outcome> {
     let opts = StreamOptions {
         threads: a.threads,
         progress: !a.quiet,
+        resume: a.resume,
     };
     let report = crate::pipeline::run(job, &a.inputs, &a.out, &cfg, &opts)?;
     print::stream_run(&report, job.table_file());

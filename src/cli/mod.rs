@@ -43,6 +43,10 @@ pub struct RunArgs {
     /// No progress bar
     #[arg(long)]
     pub quiet: bool,
+    /// Reuse the per-experiment parts of an earlier, interrupted or partial run in --out
+    /// that are finished and unchanged (tool, config, input and table hashes); redo the rest
+    #[arg(long)]
+    pub resume: bool,
 }
 
 #[derive(Subcommand)]
@@ -181,6 +185,10 @@ pub enum Cmd {
         truth: Option<PathBuf>,
         #[arg(long, default_value_t = 0)]
         threads: usize,
+        /// Reuse the finished, unchanged per-experiment parts of an earlier run in --out
+        /// (after a crash or kill, or with experiments added); redo the rest
+        #[arg(long)]
+        resume: bool,
     },
     /// Write RUN_DIR/report.html again from a finished `aepipe run` folder
     Report { run_dir: PathBuf },

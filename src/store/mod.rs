@@ -414,6 +414,46 @@ impl TableWriter {
             })
     }
 
+    /// Append every row of a finished table of the same schema: how a run assembles its
+    /// whole-batch tables from per-experiment parts. Read in batches of 1 024 rows, so the
+    /// bytes written depend on the rows alone, not on how the part was written.
+    pub fn append_file(&mut self, path: &Path) -> Result<u64, StoreError> {
+        self.flush_pending()?;
+        let (schema, _, reader) = open_parquet(path, 1024)?;
+        let want = self.table.arrow_schema();
+        if schema.fields() != want.fields() {
+            return Err(StoreError::Schema {
+                path: path.display().to_string(),
+                message: format!("columns differ from the {} table's", self.table.name),
+            });
+        }
+        let mut n = 0u64;
+        for b in reader {
+            let b = b.map_err(|source| StoreError::Arrow {
+                path: path.display().to_string(),
+                source,
+            })?;
+            // The part's batch carries the schema as read back; write it as ours.
+            let b = RecordBatch::try_new(want.clone(), b.columns().to_vec()).map_err(|e| {
+                StoreError::Schema {
+                    path: path.display().to_string(),
+                    message: e.to_string(),
+                }
+            })?;
+            n += b.num_rows() as u64;
+            self.writer
+                .as_mut()
+                .expect("writer open until finish")
+                .write(&b)
+                .map_err(|source| StoreError::Parquet {
+                    path: self.tmp_path.display().to_string(),
+                    source,
+                })?;
+        }
+        self.rows += n;
+        Ok(n)
+    }
+
     /// Write the footer, sync, and rename to the final name. Returns the row count.
     pub fn finish(mut self) -> Result<u64, StoreError> {
         self.flush_pending()?;

@@ -111,6 +111,7 @@ fn each_bad_input_becomes_a_clear_reject_and_good_hits_are_all_written() {
         &StreamOptions {
             threads: 2,
             progress: false,
+            resume: false,
         },
     )
     .unwrap();
@@ -352,6 +353,7 @@ fn an_experiment_id_never_writes_outside_the_output_folder() {
         &StreamOptions {
             threads: 2,
             progress: false,
+            resume: false,
         },
     )
     .unwrap();

@@ -112,6 +112,7 @@ fn the_real_dta_gives_the_hits_and_samples_mistrasdta_gives() {
         &StreamOptions {
             threads: 2,
             progress: false,
+            resume: false,
         },
     )
     .unwrap();
@@ -326,6 +327,7 @@ fn written_dta_files_four_channels_a_chain_and_bad_endings() {
         &StreamOptions {
             threads: 2,
             progress: false,
+            resume: false,
         },
     )
     .unwrap();

@@ -109,6 +109,7 @@ fn run_classifies_against_truth_finds_the_trend_and_writes_a_report_a_browser_re
         truth: Some(&d.path().join("truth.parquet")),
         threads: 2,
         progress: false,
+        resume: false,
     })
     .unwrap();
     // The designed shift (ch. 4.5.5): 200–300 kHz rising, 700–800 kHz falling, p < 0.01.
@@ -167,6 +168,7 @@ fn run_classifies_against_truth_finds_the_trend_and_writes_a_report_a_browser_re
         truth: None,
         threads: 2,
         progress: false,
+        resume: false,
     })
     .unwrap();
     let m = c.som.as_ref().unwrap();

@@ -13,6 +13,7 @@ fn opts() -> StreamOptions {
     StreamOptions {
         threads: 2,
         progress: false,
+        resume: false,
     }
 }
 

@@ -13,6 +13,7 @@ mod formats;
 mod hits;
 mod pipeline;
 mod real_data;
+mod resume;
 mod sim;
 mod som;
 mod trend;
@@ -95,6 +96,7 @@ pub fn synthetic_features(
         &aepipe::pipeline::StreamOptions {
             threads,
             progress: false,
+            resume: false,
         },
     )
     .unwrap()

@@ -261,6 +261,7 @@ fn hit_features_agree_with_vallenae() {
         &StreamOptions {
             threads: 2,
             progress: false,
+            resume: false,
         },
     )
     .unwrap();
