@@ -464,6 +464,11 @@ impl PipelineConfig {
                 path: path.display().to_string(),
                 message,
             },
+            // A value out of range names the file it came from, like a syntax error.
+            ConfigError::Invalid(message) => ConfigError::Parse {
+                path: path.display().to_string(),
+                message,
+            },
             other => other,
         })
     }

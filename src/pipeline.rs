@@ -273,10 +273,7 @@ fn progress_bar(enabled: bool) -> indicatif::ProgressBar {
 }
 
 /// The Parquet key-value metadata of the job's table and of the other tables.
-fn table_metadata(
-    job: StreamJob,
-    cfg: &PipelineConfig,
-) -> (store::KeyValues, store::KeyValues) {
+fn table_metadata(job: StreamJob, cfg: &PipelineConfig) -> (store::KeyValues, store::KeyValues) {
     let meta = vec![
         ("aepipe.config_sha256".to_string(), cfg.hash()),
         ("aepipe.job".to_string(), job.name().to_string()),

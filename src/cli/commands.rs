@@ -338,7 +338,12 @@ fn som(which: SomCmd) -> Result<Outcome> {
         SomCmd::Show { model, png } => {
             let m = load_model(&model)?;
             print::som_map(&m);
-            let png = png.unwrap_or_else(|| model.join("u_matrix.png"));
+            let dir = if model.is_dir() {
+                model.clone()
+            } else {
+                model.parent().map(Path::to_path_buf).unwrap_or_default()
+            };
+            let png = png.unwrap_or_else(|| dir.join("u_matrix.png"));
             crate::plot::u_matrix_png(&png, &m.som)?;
             println!("wrote {}", png.display());
         }

@@ -250,6 +250,7 @@ pub enum SomCmd {
     },
     /// Classify every hit: DIR/classification.parquet, the Table 5.4 confusion report, hit maps
     Classify {
+        /// The model: its folder, its model.json, or a SOM_PAK .cod beside a model.json
         model: PathBuf,
         #[arg(required = true)]
         features: Vec<PathBuf>,
@@ -261,6 +262,7 @@ pub enum SomCmd {
     },
     /// Summarise a model and draw its U-matrix with node labels
     Show {
+        /// The model: its folder, its model.json, or a SOM_PAK .cod beside a model.json
         model: PathBuf,
         #[arg(long)]
         png: Option<PathBuf>,

@@ -184,6 +184,14 @@ fn detect_format(p: &Path, forced: FormatChoice) -> std::io::Result<Kind> {
         _ => return Ok(Kind::Other(format!("unknown file type '.{ext}'"))),
     }
     let text = head(p, 4096)?;
+    if text.trim().is_empty() {
+        // An AEwin waveform file by its name is a hit that lost its samples: its reader
+        // rejects it. Any other empty file is passed over, saying so.
+        if aewin::parse_wave_name(p).is_some() {
+            return Ok(Kind::AewinWave);
+        }
+        return Ok(Kind::Other("empty file".into()));
+    }
     if ext == "csv" {
         if name.starts_with("Specimen_RawData") || aewin::looks_like_machine_log(&text) {
             return Ok(Kind::MachineLog);
@@ -194,7 +202,10 @@ fn detect_format(p: &Path, forced: FormatChoice) -> std::io::Result<Kind> {
             csvfmt::Sniff::NotWaveform(why) => Kind::Other(why),
         });
     }
-    if waveexplorer::parse_header(&text).is_some() || forced == FormatChoice::Waveexplorer {
+    if waveexplorer::parse_header(&text).is_some()
+        || waveexplorer::looks_like_header(&text)
+        || forced == FormatChoice::Waveexplorer
+    {
         return Ok(Kind::WaveExplorer);
     }
     if aewin::looks_like_hit_list(&text) {

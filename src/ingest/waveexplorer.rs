@@ -33,6 +33,20 @@ pub fn parse_header(head: &str) -> Option<(f64, u64, usize, usize)> {
     ))
 }
 
+/// A first line of four numbers over a value: a WaveExplorer header, valid or not. (An
+/// invalid one — a zero rate, no events — is read by this reader, which says what is wrong,
+/// rather than as plain text with a header line and the configured rate.)
+pub fn looks_like_header(head: &str) -> bool {
+    let mut lines = head.lines();
+    let (Some(first), Some(second)) = (lines.next(), lines.next()) else {
+        return false;
+    };
+    let w: Vec<&str> = first.split_whitespace().collect();
+    w.len() == 4
+        && w.iter().all(|t| t.parse::<f64>().is_ok())
+        && second.trim().parse::<f64>().is_ok()
+}
+
 /// `220426_20deg_4mm_wave` → `20deg`.
 fn label_from_name(p: &Path) -> Option<String> {
     let stem = p.file_stem()?.to_string_lossy().to_string();
@@ -169,7 +183,7 @@ pub fn open(src: &Source, cfg: &IngestConfig) -> Box<dyn Iterator<Item = Item> +
     };
     let Some((rate, events, len, channels)) = parse_header(&format!("{first}\n0\n")) else {
         return reject(format!(
-            "first line '{}' is not a WaveExplorer header (rate_MHz n_events n_samples n_channels)",
+            "first line '{}' is not a valid WaveExplorer header (rate_MHz > 0, n_events ≥ 1, n_samples ≥ 1, n_channels 1–64)",
             first.trim()
         ));
     };

@@ -177,6 +177,29 @@ impl SomParams {
     }
 }
 
+/// The largest map a model file may describe (nodes, and values of the codebook): a header
+/// or `model.json` claiming more is refused before anything is allocated.
+pub const MAX_MAP_NODES: usize = 1_000_000;
+pub const MAX_CODEBOOK_VALUES: usize = 100_000_000;
+
+/// Nodes of a `rows × cols` map of `dim`-vectors, if the sizes are sane.
+fn check_map_size(dim: usize, rows: usize, cols: usize) -> Result<usize, String> {
+    if dim == 0 || rows == 0 || cols == 0 {
+        return Err(format!("a {cols}×{rows} map of {dim}-vectors is empty"));
+    }
+    let nodes = rows
+        .checked_mul(cols)
+        .filter(|&n| n <= MAX_MAP_NODES)
+        .ok_or_else(|| format!("a {cols}×{rows} map exceeds {MAX_MAP_NODES} nodes"))?;
+    nodes
+        .checked_mul(dim)
+        .filter(|&v| v <= MAX_CODEBOOK_VALUES)
+        .ok_or_else(|| {
+            format!("{nodes} nodes × {dim} values exceed {MAX_CODEBOOK_VALUES} codebook values")
+        })?;
+    Ok(nodes)
+}
+
 /// What training did.
 #[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct TrainingLog {
@@ -656,6 +679,29 @@ impl Som {
         s
     }
 
+    /// Check a map read from a file (`model.json`): sizes within the limits, as many weights
+    /// and labels as nodes, every weight finite.
+    pub fn check(&self) -> Result<(), SomError> {
+        let nodes = check_map_size(self.dim, self.rows, self.cols).map_err(SomError::Data)?;
+        if self.weights.len() != nodes * self.dim {
+            return Err(SomError::Data(format!(
+                "{} weights for {nodes} nodes of {} values",
+                self.weights.len(),
+                self.dim
+            )));
+        }
+        if !self.labels.is_empty() && self.labels.len() != nodes {
+            return Err(SomError::Data(format!(
+                "{} node labels for {nodes} nodes",
+                self.labels.len()
+            )));
+        }
+        if self.weights.iter().any(|w| !w.is_finite()) {
+            return Err(SomError::Data("a weight is not a finite number".into()));
+        }
+        Ok(())
+    }
+
     /// Read a SOM_PAK codebook (rectangular topology).
     pub fn from_cod(text: &str) -> Result<Som, SomError> {
         Som::parse_cod(text).map_err(SomError::Codebook)
@@ -685,7 +731,9 @@ impl Som {
             num(head[2], "x size")?,
             num(head[3], "y size")?,
         );
-        let mut weights = Vec::with_capacity(dim * cols * rows);
+        // The header is a claim: the sizes are checked, never reserved.
+        let nodes = check_map_size(dim, rows, cols)?;
+        let mut weights = Vec::new();
         let mut labels = Vec::new();
         for (k, l) in lines.enumerate() {
             let t: Vec<&str> = l.split_whitespace().collect();
@@ -702,7 +750,7 @@ impl Som {
                 labels.push(t[dim].to_string());
             }
         }
-        if weights.len() != dim * cols * rows {
+        if weights.len() != dim * nodes {
             return Err(format!(
                 "{} nodes, header says {}×{}",
                 weights.len() / dim.max(1),
@@ -710,8 +758,11 @@ impl Som {
                 rows
             ));
         }
-        if !labels.is_empty() && labels.len() != cols * rows {
+        if !labels.is_empty() && labels.len() != nodes {
             return Err("some nodes are labelled and some are not".into());
+        }
+        if weights.iter().any(|w| !w.is_finite()) {
+            return Err("a weight is not a finite number".into());
         }
         Ok(Som {
             rows,

@@ -324,10 +324,46 @@ pub fn train(paths: &[PathBuf], out: &Path, o: &TrainOptions) -> Result<Model, S
     Ok(model)
 }
 
-pub fn load_model(dir: &Path) -> Result<Model, SomError> {
-    let p = dir.join("model.json");
-    let text = std::fs::read_to_string(&p).map_err(|e| ferr(&p, e))?;
-    serde_json::from_str(&text).map_err(|e| ferr(&p, e))
+/// Load a model: a model folder, its `model.json`, or a SOM_PAK codebook (`.cod`) beside a
+/// `model.json`. A `.cod` replaces the map (weights, size, node labels): a codebook trained
+/// or relabelled with SOM_PAK on the `train.dat` aepipe wrote classifies with aepipe's
+/// columns and scaling. Everything read is checked before use.
+pub fn load_model(path: &Path) -> Result<Model, SomError> {
+    let is_cod = path
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("cod"));
+    let json = if path.is_dir() {
+        path.join("model.json")
+    } else if is_cod {
+        path.with_file_name("model.json")
+    } else {
+        path.to_path_buf()
+    };
+    let text = std::fs::read_to_string(&json).map_err(|e| ferr(&json, e))?;
+    let mut m: Model = serde_json::from_str(&text).map_err(|e| ferr(&json, e))?;
+    if is_cod {
+        let cod = std::fs::read_to_string(path).map_err(|e| ferr(path, e))?;
+        let som = Som::from_cod(&cod).map_err(|e| ferr(path, e))?;
+        if som.labels.is_empty() {
+            return Err(ferr(path, "the codebook's nodes carry no labels"));
+        }
+        m.som = Som {
+            params: m.som.params.clone(),
+            log: None,
+            ..som
+        };
+    }
+    let src = if is_cod { path } else { json.as_path() };
+    m.som.check().map_err(|e| ferr(src, e))?;
+    if let Some(s) = &m.scaling {
+        if s.mean.len() != m.som.dim || s.std.len() != m.som.dim {
+            return Err(ferr(src, "the scaling does not match the nodes' length"));
+        }
+        if s.std.iter().chain(&s.mean).any(|v| !v.is_finite()) || s.std.contains(&0.0) {
+            return Err(ferr(src, "the scaling holds a zero or non-finite value"));
+        }
+    }
+    Ok(m)
 }
 
 pub fn classification_table() -> TableSchema {

@@ -264,7 +264,7 @@ fn coupled_sho_radiates_at_its_own_frequency() {
     );
 }
 
-const APPENDIX: &str = "Section System
+pub(crate) const APPENDIX: &str = "Section System
 x1 x2 y1 y2 dt damping gravity iters solver runwave stretch
 -5.5E-04 5.5E-04 -5.5E-04 5.5E-04 1.0e-08 0.0 0.0 2000 IEuler false true
 End System

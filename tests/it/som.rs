@@ -81,3 +81,52 @@ fn som_trained_on_criteria_labels_classifies_the_experiment() {
         .collect();
     assert!(w.iter().all(|d| *d < 1e-12), "cod weights differ");
 }
+
+/// A SOM_PAK codebook is read: the `.cod` aepipe wrote classifies exactly as `model.json`
+/// does (weights are written as `{:e}`, the shortest form that reads back equal), and a
+/// codebook relabelled outside aepipe changes the classes.
+#[test]
+fn som_pak_codebook_classifies_like_the_model_and_carries_its_labels() {
+    let t = TempDir::new("som-cod");
+    let features =
+        crate::synthetic_features(t.path(), "cod", 200, 8, &PipelineConfig::default(), 2);
+    let dir = t.path().join("model");
+    let m = train(
+        std::slice::from_ref(&features),
+        &dir,
+        &TrainOptions::default(),
+    )
+    .unwrap();
+    let from_cod = load_model(&dir.join("model.cod")).unwrap();
+    assert_eq!(from_cod.som.weights, m.som.weights);
+    assert_eq!(from_cod.som.labels, m.som.labels);
+    let classes = |model: &aepipe::som::tables::Model, out: &str| -> Vec<String> {
+        let o = t.path().join(out);
+        classify(model, std::slice::from_ref(&features), None, &o).unwrap();
+        let (names, rows) = table_rows(&o.join("classification.parquet"));
+        let k = names.iter().position(|n| n == "som_label").unwrap();
+        rows.into_iter().map(|r| r[k].clone()).collect()
+    };
+    let a = classes(&m, "a");
+    assert_eq!(classes(&from_cod, "b"), a);
+    // Every node relabelled "x" in the text, as a SOM_PAK user would edit it.
+    let text = std::fs::read_to_string(dir.join("model.cod")).unwrap();
+    let relabelled: String = text
+        .lines()
+        .enumerate()
+        .map(|(i, l)| {
+            if i == 0 {
+                format!("{l}\n")
+            } else {
+                let mut w: Vec<&str> = l.split_whitespace().collect();
+                w.pop();
+                format!("{} x\n", w.join(" "))
+            }
+        })
+        .collect();
+    std::fs::write(dir.join("edited.cod"), relabelled).unwrap();
+    let edited = load_model(&dir.join("edited.cod")).unwrap();
+    let c = classes(&edited, "c");
+    assert_eq!(c.len(), a.len());
+    assert!(c.iter().all(|x| x == "x"), "{:?}", &c[..3]);
+}
