@@ -1043,9 +1043,7 @@ fn every_broken_definition_file_is_one_error_line_naming_it() {
         (
             "appendix_truncated",
             "cut.txt",
-            crate::sim::APPENDIX[..crate::sim::APPENDIX.len() / 2]
-                .as_bytes()
-                .to_vec(),
+            crate::sim::APPENDIX.as_bytes()[..crate::sim::APPENDIX.len() / 2].to_vec(),
             "appendix",
         ),
         (
