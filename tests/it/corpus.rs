@@ -914,6 +914,29 @@ fn seeds_out(cases: &[Case]) {
             continue;
         };
         let fname = c.file.file_name().unwrap().to_string_lossy().to_lowercase();
+        if fname.ends_with(".tradb") {
+            // The blob decoder's seeds: DataFormat byte, Samples (u32 LE), blob.
+            let Ok(db) = rusqlite::Connection::open(&c.file) else {
+                continue;
+            };
+            let Ok(mut q) = db.prepare("SELECT DataFormat, Samples, Data FROM tr_data LIMIT 2")
+            else {
+                continue;
+            };
+            let blobs: Vec<(i64, i64, Vec<u8>)> = q
+                .query_map([], |r| Ok((r.get(0)?, r.get(1)?, r.get(2)?)))
+                .map(|it| it.flatten().collect())
+                .unwrap_or_default();
+            let d = dir.join("vallen_blob");
+            std::fs::create_dir_all(&d).unwrap();
+            for (k, (f, n, b)) in blobs.into_iter().enumerate() {
+                let mut seed = vec![f as u8];
+                seed.extend((n as u32).to_le_bytes());
+                seed.extend(b);
+                std::fs::write(d.join(format!("{}_{k}", c.name)), seed).unwrap();
+            }
+            continue;
+        }
         let (target, pick) = if fname.ends_with(".dta") {
             ("dta_messages", None)
         } else if fname.ends_with("_wave.txt") {

@@ -233,3 +233,55 @@ fn run_classifies_against_truth_finds_the_trend_and_writes_a_report_a_browser_re
         .unwrap();
     assert!(shot.status.success() && std::fs::metadata(&png).unwrap().len() > 10_000);
 }
+
+/// The README's demo numbers are the demo's: `aepipe demo` with its defaults (651 hits, seed
+/// 2026), and every headline number it prints is the one the README states.
+#[test]
+fn the_readme_states_the_numbers_the_demo_prints() {
+    let t = TempDir::new("demo-readme");
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_aepipe"))
+        .args(["demo", "--out"])
+        .arg(t.path())
+        .output()
+        .unwrap();
+    let so = String::from_utf8_lossy(&o.stdout).to_string();
+    assert!(
+        o.status.success(),
+        "{so}{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    let readme =
+        std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("README.md")).unwrap();
+    let after = |line_start: &str, sep: &str| -> String {
+        let l = so
+            .lines()
+            .find(|l| l.trim_start().starts_with(line_start))
+            .unwrap_or_else(|| panic!("no '{line_start}' line in:\n{so}"));
+        l.split(sep).nth(1).unwrap().trim().to_string()
+    };
+    // "545/560 = 97.3 %" and "149/651 = 22.9 %"
+    let acc = after("accuracy against the ground truth", ": ");
+    let agree = after("agreement with the ch. 4.7 criteria labels", ": ");
+    for (what, v) in [("accuracy", &acc), ("criteria agreement", &agree)] {
+        assert!(
+            readme.contains(v.as_str()),
+            "the README does not state the demo's {what} {v}"
+        );
+    }
+    assert!(readme.contains(&format!("**{acc}**")), "intro: {acc}");
+    // "200 - 300 kHz    r = +0.22  p = 2.4e-5  slope …" → README "200–300 kHz r = +0.22, p = 2.4e-5"
+    for band in ["200 - 300 kHz", "700 - 800 kHz"] {
+        let l = so
+            .lines()
+            .find(|l| l.trim_start().starts_with(band))
+            .unwrap_or_else(|| panic!("{band} is not significant any more:\n{so}"));
+        let w: Vec<&str> = l.split_whitespace().collect();
+        let (r, p) = (w[6], w[9]);
+        let stated = format!("{} r = {r}, p = {p}", band.replace(" - ", "–"));
+        // (The README writes minus as U+2212.)
+        assert!(
+            readme.replace('\u{2212}', "-").contains(&stated),
+            "README lacks '{stated}'"
+        );
+    }
+}

@@ -292,14 +292,13 @@ fn hit_features_agree_with_vallenae() {
         worst_en = worst_en.max(d_en);
         checked += 1;
     }
-    eprintln!("vallenae agreement over {checked} records: amplitude {worst_db:.4} dB, rise {:.3} µs, duration {:.3} µs, energy {:.4} %", worst_rise * 1e6, worst_dur * 1e6, worst_en * 100.0);
+    eprintln!("vallenae agreement over {checked} records: amplitude {worst_db:e} dB, rise {worst_rise:e} s, duration {worst_dur:e} s, energy {worst_en:e} (relative)");
     assert_eq!(checked, 498);
-    assert!(worst_db <= 0.1, "amplitude off by {worst_db} dB");
-    // ±0.2 µs is one sample at 5 MHz: allow float noise on top.
-    assert!(
-        worst_rise <= 0.2e-6 + 1e-12,
-        "rise time off by {worst_rise} s"
-    );
+    // The README's numbers, as tested: amplitude ≤ 0.0002 dB (aepipe holds samples as f32:
+    // 1.4e-4 dB measured), rise time exact, duration ≤ 1 sample (0.2 µs at 5 MHz, plus float
+    // noise), energy ≤ 1 ppm (7.8e-8 measured).
+    assert!(worst_db <= 2e-4, "amplitude off by {worst_db} dB");
+    assert!(worst_rise <= 1e-12, "rise time off by {worst_rise} s");
     assert!(worst_dur <= 0.2e-6 + 1e-12, "duration off by {worst_dur} s");
-    assert!(worst_en <= 0.005, "energy off by {worst_en}");
+    assert!(worst_en <= 1e-6, "energy off by {worst_en}");
 }
