@@ -158,6 +158,7 @@ pub fn stream_point(
             threads,
             progress: false,
             resume: false,
+            shard: None,
         },
     )?;
     Ok(StreamPoint {

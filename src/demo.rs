@@ -53,6 +53,7 @@ pub fn run_demo(
         threads,
         progress: true,
         resume: false,
+        shard: None,
     })?;
     Ok(DemoResult {
         data_dir,

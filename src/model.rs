@@ -49,7 +49,7 @@ impl AeRecord {
 }
 
 /// A hit (or a whole file) that could not become a feature row, and why.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Reject {
     pub experiment: String,
     pub source_file: String,
@@ -62,7 +62,8 @@ pub struct Reject {
 }
 
 /// Where in the pipeline a reject happened.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
 pub enum Stage {
     Discover,
     Read,

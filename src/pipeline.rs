@@ -71,6 +71,8 @@ pub struct StreamOptions {
     pub progress: bool,
     /// [`run`]: reuse the finished, unchanged per-experiment parts of an earlier run.
     pub resume: bool,
+    /// [`run`]: only this shard's experiments, published as a Hive-partitioned dataset.
+    pub shard: Option<crate::util::Shard>,
 }
 
 impl Default for StreamOptions {
@@ -79,6 +81,7 @@ impl Default for StreamOptions {
             threads: 0,
             progress: true,
             resume: false,
+            shard: None,
         }
     }
 }
@@ -545,48 +548,51 @@ fn reusable_part(dir: &Path, want: &PartRecord) -> Option<PartStats> {
     Some(rec.stats)
 }
 
-/// Discover, read, transform and write: the whole `aepipe features` / `aepipe waveforms` job.
-///
-/// Each experiment is streamed into its own part folder (`OUT/parts/<id>-<hash>/`: the
-/// tables and, written last, `part.json`), then the whole-batch tables are assembled from
-/// the parts in experiment order. With `resume`, a part whose `part.json` matches the tool,
-/// job, config and input hashes, and whose tables still have their recorded hashes, is
-/// reused as it is; the rest are redone. The assembled tables are the same, byte for byte,
-/// either way.
-pub fn run(
+/// One experiment's finished part: where its three tables are and what it counted.
+struct Part {
+    id: String,
+    /// The job's table, `hits.parquet`, `rejects.parquet`, in that order.
+    tables: [PathBuf; 3],
+    stats: PartStats,
+    reused: bool,
+    /// `(path, sha256)` of the files it read.
+    inputs: Vec<(String, String)>,
+    dir: PathBuf,
+}
+
+/// Discovery, the input digests and every owned experiment streamed into its part.
+struct Produced {
+    sources: Vec<Source>,
+    discover_rejects: Vec<Reject>,
+    skipped: Vec<(PathBuf, String)>,
+    /// The manifest's `inputs` entries of the owned experiments.
+    inputs_json: Vec<serde_json::Value>,
+    parts: Vec<Part>,
+    t_discover: f64,
+    t_hash: f64,
+    t_stream: f64,
+}
+
+fn produce(
     job: StreamJob,
     inputs: &[PathBuf],
     out_dir: &Path,
     cfg: &PipelineConfig,
     opts: &StreamOptions,
-) -> Result<RunReport, PipelineError> {
-    if inputs.is_empty() {
-        return Err(PipelineError::NoInput);
-    }
-    let started = utc_now();
+) -> Result<Produced, PipelineError> {
     let t0 = Instant::now();
-    std::fs::create_dir_all(out_dir).map_err(|e| IoAt::new(out_dir, e))?;
-    store::clean_stale_tmp(out_dir);
-    let table_path = out_dir.join(job.table_file());
-    let rejects_path = out_dir.join("rejects.parquet");
-    let hits_path = out_dir.join("hits.parquet");
-    let manifest_path = out_dir.join("manifest.json");
     let parts_root = out_dir.join("parts");
-    // Outputs of an earlier run are removed first: the files in `out_dir` always belong to
-    // one complete run (an interrupted run leaves none rather than a stale mixture). Parts
-    // stay only for `--resume`, which checks each before reusing it.
-    for p in [&table_path, &rejects_path, &hits_path, &manifest_path] {
-        let _ = std::fs::remove_file(p);
-    }
     if !opts.resume {
         let _ = std::fs::remove_dir_all(&parts_root);
     }
-
     let Discovery {
-        sources,
+        mut sources,
         rejects: discover_rejects,
         skipped,
     } = ingest::discover(inputs, &cfg.ingest);
+    if let Some(sh) = opts.shard {
+        sources.retain(|s| sh.owns(&s.id));
+    }
     let t_discover = t0.elapsed().as_secs_f64();
 
     let t1 = Instant::now();
@@ -627,12 +633,7 @@ pub fn run(
     }
 
     let t2 = Instant::now();
-    let mut stats = StreamStats::default();
-    for r in &discover_rejects {
-        stats.add_reject(r);
-    }
-    let mut parts_json = Vec::new();
-    let mut part_dirs = Vec::new();
+    let mut parts = Vec::new();
     for g in &groups {
         let id = g[0].id.clone();
         let dir = part_dir(&parts_root, &id);
@@ -664,7 +665,7 @@ pub fn run(
             None
         };
         let was_reused = reused.is_some();
-        let part = match reused {
+        let stats = match reused {
             Some(p) => p,
             None => {
                 let _ = std::fs::remove_dir_all(&dir);
@@ -680,45 +681,73 @@ pub fn run(
                 want.stats = PartStats::of(&st);
                 let text = serde_json::to_string_pretty(&want).expect("part record serialises");
                 write_atomic(&dir.join("part.json"), text.as_bytes())?;
-                want.stats
+                want.stats.clone()
             }
         };
-        parts_json.push(
-            json!({"experiment": id, "dir": dir.display().to_string(), "reused": was_reused}),
-        );
-        part.add_to(&mut stats);
-        part_dirs.push(dir);
+        parts.push(Part {
+            tables: part_tables(job).map(|n| dir.join(n)),
+            id,
+            stats,
+            reused: was_reused,
+            inputs: want.inputs,
+            dir,
+        });
     }
+    Ok(Produced {
+        discover_rejects,
+        skipped,
+        inputs_json: digested.into_iter().map(|(v, _)| v).collect(),
+        parts,
+        t_discover,
+        t_hash,
+        t_stream: t2.elapsed().as_secs_f64(),
+        sources,
+    })
+}
 
-    // The whole-batch tables: discover's rejects, then every part in order.
-    let meta = table_metadata(job, cfg);
-    let assemble = |path: &Path, table: store::TableSchema, file: &str, first: &[Reject]| {
-        let mut w = TableWriter::create(path, table, &meta.1, cfg.pipeline.row_group_rows)?;
-        for r in first {
-            w.push(reject_row(r))?;
-        }
-        for d in &part_dirs {
-            w.append_file(&d.join(file))?;
-        }
-        w.finish().map(|_| ())
-    };
-    let t = match job {
+/// The whole-batch tables (discovery's rejects, then every part in order) and the manifest.
+#[allow(clippy::too_many_arguments)]
+fn assemble(
+    job: StreamJob,
+    out_dir: &Path,
+    cfg: &PipelineConfig,
+    opts: &StreamOptions,
+    started: String,
+    t0: Instant,
+    p: Produced,
+) -> Result<RunReport, PipelineError> {
+    let table_path = out_dir.join(job.table_file());
+    let rejects_path = out_dir.join("rejects.parquet");
+    let hits_path = out_dir.join("hits.parquet");
+    let manifest_path = out_dir.join("manifest.json");
+    let mut stats = StreamStats::default();
+    for r in &p.discover_rejects {
+        stats.add_reject(r);
+    }
+    for part in &p.parts {
+        part.stats.add_to(&mut stats);
+    }
+    let (table_meta, meta) = table_metadata(job, cfg);
+    let table = match job {
         StreamJob::Features => features_table(cfg),
         StreamJob::Waveforms => waveforms_table(),
     };
-    let mut w = TableWriter::create(&table_path, t, &meta.0, cfg.pipeline.row_group_rows)?;
-    for d in &part_dirs {
-        w.append_file(&d.join(job.table_file()))?;
+    let schemas = [table, store::hits_table(), rejects_table()];
+    let paths = [&table_path, &hits_path, &rejects_path];
+    for (k, schema) in schemas.into_iter().enumerate() {
+        let kv = if k == 0 { &table_meta } else { &meta };
+        let mut w = TableWriter::create(paths[k], schema, kv, cfg.pipeline.row_group_rows)?;
+        if k == 2 {
+            for r in &p.discover_rejects {
+                w.push(reject_row(r))?;
+            }
+        }
+        for part in &p.parts {
+            w.append_file(&part.tables[k])?;
+        }
+        w.finish()?;
     }
-    w.finish()?;
-    assemble(&hits_path, store::hits_table(), "hits.parquet", &[])?;
-    assemble(
-        &rejects_path,
-        rejects_table(),
-        "rejects.parquet",
-        &discover_rejects,
-    )?;
-    stats.seconds = t2.elapsed().as_secs_f64();
+    stats.seconds = p.t_stream;
 
     let manifest = json!({
         "tool": {"name": "aepipe", "version": env!("CARGO_PKG_VERSION")},
@@ -728,10 +757,10 @@ pub fn run(
         "threads": if opts.threads == 0 { num_cpus() } else { opts.threads },
         "config_sha256": cfg.hash(),
         "config": serde_json::to_value(cfg).unwrap_or(json!(null)),
-        "inputs": digested.iter().map(|(v, _)| v.clone()).collect::<Vec<_>>(),
-        "parts": parts_json,
-        "skipped": skipped.iter().map(|(p, why)| json!({"path": p.display().to_string(), "reason": why})).collect::<Vec<_>>(),
-        "experiments": sources.iter().map(|s| json!({"id": s.id, "format": s.format.as_str(), "files": s.files.len(), "companions": s.companions.iter().map(|p| p.display().to_string()).collect::<Vec<_>>()})).collect::<Vec<_>>(),
+        "inputs": p.inputs_json,
+        "parts": p.parts.iter().map(|x| json!({"experiment": x.id, "dir": x.dir.display().to_string(), "reused": x.reused})).collect::<Vec<_>>(),
+        "skipped": p.skipped.iter().map(|(p, why)| json!({"path": p.display().to_string(), "reason": why})).collect::<Vec<_>>(),
+        "experiments": p.sources.iter().map(|s| json!({"id": s.id, "format": s.format.as_str(), "files": s.files.len(), "companions": s.companions.iter().map(|p| p.display().to_string()).collect::<Vec<_>>()})).collect::<Vec<_>>(),
         "outputs": {
             "table": {"path": table_path.display().to_string(), "rows": stats.rows},
             "rejects": {"path": rejects_path.display().to_string(), "rows": stats.rejects},
@@ -746,7 +775,7 @@ pub fn run(
             "rejects_by_stage": stats.by_stage,
             "by_experiment": stats.by_experiment,
         },
-        "timings_s": {"discover": t_discover, "hash_inputs": t_hash, "stream": stats.seconds, "total": t0.elapsed().as_secs_f64()},
+        "timings_s": {"discover": p.t_discover, "hash_inputs": p.t_hash, "stream": stats.seconds, "total": t0.elapsed().as_secs_f64()},
     });
     let text = serde_json::to_string_pretty(&manifest).expect("manifest serialises");
     write_atomic(&manifest_path, text.as_bytes())?;
@@ -756,7 +785,377 @@ pub fn run(
         hits_path,
         rejects_path,
         manifest_path,
-        sources,
-        skipped,
+        sources: p.sources,
+        skipped: p.skipped,
     })
+}
+
+/// Discover, read, transform and write: the whole `aepipe features` / `aepipe waveforms` job.
+///
+/// Each experiment is streamed into its own part folder (`OUT/parts/<id>-<hash>/`: the
+/// tables and, written last, `part.json`), then the whole-batch tables are assembled from
+/// the parts in experiment order. With `resume`, a part whose `part.json` matches the tool,
+/// job, config and input hashes, and whose tables still have their recorded hashes, is
+/// reused as it is; the rest are redone. The assembled tables are the same, byte for byte,
+/// either way.
+///
+/// With `shard` = K/N only the experiments of shard K are done, and instead of whole-batch
+/// tables the shard publishes its parts as a Hive-partitioned dataset
+/// (`OUT/<table>/experiment=<id>/part-K.parquet`) with `OUT/shards/shard-K-of-N.json`;
+/// [`merge`] assembles the batch from all N.
+pub fn run(
+    job: StreamJob,
+    inputs: &[PathBuf],
+    out_dir: &Path,
+    cfg: &PipelineConfig,
+    opts: &StreamOptions,
+) -> Result<RunReport, PipelineError> {
+    if inputs.is_empty() {
+        return Err(PipelineError::NoInput);
+    }
+    let started = utc_now();
+    let t0 = Instant::now();
+    std::fs::create_dir_all(out_dir).map_err(|e| IoAt::new(out_dir, e))?;
+    store::clean_stale_tmp(out_dir);
+    // Outputs of an earlier run are removed first: the files in `out_dir` always belong to
+    // one complete run (an interrupted run leaves none rather than a stale mixture). Parts
+    // stay only for `--resume`, which checks each before reusing it.
+    for f in [
+        job.table_file(),
+        "hits.parquet",
+        "rejects.parquet",
+        "manifest.json",
+    ] {
+        let _ = std::fs::remove_file(out_dir.join(f));
+    }
+    let produced = produce(job, inputs, out_dir, cfg, opts)?;
+    match opts.shard {
+        None => assemble(job, out_dir, cfg, opts, started, t0, produced),
+        Some(sh) => publish_shard(job, inputs, out_dir, cfg, sh, started, produced),
+    }
+}
+
+/// The Hive folder of `table` (`features`, `waveforms`, `hits`, `rejects`) in a sharded
+/// output folder.
+fn hive_file(out_dir: &Path, table: &str, experiment: &str, k: u32) -> PathBuf {
+    out_dir
+        .join(table)
+        .join(format!(
+            "experiment={}",
+            crate::util::hive_value(experiment)
+        ))
+        .join(format!("part-{k}.parquet"))
+}
+
+fn table_stem(f: &str) -> &str {
+    f.trim_end_matches(".parquet")
+}
+
+/// What `OUT/shards/shard-K-of-N.json` records: enough for [`merge`] to check the shards
+/// agree and to assemble the batch without reading any input again.
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
+pub struct ShardManifest {
+    pub tool_version: String,
+    pub job: String,
+    pub config_sha256: String,
+    /// The effective pipeline definition (canonical TOML).
+    pub config: String,
+    pub k: u32,
+    pub n: u32,
+    pub inputs: Vec<PathBuf>,
+    pub started_utc: String,
+    pub finished_utc: String,
+    pub seconds: f64,
+    /// The shard's sources (experiments), in order.
+    pub sources: Vec<Source>,
+    pub experiments: Vec<ShardExperiment>,
+    /// Discovery's own rejects (missing inputs, unknown files): the same in every shard;
+    /// the merge takes shard 0's.
+    pub discover_rejects: Vec<Reject>,
+    pub skipped: Vec<(PathBuf, String)>,
+    /// The manifest's `inputs` entries of the shard's files.
+    pub input_files: Vec<serde_json::Value>,
+}
+
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
+pub struct ShardExperiment {
+    pub id: String,
+    /// `(table, sha256)` of each published file.
+    pub tables: Vec<(String, String)>,
+    stats: PartStats,
+    pub inputs: Vec<(String, String)>,
+}
+
+#[allow(clippy::too_many_arguments)]
+fn publish_shard(
+    job: StreamJob,
+    inputs: &[PathBuf],
+    out_dir: &Path,
+    cfg: &PipelineConfig,
+    sh: crate::util::Shard,
+    started: String,
+    p: Produced,
+) -> Result<RunReport, PipelineError> {
+    let mut experiments = Vec::new();
+    let mut stats = StreamStats::default();
+    for part in &p.parts {
+        let mut tables = Vec::new();
+        for (k, name) in part_tables(job).iter().enumerate() {
+            let dest = hive_file(out_dir, table_stem(name), &part.id, sh.k);
+            let dir = dest.parent().expect("hive file has a folder");
+            std::fs::create_dir_all(dir).map_err(|e| IoAt::new(dir, e))?;
+            let tmp = crate::util::tmp_path_for(&dest);
+            std::fs::copy(&part.tables[k], &tmp).map_err(|e| IoAt::new(&tmp, e))?;
+            std::fs::rename(&tmp, &dest).map_err(|e| IoAt::new(&dest, e))?;
+            let (_, h) = file_digest(&dest).map_err(|e| IoAt::new(&dest, e))?;
+            tables.push((name.to_string(), h));
+        }
+        part.stats.add_to(&mut stats);
+        experiments.push(ShardExperiment {
+            id: part.id.clone(),
+            tables,
+            stats: part.stats.clone(),
+            inputs: part.inputs.clone(),
+        });
+    }
+    let m = ShardManifest {
+        tool_version: env!("CARGO_PKG_VERSION").into(),
+        job: job.name().into(),
+        config_sha256: cfg.hash(),
+        config: cfg.to_toml(),
+        k: sh.k,
+        n: sh.n,
+        inputs: inputs.to_vec(),
+        started_utc: started,
+        finished_utc: utc_now(),
+        seconds: p.t_stream,
+        sources: p.sources.clone(),
+        experiments,
+        discover_rejects: p.discover_rejects.clone(),
+        skipped: p.skipped.clone(),
+        input_files: p.inputs_json.clone(),
+    };
+    let shards = out_dir.join("shards");
+    std::fs::create_dir_all(&shards).map_err(|e| IoAt::new(&shards, e))?;
+    let manifest_path = shards.join(format!("shard-{}-of-{}.json", sh.k, sh.n));
+    let text = serde_json::to_string_pretty(&m).expect("shard manifest serialises");
+    write_atomic(&manifest_path, text.as_bytes())?;
+    stats.seconds = p.t_stream;
+    Ok(RunReport {
+        stats,
+        table_path: out_dir.join(table_stem(job.table_file())),
+        hits_path: out_dir.join("hits"),
+        rejects_path: out_dir.join("rejects"),
+        manifest_path,
+        sources: p.sources,
+        skipped: p.skipped,
+    })
+}
+
+/// Why the shards of a folder cannot be merged.
+#[derive(Debug, thiserror::Error)]
+pub enum MergeError {
+    #[error(
+        "{dir}: no shard manifests (shards/shard-K-of-N.json): not the output of a --shard run"
+    )]
+    NoShards { dir: String },
+    #[error("{path}: {message}")]
+    Manifest { path: String, message: String },
+    #[error("{dir}: the shards disagree: {message}")]
+    Disagree { dir: String, message: String },
+    #[error("{dir}: shard(s) {missing} of {n} missing (no shards/shard-K-of-{n}.json): resubmit those array tasks (--shard K/{n}), then merge again")]
+    Missing {
+        dir: String,
+        missing: String,
+        n: u32,
+    },
+    #[error(transparent)]
+    Pipeline(#[from] PipelineError),
+}
+
+/// Read and check the shard manifests of `dir`: all N present, one tool version, job and
+/// config, each experiment in exactly the shard its id hashes to, every published table
+/// still with its recorded hash.
+pub fn read_shards(dir: &Path) -> Result<Vec<ShardManifest>, MergeError> {
+    let sd = dir.join("shards");
+    let mut found: Vec<(PathBuf, ShardManifest)> = Vec::new();
+    if let Ok(rd) = std::fs::read_dir(&sd) {
+        for e in rd.flatten() {
+            let p = e.path();
+            let n = p
+                .file_name()
+                .unwrap_or_default()
+                .to_string_lossy()
+                .to_string();
+            if !(n.starts_with("shard-") && n.ends_with(".json")) {
+                continue;
+            }
+            let text = std::fs::read_to_string(&p).map_err(|e| MergeError::Manifest {
+                path: p.display().to_string(),
+                message: e.to_string(),
+            })?;
+            let m: ShardManifest =
+                serde_json::from_str(&text).map_err(|e| MergeError::Manifest {
+                    path: p.display().to_string(),
+                    message: e.to_string(),
+                })?;
+            found.push((p, m));
+        }
+    }
+    if found.is_empty() {
+        return Err(MergeError::NoShards {
+            dir: dir.display().to_string(),
+        });
+    }
+    let d = dir.display().to_string();
+    let first = found[0].1.clone();
+    for (p, m) in &found {
+        let what = if m.n != first.n {
+            Some(format!(
+                "{} is of {} shards, another of {}",
+                p.display(),
+                m.n,
+                first.n
+            ))
+        } else if m.config_sha256 != first.config_sha256 {
+            Some(format!(
+                "{} was run with another config (sha256 {} vs {})",
+                p.display(),
+                m.config_sha256,
+                first.config_sha256
+            ))
+        } else if m.tool_version != first.tool_version {
+            Some(format!(
+                "{} was written by aepipe {} (another by {})",
+                p.display(),
+                m.tool_version,
+                first.tool_version
+            ))
+        } else if m.job != first.job {
+            Some(format!(
+                "{} is a {} job (another is {})",
+                p.display(),
+                m.job,
+                first.job
+            ))
+        } else {
+            None
+        };
+        if let Some(message) = what {
+            return Err(MergeError::Disagree { dir: d, message });
+        }
+    }
+    let n = first.n;
+    let mut by_k: BTreeMap<u32, ShardManifest> = BTreeMap::new();
+    for (_, m) in found {
+        by_k.insert(m.k, m);
+    }
+    let missing: Vec<String> = (0..n)
+        .filter(|k| !by_k.contains_key(k))
+        .map(|k| k.to_string())
+        .collect();
+    if !missing.is_empty() {
+        return Err(MergeError::Missing {
+            dir: d,
+            missing: missing.join(", "),
+            n,
+        });
+    }
+    for m in by_k.values() {
+        for e in &m.experiments {
+            if crate::util::Shard::of(&e.id, n) != m.k {
+                return Err(MergeError::Disagree {
+                    dir: d,
+                    message: format!(
+                        "experiment {:?} is in shard {} but hashes to shard {}",
+                        e.id,
+                        m.k,
+                        crate::util::Shard::of(&e.id, n)
+                    ),
+                });
+            }
+            for (name, sha) in &e.tables {
+                let f = hive_file(dir, table_stem(name), &e.id, m.k);
+                match file_digest(&f) {
+                    Ok((_, h)) if &h == sha => {}
+                    _ => {
+                        return Err(MergeError::Disagree {
+                            dir: d,
+                            message: format!(
+                                "{} is missing or changed since shard {} wrote it: resubmit it",
+                                f.display(),
+                                m.k
+                            ),
+                        })
+                    }
+                }
+            }
+        }
+    }
+    Ok(by_k.into_values().collect())
+}
+
+/// `aepipe merge`: the whole-batch tables and manifest of a sharded run, into `out_dir`,
+/// the same bytes an unsharded run writes.
+pub fn merge(
+    dir: &Path,
+    out_dir: &Path,
+    threads: usize,
+) -> Result<(RunReport, ShardManifest), MergeError> {
+    let t0 = Instant::now();
+    let started = utc_now();
+    let shards = read_shards(dir)?;
+    let first = shards[0].clone();
+    let cfg = PipelineConfig::from_toml(&first.config).map_err(|e| MergeError::Manifest {
+        path: dir.join("shards").display().to_string(),
+        message: e.to_string(),
+    })?;
+    let job = if first.job == StreamJob::Waveforms.name() {
+        StreamJob::Waveforms
+    } else {
+        StreamJob::Features
+    };
+    std::fs::create_dir_all(out_dir).map_err(|e| PipelineError::from(IoAt::new(out_dir, e)))?;
+    store::clean_stale_tmp(out_dir);
+    let mut parts = Vec::new();
+    let mut sources = Vec::new();
+    let mut inputs_json = Vec::new();
+    for m in &shards {
+        for e in &m.experiments {
+            parts.push(Part {
+                tables: part_tables(job).map(|n| hive_file(dir, table_stem(n), &e.id, m.k)),
+                id: e.id.clone(),
+                stats: e.stats.clone(),
+                reused: false,
+                inputs: e.inputs.clone(),
+                dir: hive_file(dir, table_stem(job.table_file()), &e.id, m.k)
+                    .parent()
+                    .map(Path::to_path_buf)
+                    .unwrap_or_default(),
+            });
+        }
+        sources.extend(m.sources.iter().cloned());
+        inputs_json.extend(m.input_files.iter().cloned());
+    }
+    // The unsharded order: sources by (id, first file), parts by id.
+    parts.sort_by(|a, b| a.id.cmp(&b.id));
+    sources.sort_by(|a, b| (&a.id, a.all_files().next()).cmp(&(&b.id, b.all_files().next())));
+    let produced = Produced {
+        sources,
+        discover_rejects: first.discover_rejects.clone(),
+        skipped: first.skipped.clone(),
+        inputs_json,
+        parts,
+        t_discover: 0.0,
+        t_hash: 0.0,
+        t_stream: shards.iter().map(|m| m.seconds).sum(),
+    };
+    let opts = StreamOptions {
+        threads,
+        progress: false,
+        resume: false,
+        shard: None,
+    };
+    let r = assemble(job, out_dir, &cfg, &opts, started, t0, produced)?;
+    Ok((r, first))
 }

@@ -229,3 +229,85 @@ mod tests {
         );
     }
 }
+
+/// One of `n` shards of a batch (`--shard K/N`). An experiment belongs to the shard its
+/// id's SHA-256 names: stable across file order, thread count, machine and run.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Shard {
+    pub k: u32,
+    pub n: u32,
+}
+
+impl Shard {
+    /// The shard of `key` among `n`.
+    pub fn of(key: &str, n: u32) -> u32 {
+        let h = Sha256::digest(key.as_bytes());
+        let v = u64::from_be_bytes([h[0], h[1], h[2], h[3], h[4], h[5], h[6], h[7]]);
+        (v % n.max(1) as u64) as u32
+    }
+    pub fn owns(&self, key: &str) -> bool {
+        Shard::of(key, self.n) == self.k
+    }
+}
+
+impl std::fmt::Display for Shard {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{}/{}", self.k, self.n)
+    }
+}
+
+/// Why a `--shard` value was refused.
+#[derive(Debug, thiserror::Error)]
+#[error("--shard {0:?}: expected K/N with 0 ≤ K < N ≤ 100000 (a Slurm array's $SLURM_ARRAY_TASK_ID/$SLURM_ARRAY_TASK_COUNT)")]
+pub struct ShardError(String);
+
+impl std::str::FromStr for Shard {
+    type Err = ShardError;
+    fn from_str(s: &str) -> Result<Shard, ShardError> {
+        let bad = || ShardError(s.to_string());
+        let (k, n) = s.split_once('/').ok_or_else(bad)?;
+        let (k, n): (u32, u32) = (
+            k.trim().parse().map_err(|_| bad())?,
+            n.trim().parse().map_err(|_| bad())?,
+        );
+        if n == 0 || k >= n || n > 100_000 {
+            return Err(bad());
+        }
+        Ok(Shard { k, n })
+    }
+}
+
+/// A value as a Hive partition path segment (`experiment=<this>`): bytes outside
+/// `A–Z a–z 0–9 - _` (and a `.` anywhere but first, which would hide the folder) are
+/// percent-encoded, which pyarrow, Polars and DuckDB decode.
+pub fn hive_value(v: &str) -> String {
+    let mut s = String::new();
+    for (i, b) in v.bytes().enumerate() {
+        if b.is_ascii_alphanumeric() || matches!(b, b'-' | b'_') || (b == b'.' && i > 0) {
+            s.push(b as char);
+        } else {
+            s.push_str(&format!("%{b:02X}"));
+        }
+    }
+    s
+}
+
+/// The inverse of [`hive_value`].
+pub fn hive_decode(s: &str) -> String {
+    let b = s.as_bytes();
+    let mut out = Vec::with_capacity(b.len());
+    let mut i = 0;
+    while i < b.len() {
+        if b[i] == b'%' && i + 3 <= b.len() {
+            let hex = std::str::from_utf8(&b[i + 1..i + 3]).ok();
+            if let Some(v) = hex.and_then(|h| u8::from_str_radix(h, 16).ok()) {
+                out.push(v);
+                i += 3;
+                continue;
+            }
+        }
+        out.push(b[i]);
+        i += 1;
+    }
+    String::from_utf8_lossy(&out).into_owned()
+}

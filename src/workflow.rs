@@ -23,6 +23,8 @@ pub enum WorkflowError {
     #[error(transparent)]
     Pipeline(#[from] PipelineError),
     #[error(transparent)]
+    Merge(#[from] crate::pipeline::MergeError),
+    #[error(transparent)]
     Trend(#[from] TrendError),
     #[error(transparent)]
     Som(#[from] SomError),
@@ -56,6 +58,67 @@ pub struct RunJob<'a> {
     pub progress: bool,
     /// Reuse the finished, unchanged per-experiment parts of an earlier run in `out`.
     pub resume: bool,
+    /// Only this shard's experiments, features only, as a Hive-partitioned dataset in `out`
+    /// (`aepipe merge` runs the whole-batch stages).
+    pub shard: Option<crate::util::Shard>,
+}
+
+/// What a sharded `aepipe run` did: its part of the features, nothing else.
+pub enum RunOutcome {
+    Whole(Box<RunSummary>),
+    Shard(Box<crate::pipeline::RunReport>),
+}
+
+/// Run every enabled stage (or, with a shard, its features).
+pub fn run_or_shard(job: &RunJob) -> Result<RunOutcome, WorkflowError> {
+    match job.shard {
+        None => Ok(RunOutcome::Whole(Box::new(run(job)?))),
+        Some(sh) => Ok(RunOutcome::Shard(Box::new(crate::pipeline::run(
+            crate::pipeline::StreamJob::Features,
+            job.inputs,
+            job.out,
+            job.config,
+            &StreamOptions {
+                threads: job.threads,
+                progress: job.progress,
+                resume: job.resume,
+                shard: Some(sh),
+            },
+        )?))),
+    }
+}
+
+/// `aepipe merge DIR`: check the N shards of a sharded run, assemble the whole-batch tables
+/// into `OUT/features/` and run the whole-batch stages (trend, SOM, classification, report)
+/// exactly as an unsharded `aepipe run` does.
+pub fn merge(
+    dir: &Path,
+    out: &Path,
+    truth: Option<&Path>,
+    threads: usize,
+    progress: bool,
+) -> Result<RunSummary, WorkflowError> {
+    for sub in ["", "trend", "som"] {
+        crate::store::clean_stale_tmp(&out.join(sub));
+    }
+    let t = std::time::Instant::now();
+    let (features, first) = crate::pipeline::merge(dir, &out.join("features"), threads)?;
+    let cfg = PipelineConfig::from_toml(&first.config)?;
+    let job = RunJob {
+        config: &cfg,
+        inputs: &first.inputs,
+        out,
+        truth,
+        threads,
+        progress,
+        resume: false,
+        shard: None,
+    };
+    stages(
+        &job,
+        features,
+        vec![("merge".to_string(), t.elapsed().as_secs_f64())],
+    )
 }
 
 /// Run every enabled stage.
@@ -77,9 +140,20 @@ pub fn run(job: &RunJob) -> Result<RunSummary, WorkflowError> {
             threads: job.threads,
             progress: job.progress,
             resume: job.resume,
+            shard: None,
         },
     )?;
     seconds.push(("features".to_string(), t.elapsed().as_secs_f64()));
+    stages(job, features, seconds)
+}
+
+/// The whole-batch stages after the features: trend, SOM, truth, report, run.json.
+fn stages(
+    job: &RunJob,
+    features: crate::pipeline::RunReport,
+    mut seconds: Vec<(String, f64)>,
+) -> Result<RunSummary, WorkflowError> {
+    let cfg = job.config;
     let feats = vec![features.table_path.clone()];
 
     let (mut trend, mut trend_plots) = (None, Vec::new());
@@ -366,6 +440,7 @@ fn som_stage(job: &RunJob, feats: &[PathBuf]) -> Result<SomStage, WorkflowError>
                 threads: job.threads,
                 progress: false,
                 resume: false,
+                shard: None,
             },
         )?;
         (

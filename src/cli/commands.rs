@@ -134,6 +134,7 @@ pub fn dispatch(cli: Cli) -> Result<Outcome> {
             truth,
             threads,
             resume,
+            shard,
         } => {
             // `--config P IN…`, or the positional form `P IN…`.
             let (pipeline, inputs) = match config {
@@ -146,7 +147,7 @@ pub fn dispatch(cli: Cli) -> Result<Outcome> {
                 .into()),
             };
             let cfg = load_config(Some(&pipeline))?;
-            let s = crate::workflow::run(&crate::workflow::RunJob {
+            let outcome = crate::workflow::run_or_shard(&crate::workflow::RunJob {
                 config: &cfg,
                 inputs: &inputs,
                 out: &out,
@@ -154,11 +155,33 @@ pub fn dispatch(cli: Cli) -> Result<Outcome> {
                 threads,
                 progress: true,
                 resume,
+                shard,
             })?;
+            match outcome {
+                crate::workflow::RunOutcome::Whole(s) => {
+                    for l in crate::workflow::headline(&s) {
+                        println!("{l}");
+                    }
+                    if cfg.report.enabled {
+                        println!("report: {}", out.join("report.html").display());
+                    }
+                }
+                crate::workflow::RunOutcome::Shard(r) => print::shard_run(&r),
+            }
+            Ok(Outcome::Success)
+        }
+        Cmd::Merge {
+            dir,
+            out,
+            truth,
+            threads,
+        } => {
+            let out = out.unwrap_or_else(|| dir.join("merged"));
+            let s = crate::workflow::merge(&dir, &out, truth.as_deref(), threads, true)?;
             for l in crate::workflow::headline(&s) {
                 println!("{l}");
             }
-            if cfg.report.enabled {
+            if s.config.report.enabled {
                 println!("report: {}", out.join("report.html").display());
             }
             Ok(Outcome::Success)
@@ -200,6 +223,7 @@ fn stream_job(job: StreamJob, a: RunArgs) -> Result<Outcome> {
         threads: a.threads,
         progress: !a.quiet,
         resume: a.resume,
+        shard: a.shard,
     };
     let report = crate::pipeline::run(job, &a.inputs, &a.out, &cfg, &opts)?;
     print::stream_run(&report, job.table_file());

@@ -13,7 +13,7 @@
 use crate::analysis::trend::TrendError;
 use crate::bench::BenchError;
 use crate::config::ConfigError;
-use crate::pipeline::PipelineError;
+use crate::pipeline::{MergeError, PipelineError};
 use crate::plot::PlotError;
 use crate::report::ReportError;
 use crate::sim::SimError;
@@ -96,8 +96,20 @@ fn report(e: &ReportError) -> u8 {
     }
 }
 
+fn merge(e: &MergeError) -> u8 {
+    match e {
+        // The folder is not a complete, consistent set of shards: the input is at fault.
+        MergeError::NoShards { .. }
+        | MergeError::Manifest { .. }
+        | MergeError::Disagree { .. }
+        | MergeError::Missing { .. } => USAGE,
+        MergeError::Pipeline(x) => pipeline(x),
+    }
+}
+
 fn workflow(e: &WorkflowError) -> u8 {
     match e {
+        WorkflowError::Merge(x) => merge(x),
         WorkflowError::Config(_) | WorkflowError::Input { .. } | WorkflowError::NoHit(_) => USAGE,
         WorkflowError::Pipeline(x) => pipeline(x),
         WorkflowError::Trend(x) => trend(x),
@@ -132,6 +144,7 @@ pub fn exit_code(e: &anyhow::Error) -> u8 {
         ConfigError => |_| USAGE,
         WorkflowError => workflow,
         PipelineError => pipeline,
+        MergeError => merge,
         StoreError => store,
         TrendError => trend,
         SomError => som,

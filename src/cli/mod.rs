@@ -47,6 +47,11 @@ pub struct RunArgs {
     /// that are finished and unchanged (tool, config, input and table hashes); redo the rest
     #[arg(long)]
     pub resume: bool,
+    /// Do shard K of N (0 ≤ K < N): the experiments whose id hashes to K, written as a
+    /// Hive-partitioned dataset (OUT/<table>/experiment=<id>/part-K.parquet) plus
+    /// OUT/shards/shard-K-of-N.json; `aepipe merge OUT` assembles the batch
+    #[arg(long)]
+    pub shard: Option<crate::util::Shard>,
 }
 
 #[derive(Subcommand)]
@@ -189,6 +194,26 @@ pub enum Cmd {
         /// (after a crash or kill, or with experiments added); redo the rest
         #[arg(long)]
         resume: bool,
+        /// Do shard K of N (a Slurm array task: $SLURM_ARRAY_TASK_ID/$SLURM_ARRAY_TASK_COUNT):
+        /// the features of the experiments whose id hashes to K, as a Hive-partitioned
+        /// dataset in --out; `aepipe merge` then runs trend, SOM and report on all N
+        #[arg(long)]
+        shard: Option<crate::util::Shard>,
+    },
+    /// Check the N shards of a sharded run folder (all present, one config and version) and
+    /// run the whole-batch stages on their union: OUT/features/, trend, SOM, report — the
+    /// outputs an unsharded `aepipe run` writes
+    Merge {
+        /// The --out folder of the `aepipe run --shard K/N` tasks
+        dir: PathBuf,
+        /// Where to write the merged run (default: DIR/merged)
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// Ground truth (truth.parquet of `aepipe synth-experiment`) to score the classes
+        #[arg(long)]
+        truth: Option<PathBuf>,
+        #[arg(long, default_value_t = 0)]
+        threads: usize,
     },
     /// Write RUN_DIR/report.html again from a finished `aepipe run` folder
     Report { run_dir: PathBuf },

@@ -49,6 +49,20 @@ pub fn stream_run(report: &RunReport, what: &str) {
     );
 }
 
+/// A shard of `aepipe run --shard K/N`: its features, and what to do next.
+pub fn shard_run(report: &RunReport) {
+    stream_run(report, "features (this shard)");
+    println!(
+        "  when every shard is done: aepipe merge {}",
+        report
+            .manifest_path
+            .parent()
+            .and_then(Path::parent)
+            .unwrap_or(Path::new("."))
+            .display()
+    );
+}
+
 pub fn demo(d: &crate::demo::DemoResult, out: &Path) {
     println!(
         "aepipe demo: synthetic notched-paper experiment built from simulated reference signals"

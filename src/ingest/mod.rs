@@ -35,7 +35,7 @@ pub(crate) fn file_err(path: &Path, message: impl std::fmt::Display) -> IngestEr
 }
 
 /// The recording formats aepipe reads.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub enum Format {
     /// Vallen AMSY `.pridb` (hits, parametric) + `.tradb` (waveforms, raw or FLAC).
     Vallen,
@@ -74,7 +74,7 @@ impl Format {
 }
 
 /// One unit of reading: an experiment (or a waveforms table), with the files it needs.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Source {
     /// Experiment id (for Parquet: the file stem; the rows carry their own experiment ids).
     pub id: String,

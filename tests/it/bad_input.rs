@@ -112,6 +112,7 @@ fn each_bad_input_becomes_a_clear_reject_and_good_hits_are_all_written() {
             threads: 2,
             progress: false,
             resume: false,
+            shard: None,
         },
     )
     .unwrap();
@@ -354,6 +355,7 @@ fn an_experiment_id_never_writes_outside_the_output_folder() {
             threads: 2,
             progress: false,
             resume: false,
+            shard: None,
         },
     )
     .unwrap();

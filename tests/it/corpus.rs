@@ -704,6 +704,7 @@ fn recordings(batch: &Path) -> Vec<Case> {
                     threads: 1,
                     progress: false,
                     resume: false,
+                    shard: None,
                 },
             )
             .unwrap();

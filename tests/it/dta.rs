@@ -113,6 +113,7 @@ fn the_real_dta_gives_the_hits_and_samples_mistrasdta_gives() {
             threads: 2,
             progress: false,
             resume: false,
+            shard: None,
         },
     )
     .unwrap();
@@ -328,6 +329,7 @@ fn written_dta_files_four_channels_a_chain_and_bad_endings() {
             threads: 2,
             progress: false,
             resume: false,
+            shard: None,
         },
     )
     .unwrap();

@@ -14,6 +14,7 @@ fn opts() -> StreamOptions {
         threads: 2,
         progress: false,
         resume: false,
+        shard: None,
     }
 }
 

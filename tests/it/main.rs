@@ -15,6 +15,7 @@ mod hits;
 mod pipeline;
 mod real_data;
 mod resume;
+mod shard;
 mod sim;
 mod som;
 mod trend;
@@ -98,6 +99,7 @@ pub fn synthetic_features(
             threads,
             progress: false,
             resume: false,
+            shard: None,
         },
     )
     .unwrap()

@@ -13,6 +13,7 @@ fn opts(threads: usize) -> StreamOptions {
         threads,
         progress: false,
         resume: false,
+        shard: None,
     }
 }
 

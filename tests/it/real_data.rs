@@ -262,6 +262,7 @@ fn hit_features_agree_with_vallenae() {
             threads: 2,
             progress: false,
             resume: false,
+            shard: None,
         },
     )
     .unwrap();

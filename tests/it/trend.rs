@@ -101,6 +101,7 @@ fn designed_trend_is_found_with_the_right_signs_end_to_end() {
             threads: 2,
             progress: false,
             resume: false,
+            shard: None,
         },
     )
     .unwrap();
