@@ -175,8 +175,14 @@ pub fn dispatch(cli: Cli) -> Result<Outcome> {
             out,
             truth,
             threads,
+            tables_only,
         } => {
             let out = out.unwrap_or_else(|| dir.join("merged"));
+            if tables_only {
+                let (r, _) = crate::pipeline::merge(&dir, &out, threads)?;
+                print::stream_run(&r, "merged");
+                return Ok(Outcome::Success);
+            }
             let s = crate::workflow::merge(&dir, &out, truth.as_deref(), threads, true)?;
             for l in crate::workflow::headline(&s) {
                 println!("{l}");

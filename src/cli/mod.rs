@@ -214,6 +214,10 @@ pub enum Cmd {
         truth: Option<PathBuf>,
         #[arg(long, default_value_t = 0)]
         threads: usize,
+        /// Only the whole-batch tables and manifest, in OUT itself (the shards of
+        /// `aepipe features|waveforms --shard`): no trend, SOM or report
+        #[arg(long)]
+        tables_only: bool,
     },
     /// Write RUN_DIR/report.html again from a finished `aepipe run` folder
     Report { run_dir: PathBuf },

@@ -141,6 +141,27 @@ fn one_three_and_four_shards_merge_to_the_unsharded_run() {
         assert!(merged.join("report.html").exists());
     }
 
+    // `aepipe features --shard` + `merge --tables-only` = `aepipe features`.
+    let plain = t.path().join("plain");
+    ok(&["features", &s(&data), "--out", &s(&plain), "--quiet"]);
+    let fs = t.path().join("fs");
+    for k in 0..3 {
+        ok(&[
+            "features",
+            &s(&data),
+            "--out",
+            &s(&fs),
+            "--quiet",
+            "--shard",
+            &format!("{k}/3"),
+        ]);
+    }
+    let merged = t.path().join("fs-merged");
+    ok(&["merge", &s(&fs), "--tables-only", "--out", &s(&merged)]);
+    for f in ["features.parquet", "hits.parquet", "rejects.parquet"] {
+        same(&plain.join(f), &merged.join(f));
+    }
+
     // A missing shard: the merge refuses and names it.
     let dir = t.path().join("s4");
     std::fs::remove_file(dir.join("shards/shard-2-of-4.json")).unwrap();
