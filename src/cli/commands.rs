@@ -116,14 +116,22 @@ pub fn dispatch(cli: Cli) -> Result<Outcome> {
             config,
             out,
             threads,
+            shard,
         } => {
-            use crate::sim::reference::{build_library, ReferenceFile};
+            use crate::sim::reference::{build_library_part, ReferenceFile};
             let f = ReferenceFile::read(&config)?;
-            let (runs, n, secs) =
-                crate::util::with_threads(threads, || build_library(&f.reference, &out, true))?;
+            let (runs, n, secs) = crate::util::with_threads(threads, || {
+                build_library_part(&f.reference, &out, shard, true)
+            })?;
+            let file = match shard {
+                None => out.join("waveforms.parquet"),
+                Some(s) => out
+                    .join("waveforms/experiment=reference")
+                    .join(format!("part-{}.parquet", s.k)),
+            };
             println!(
                 "{runs} simulations, {n} labelled signals → {} in {secs:.1} s",
-                out.join("waveforms.parquet").display()
+                file.display()
             );
             Ok(Outcome::Success)
         }
@@ -178,6 +186,18 @@ pub fn dispatch(cli: Cli) -> Result<Outcome> {
             tables_only,
         } => {
             let out = out.unwrap_or_else(|| dir.join("merged"));
+            let is_library = std::fs::read_dir(dir.join("shards")).is_ok_and(|rd| {
+                rd.flatten()
+                    .any(|e| e.file_name().to_string_lossy().starts_with("reference-"))
+            });
+            if is_library {
+                let n = crate::sim::reference::merge_library(&dir, &out)?;
+                println!(
+                    "{n} labelled signals → {}",
+                    out.join("waveforms.parquet").display()
+                );
+                return Ok(Outcome::Success);
+            }
             if tables_only {
                 let (r, _) = crate::pipeline::merge(&dir, &out, threads)?;
                 print::stream_run(&r, "merged");

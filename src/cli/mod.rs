@@ -156,6 +156,10 @@ pub enum Cmd {
         out: PathBuf,
         #[arg(long, default_value_t = 0)]
         threads: usize,
+        /// Simulate shard K of N of the scenario grid (by a hash of the grid index) into
+        /// OUT/waveforms/experiment=reference/part-K.parquet; `aepipe merge OUT` joins them
+        #[arg(long)]
+        shard: Option<crate::util::Shard>,
     },
     /// A synthetic notched-paper test built from reference-library signals: DIR/<id>.pridb,
     /// .tradb (Vallen) and DIR/truth.parquet

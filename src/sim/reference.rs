@@ -147,9 +147,47 @@ pub fn build_library(
     out: &Path,
     progress: bool,
 ) -> Result<(usize, u64, f64), SimError> {
+    build_library_part(cfg, out, None, progress)
+}
+
+/// What `DIR/shards/reference-K-of-N.json` records of one shard of a library.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct LibraryShard {
+    pub tool_version: String,
+    /// SHA-256 of the library definition (canonical TOML).
+    pub definition_sha256: String,
+    pub k: u32,
+    pub n: u32,
+    /// The grid indices (0-based; a signal's `hit` is its index + 1) this shard simulated.
+    pub runs: Vec<usize>,
+    pub signals: u64,
+}
+
+fn definition_hash(cfg: &ReferenceConfig) -> String {
+    let text = toml::to_string(&ReferenceFile {
+        reference: cfg.clone(),
+    })
+    .unwrap_or_default();
+    crate::util::sha256_hex(text.as_bytes())
+}
+
+/// The library, or with `shard` = K/N only the grid points whose index hashes to K (the
+/// material draws are made for the whole grid first, so every point is the same in any
+/// layout), written to `OUT/waveforms/experiment=reference/part-K.parquet` with
+/// `OUT/shards/reference-K-of-N.json`; [`merge_library`] joins the N.
+pub fn build_library_part(
+    cfg: &ReferenceConfig,
+    out: &Path,
+    shard: Option<crate::util::Shard>,
+    progress: bool,
+) -> Result<(usize, u64, f64), SimError> {
     let t0 = std::time::Instant::now();
     std::fs::create_dir_all(out).map_err(|e| SimError::Io(format!("{}: {e}", out.display())))?;
-    let runs = expand(cfg);
+    let all = expand(cfg);
+    let keep: Vec<usize> = (0..all.len())
+        .filter(|k| shard.is_none_or(|s| s.owns(&k.to_string())))
+        .collect();
+    let runs: Vec<(usize, (String, Params))> = keep.iter().map(|&k| (k, all[k].clone())).collect();
     let pb = if progress {
         let pb = indicatif::ProgressBar::new(runs.len() as u64);
         pb.set_style(
@@ -164,7 +202,7 @@ pub fn build_library(
     };
     let results: Vec<_> = runs
         .par_iter()
-        .map(|(name, p)| {
+        .map(|(_, (name, p))| {
             let mut m = scenario::build(name, p)?;
             if !cfg.sensors.is_empty() && m.grid.is_some() {
                 m.sensors = cfg
@@ -184,15 +222,134 @@ pub fn build_library(
     let rows: Vec<output::Run> = results
         .iter()
         .enumerate()
-        .map(|(k, (m, o, src, json))| output::Run {
+        .map(|(j, (m, o, src, json))| output::Run {
             model: m,
             out: o,
             source: src.clone(),
             params: json.clone(),
-            hit: k as u64 + 1,
+            hit: runs[j].0 as u64 + 1,
             scale_v_per_pa: cfg.scale_v_per_pa,
         })
         .collect();
-    let n = output::write_waveforms(&out.join("waveforms.parquet"), &rows)?;
+    let Some(sh) = shard else {
+        let n = output::write_waveforms(&out.join("waveforms.parquet"), &rows)?;
+        return Ok((runs.len(), n, t0.elapsed().as_secs_f64()));
+    };
+    let io = |p: &Path, e: std::io::Error| SimError::Io(format!("{}: {e}", p.display()));
+    let dir = out.join("waveforms").join("experiment=reference");
+    std::fs::create_dir_all(&dir).map_err(|e| io(&dir, e))?;
+    let n = output::write_waveforms(&dir.join(format!("part-{}.parquet", sh.k)), &rows)?;
+    let m = LibraryShard {
+        tool_version: env!("CARGO_PKG_VERSION").into(),
+        definition_sha256: definition_hash(cfg),
+        k: sh.k,
+        n: sh.n,
+        runs: keep,
+        signals: n,
+    };
+    let sd = out.join("shards");
+    std::fs::create_dir_all(&sd).map_err(|e| io(&sd, e))?;
+    let mp = sd.join(format!("reference-{}-of-{}.json", sh.k, sh.n));
+    crate::util::write_atomic(
+        &mp,
+        serde_json::to_string_pretty(&m)
+            .expect("shard record serialises")
+            .as_bytes(),
+    )
+    .map_err(|e| SimError::Io(e.to_string()))?;
     Ok((runs.len(), n, t0.elapsed().as_secs_f64()))
+}
+
+/// Join the N shards of a library in `dir` into `out` (`waveforms.parquet`), the signals in
+/// grid order as `aepipe reference` writes them. Refuses (naming them) shards that are
+/// missing or were made from another definition or tool version.
+pub fn merge_library(dir: &Path, out: &Path) -> Result<u64, SimError> {
+    let bad = |m: String| SimError::Model(format!("{}: {m}", dir.display()));
+    let mut shards: BTreeMap<u32, LibraryShard> = BTreeMap::new();
+    for e in std::fs::read_dir(dir.join("shards"))
+        .map_err(|e| bad(format!("no shards/ folder ({e})")))?
+        .flatten()
+    {
+        let name = e.file_name().to_string_lossy().to_string();
+        if name.starts_with("reference-") && name.ends_with(".json") {
+            let text = std::fs::read_to_string(e.path()).map_err(|x| bad(x.to_string()))?;
+            let m: LibraryShard =
+                serde_json::from_str(&text).map_err(|x| bad(format!("{name}: {x}")))?;
+            shards.insert(m.k, m);
+        }
+    }
+    let first =
+        shards.values().next().cloned().ok_or_else(|| {
+            bad("no reference shard manifests (shards/reference-K-of-N.json)".into())
+        })?;
+    if let Some(m) = shards.values().find(|m| {
+        (m.n, &m.definition_sha256, &m.tool_version)
+            != (first.n, &first.definition_sha256, &first.tool_version)
+    }) {
+        return Err(bad(format!(
+            "shard {} disagrees with shard {} (N, definition or tool version)",
+            m.k, first.k
+        )));
+    }
+    let missing: Vec<String> = (0..first.n)
+        .filter(|k| !shards.contains_key(k))
+        .map(|k| k.to_string())
+        .collect();
+    if !missing.is_empty() {
+        return Err(bad(format!(
+            "library shard(s) {} of {} missing: resubmit them",
+            missing.join(", "),
+            first.n
+        )));
+    }
+    // Rows of every part, then in grid order (hit, channel).
+    let mut rows: Vec<(i64, i64, arrow::record_batch::RecordBatch, usize)> = Vec::new();
+    let mut schema = None;
+    for k in shards.keys() {
+        let p = dir
+            .join("waveforms/experiment=reference")
+            .join(format!("part-{k}.parquet"));
+        let (sch, _, batches) =
+            crate::store::read_parquet(&p).map_err(|e| SimError::Read(e.to_string()))?;
+        schema.get_or_insert(sch);
+        for b in batches {
+            let col = |name: &str| -> Result<arrow::array::Int64Array, SimError> {
+                let c = b
+                    .column_by_name(name)
+                    .ok_or_else(|| bad(format!("{}: no {name} column", p.display())))?;
+                let c = arrow::compute::cast(c, &arrow::datatypes::DataType::Int64)
+                    .map_err(|e| bad(e.to_string()))?;
+                Ok(c.as_any()
+                    .downcast_ref::<arrow::array::Int64Array>()
+                    .cloned()
+                    .expect("cast to Int64"))
+            };
+            let (hit, ch) = (col("hit")?, col("channel")?);
+            for i in 0..b.num_rows() {
+                rows.push((hit.value(i), ch.value(i), b.clone(), i));
+            }
+        }
+    }
+    rows.sort_by_key(|r| (r.0, r.1));
+    let schema = schema.ok_or_else(|| bad("the shards hold no signals".into()))?;
+    let single: Vec<arrow::record_batch::RecordBatch> =
+        rows.iter().map(|(_, _, b, i)| b.slice(*i, 1)).collect();
+    let all = arrow::compute::concat_batches(&schema, &single).map_err(|e| bad(e.to_string()))?;
+    std::fs::create_dir_all(out).map_err(|e| SimError::Io(format!("{}: {e}", out.display())))?;
+    let meta = [(
+        "aepipe.config_sha256".to_string(),
+        first.definition_sha256.clone(),
+    )];
+    let mut w = crate::store::TableWriter::create(
+        &out.join("waveforms.parquet"),
+        output::sim_waveforms_table(),
+        &meta,
+        256,
+    )
+    .map_err(|e| SimError::Io(e.to_string()))?;
+    let n = w
+        .push_batch(&all)
+        .map_err(|e| SimError::Io(e.to_string()))?;
+    w.finish().map_err(|e| SimError::Io(e.to_string()))?;
+    Ok(n)
 }

@@ -433,25 +433,32 @@ impl TableWriter {
                 path: path.display().to_string(),
                 source,
             })?;
-            // The part's batch carries the schema as read back; write it as ours.
-            let b = RecordBatch::try_new(want.clone(), b.columns().to_vec()).map_err(|e| {
+            n += self.push_batch(&b)?;
+        }
+        Ok(n)
+    }
+
+    /// Append a batch whose columns are the table's (by position and type).
+    pub fn push_batch(&mut self, b: &RecordBatch) -> Result<u64, StoreError> {
+        self.flush_pending()?;
+        // The batch may carry the schema as read back; write it as ours.
+        let b =
+            RecordBatch::try_new(self.table.arrow_schema(), b.columns().to_vec()).map_err(|e| {
                 StoreError::Schema {
-                    path: path.display().to_string(),
+                    path: self.final_path.display().to_string(),
                     message: e.to_string(),
                 }
             })?;
-            n += b.num_rows() as u64;
-            self.writer
-                .as_mut()
-                .expect("writer open until finish")
-                .write(&b)
-                .map_err(|source| StoreError::Parquet {
-                    path: self.tmp_path.display().to_string(),
-                    source,
-                })?;
-        }
-        self.rows += n;
-        Ok(n)
+        self.writer
+            .as_mut()
+            .expect("writer open until finish")
+            .write(&b)
+            .map_err(|source| StoreError::Parquet {
+                path: self.tmp_path.display().to_string(),
+                source,
+            })?;
+        self.rows += b.num_rows() as u64;
+        Ok(b.num_rows() as u64)
     }
 
     /// Write the footer, sync, and rename to the final name. Returns the row count.

@@ -224,3 +224,53 @@ fn one_three_and_four_shards_merge_to_the_unsharded_run() {
         Err(e) => crate::skip("sharded dataset readers", &format!("python3: {e}")),
     }
 }
+
+/// `aepipe reference --shard K/N` simulates a hash-chosen part of the scenario grid; the
+/// merged library holds the same signals, in the same order, as one unsharded run.
+#[test]
+fn a_reference_library_in_three_shards_merges_to_the_same_signals() {
+    let t = TempDir::new("shard-ref");
+    let cfg = t.path().join("lib.toml");
+    std::fs::write(
+        &cfg,
+        "[reference]\nvariants = 2\nsensors = [[125, 100], [100, 125]]\n\
+         [[reference.scenario]]\nname = \"mesh3x3-bond-failure\"\nparams = { t2 = [-1], iterations = [2000] }\n\
+         [[reference.scenario]]\nname = \"structure2x1-fibre-failure\"\nparams = { point = [2, 5, 7, 12], iterations = [2000] }\n",
+    )
+    .unwrap();
+    let whole = t.path().join("whole");
+    ok(&["reference", "--config", &s(&cfg), "--out", &s(&whole)]);
+    let dir = t.path().join("sh");
+    for k in 0..3 {
+        ok(&[
+            "reference",
+            "--config",
+            &s(&cfg),
+            "--out",
+            &s(&dir),
+            "--shard",
+            &format!("{k}/3"),
+        ]);
+    }
+    // Every shard simulated something (10 grid points over 3 shards).
+    for k in 0..3 {
+        let p = dir.join(format!("waveforms/experiment=reference/part-{k}.parquet"));
+        let (_, rows) = crate::table_rows(&p);
+        assert!(!rows.is_empty(), "shard {k} is empty");
+    }
+    ok(&["merge", &s(&dir)]);
+    let (na, a) = crate::table_rows(&whole.join("waveforms.parquet"));
+    let (nb, b) = crate::table_rows(&dir.join("merged/waveforms.parquet"));
+    assert_eq!(na, nb);
+    // (1 bond + 4 fibre grid points) × 2 material draws × 2 sensors.
+    assert_eq!(a.len(), 20);
+    assert!(
+        a == b,
+        "the merged library's rows differ from the unsharded library's"
+    );
+    // A missing shard is refused.
+    std::fs::remove_file(dir.join("shards/reference-1-of-3.json")).unwrap();
+    let (c, _, se) = aepipe(&["merge", &s(&dir), "--out", &s(&t.path().join("m"))]);
+    assert_eq!(c, 1, "{se}");
+    assert!(se.contains("1 of 3 missing"), "{se}");
+}
