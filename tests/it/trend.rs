@@ -171,15 +171,23 @@ fn missing_load_falls_back_to_all_hits_and_says_so() {
     let sel = &rep.selections[0];
     assert_eq!(sel.hits_used, 60);
     assert!(sel.note.as_ref().unwrap().contains("no load channel"));
-    // Power above the 5 MHz Nyquist of nothing: a band that is always 0 is a constant series.
-    let hi = rep
-        .rows
-        .iter()
-        .find(|r| r.column == "pr_2400_2500khz")
-        .unwrap();
-    if hi.fit.is_none() {
-        assert!(hi.note.as_ref().unwrap().contains("constant"), "{hi:?}");
-    }
+    // A constant series (every hit's sample rate is 10 MHz) gets no fit, and says why.
+    let c = run_trend(
+        &[t.path().join("f/features.parquet")],
+        &t.path().join("t-const"),
+        &TrendOptions {
+            columns: vec!["sample_rate_hz".into()],
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    assert_eq!(c.rows.len(), 1);
+    assert!(c.rows[0].fit.is_none(), "{:?}", c.rows[0]);
+    assert!(
+        c.rows[0].note.as_ref().unwrap().contains("constant"),
+        "{:?}",
+        c.rows[0]
+    );
     // Asking for an absent column is one clear error.
     let err = run_trend(
         &[t.path().join("f/features.parquet")],
