@@ -302,39 +302,33 @@ pub fn merge_library(dir: &Path, out: &Path) -> Result<u64, SimError> {
             first.n
         )));
     }
-    // Rows of every part, then in grid order (hit, channel).
-    let mut rows: Vec<(i64, i64, arrow::record_batch::RecordBatch, usize)> = Vec::new();
+    // Every part's rows, then in grid order (hit, channel).
+    let mut batches = Vec::new();
     let mut schema = None;
     for k in shards.keys() {
         let p = dir
             .join("waveforms/experiment=reference")
             .join(format!("part-{k}.parquet"));
-        let (sch, _, batches) =
+        let (sch, _, b) =
             crate::store::read_parquet(&p).map_err(|e| SimError::Read(e.to_string()))?;
         schema.get_or_insert(sch);
-        for b in batches {
-            let col = |name: &str| -> Result<arrow::array::Int64Array, SimError> {
-                let c = b
-                    .column_by_name(name)
-                    .ok_or_else(|| bad(format!("{}: no {name} column", p.display())))?;
-                let c = arrow::compute::cast(c, &arrow::datatypes::DataType::Int64)
-                    .map_err(|e| bad(e.to_string()))?;
-                Ok(c.as_any()
-                    .downcast_ref::<arrow::array::Int64Array>()
-                    .cloned()
-                    .expect("cast to Int64"))
-            };
-            let (hit, ch) = (col("hit")?, col("channel")?);
-            for i in 0..b.num_rows() {
-                rows.push((hit.value(i), ch.value(i), b.clone(), i));
-            }
-        }
+        batches.extend(b);
     }
-    rows.sort_by_key(|r| (r.0, r.1));
     let schema = schema.ok_or_else(|| bad("the shards hold no signals".into()))?;
-    let single: Vec<arrow::record_batch::RecordBatch> =
-        rows.iter().map(|(_, _, b, i)| b.slice(*i, 1)).collect();
-    let all = arrow::compute::concat_batches(&schema, &single).map_err(|e| bad(e.to_string()))?;
+    let joined =
+        arrow::compute::concat_batches(&schema, &batches).map_err(|e| bad(e.to_string()))?;
+    let key = |name: &str| -> Result<arrow::compute::SortColumn, SimError> {
+        Ok(arrow::compute::SortColumn {
+            values: joined
+                .column_by_name(name)
+                .ok_or_else(|| bad(format!("the library shards have no {name} column")))?
+                .clone(),
+            options: None,
+        })
+    };
+    let order = arrow::compute::lexsort_to_indices(&[key("hit")?, key("channel")?], None)
+        .map_err(|e| bad(e.to_string()))?;
+    let all = arrow::compute::take_record_batch(&joined, &order).map_err(|e| bad(e.to_string()))?;
     std::fs::create_dir_all(out).map_err(|e| SimError::Io(format!("{}: {e}", out.display())))?;
     let meta = [(
         "aepipe.config_sha256".to_string(),
