@@ -1,17 +1,11 @@
 //! Bad inputs become reject rows (or one clear error line); the good hits beside them are all
 //! written. Every fixture is made here with aepipe's own writers.
 
-use crate::{table_rows, TempDir};
+use crate::{table_rows, vallen_fixture, TempDir};
 use aepipe::config::PipelineConfig;
 use aepipe::pipeline::{run, StreamJob, StreamOptions};
 use aepipe::synth::Experiment;
 use std::path::Path;
-
-fn vallen(dir: &Path, id: &str, hits: usize, seed: u64) {
-    let mut e = Experiment::new(id, hits, seed);
-    e.n_samples = 512;
-    e.write_vallen(dir).unwrap();
-}
 
 struct Rejects {
     rows: Vec<(String, String, String, String, String)>,
@@ -50,9 +44,9 @@ fn each_bad_input_becomes_a_clear_reject_and_good_hits_are_all_written() {
     let d = t.path().join("batch");
     std::fs::create_dir_all(&d).unwrap();
     // Good experiment.
-    vallen(&d, "good", 30, 1);
+    vallen_fixture(&d, "good", 30, 1);
     // Truncated .tradb.
-    vallen(&d, "trunc", 20, 2);
+    vallen_fixture(&d, "trunc", 20, 2);
     let tra = d.join("trunc.tradb");
     let len = std::fs::metadata(&tra).unwrap().len();
     std::fs::OpenOptions::new()
@@ -62,7 +56,7 @@ fn each_bad_input_becomes_a_clear_reject_and_good_hits_are_all_written() {
         .set_len(len * 2 / 5)
         .unwrap();
     // A corrupt FLAC blob in one record of an otherwise good pair.
-    vallen(&d, "flacbad", 10, 3);
+    vallen_fixture(&d, "flacbad", 10, 3);
     {
         let c = rusqlite::Connection::open(d.join("flacbad.tradb")).unwrap();
         let n = c
@@ -74,7 +68,7 @@ fn each_bad_input_becomes_a_clear_reject_and_good_hits_are_all_written() {
         assert_eq!(n, 1);
     }
     // A .pridb without its .tradb.
-    vallen(&d, "orphan", 8, 4);
+    vallen_fixture(&d, "orphan", 8, 4);
     std::fs::remove_file(d.join("orphan.tradb")).unwrap();
     // NaN/inf samples, an empty record, a zero-length WAV, an unreadable (dangling) file.
     let csvdir = d.join("csv_exp");
@@ -230,7 +224,7 @@ fn truncated_waveexplorer_file_reports_every_missing_event() {
 
 /// Run the binary with a time limit: a hang (a symlink loop, a header promising 10¹²
 /// values) fails the test instead of stalling it.
-fn aepipe_within(args: &[&str], secs: u64) -> (i32, String, String) {
+pub(crate) fn aepipe_within(args: &[&str], secs: u64) -> (i32, String, String) {
     let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_aepipe"))
         .args(args)
         .stdout(std::process::Stdio::piped())
@@ -262,7 +256,7 @@ fn hostile_sizes_and_symlink_loops_are_rejects_and_the_batch_goes_on() {
     let t = TempDir::new("hostile");
     let d = t.path().join("in");
     std::fs::create_dir_all(&d).unwrap();
-    vallen(&d, "good", 10, 1);
+    vallen_fixture(&d, "good", 10, 1);
     // Two links back to the folder itself: read once, not recursively forever.
     std::os::unix::fs::symlink(&d, d.join("loop1")).unwrap();
     std::os::unix::fs::symlink(&d, d.join("loop2")).unwrap();
@@ -273,7 +267,7 @@ fn hostile_sizes_and_symlink_loops_are_rejects_and_the_batch_goes_on() {
     )
     .unwrap();
     // A Vallen record whose Samples claims 10¹² (FLAC): checked before anything is reserved.
-    vallen(&d, "bigsamples", 3, 2);
+    vallen_fixture(&d, "bigsamples", 3, 2);
     rusqlite::Connection::open(d.join("bigsamples.tradb"))
         .unwrap()
         .execute(
@@ -284,19 +278,7 @@ fn hostile_sizes_and_symlink_loops_are_rejects_and_the_batch_goes_on() {
     // A 44-byte WAV whose data chunk claims 4 GiB.
     let w = d.join("wav");
     std::fs::create_dir_all(&w).unwrap();
-    let mut wav = Vec::new();
-    wav.extend(b"RIFF");
-    wav.extend(36u32.to_le_bytes());
-    wav.extend(b"WAVEfmt ");
-    wav.extend(16u32.to_le_bytes());
-    wav.extend(1u16.to_le_bytes()); // PCM
-    wav.extend(1u16.to_le_bytes()); // 1 channel
-    wav.extend(10_000_000u32.to_le_bytes());
-    wav.extend(20_000_000u32.to_le_bytes());
-    wav.extend(2u16.to_le_bytes());
-    wav.extend(16u16.to_le_bytes());
-    wav.extend(b"data");
-    wav.extend(0xFFFF_FFF0u32.to_le_bytes());
+    let wav = crate::corpus::wav_header(10_000_000, 16, 0xFFFF_FFF0);
     std::fs::write(w.join("bad.wav"), &wav).unwrap();
 
     let out = t.path().join("out");

@@ -1,19 +1,6 @@
 //! The binary: exit codes, one-line errors, and the commands' printed summaries.
 
-use crate::TempDir;
-use std::process::Command;
-
-fn aepipe(args: &[&str]) -> (i32, String, String) {
-    let o = Command::new(env!("CARGO_BIN_EXE_aepipe"))
-        .args(args)
-        .output()
-        .unwrap();
-    (
-        o.status.code().unwrap_or(-1),
-        String::from_utf8_lossy(&o.stdout).into_owned(),
-        String::from_utf8_lossy(&o.stderr).into_owned(),
-    )
-}
+use crate::{aepipe, TempDir};
 
 fn small_experiment(t: &TempDir) -> String {
     let mut e = aepipe::synth::Experiment::new("exp", 12, 7);

@@ -8,7 +8,9 @@
 //! `AEPIPE_CORPUS_OUT=DIR cargo test --test it corpus` also writes each case as a seed for
 //! the fuzz target that reads its kind (`fuzz/run.sh` does this).
 
-use crate::{table_rows, TempDir};
+use crate::bad_input::aepipe_within;
+use crate::dta::msg as dta_msg;
+use crate::{table_rows, vallen_fixture, TempDir};
 use aepipe::synth::Experiment;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -33,14 +35,6 @@ struct Case {
     /// The file whose name the reject rows carry.
     file: PathBuf,
     expect: Expect,
-}
-
-/// A Vallen pair `<dir>/<id>.pridb/.tradb` of `hits` hits.
-fn vallen(dir: &Path, id: &str, hits: usize, seed: u64) -> PathBuf {
-    let mut e = Experiment::new(id, hits, seed);
-    e.n_samples = 512;
-    e.write_vallen(dir).unwrap();
-    dir.join(format!("{id}.tradb"))
 }
 
 fn sql(db: &Path, stmt: &str) {
@@ -170,7 +164,7 @@ fn the_flac_fixture_writer_and_the_blob_decoder_agree() {
     assert!(aepipe::ingest::vallen::decode_blob(2, &b, 700).is_err());
 }
 
-fn wav_header(rate: u32, bits: u16, data_bytes: u32) -> Vec<u8> {
+pub(crate) fn wav_header(rate: u32, bits: u16, data_bytes: u32) -> Vec<u8> {
     let mut w = Vec::new();
     w.extend(b"RIFF");
     w.extend(data_bytes.wrapping_add(36).to_le_bytes());
@@ -200,14 +194,6 @@ fn values(n: usize) -> String {
     tone(n).iter().map(|v| format!("{v}\n")).collect()
 }
 
-/// A MISTRAS message: little-endian length, id, body.
-fn dta_msg(mid: u8, body: &[u8]) -> Vec<u8> {
-    let mut v = ((body.len() + 1) as u16).to_le_bytes().to_vec();
-    v.push(mid);
-    v.extend_from_slice(body);
-    v
-}
-
 /// Every broken recording, each in its own folder (its own experiment) under `batch`.
 fn recordings(batch: &Path) -> Vec<Case> {
     let mut cases = Vec::new();
@@ -230,7 +216,7 @@ fn recordings(batch: &Path) -> Vec<Case> {
     add(
         "vallen_truncated_tradb",
         &|d, id| {
-            let f = vallen(d, id, 20, 2);
+            let f = vallen_fixture(d, id, 20, 2);
             truncate(&f, 0.4);
             (id.into(), f)
         },
@@ -239,7 +225,7 @@ fn recordings(batch: &Path) -> Vec<Case> {
     add(
         "vallen_truncated_pridb",
         &|d, id| {
-            vallen(d, id, 10, 3);
+            vallen_fixture(d, id, 10, 3);
             let p = d.join(format!("{id}.pridb"));
             truncate(&p, 0.3);
             (id.into(), p)
@@ -250,7 +236,7 @@ fn recordings(batch: &Path) -> Vec<Case> {
     add(
         "vallen_tradb_not_sqlite",
         &|d, id| {
-            let f = vallen(d, id, 5, 4);
+            let f = vallen_fixture(d, id, 5, 4);
             std::fs::write(&f, b"this is not an SQLite database at all, just text\n").unwrap();
             (id.into(), f)
         },
@@ -259,7 +245,7 @@ fn recordings(batch: &Path) -> Vec<Case> {
     add(
         "vallen_unknown_dataformat",
         &|d, id| {
-            let f = vallen(d, id, 6, 5);
+            let f = vallen_fixture(d, id, 6, 5);
             sql(&f, "UPDATE tr_data SET DataFormat = 7 WHERE TRAI = 2");
             (id.into(), f)
         },
@@ -268,7 +254,7 @@ fn recordings(batch: &Path) -> Vec<Case> {
     add(
         "vallen_flac_good",
         &|d, id| {
-            let f = vallen(d, id, 6, 16);
+            let f = vallen_fixture(d, id, 6, 16);
             to_flac(&f);
             (id.into(), f)
         },
@@ -277,7 +263,7 @@ fn recordings(batch: &Path) -> Vec<Case> {
     add(
         "vallen_flac_bad_crc",
         &|d, id| {
-            let f = vallen(d, id, 6, 6);
+            let f = vallen_fixture(d, id, 6, 6);
             to_flac(&f);
             let mut b = blob(&f, 3);
             let k = b.len() / 2;
@@ -290,7 +276,7 @@ fn recordings(batch: &Path) -> Vec<Case> {
     add(
         "vallen_flac_wrong_length",
         &|d, id| {
-            let f = vallen(d, id, 6, 7);
+            let f = vallen_fixture(d, id, 6, 7);
             to_flac(&f);
             sql(&f, "UPDATE tr_data SET Samples = 2000 WHERE TRAI = 4");
             (id.into(), f)
@@ -300,7 +286,7 @@ fn recordings(batch: &Path) -> Vec<Case> {
     add(
         "vallen_flac_cut_short",
         &|d, id| {
-            let f = vallen(d, id, 6, 17);
+            let f = vallen_fixture(d, id, 6, 17);
             to_flac(&f);
             let b = blob(&f, 2);
             set_blob(&f, 2, b[..b.len() * 2 / 3].to_vec());
@@ -311,7 +297,7 @@ fn recordings(batch: &Path) -> Vec<Case> {
     add(
         "vallen_raw_wrong_length",
         &|d, id| {
-            let f = vallen(d, id, 6, 8);
+            let f = vallen_fixture(d, id, 6, 8);
             sql(
                 &f,
                 "UPDATE tr_data SET DataFormat = 0, Data = X'0100020003', Samples = 512 WHERE TRAI = 1",
@@ -323,7 +309,7 @@ fn recordings(batch: &Path) -> Vec<Case> {
     add(
         "vallen_zero_rate",
         &|d, id| {
-            let f = vallen(d, id, 6, 9);
+            let f = vallen_fixture(d, id, 6, 9);
             sql(&f, "UPDATE tr_data SET SampleRate = 0 WHERE TRAI = 2");
             (id.into(), f)
         },
@@ -332,7 +318,7 @@ fn recordings(batch: &Path) -> Vec<Case> {
     add(
         "vallen_negative_rate",
         &|d, id| {
-            let f = vallen(d, id, 6, 10);
+            let f = vallen_fixture(d, id, 6, 10);
             sql(
                 &f,
                 "UPDATE tr_data SET SampleRate = -10000000 WHERE TRAI = 5",
@@ -344,7 +330,7 @@ fn recordings(batch: &Path) -> Vec<Case> {
     add(
         "vallen_absurd_samples",
         &|d, id| {
-            let f = vallen(d, id, 6, 11);
+            let f = vallen_fixture(d, id, 6, 11);
             sql(
                 &f,
                 "UPDATE tr_data SET Samples = 1000000000000 WHERE TRAI = 6",
@@ -356,7 +342,7 @@ fn recordings(batch: &Path) -> Vec<Case> {
     add(
         "vallen_pretrigger_past_end",
         &|d, id| {
-            let f = vallen(d, id, 6, 12);
+            let f = vallen_fixture(d, id, 6, 12);
             sql(&f, "UPDATE tr_data SET Pretrigger = 100000 WHERE TRAI = 1");
             (id.into(), f)
         },
@@ -365,7 +351,7 @@ fn recordings(batch: &Path) -> Vec<Case> {
     add(
         "vallen_pridb_alone",
         &|d, id| {
-            let f = vallen(d, id, 7, 13);
+            let f = vallen_fixture(d, id, 7, 13);
             std::fs::remove_file(&f).unwrap();
             (id.into(), d.join(format!("{id}.pridb")))
         },
@@ -374,7 +360,7 @@ fn recordings(batch: &Path) -> Vec<Case> {
     add(
         "vallen_tr_data_dropped",
         &|d, id| {
-            let f = vallen(d, id, 5, 14);
+            let f = vallen_fixture(d, id, 5, 14);
             sql(&f, "DROP VIEW view_tr_data; DROP TABLE tr_data;");
             (id.into(), f)
         },
@@ -383,7 +369,7 @@ fn recordings(batch: &Path) -> Vec<Case> {
     add(
         "vallen_infinite_tr_mv",
         &|d, id| {
-            let f = vallen(d, id, 5, 15);
+            let f = vallen_fixture(d, id, 5, 15);
             sql(&f, "UPDATE tr_params SET TR_mV = 1e400");
             (id.into(), f)
         },
@@ -782,7 +768,7 @@ fn every_broken_recording_is_a_named_reject_and_every_good_hit_is_written() {
     let t = TempDir::new("corpus");
     let batch = t.path().join("batch");
     std::fs::create_dir_all(&batch).unwrap();
-    vallen(&batch, "good", 30, 1);
+    vallen_fixture(&batch, "good", 30, 1);
     let cases = recordings(&batch);
     let cfg = t.path().join("corpus.toml");
     std::fs::write(&cfg, "[ingest]\nmax_samples_per_record = 1000000\n").unwrap();
@@ -899,17 +885,8 @@ fn seeds_out(cases: &[Case]) {
         return;
     };
     let dir = PathBuf::from(dir);
-    // The file-name table of fuzz/fuzz_targets/text_readers.rs: the seed's first byte.
-    let names = [
-        "x_wave.txt",
-        "hit.txt",
-        "hit.csv",
-        "long.csv",
-        "hit.wav",
-        "run.DTA",
-        "x_1_20_300.txt",
-        "values.dat",
-    ];
+    // The seed's first byte picks the file name in fuzz/fuzz_targets/text_readers.rs's
+    // NAMES: 0 `x_wave.txt`, 1 `hit.txt`, 2 `hit.csv`, 3 `long.csv`, 4 `hit.wav`, 6 AEwin.
     for c in cases {
         let Ok(bytes) = std::fs::read(&c.file) else {
             continue;
@@ -959,33 +936,8 @@ fn seeds_out(cases: &[Case]) {
         std::fs::create_dir_all(&d).unwrap();
         let mut seed = pick.map(|p| vec![p]).unwrap_or_default();
         seed.extend(bytes.iter().take(1 << 20));
-        assert_eq!(names.len(), 8);
         std::fs::write(d.join(c.name), seed).unwrap();
     }
-}
-
-/// Run aepipe with a time limit (a definition that promises 10¹² of something must be
-/// refused, not started): exit code and stderr.
-fn aepipe_within(args: &[&str], secs: u64) -> (i32, String) {
-    let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_aepipe"))
-        .args(args)
-        .stdout(std::process::Stdio::null())
-        .stderr(std::process::Stdio::piped())
-        .spawn()
-        .unwrap();
-    let t0 = std::time::Instant::now();
-    while child.try_wait().unwrap().is_none() {
-        if t0.elapsed().as_secs() > secs {
-            let _ = child.kill();
-            panic!("aepipe {} still running after {secs} s", args.join(" "));
-        }
-        std::thread::sleep(std::time::Duration::from_millis(20));
-    }
-    let o = child.wait_with_output().unwrap();
-    (
-        o.status.code().unwrap_or(-1),
-        String::from_utf8_lossy(&o.stderr).into_owned(),
-    )
 }
 
 #[test]
@@ -994,7 +946,7 @@ fn every_broken_definition_file_is_one_error_line_naming_it() {
     let d = t.path();
     let s = |p: &Path| p.display().to_string();
     let data = d.join("data");
-    vallen(&data, "exp", 40, 3);
+    vallen_fixture(&data, "exp", 40, 3);
     let feats = d.join("f");
     let model = d.join("model");
     for args in [
@@ -1007,7 +959,7 @@ fn every_broken_definition_file_is_one_error_line_naming_it() {
             &s(&model),
         ],
     ] {
-        let (c, e) = aepipe_within(&args, 120);
+        let (c, _, e) = aepipe_within(&args, 120);
         assert_eq!(c, 0, "{e}");
     }
     let good_model = std::fs::read_to_string(model.join("model.json")).unwrap();
@@ -1160,7 +1112,7 @@ fn every_broken_definition_file_is_one_error_line_naming_it() {
             "reference" => vec!["reference", "--config", &fs, "--out", &os],
             _ => vec!["som", "classify", &fs, &feat, "--out", &os],
         };
-        let (code, err) = aepipe_within(&args, 60);
+        let (code, _, err) = aepipe_within(&args, 60);
         let lines: Vec<&str> = err.lines().filter(|l| !l.trim().is_empty()).collect();
         let ok = code == 1 && lines.len() == 1 && lines[0].contains(*file);
         if !ok {

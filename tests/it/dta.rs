@@ -126,7 +126,7 @@ fn the_real_dta_gives_the_hits_and_samples_mistrasdta_gives() {
 
 // --- A DTA writer for fixtures (the message layout of Appendix II) -----------------------
 
-fn msg(mid: u8, body: &[u8]) -> Vec<u8> {
+pub(crate) fn msg(mid: u8, body: &[u8]) -> Vec<u8> {
     let two_byte_id = (40..=49).contains(&mid);
     let len = body.len() + 1 + two_byte_id as usize;
     let mut v = (len as u16).to_le_bytes().to_vec();

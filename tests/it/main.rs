@@ -22,6 +22,28 @@ mod trend;
 
 use std::path::{Path, PathBuf};
 
+/// Run the aepipe binary: exit code, stdout, stderr.
+pub fn aepipe(args: &[&str]) -> (i32, String, String) {
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_aepipe"))
+        .args(args)
+        .output()
+        .unwrap();
+    (
+        o.status.code().unwrap_or(-1),
+        String::from_utf8_lossy(&o.stdout).into_owned(),
+        String::from_utf8_lossy(&o.stderr).into_owned(),
+    )
+}
+
+/// A synthetic Vallen experiment `<dir>/<id>.pridb/.tradb` of `hits` hits of 512 samples,
+/// written with aepipe's writer; the `.tradb`'s path.
+pub fn vallen_fixture(dir: &Path, id: &str, hits: usize, seed: u64) -> PathBuf {
+    let mut e = aepipe::synth::Experiment::new(id, hits, seed);
+    e.n_samples = 512;
+    e.write_vallen(dir).unwrap();
+    dir.join(format!("{id}.tradb"))
+}
+
 /// A test (or a part of one) cannot run because something it needs is absent. Locally it
 /// says so and the caller returns; with `AEPIPE_REQUIRE_ALL=1` (set by `.ci/run`) it fails,
 /// so CI cannot go green without running it.

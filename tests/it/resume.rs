@@ -3,20 +3,24 @@
 //! byte for byte, as a run that was never interrupted.
 
 use crate::TempDir;
-use aepipe::synth::Experiment;
 use aepipe::util::Rng;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
-const CONFIG: &str = "[som]\ntrain_on = \"criteria\"\nfraction = 0.5\nrows = 4\ncols = 4\n";
+/// A small `aepipe run` definition: the SOM trained on criteria labels (no library to build).
+pub(crate) const CONFIG: &str =
+    "[som]\ntrain_on = \"criteria\"\nfraction = 0.5\nrows = 4\ncols = 4\n";
 
-fn batch(dir: &Path) {
-    for i in 0..10u64 {
-        let mut e = Experiment::new(&format!("exp{i:02}"), 12, 100 + i);
-        e.n_samples = 512;
-        e.write_vallen(dir).unwrap();
-    }
+/// Ten Vallen experiments `exp00`…`exp09` of 12 hits, seeds `seed0`…`seed0 + 9`.
+pub(crate) fn batch(dir: &Path, seed0: u64) -> Vec<String> {
+    (0..10u64)
+        .map(|i| {
+            let id = format!("exp{i:02}");
+            crate::vallen_fixture(dir, &id, 12, seed0 + i);
+            id
+        })
+        .collect()
 }
 
 fn run_args(cfg: &Path, data: &Path, out: &Path, resume: bool) -> Vec<String> {
@@ -153,7 +157,7 @@ fn results(out: &Path) -> Vec<(String, Vec<u8>)> {
 fn killed_runs_resume_to_the_uninterrupted_result_20_times() {
     let t = TempDir::new("resume");
     let data = t.path().join("data");
-    batch(&data);
+    batch(&data, 100);
     let cfg = t.path().join("cfg.toml");
     std::fs::write(&cfg, CONFIG).unwrap();
 
@@ -207,7 +211,7 @@ fn killed_runs_resume_to_the_uninterrupted_result_20_times() {
 fn resume_reuses_finished_parts_and_redoes_changed_ones() {
     let t = TempDir::new("resume2");
     let data = t.path().join("data");
-    batch(&data);
+    batch(&data, 100);
     let cfg = t.path().join("cfg.toml");
     std::fs::write(&cfg, CONFIG).unwrap();
     let out = t.path().join("out");
@@ -215,9 +219,7 @@ fn resume_reuses_finished_parts_and_redoes_changed_ones() {
     let before = results(&out);
     // One experiment's waveforms change (its .tradb rewritten from another seed); one part
     // table is damaged on disk.
-    let mut e = Experiment::new("exp03", 12, 999);
-    e.n_samples = 512;
-    e.write_vallen(&data).unwrap();
+    crate::vallen_fixture(&data, "exp03", 12, 999);
     let parts = out.join("features/parts");
     let p7 = std::fs::read_dir(&parts)
         .unwrap()

@@ -3,24 +3,11 @@
 //! classification as one unsharded run, for 1, 3 and 4 shards. The shards' Hive-partitioned
 //! dataset opens in Polars, DuckDB and pyarrow.
 
-use crate::TempDir;
-use aepipe::synth::Experiment;
+use crate::{aepipe, TempDir};
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-const CONFIG: &str = "[som]\ntrain_on = \"criteria\"\nfraction = 0.5\nrows = 4\ncols = 4\n";
-
-fn aepipe(args: &[&str]) -> (i32, String, String) {
-    let o = Command::new(env!("CARGO_BIN_EXE_aepipe"))
-        .args(args)
-        .output()
-        .unwrap();
-    (
-        o.status.code().unwrap_or(-1),
-        String::from_utf8_lossy(&o.stdout).into_owned(),
-        String::from_utf8_lossy(&o.stderr).into_owned(),
-    )
-}
+use crate::resume::CONFIG;
 
 fn ok(args: &[&str]) -> String {
     let (c, so, se) = aepipe(args);
@@ -61,12 +48,7 @@ fn hive(dir: &Path, table: &str, id: &str) -> PathBuf {
 fn one_three_and_four_shards_merge_to_the_unsharded_run() {
     let t = TempDir::new("shard");
     let data = t.path().join("data");
-    let ids: Vec<String> = (0..10).map(|i| format!("exp{i:02}")).collect();
-    for (i, id) in ids.iter().enumerate() {
-        let mut e = Experiment::new(id, 12, 300 + i as u64);
-        e.n_samples = 512;
-        e.write_vallen(&data).unwrap();
-    }
+    let ids = crate::resume::batch(&data, 300);
     let cfg = t.path().join("cfg.toml");
     std::fs::write(&cfg, CONFIG).unwrap();
     let whole = t.path().join("whole");
