@@ -521,7 +521,7 @@ pub(crate) fn part_tables(job: StreamJob) -> [&'static str; 3] {
 
 /// A finished part that may be reused: its record parses and matches `want` (tool, job,
 /// config, inputs), and every table still has the hash it was written with.
-fn reusable_part(dir: &Path, want: &PartRecord) -> Option<PartStats> {
+fn reusable_part(dir: &Path, want: &PartRecord) -> Option<PartRecord> {
     let text = std::fs::read_to_string(dir.join("part.json")).ok()?;
     let rec: PartRecord = serde_json::from_str(&text).ok()?;
     if (
@@ -545,7 +545,7 @@ fn reusable_part(dir: &Path, want: &PartRecord) -> Option<PartStats> {
             _ => return None,
         }
     }
-    Some(rec.stats)
+    Some(rec)
 }
 
 /// One experiment's finished part: where its three tables are and what it counted.
@@ -557,6 +557,8 @@ pub(crate) struct Part {
     pub(crate) reused: bool,
     /// `(path, sha256)` of the files it read.
     pub(crate) inputs: Vec<(String, String)>,
+    /// `(file name, sha256)` of its tables, as recorded when they were written.
+    pub(crate) outputs: Vec<(String, String)>,
     pub(crate) dir: PathBuf,
 }
 
@@ -620,27 +622,17 @@ fn produce(
         .map(|((f, _), (_, h))| (f.as_path(), h.as_str()))
         .collect();
 
-    // Sources are sorted by id: one part per run of equal ids.
-    let mut groups: Vec<&[Source]> = Vec::new();
-    let mut i = 0;
-    while i < sources.len() {
-        let j = i + sources[i..]
-            .iter()
-            .take_while(|s| s.id == sources[i].id)
-            .count();
-        groups.push(&sources[i..j]);
-        i = j;
-    }
-
     let t2 = Instant::now();
+    let config_sha256 = cfg.hash();
     let mut parts = Vec::new();
-    for g in &groups {
+    // Sources are sorted by id: one part per run of equal ids.
+    for g in sources.chunk_by(|a, b| a.id == b.id) {
         let id = g[0].id.clone();
         let dir = part_dir(&parts_root, &id);
-        let mut want = PartRecord {
+        let want = PartRecord {
             tool_version: env!("CARGO_PKG_VERSION").into(),
             job: job.name().into(),
-            config_sha256: cfg.hash(),
+            config_sha256: config_sha256.clone(),
             experiment: id.clone(),
             inputs: g
                 .iter()
@@ -664,32 +656,34 @@ fn produce(
         } else {
             None
         };
-        let was_reused = reused.is_some();
-        let stats = match reused {
-            Some(p) => p,
+        let reused_flag = reused.is_some();
+        let rec = match reused {
+            Some(rec) => rec,
             None => {
                 let _ = std::fs::remove_dir_all(&dir);
                 std::fs::create_dir_all(&dir).map_err(|e| IoAt::new(&dir, e))?;
                 let icfg = cfg.ingest.clone();
                 let items = g.iter().flat_map(move |s| ingest::open(s, &icfg));
                 let st = stream(items, job, &dir, cfg, opts)?;
+                let mut rec = want;
                 for name in part_tables(job) {
                     let p = dir.join(name);
                     let (_, h) = file_digest(&p).map_err(|e| IoAt::new(&p, e))?;
-                    want.outputs.push((name.to_string(), h));
+                    rec.outputs.push((name.to_string(), h));
                 }
-                want.stats = PartStats::of(&st);
-                let text = serde_json::to_string_pretty(&want).expect("part record serialises");
+                rec.stats = PartStats::of(&st);
+                let text = serde_json::to_string_pretty(&rec).expect("part record serialises");
                 write_atomic(&dir.join("part.json"), text.as_bytes())?;
-                want.stats.clone()
+                rec
             }
         };
         parts.push(Part {
             tables: part_tables(job).map(|n| dir.join(n)),
             id,
-            stats,
-            reused: was_reused,
-            inputs: want.inputs,
+            stats: rec.stats,
+            reused: reused_flag,
+            inputs: rec.inputs,
+            outputs: rec.outputs,
             dir,
         });
     }
@@ -706,7 +700,6 @@ fn produce(
 }
 
 /// The whole-batch tables (discovery's rejects, then every part in order) and the manifest.
-#[allow(clippy::too_many_arguments)]
 pub(crate) fn assemble(
     job: StreamJob,
     out_dir: &Path,
