@@ -102,16 +102,12 @@ pub fn merge(
         crate::store::clean_stale_tmp(&out.join(sub));
     }
     let t = std::time::Instant::now();
-    let (features, first) = crate::pipeline::merge(dir, &out.join("features"), threads)?;
-    if first.job != "features" {
-        return Err(WorkflowError::Input {
-            path: dir.display().to_string(),
-            message: format!(
-                "shards of a {} job: `aepipe merge --tables-only` assembles them",
-                first.job
-            ),
-        });
-    }
+    let (features, first) = crate::pipeline::merge(
+        dir,
+        &out.join("features"),
+        threads,
+        Some(crate::pipeline::StreamJob::Features),
+    )?;
     let cfg = PipelineConfig::from_toml(&first.config)?;
     let job = RunJob {
         config: &cfg,

@@ -199,7 +199,7 @@ pub fn dispatch(cli: Cli) -> Result<Outcome> {
                 return Ok(Outcome::Success);
             }
             if tables_only {
-                let (r, _) = crate::pipeline::merge(&dir, &out, threads)?;
+                let (r, _) = crate::pipeline::merge(&dir, &out, threads, None)?;
                 print::stream_run(&r, "merged");
                 return Ok(Outcome::Success);
             }

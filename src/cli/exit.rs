@@ -102,7 +102,8 @@ fn merge(e: &MergeError) -> u8 {
         MergeError::NoShards { .. }
         | MergeError::Manifest { .. }
         | MergeError::Disagree { .. }
-        | MergeError::Missing { .. } => USAGE,
+        | MergeError::Missing { .. }
+        | MergeError::WrongJob { .. } => USAGE,
         MergeError::Pipeline(x) => pipeline(x),
     }
 }

@@ -146,6 +146,8 @@ pub enum MergeError {
         missing: String,
         n: u32,
     },
+    #[error("{dir}: shards of a {job} job: `aepipe merge --tables-only` assembles them")]
+    WrongJob { dir: String, job: String },
     #[error(transparent)]
     Pipeline(#[from] PipelineError),
 }
@@ -274,10 +276,14 @@ pub fn read_shards(dir: &Path) -> Result<Vec<ShardManifest>, MergeError> {
 
 /// `aepipe merge`: the whole-batch tables and manifest of a sharded run, into `out_dir`,
 /// the same bytes an unsharded run writes.
+///
+/// `only`: refuse, before writing anything, shards of another job (`aepipe merge` without
+/// `--tables-only` runs the feature stages, which need feature shards).
 pub fn merge(
     dir: &Path,
     out_dir: &Path,
     threads: usize,
+    only: Option<StreamJob>,
 ) -> Result<(RunReport, ShardManifest), MergeError> {
     let t0 = Instant::now();
     let started = utc_now();
@@ -292,6 +298,12 @@ pub fn merge(
     } else {
         StreamJob::Features
     };
+    if only.is_some_and(|j| j != job) {
+        return Err(MergeError::WrongJob {
+            dir: dir.display().to_string(),
+            job: first.job.clone(),
+        });
+    }
     std::fs::create_dir_all(out_dir).map_err(|e| PipelineError::from(IoAt::new(out_dir, e)))?;
     store::clean_stale_tmp(out_dir);
     let mut parts = Vec::new();
