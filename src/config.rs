@@ -209,7 +209,8 @@ pub struct CriteriaConfig {
     /// The two bond-failure frequencies, Hz (≈250 and ≈750 kHz).
     pub bond_low_hz: f64,
     pub bond_high_hz: f64,
-    /// How far a dominant frequency may be from them, Hz.
+    /// How far a dominant frequency may be from them, Hz (Fig. 4.7: ±10 % of the material
+    /// properties moves a fibre's frequency by less than ±150 kHz).
     pub bond_tolerance_hz: f64,
     /// A fibre failure's dominant frequency is above this, Hz (800 kHz).
     pub fibre_min_hz: f64,
@@ -222,9 +223,17 @@ pub struct CriteriaConfig {
     pub component_min_ratio: f64,
     /// "both": a bond-like component peaking at least this long after the fibre pulse, s.
     pub both_min_delay_s: f64,
+    /// "both": the pulse's peak power is at least this share of the dominant component's
+    /// (ch. 5.4: the pulse is "comparable" to the wave; 0.25 in power = 0.5 in amplitude).
+    /// A weaker flash at the onset of a wave is the onset, not a fibre failure.
+    pub both_min_ratio: f64,
     /// Triggered early: the signal already exceeds the threshold this long before the
     /// trigger, s.
     pub early_trigger_s: f64,
+    /// Triggered before the front (ch. 5.4, Fig. 5.8c): the signal first reaches the
+    /// threshold this long after the trigger, s (an AE system's own trigger is the first
+    /// crossing, so a record whose front comes later was triggered by something else).
+    pub late_front_s: f64,
     /// Two bursts: the envelope falls below `burst_quiet_ratio` of the peak for at least
     /// `burst_gap_s`, then rises above `burst_level_ratio` of the peak again.
     pub burst_gap_s: f64,
@@ -281,13 +290,15 @@ impl Default for CriteriaConfig {
         CriteriaConfig {
             bond_low_hz: 250e3,
             bond_high_hz: 750e3,
-            bond_tolerance_hz: 100e3,
+            bond_tolerance_hz: 150e3,
             fibre_min_hz: 800e3,
             fibre_max_duration_s: 5e-6,
             fibre_max_arrival_s: 5e-6,
             component_min_ratio: 0.05,
             both_min_delay_s: 2e-6,
+            both_min_ratio: 0.25,
             early_trigger_s: 10e-6,
+            late_front_s: 5e-6,
             burst_gap_s: 20e-6,
             burst_quiet_ratio: 0.1,
             burst_level_ratio: 0.3,

@@ -245,6 +245,11 @@ pub fn db_ae(volts: f64) -> f64 {
     20.0 * (volts.abs() / 1e-6).log10()
 }
 
+/// Volts of a level in dB_AE (the inverse of [`db_ae`]).
+pub fn db_to_v(db: f64) -> f64 {
+    1e-6 * 10f64.powf(db / 20.0)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

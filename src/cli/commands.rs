@@ -89,6 +89,9 @@ pub fn dispatch(cli: Cli) -> Result<Outcome> {
             trajectories,
             snapshots,
             scale,
+            threshold_db,
+            noise_db,
+            pretrigger,
         } => {
             let sweep = sweep
                 .as_deref()
@@ -105,7 +108,13 @@ pub fn dispatch(cli: Cli) -> Result<Outcome> {
                     trajectory_every: trajectories,
                     snapshot_every: snapshots,
                 },
-                scale_v_per_pa: scale,
+                acquisition: crate::sim::output::Acquisition {
+                    scale_v_per_pa: scale,
+                    threshold_db,
+                    noise_db,
+                    pretrigger,
+                    ..Default::default()
+                },
             };
             for l in crate::sim::run_job(&job)? {
                 println!("{l}");

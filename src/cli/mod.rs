@@ -143,8 +143,17 @@ pub enum Cmd {
         #[arg(long)]
         snapshots: Option<usize>,
         /// Sensor sensitivity, V/Pa (samples_v = pressure × this)
-        #[arg(long, default_value_t = 1.0)]
+        #[arg(long, default_value_t = 3e-5)]
         scale: f64,
+        /// Trigger threshold of the simulated AE system, dB_AE
+        #[arg(long, default_value_t = 40.0)]
+        threshold_db: f64,
+        /// RMS of the white noise added to the samples, dB_AE (≤ −100: none)
+        #[arg(long, default_value_t = 26.0)]
+        noise_db: f64,
+        /// Samples recorded before the trigger
+        #[arg(long, default_value_t = 500)]
+        pretrigger: usize,
     },
     /// Build the labelled reference library: the simulator over a grid of scenarios, in
     /// parallel, into DIR/waveforms.parquet

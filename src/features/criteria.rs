@@ -29,7 +29,8 @@ pub struct Component {
     pub peak_s: f64,
     /// Contiguous time around the peak with |W|² ≥ peak/2, s.
     pub duration_s: f64,
-    /// Start of that half-power run from the trigger, s.
+    /// First time the row reaches half its peak, from the trigger, s (the start of the
+    /// peak's own run, or of an earlier burst of the same frequency).
     pub arrival_s: f64,
 }
 
@@ -53,12 +54,15 @@ impl Component {
         while hi + 1 < row.len() && row[hi + 1] >= half {
             hi += 1;
         }
+        // The component's first arrival: where its row first reaches half its peak (an
+        // earlier, slightly weaker burst of the same frequency is where it arrives).
+        let first = row.iter().position(|&v| v >= half).unwrap_or(lo);
         Some(Component {
             freq_hz,
             peak_power: p as f64,
             peak_s: ip as f64 / fs,
             duration_s: (hi + 1 - lo) as f64 / fs,
-            arrival_s: lo as f64 / fs,
+            arrival_s: first as f64 / fs,
         })
     }
 }
@@ -66,6 +70,11 @@ impl Component {
 /// The components the criteria look at.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct Components {
+    /// Where the CWT first shows the AE, as the thesis reads one: the first time any
+    /// frequency's |W|² reaches `component_min_ratio` of the window's largest, from the
+    /// trigger, s. "At the start of the record" is measured from here: a faint precursor
+    /// that crosses the threshold (sound carried ahead along a fibre) is not the start.
+    pub onset_s: f64,
     pub dominant: Option<Component>,
     /// Strongest within `bond_tolerance` of `bond_low_hz` (≈250 kHz).
     pub low: Option<Component>,
@@ -119,6 +128,13 @@ pub fn acquisition_fault(
         return Some(format!(
             "triggered early: above threshold {:.1} µs before the trigger",
             (pretrigger - first) as f64 / fs * 1e6
+        ));
+    }
+    let late = (c.late_front_s * fs).round() as usize;
+    if first > pretrigger + late {
+        return Some(format!(
+            "triggered before the front: the signal first reaches the threshold {:.1} µs after the trigger",
+            (first - pretrigger) as f64 / fs * 1e6
         ));
     }
     // Two bursts, on a 1 µs block-maximum envelope.
@@ -176,7 +192,7 @@ pub fn decide(k: &Components, c: &CriteriaConfig) -> Decision {
     let is_pulse = |x: &Component| {
         x.freq_hz > c.fibre_min_hz
             && x.duration_s < c.fibre_max_duration_s
-            && x.arrival_s <= c.fibre_max_arrival_s
+            && x.arrival_s - k.onset_s <= c.fibre_max_arrival_s
     };
     let fibre = present(&k.fibre).filter(is_pulse);
     if let Some(f) = fibre {
@@ -185,7 +201,8 @@ pub fn decide(k: &Components, c: &CriteriaConfig) -> Decision {
             .flatten()
             .filter(|b| b.peak_s >= f.peak_s + c.both_min_delay_s)
             .max_by(|a, b| a.peak_power.total_cmp(&b.peak_power));
-        if let Some(b) = later {
+        let comparable = f.peak_power >= c.both_min_ratio * d.peak_power;
+        if let (Some(b), true) = (later, comparable) {
             return Decision {
                 label: Mechanism::Both,
                 reason: format!(
@@ -201,10 +218,10 @@ pub fn decide(k: &Components, c: &CriteriaConfig) -> Decision {
             return Decision {
                 label: Mechanism::FibreFailure,
                 reason: format!(
-                    "pulse at {:.0} kHz lasting {:.1} µs from {:.1} µs",
+                    "pulse at {:.0} kHz lasting {:.1} µs from {:.1} µs after the onset",
                     d.freq_hz / 1e3,
                     d.duration_s * 1e6,
-                    d.arrival_s * 1e6
+                    (d.arrival_s - k.onset_s) * 1e6
                 ),
             };
         }
@@ -237,10 +254,10 @@ pub fn decide(k: &Components, c: &CriteriaConfig) -> Decision {
     Decision {
         label: Mechanism::Unclassified,
         reason: format!(
-            "dominant {:.0} kHz component lasting {:.1} µs from {:.1} µs matches no criterion",
+            "dominant {:.0} kHz component lasting {:.1} µs from {:.1} µs after the onset matches no criterion",
             d.freq_hz / 1e3,
             d.duration_s * 1e6,
-            d.arrival_s * 1e6
+            (d.arrival_s - k.onset_s) * 1e6
         ),
     }
 }
@@ -272,6 +289,7 @@ mod tests {
     fn decisions_from_components() {
         let c = CriteriaConfig::default();
         let bond = Components {
+            onset_s: 0.0,
             dominant: comp(250.0, 1.0, 8.0, 12.0, 2.0),
             low: comp(250.0, 1.0, 8.0, 12.0, 2.0),
             high: comp(750.0, 0.5, 4.0, 5.0, 1.0),
@@ -286,6 +304,7 @@ mod tests {
         };
         assert_eq!(decide(&inverted, &c).label, Mechanism::Unclassified);
         let fibre = Components {
+            onset_s: 0.0,
             dominant: comp(1200.0, 1.0, 2.0, 2.5, 1.0),
             fibre: comp(1200.0, 1.0, 2.0, 2.5, 1.0),
             low: comp(250.0, 0.01, 20.0, 5.0, 10.0),
@@ -298,6 +317,7 @@ mod tests {
         };
         assert_eq!(decide(&both, &c).label, Mechanism::Both);
         let long_hf = Components {
+            onset_s: 0.0,
             dominant: comp(1200.0, 1.0, 10.0, 20.0, 1.0),
             fibre: comp(1200.0, 1.0, 10.0, 20.0, 1.0),
             low: None,
@@ -305,6 +325,7 @@ mod tests {
         };
         assert_eq!(decide(&long_hf, &c).label, Mechanism::Unclassified);
         let late_pulse = Components {
+            onset_s: 0.0,
             dominant: comp(1200.0, 1.0, 22.0, 2.0, 21.0),
             fibre: comp(1200.0, 1.0, 22.0, 2.0, 21.0),
             low: None,

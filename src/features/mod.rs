@@ -236,7 +236,15 @@ pub fn features_table(cfg: &PipelineConfig) -> TableSchema {
         f64c(
             "dominant_arrival_s",
             "s",
-            "start of that half-power run, from the trigger",
+            "first time the dominant component reaches half its peak power, from the trigger",
+        )
+        .nullable(),
+    );
+    c.push(
+        f64c(
+            "cwt_onset_s",
+            "s",
+            "first time any CWT frequency reaches criteria.component_min_ratio of the window's largest |W|², from the trigger (where a CWT picture shows the AE start); null when the window holds no power",
         )
         .nullable(),
     );
@@ -293,6 +301,8 @@ pub struct FeatureExtractor {
     freqs: Vec<f64>,
     /// Peak |W|² of each CWT frequency over the window.
     peaks: Vec<f32>,
+    /// Largest |W|² over the frequencies at each sample of the window.
+    env: Vec<f32>,
     row: Vec<f32>,
 }
 
@@ -322,6 +332,7 @@ impl FeatureExtractor {
             ratios: vec![0.0; n_ratio_bands(cfg)],
             bins: Vec::new(),
             peaks: Vec::new(),
+            env: Vec::new(),
             row: Vec::new(),
         }
     }
@@ -350,7 +361,7 @@ impl FeatureExtractor {
         condition(&r.samples, pre, &mut self.cond);
         let thr = match r.threshold_v {
             Some(t) if self.cfg.dsp.hit.use_record_threshold && t > 0.0 => t,
-            _ => 1e-6 * 10f64.powf(self.cfg.dsp.hit.threshold_db / 20.0),
+            _ => crate::model::db_to_v(self.cfg.dsp.hit.threshold_db),
         };
         let hit = hit_features(&self.cond, fs, thr);
 
@@ -376,8 +387,11 @@ impl FeatureExtractor {
         self.peaks.clear();
         self.peaks.resize(freqs.len(), 0.0);
         let band_max = g.band_hz * g.n_bands as f64;
+        self.env.clear();
+        self.env.resize(b - a, 0.0);
         let bins = &mut self.bins;
         let peaks = &mut self.peaks;
+        let env = &mut self.env;
         // Window edges relative to the trigger, computed once per record.
         let mut edges = [0usize; 65];
         let n_edges = (g.n_windows + 1).min(edges.len());
@@ -401,6 +415,9 @@ impl FeatureExtractor {
                 peak = row.iter().fold(0.0f32, |m, &v| m.max(v));
             }
             peaks[fi] = peak;
+            for (e, &v) in env.iter_mut().zip(row) {
+                *e = e.max(v);
+            }
         });
         let total: f64 = self.bins.iter().sum();
         let bins = (total > 0.0 && total.is_finite())
@@ -412,7 +429,15 @@ impl FeatureExtractor {
             self.cwt.window_row(&self.cond, fs, a, b, fi, &mut self.row);
             Component::from_row(freqs[fi], &self.row, fs)
         };
+        let top = self.env.iter().fold(0.0f32, |m, &v| m.max(v));
+        let visible = (crit.component_min_ratio * top as f64) as f32;
+        let onset = self
+            .env
+            .iter()
+            .position(|&v| top > 0.0 && v >= visible)
+            .unwrap_or(0);
         let components = Components {
+            onset_s: onset as f64 / fs,
             dominant: component(f64::NEG_INFINITY, f64::INFINITY),
             low: component(crit.bond_low_hz - tol, crit.bond_low_hz + tol),
             high: component(crit.bond_high_hz - tol, crit.bond_high_hz + tol),
@@ -478,6 +503,7 @@ impl FeatureExtractor {
         row.push(Value::F64(k.dominant.map(|d| d.freq_hz)));
         row.push(Value::F64(k.dominant.map(|d| d.duration_s)));
         row.push(Value::F64(k.dominant.map(|d| d.arrival_s)));
+        row.push(Value::F64(k.dominant.map(|_| k.onset_s)));
         row.push(Value::F64(k.low.map(|d| d.duration_s)));
         row.push(Value::F64(k.high.map(|d| d.duration_s)));
         row

@@ -240,7 +240,8 @@ pub struct SimJob {
     pub solver: Option<model::Solver>,
     pub out: std::path::PathBuf,
     pub run: SimOptions,
-    pub scale_v_per_pa: f64,
+    /// How the sensors record (sensitivity, threshold, noise, pretrigger).
+    pub acquisition: output::Acquisition,
 }
 
 /// Run a job into `job.out`: `waveforms.parquet` (the sensors, when the model has a grid),
@@ -296,11 +297,15 @@ pub fn run_job(job: &SimJob) -> Result<Vec<String>, SimError> {
         ));
         for (k, s) in out.sensors.iter().enumerate() {
             let (i, j) = (m.sensors[k].i, m.sensors[k].j);
+            let s = match &m.grid {
+                Some(g) => output::band_limited(s, g),
+                None => s.clone(),
+            };
             let peak = s.iter().fold(0.0f64, |a, v| a.max(v.abs()));
             lines.push(format!(
-                "  sensor {} at cell ({i}, {j}): dominant {:.1} kHz, peak {peak:.3e} Pa",
+                "  sensor {} at cell ({i}, {j}): dominant {:.1} kHz, peak {peak:.3e} Pa (band-limited to the grid)",
                 k + 1,
-                dominant_frequency(s, out.sample_rate_hz) / 1e3
+                dominant_frequency(&s, out.sample_rate_hz) / 1e3
             ));
         }
         if out.sensors.is_empty() {
@@ -350,13 +355,26 @@ pub fn run_job(job: &SimJob) -> Result<Vec<String>, SimError> {
             source: source.clone(),
             params: json.clone(),
             hit: k as u64 + 1,
-            scale_v_per_pa: job.scale_v_per_pa,
+            acq: &job.acquisition,
         })
         .collect();
     if runs.iter().any(|r| !r.out.sensors.is_empty()) {
         let p = job.out.join("waveforms.parquet");
         let n = output::write_waveforms(&p, &runs)?;
-        lines.push(format!("{n} sensor signals → {}", p.display()));
+        let sensors: usize = runs.iter().map(|r| r.out.sensors.len()).sum();
+        let silent = sensors as u64 - n;
+        lines.push(format!(
+            "{n} sensor signals → {}{}",
+            p.display(),
+            if silent > 0 {
+                format!(
+                    " ({silent} sensor(s) never reached the {:.0} dB_AE threshold: no record)",
+                    job.acquisition.threshold_db
+                )
+            } else {
+                String::new()
+            }
+        ));
     }
     Ok(lines)
 }

@@ -83,13 +83,95 @@ pub struct Run<'a> {
     pub params: String,
     /// Hit number of this run in the experiment.
     pub hit: u64,
-    pub scale_v_per_pa: f64,
+    pub acq: &'a Acquisition,
 }
 
-/// The simulated sensor "triggers" at this fraction of its peak.
-pub const TRIGGER_FRACTION: f64 = 0.05;
+/// How the simulated sensor records a hit, the way an AE system does: the pressure,
+/// band-limited to what the grid carries ([`super::acoustic::band_limit`]), times the
+/// sensitivity, plus the electronics' white noise; the record starts `pretrigger` samples
+/// before the first sample whose magnitude reaches the threshold, and runs to the end of the
+/// simulation. Before the simulation starts (t < 0) the field is silent, so a pretrigger
+/// longer than the signal's delay is noise alone, exactly.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct Acquisition {
+    /// Volts per pascal. The 2-D model's pressure is per unit depth, so its level is not a
+    /// physical one: the default puts the reference library's hits at 70–100 dB_AE.
+    pub scale_v_per_pa: f64,
+    /// Detection threshold, dB_AE (1 µV = 0 dB); recorded in `threshold_v`.
+    pub threshold_db: f64,
+    /// RMS of the white noise added to every sample, dB_AE (none below −100).
+    pub noise_db: f64,
+    /// Samples recorded before the trigger (the thesis's records: 500 at 10 MHz).
+    pub pretrigger: usize,
+    /// Seed of the noise (each signal's noise also depends on its hit and channel).
+    pub seed: u64,
+}
 
-/// Rows of the simulated waveform table, one per sensor.
+impl Default for Acquisition {
+    fn default() -> Self {
+        Acquisition {
+            scale_v_per_pa: 3e-5,
+            threshold_db: 40.0,
+            noise_db: 26.0,
+            pretrigger: 500,
+            seed: 2008,
+        }
+    }
+}
+
+/// A recorded hit: samples (V), the trigger's index and the threshold.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Recorded {
+    pub samples: Vec<f32>,
+    pub pretrigger: usize,
+    pub threshold_v: f64,
+}
+
+impl Acquisition {
+    pub fn threshold_v(&self) -> f64 {
+        crate::model::db_to_v(self.threshold_db)
+    }
+
+    /// Record a pressure signal (Pa, already band-limited): `None` when it never reaches the
+    /// threshold (an AE system records nothing). `key` makes each signal's noise its own.
+    pub fn record(&self, pressure: &[f64], key: u64) -> Option<Recorded> {
+        let thr = self.threshold_v();
+        let sigma = if self.noise_db > -100.0 {
+            crate::model::db_to_v(self.noise_db)
+        } else {
+            0.0
+        };
+        let mut rng = crate::util::Rng::new(
+            self.seed
+                .wrapping_mul(0x9E37_79B9_7F4A_7C15)
+                .wrapping_add(key),
+        );
+        let pre = self.pretrigger;
+        // Noise alone before t = 0, then signal plus noise.
+        let stream: Vec<f64> = (0..pre)
+            .map(|_| 0.0)
+            .chain(pressure.iter().map(|p| p * self.scale_v_per_pa))
+            .map(|v| v + sigma * rng.normal())
+            .collect();
+        let first = stream.iter().position(|v| v.abs() >= thr)?;
+        let start = first.saturating_sub(pre);
+        Some(Recorded {
+            samples: stream[start..].iter().map(|&v| v as f32).collect(),
+            pretrigger: first - start,
+            threshold_v: thr,
+        })
+    }
+}
+
+/// The pressure a sensor passes on: the simulated signal band-limited to what the grid
+/// carries (nothing above the grid's `stop_hz` is a sound wave of the model).
+pub fn band_limited(sig: &[f64], g: &super::model::GridSpec) -> Vec<f64> {
+    let b = super::acoustic::band_limit(g);
+    super::acoustic::low_pass(sig, 1.0 / g.dt, b.pass_hz, b.stop_hz)
+}
+
+/// Rows of the simulated waveform table, one per sensor that triggered.
 pub fn rows(run: &Run) -> Vec<store::Row> {
     let g = match &run.model.grid {
         Some(g) => g,
@@ -100,39 +182,31 @@ pub fn rows(run: &Run) -> Vec<store::Row> {
         .iter()
         .zip(&run.model.sensors)
         .enumerate()
-        .map(|(k, (sig, spec))| {
+        .filter_map(|(k, (sig, spec))| {
             let (x, y) = g.centre(spec.i, spec.j);
-            // Trigger where an AE system would: the first sample reaching 5 % of the peak.
-            let peak = sig.iter().fold(0.0f64, |a, v| a.max(v.abs()));
-            let pretrigger = sig
-                .iter()
-                .position(|v| v.abs() >= TRIGGER_FRACTION * peak)
-                .unwrap_or(0) as i32;
-            let samples: Vec<f32> = sig
-                .iter()
-                .map(|p| (p * run.scale_v_per_pa) as f32)
-                .collect();
-            vec![
+            let p = band_limited(sig, g);
+            let rec = run.acq.record(&p, (run.hit << 16) | k as u64)?;
+            Some(vec![
                 Value::Str(Some(run.model.name.clone())),
                 Value::I32(Some(k as i32 + 1)),
                 Value::I64(Some(run.hit as i64)),
                 Value::F64(Some(0.0)),
                 Value::F64(Some(run.out.sample_rate_hz)),
-                Value::I32(Some(pretrigger)),
-                Value::I32(Some(samples.len() as i32)),
+                Value::I32(Some(rec.pretrigger as i32)),
+                Value::I32(Some(rec.samples.len() as i32)),
                 Value::F64(None),
                 Value::F64(None),
                 Value::Str(run.model.label.clone()),
-                Value::F64(None),
-                Value::F32s(Some(samples)),
+                Value::F64(Some(rec.threshold_v)),
+                Value::F32s(Some(rec.samples)),
                 Value::Str(Some(run.source.clone())),
                 Value::Str(Some(run.source.clone())),
                 Value::Str(Some(run.params.clone())),
                 Value::F64(Some(x)),
                 Value::F64(Some(y)),
-                Value::F64(Some(run.scale_v_per_pa)),
-                Value::F64(Some(super::dominant_frequency(sig, run.out.sample_rate_hz))),
-            ]
+                Value::F64(Some(run.acq.scale_v_per_pa)),
+                Value::F64(Some(super::dominant_frequency(&p, run.out.sample_rate_hz))),
+            ])
         })
         .collect()
 }

@@ -37,7 +37,28 @@ pub struct ReferenceConfig {
     /// Volts per pascal of the written samples.
     #[serde(default = "scale")]
     pub scale_v_per_pa: f64,
+    /// The simulated AE system's trigger threshold and noise, dB_AE, and its pretrigger,
+    /// samples (see [`output::Acquisition`]; the noise is seeded with `seed`).
+    #[serde(default = "threshold_db")]
+    pub threshold_db: f64,
+    #[serde(default = "noise_db")]
+    pub noise_db: f64,
+    #[serde(default = "pretrigger")]
+    pub pretrigger: usize,
     pub scenario: Vec<ScenarioGrid>,
+}
+
+impl ReferenceConfig {
+    /// How the library's sensors record.
+    pub fn acquisition(&self) -> output::Acquisition {
+        output::Acquisition {
+            scale_v_per_pa: self.scale_v_per_pa,
+            threshold_db: self.threshold_db,
+            noise_db: self.noise_db,
+            pretrigger: self.pretrigger,
+            seed: self.seed,
+        }
+    }
 }
 
 fn seed() -> u64 {
@@ -50,7 +71,16 @@ fn spread() -> f64 {
     0.1
 }
 fn scale() -> f64 {
-    1e-3
+    output::Acquisition::default().scale_v_per_pa
+}
+fn threshold_db() -> f64 {
+    output::Acquisition::default().threshold_db
+}
+fn noise_db() -> f64 {
+    output::Acquisition::default().noise_db
+}
+fn pretrigger() -> usize {
+    output::Acquisition::default().pretrigger
 }
 
 /// One scenario and the values of its parameters: every combination is run.
@@ -219,6 +249,7 @@ pub fn build_library_part(
         })
         .collect::<Result<Vec<_>, SimError>>()?;
     pb.finish_and_clear();
+    let acq = cfg.acquisition();
     let rows: Vec<output::Run> = results
         .iter()
         .enumerate()
@@ -228,7 +259,7 @@ pub fn build_library_part(
             source: src.clone(),
             params: json.clone(),
             hit: runs[j].0 as u64 + 1,
-            scale_v_per_pa: cfg.scale_v_per_pa,
+            acq: &acq,
         })
         .collect();
     let Some(sh) = shard else {

@@ -440,18 +440,74 @@ fn simulated_waveforms_feed_the_feature_pipeline_and_match_their_schema() {
         solver: None,
         out: d.path().join("sim"),
         run: SimOptions::default(),
-        scale_v_per_pa: 1e-3,
+        acquisition: Default::default(),
     };
     aepipe::sim::run_job(&job).unwrap();
     let wf = d.path().join("sim/waveforms.parquet");
     crate::pipeline::check_against_schema_file(&wf, "sim_waveforms.md");
     let cfg = aepipe::config::PipelineConfig::default();
-    let (recs, rejs) = crate::read_all(&[wf], &cfg);
+    let (recs, rejs) = crate::read_all(&[wf.clone()], &cfg);
     assert!(rejs.is_empty(), "{rejs:?}");
-    assert_eq!(recs.len(), 9, "one record per Appendix-A sensor");
     assert_eq!(recs[0].label.as_deref(), Some("fibre_vibration"));
     assert_eq!(recs[0].sample_rate_hz, 1e7);
-    assert_eq!(recs[0].samples.len(), 200);
+    // Triggered like an AE system: 500 samples of pretrigger, nothing at or above the
+    // 40 dB_AE threshold before the trigger sample, the trigger sample at or above it; the
+    // pretrigger is the 26 dB_AE (20 µV rms) noise floor; the trigger comes when the sound
+    // can have arrived (distance / 350 m/s from the nearest part of the 1 mm fibre on
+    // y = 0, less 1 µs: a source is spread over 1.5 cells, and the 4th-order stencil's
+    // numerical precursors run ahead at −50 dB), and the record runs to the end of the 20 µs
+    // simulation.
+    let acq = aepipe::sim::output::Acquisition::default();
+    let thr = 1e-4;
+    let g = aepipe::sim::scenario::paper_grid();
+    let sensors: Vec<(usize, usize)> = vec![
+        (125, 100),
+        (125, 80),
+        (125, 5),
+        (100, 125),
+        (80, 125),
+        (5, 125),
+        (100, 100),
+        (80, 80),
+        (5, 5),
+    ];
+    let mut heard = 0;
+    for r in &recs {
+        let pre = r.pretrigger as usize;
+        assert_eq!(pre, acq.pretrigger, "{}", r.id());
+        assert!((r.threshold_v.unwrap() / thr - 1.0).abs() < 1e-12);
+        assert!(r.samples[..pre].iter().all(|v| (*v as f64).abs() < thr));
+        assert!((r.samples[pre] as f64).abs() >= thr);
+        let rms = (r.samples[..pre]
+            .iter()
+            .map(|v| (*v as f64).powi(2))
+            .sum::<f64>()
+            / pre as f64)
+            .sqrt();
+        assert!((rms / 20e-6 - 1.0).abs() < 0.15, "{} noise {rms}", r.id());
+        let (i, j) = sensors[r.channel as usize - 1];
+        let (x, y) = g.centre(i, j);
+        let dx = (x.abs() - 0.5e-3).max(0.0);
+        let delay = (dx * dx + y * y).sqrt() / 350.0;
+        let t_trigger = (2000 / 10 - (r.samples.len() - pre)) as f64 * 1e-7;
+        assert!(
+            t_trigger >= delay - 1e-6 && t_trigger <= delay + 6e-6,
+            "{}: trigger at {t_trigger:e} s, sound needs {delay:e} s",
+            r.id()
+        );
+        heard += 1;
+    }
+    // The three sensors 8.6 mm and more away are not reached within 20 µs: no record. The
+    // ones below and on the diagonal are (to the side, in line with the fibre, its dipole's
+    // null, the sensor may stay below the threshold).
+    assert!(!recs.iter().any(|r| [3, 6, 9].contains(&r.channel)));
+    for c in [1, 2, 7, 8] {
+        assert!(
+            recs.iter().any(|r| r.channel == c),
+            "sensor {c} heard nothing"
+        );
+    }
+    assert!(heard >= 4);
     // The sensor below the fibre hears its fundamental (~245 kHz): the feature pipeline's
     // spectrum puts the most power in the 200–300 kHz window.
     let f = aepipe::sim::dominant_frequency(
@@ -476,7 +532,7 @@ fn analyse(name: &str, kv: &[(&str, f64)]) -> aepipe::features::Analysis {
         solver: None,
         out: d.path().to_path_buf(),
         run: SimOptions::default(),
-        scale_v_per_pa: 1e-3,
+        acquisition: Default::default(),
     };
     aepipe::sim::run_job(&job).unwrap();
     let cfg = aepipe::config::PipelineConfig::default();
@@ -496,16 +552,26 @@ fn bond_failure_rings_at_250_and_750_khz_with_the_low_tone_lasting_longer() {
     assert!((200e3..300e3).contains(&low.freq_hz), "{low:?}");
     assert!((650e3..850e3).contains(&high.freq_hz), "{high:?}");
     assert!(low.duration_s > high.duration_s, "{low:?} {high:?}");
+    // Ch. 4.7: the strongest component may be either of the two; the criteria call it a
+    // bond failure.
     let dom = c.dominant.as_ref().unwrap();
     assert!(
-        (dom.freq_hz - low.freq_hz).abs() < 1.0,
-        "the 250 kHz tone dominates: {dom:?}"
+        (dom.freq_hz - low.freq_hz).abs() < 1.0 || (dom.freq_hz - high.freq_hz).abs() < 1.0,
+        "{dom:?}"
     );
-    // Ratio windows (Eq. 4.5.4): 200–300 kHz holds the most power, 700–800 kHz is a local peak.
+    assert_eq!(
+        a.label,
+        aepipe::model::Mechanism::BondFailure,
+        "{}",
+        a.reason
+    );
+    // Ratio windows (Eq. 4.5.4): 200–300 kHz holds the most power.
     let r = &a.ratios;
     let top = (0..r.len()).max_by(|&x, &y| r[x].total_cmp(&r[y])).unwrap();
     assert_eq!(top, 2, "{r:?}");
-    assert!(r[7] > r[6] && r[7] > r[8] && r[7] > 0.05, "{r:?}");
+    // The third harmonic of the 1 %-stretched, discrete 1 mm fibre: a local peak in 600–800.
+    let third = r[6].max(r[7]);
+    assert!(third > r[5] && third > r[8] && r[6] + r[7] > 0.15, "{r:?}");
 }
 
 #[test]
