@@ -299,9 +299,9 @@ impl Default for CriteriaConfig {
             both_min_ratio: 0.25,
             early_trigger_s: 10e-6,
             late_front_s: 5e-6,
-            burst_gap_s: 20e-6,
-            burst_quiet_ratio: 0.1,
-            burst_level_ratio: 0.3,
+            burst_gap_s: 5e-6,
+            burst_quiet_ratio: 0.25,
+            burst_level_ratio: 0.5,
             clip_run: 3,
         }
     }
