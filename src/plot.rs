@@ -409,3 +409,108 @@ pub fn hit_maps_png(
     root.present().map_err(&e)?;
     Ok(())
 }
+
+/// The damage profile of one experiment × channel (Fig. 6.1): the load over time above, and
+/// below, for each class, the share of its hits so far (so that a class of 9 hits is as
+/// visible as one of 500; the legend gives the totals), with the peak load marked.
+pub fn damage_profile_png(
+    path: &Path,
+    rows: &[&crate::som::profile::ProfileRow],
+    summary: &crate::som::profile::ProfileSummary,
+) -> Result<(), PlotError> {
+    use crate::som::profile::CLASSES;
+    ensure_font()?;
+    let e = err(path);
+    let x_of = |i: usize, r: &crate::som::profile::ProfileRow| r.time_s.unwrap_or(i as f64);
+    let xlabel = if rows.iter().all(|r| r.time_s.is_some()) {
+        "time (s)"
+    } else {
+        "hit (in order)"
+    };
+    let xmax = rows
+        .iter()
+        .enumerate()
+        .map(|(i, r)| x_of(i, r))
+        .fold(1e-9, f64::max);
+    let root = BitMapBackend::new(path, (1000, 640)).into_drawing_area();
+    root.fill(&WHITE).map_err(&e)?;
+    let (top, bottom) = root.split_vertically(240);
+    let lmax = summary.peak_load_n.unwrap_or(1.0).max(1e-9) * 1.05;
+    let mut c = ChartBuilder::on(&top)
+        .caption(
+            format!(
+                "{} ch{}: damage profile (Fig. 6.1)",
+                summary.experiment, summary.channel
+            ),
+            ("sans-serif", 18),
+        )
+        .margin(12)
+        .x_label_area_size(30)
+        .y_label_area_size(60)
+        .build_cartesian_2d(0.0..xmax, 0.0..lmax)
+        .map_err(&e)?;
+    c.configure_mesh().y_desc("load (N)").draw().map_err(&e)?;
+    c.draw_series(LineSeries::new(
+        rows.iter()
+            .enumerate()
+            .filter_map(|(i, r)| r.load_n.map(|l| (x_of(i, r), l))),
+        BLACK.stroke_width(2),
+    ))
+    .map_err(&e)?;
+    let mut c = ChartBuilder::on(&bottom)
+        .margin(12)
+        .x_label_area_size(40)
+        .y_label_area_size(60)
+        .build_cartesian_2d(0.0..xmax, 0.0..1.02)
+        .map_err(&e)?;
+    c.configure_mesh()
+        .x_desc(xlabel)
+        .y_desc("share of the class's hits so far")
+        .draw()
+        .map_err(&e)?;
+    let colours = [
+        RGBColor(31, 119, 180),
+        RGBColor(214, 39, 40),
+        RGBColor(255, 127, 14),
+        RGBColor(120, 120, 120),
+    ];
+    let last = rows.last().map(|r| r.counts).unwrap_or([0; 4]);
+    let names: Vec<String> = CLASSES
+        .iter()
+        .map(|s| s.to_string())
+        .chain(["other".to_string()])
+        .collect();
+    for k in 0..4 {
+        if last[k] == 0 {
+            continue;
+        }
+        let colour = colours[k];
+        c.draw_series(LineSeries::new(
+            rows.iter()
+                .enumerate()
+                .map(|(i, r)| (x_of(i, r), r.counts[k] as f64 / last[k] as f64)),
+            colour.stroke_width(2),
+        ))
+        .map_err(&e)?
+        .label(format!("{} ({} hits)", names[k], last[k]))
+        .legend(move |(x, y)| PathElement::new([(x, y), (x + 20, y)], colour.stroke_width(2)));
+    }
+    if let Some(t) = summary.peak_time_s {
+        c.draw_series(LineSeries::new(
+            [(t, 0.0), (t, 1.02)],
+            BLACK.mix(0.6).stroke_width(1),
+        ))
+        .map_err(&e)?
+        .label("peak load")
+        .legend(|(x, y)| PathElement::new([(x, y), (x + 20, y)], BLACK.mix(0.6)));
+    }
+    c.configure_series_labels()
+        .position(SeriesLabelPosition::UpperLeft)
+        .background_style(WHITE.mix(0.85))
+        .border_style(BLACK)
+        .label_font(("sans-serif", 14))
+        .draw()
+        .map_err(&e)?;
+    root.present().map_err(&e)?;
+    Ok(())
+}

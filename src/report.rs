@@ -48,6 +48,11 @@ pub struct SomStage {
     pub hit_maps: Option<PathBuf>,
     /// SOM class → number of hits.
     pub classes: BTreeMap<String, usize>,
+    /// The damage profile (Fig. 6.1): `damage_profile.parquet`, a summary and a picture
+    /// per experiment × channel.
+    pub profile_table: PathBuf,
+    pub profile: Vec<crate::som::profile::ProfileSummary>,
+    pub profile_plots: Vec<(String, PathBuf)>,
 }
 
 /// Classification against the ground truth (`truth.parquet`).
@@ -64,6 +69,64 @@ impl TruthScore {
     pub fn accuracy(&self) -> Option<f64> {
         (self.bond_fibre_total > 0)
             .then(|| self.bond_fibre_correct as f64 / self.bond_fibre_total as f64)
+    }
+
+    fn count(&self, som: &str, truth: &str) -> usize {
+        self.counts
+            .get(&(som.to_string(), truth.to_string()))
+            .copied()
+            .unwrap_or(0)
+    }
+
+    /// True erroneous hits the SOM calls erroneous, of all true erroneous hits.
+    pub fn erroneous_recall(&self) -> (usize, usize) {
+        let total = self
+            .counts
+            .iter()
+            .filter(|((_, t), _)| t == "erroneous")
+            .map(|(_, n)| n)
+            .sum();
+        (self.count("erroneous", "erroneous"), total)
+    }
+
+    /// The thesis's overall figure (ch. 5.4: (537 + 8 + 26) / 651 = 87.71 %): hits given
+    /// their true mechanism or recognised as erroneous, over all hits ("both" hits count
+    /// as wrong whatever the SOM says, as in the thesis).
+    pub fn thesis_overall(&self) -> (usize, usize) {
+        let correct = ["bond_failure", "fibre_failure", "erroneous"]
+            .iter()
+            .map(|c| self.count(c, c))
+            .sum();
+        (correct, self.counts.values().sum())
+    }
+
+    /// Table 5.4 as the thesis prints it: a column per SOM class, a row per true class,
+    /// each cell the share of the SOM class's hits (and the ratio).
+    pub fn format_table_5_4(&self) -> String {
+        let order = ["bond_failure", "fibre_failure", "erroneous", "both"];
+        let rank = |c: &str| order.iter().position(|o| *o == c).unwrap_or(order.len());
+        let mut soms: Vec<&String> = self.counts.keys().map(|k| &k.0).collect();
+        let mut truths: Vec<&String> = self.counts.keys().map(|k| &k.1).collect();
+        for v in [&mut soms, &mut truths] {
+            v.sort_by(|a, b| rank(a).cmp(&rank(b)).then(a.cmp(b)));
+            v.dedup();
+        }
+        let mut out = format!("{:<16}", "truth \\ SOM");
+        for c in &soms {
+            out.push_str(&format!(" | {:>22}", c));
+        }
+        out.push('\n');
+        for t in &truths {
+            out.push_str(&format!("{:<16}", t));
+            for c in &soms {
+                let n: usize = truths.iter().map(|tt| self.count(c, tt)).sum();
+                let k = self.count(c, t);
+                let cell = format!("{:.2} % ({k}/{n})", 100.0 * k as f64 / n.max(1) as f64);
+                out.push_str(&format!(" | {cell:>22}"));
+            }
+            out.push('\n');
+        }
+        out
     }
 }
 
@@ -148,6 +211,7 @@ pre{{background:#f6f6f6;padding:8px;overflow-x:auto}}.missing{{color:#b00}}</sty
     classes_section(&mut h, g);
     trend_section(&mut h, s);
     som_section(&mut h, s);
+    profile_section(&mut h, s);
     truth_section(&mut h, s);
     gallery_section(&mut h, &g.gallery);
     footer(&mut h, s, g);
@@ -284,6 +348,45 @@ fn som_section(h: &mut String, s: &RunSummary) {
     }
 }
 
+fn profile_section(h: &mut String, s: &RunSummary) {
+    let Some(m) = &s.som else { return };
+    if m.profile.is_empty() {
+        return;
+    }
+    let _ = write!(
+        h,
+        "<h2>Damage profile (Fig. 6.1)</h2><p>The SOM's classes in time order against the \
+         load; the table is <code>{}</code>.</p><table><tr><th class=l>experiment</th>\
+         <th>peak load (N)</th><th>at (s)</th><th class=l>class</th><th>hits</th>\
+         <th>before the peak load</th><th>last fibre failure (s)</th><th>last hit (s)</th></tr>",
+        esc(&m.profile_table.display().to_string())
+    );
+    let opt = |v: Option<f64>, d: usize| v.map(|x| format!("{x:.d$}")).unwrap_or("–".into());
+    for p in &m.profile {
+        for (k, (c, (n, before))) in p.classes.iter().enumerate() {
+            let _ = write!(
+                h,
+                "<tr><td class=l>{}</td><td>{}</td><td>{}</td><td class=l>{}</td><td>{n}</td><td>{before}</td><td>{}</td><td>{}</td></tr>",
+                if k == 0 { esc(&format!("{} ch{}", p.experiment, p.channel)) } else { String::new() },
+                if k == 0 { opt(p.peak_load_n, 1) } else { String::new() },
+                if k == 0 { opt(p.peak_time_s, 2) } else { String::new() },
+                esc(c),
+                if k == 0 { opt(p.last_fibre_s, 2) } else { String::new() },
+                if k == 0 { opt(p.last_hit_s, 2) } else { String::new() },
+            );
+        }
+    }
+    h.push_str("</table>");
+    for (name, p) in &m.profile_plots {
+        let _ = write!(
+            h,
+            "<figure>{}<figcaption>{}</figcaption></figure>",
+            img(p, &format!("damage profile {name}"), Some(900)),
+            esc(name)
+        );
+    }
+}
+
 fn truth_section(h: &mut String, s: &RunSummary) {
     if let Some(t) = &s.truth {
         let truths: BTreeSet<&String> = t.counts.keys().map(|k| &k.1).collect();
@@ -321,6 +424,16 @@ fn truth_section(h: &mut String, s: &RunSummary) {
                 100.0 * a
             );
         }
+        let (ek, en) = t.erroneous_recall();
+        let (ok, all) = t.thesis_overall();
+        let _ = write!(
+            h,
+            "<p>Erroneous records recognised: {ek}/{en}. Overall, the thesis's way (true \
+             mechanism or recognised erroneous, over all hits): {ok}/{all} = {:.1} %.</p>\
+             <p>Table 5.4 layout (share of each SOM class's hits):</p><pre>{}</pre>",
+            100.0 * ok as f64 / all.max(1) as f64,
+            esc(&t.format_table_5_4())
+        );
     }
 }
 

@@ -143,8 +143,10 @@ fn add_at(x: &mut [f64], sig: &[f64], at: usize, amp: f64) {
 /// trigger with up to 1 µs of arrival jitter, bond hits re-weighted between their parts
 /// below and above 500 kHz by `low_share` (the designed ch. 4.5.5 shift), distance
 /// attenuation (a source 0–5 mm away, 20 %/mm), the sensor band 100–2500 kHz, and noise.
-/// "Both" is a fibre pulse followed 4 µs later by a bond wave; erroneous hits are two bursts
-/// 150 µs apart or a burst that starts before the trigger.
+/// "Both" is a fibre pulse followed 4 µs later by a bond wave; erroneous hits are the
+/// library's erroneous records (triggered before the front, two signals, clipped — a
+/// clipped one is clipped again after the band and noise, as an ADC would), or, from a
+/// library without them, two bursts 150 µs apart or a burst that starts before the trigger.
 fn from_library(lib: &Library, spec: &HitSpec, rng: &mut Rng) -> (Vec<f32>, String) {
     let fs = spec.sample_rate_hz;
     let n = spec.n_samples;
@@ -171,6 +173,7 @@ fn from_library(lib: &Library, spec: &HitSpec, rng: &mut Rng) -> (Vec<f32>, Stri
     };
     let distance_mm = rng.range(0.0, 5.0);
     let a = spec.amplitude_v * (-0.2 * distance_mm).exp();
+    let mut clip = false;
     let at = pre + (rng.uniform() * 1e-6 * fs) as usize;
     match spec.mechanism {
         Mechanism::BondFailure => bond(&mut x, rng, at, a, &mut sources),
@@ -185,6 +188,14 @@ fn from_library(lib: &Library, spec: &HitSpec, rng: &mut Rng) -> (Vec<f32>, Stri
                 &mut sources,
             );
         }
+        Mechanism::Erroneous if !lib.erroneous.is_empty() => {
+            // One of the library's faulty records (triggered before the front, two
+            // signals, clipped), placed with its own trigger at the hit's.
+            let s = &lib.erroneous[pick(&lib.erroneous, rng)];
+            add_at(&mut x, &s.samples, at.saturating_sub(lead), a);
+            sources.push(format!("erroneous: {}", s.source));
+            clip = s.clipped;
+        }
         Mechanism::Erroneous => {
             if rng.uniform() < 0.5 {
                 bond(&mut x, rng, at, a, &mut sources);
@@ -197,12 +208,16 @@ fn from_library(lib: &Library, spec: &HitSpec, rng: &mut Rng) -> (Vec<f32>, Stri
         Mechanism::Unclassified => {}
     }
     let x = band_pass(&x, fs, 100e3, 2500e3);
-    (
-        x.iter()
-            .map(|v| (v + spec.noise_v * rng.normal()) as f32)
-            .collect(),
-        sources.join("; "),
-    )
+    let mut out: Vec<f32> = x
+        .iter()
+        .map(|v| (v + spec.noise_v * rng.normal()) as f32)
+        .collect();
+    if clip {
+        // The ADC's range: 90 % of what the sensor delivered.
+        let range = 0.9 * out.iter().fold(0.0f32, |m, v| m.max(v.abs()));
+        out.iter_mut().for_each(|v| *v = v.clamp(-range, range));
+    }
+    (out, sources.join("; "))
 }
 
 /// The load curve of a notched-strip tensile test (Fig. 4.15 shape): rises almost linearly,
@@ -234,6 +249,8 @@ pub struct Experiment {
 pub struct Library {
     pub bond: Vec<LibrarySignal>,
     pub fibre: Vec<LibrarySignal>,
+    /// Erroneous records (acquisition faults made from simulated signals); may be empty.
+    pub erroneous: Vec<LibrarySignal>,
 }
 
 #[derive(Debug, Clone)]
@@ -245,6 +262,9 @@ pub struct LibrarySignal {
     pub high: Vec<f64>,
     /// Which simulation (its `sim_params`), for the truth table.
     pub source: String,
+    /// The record sits at its extreme value for 3 or more samples: the ADC clipped it, and
+    /// a hit made from it is clipped again after the synthetic sensor band and noise.
+    pub clipped: bool,
 }
 
 impl Library {
@@ -268,6 +288,7 @@ impl Library {
                 if peak <= 0.0 {
                     continue;
                 }
+                let clipped = x.iter().filter(|v| v.abs() == peak).count() >= 3;
                 let x: Vec<f64> = x.iter().map(|v| v / peak).collect();
                 let (low, high) = split_band(&x, fs, 500e3);
                 let sig = LibrarySignal {
@@ -275,10 +296,12 @@ impl Library {
                     low,
                     high,
                     source: format!("{} hit {} ch {}", r.experiment, r.hit, r.channel),
+                    clipped,
                 };
                 match r.label.as_deref() {
                     Some("bond_failure") => lib.bond.push(sig),
                     Some("fibre_failure") => lib.fibre.push(sig),
+                    Some("erroneous") => lib.erroneous.push(sig),
                     _ => {}
                 }
             }

@@ -300,7 +300,11 @@ pub fn rebuild_report(dir: &Path) -> Result<PathBuf, WorkflowError> {
             crate::som::tables::classify_tables(&model, &feats, Some("criteria_label"), &sdir)?;
         let classes = classes_of(&confusion);
         let existing = |p: PathBuf| p.is_file().then_some(p);
+        let (profile, profile_plots) = profile_stage(&config, &feats[0], &sdir)?;
         som = Some(SomStage {
+            profile_table: sdir.join("damage_profile.parquet"),
+            profile,
+            profile_plots,
             model_dir: sdir.join("model"),
             trained_on: f.som_trained_on.clone().unwrap_or_default(),
             training_rows: f.som_training_rows.unwrap_or(0),
@@ -486,7 +490,11 @@ fn som_stage(job: &RunJob, feats: &[PathBuf]) -> Result<SomStage, WorkflowError>
     crate::plot::hit_maps_png(&hm, &model.som, &confusion.hits)?;
     let (u_matrix, hit_maps) = (Some(u), Some(hm));
     let classes = classes_of(&confusion);
+    let (profile, profile_plots) = profile_stage(cfg, &feats[0], &som_dir)?;
     Ok(SomStage {
+        profile_table: som_dir.join("damage_profile.parquet"),
+        profile,
+        profile_plots,
         model_dir,
         trained_on,
         training_rows: model.composition.values().map(|(_, r)| r).sum(),
@@ -496,6 +504,38 @@ fn som_stage(job: &RunJob, feats: &[PathBuf]) -> Result<SomStage, WorkflowError>
         hit_maps,
         classes,
     })
+}
+
+/// The damage profile of a classified run into `som_dir`: `damage_profile.parquet` and a
+/// Fig. 6.1 picture per experiment × channel.
+type Profile = (
+    Vec<crate::som::profile::ProfileSummary>,
+    Vec<(String, PathBuf)>,
+);
+
+fn profile_stage(
+    cfg: &PipelineConfig,
+    features: &Path,
+    som_dir: &Path,
+) -> Result<Profile, WorkflowError> {
+    let (rows, summaries) =
+        crate::som::profile::build(features, &som_dir.join("classification.parquet"))?;
+    crate::som::profile::write(&som_dir.join("damage_profile.parquet"), &rows, &cfg.hash())?;
+    let mut plots = Vec::new();
+    for s in &summaries {
+        let group: Vec<&crate::som::profile::ProfileRow> = rows
+            .iter()
+            .filter(|r| r.key.0 == s.experiment && r.key.1 == s.channel)
+            .collect();
+        let png = som_dir.join(format!(
+            "damage_profile_{}_ch{}.png",
+            crate::util::file_safe(&s.experiment),
+            s.channel
+        ));
+        crate::plot::damage_profile_png(&png, &group, s)?;
+        plots.push((format!("{} ch{}", s.experiment, s.channel), png));
+    }
+    Ok((summaries, plots))
 }
 
 /// Draw the CWT of the chosen hits (one pass over the inputs) into `dir`; returns the PNG
@@ -648,6 +688,7 @@ pub const TABLES: &[&str] = &[
     "hits",
     "trend",
     "classification",
+    "damage_profile",
     "sim_waveforms",
     "sim_trajectories",
     "truth",
@@ -662,6 +703,7 @@ pub fn table_schema(name: &str, cfg: &PipelineConfig) -> Option<crate::store::Ta
         "hits" => crate::store::hits_table(),
         "trend" => crate::analysis::trend::trend_table(),
         "classification" => crate::som::tables::classification_table(),
+        "damage_profile" => crate::som::profile::profile_table(),
         "sim_waveforms" => crate::sim::output::sim_waveforms_table(),
         "sim_trajectories" => crate::sim::output::trajectory_table(),
         "truth" => crate::synth::truth_table(),
@@ -709,6 +751,7 @@ pub fn headline(s: &RunSummary) -> Vec<String> {
                 .collect::<Vec<_>>()
                 .join(", ")
         ));
+        l.extend(m.profile.iter().map(|p| p.line()));
         if let Some(a) = m.confusion.accuracy() {
             l.push(format!(
                 "agreement with the ch. 4.7 criteria labels: {}/{} = {:.1} %",
@@ -727,6 +770,14 @@ pub fn headline(s: &RunSummary) -> Vec<String> {
                 100.0 * a
             ));
         }
+        let (ek, en) = t.erroneous_recall();
+        let (ok, all) = t.thesis_overall();
+        l.push(format!(
+            "erroneous records recognised: {ek}/{en}; overall the thesis's way (mechanism or erroneous, over all hits): {ok}/{all} = {:.1} %",
+            100.0 * ok as f64 / all.max(1) as f64
+        ));
+        l.push("Table 5.4 (share of each SOM class's hits):".into());
+        l.extend(t.format_table_5_4().lines().map(|x| format!("  {x}")));
     }
     l.push(format!(
         "stages: {}",

@@ -356,6 +356,7 @@ pub fn run_job(job: &SimJob) -> Result<Vec<String>, SimError> {
             params: json.clone(),
             hit: k as u64 + 1,
             acq: &job.acquisition,
+            faults: Vec::new(),
         })
         .collect();
     if runs.iter().any(|r| !r.out.sensors.is_empty()) {

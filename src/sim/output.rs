@@ -47,7 +47,7 @@ pub fn sim_waveforms_table() -> TableSchema {
             "dominant_frequency_hz",
             ColType::Float64,
             "Hz",
-            "peak of the signal's power spectrum",
+            "peak of the band-limited pressure's power spectrum (the whole simulated signal, before noise)",
         ),
     ]);
     t
@@ -84,6 +84,8 @@ pub struct Run<'a> {
     /// Hit number of this run in the experiment.
     pub hit: u64,
     pub acq: &'a Acquisition,
+    /// Erroneous records to make from this run's signals besides its own.
+    pub faults: Vec<Fault>,
 }
 
 /// How the simulated sensor records a hit, the way an AE system does: the pressure,
@@ -136,6 +138,13 @@ impl Acquisition {
     /// Record a pressure signal (Pa, already band-limited): `None` when it never reaches the
     /// threshold (an AE system records nothing). `key` makes each signal's noise its own.
     pub fn record(&self, pressure: &[f64], key: u64) -> Option<Recorded> {
+        self.record_with_lead(pressure, key, 0)
+    }
+
+    /// [`Acquisition::record`] with the trigger `lead` samples before the signal's first
+    /// crossing (`lead` > 0: the system was triggered by something else before the front
+    /// arrived, Fig. 5.8c).
+    pub fn record_with_lead(&self, pressure: &[f64], key: u64, lead: usize) -> Option<Recorded> {
         let thr = self.threshold_v();
         let sigma = if self.noise_db > -100.0 {
             crate::model::db_to_v(self.noise_db)
@@ -147,7 +156,7 @@ impl Acquisition {
                 .wrapping_mul(0x9E37_79B9_7F4A_7C15)
                 .wrapping_add(key),
         );
-        let pre = self.pretrigger;
+        let pre = self.pretrigger + lead;
         // Noise alone before t = 0, then signal plus noise.
         let stream: Vec<f64> = (0..pre)
             .map(|_| 0.0)
@@ -158,10 +167,97 @@ impl Acquisition {
         let start = first.saturating_sub(pre);
         Some(Recorded {
             samples: stream[start..].iter().map(|&v| v as f32).collect(),
-            pretrigger: first - start,
+            pretrigger: (first - start).saturating_sub(lead),
             threshold_v: thr,
         })
     }
+}
+
+/// The acquisition faults of ch. 5.4 (Table 5.1's "erroneous data"), made from simulated
+/// signals for the reference library's `erroneous` class.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Fault {
+    /// Triggered 10–30 µs before the front arrived (Fig. 5.8c).
+    BeforeFront,
+    /// A second signal (another sensor of the run, 0.7–1× the first's peak) arriving
+    /// 20–35 µs after the first, when the first has rung down: two distinct signals in one
+    /// record, both inside the bins' 40 µs.
+    TwoSignals,
+    /// Clipped at 5–20 % of the peak (a hit 14–26 dB over the ADC's range): hard enough
+    /// that the CWT's shape is wrong, which is what makes a record "erroneous" in ch. 5.4
+    /// (a record clipped near its peak keeps its shape and its mechanism).
+    Clipped,
+}
+
+impl Fault {
+    pub const ALL: [Fault; 3] = [Fault::BeforeFront, Fault::TwoSignals, Fault::Clipped];
+
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Fault::BeforeFront => "before_front",
+            Fault::TwoSignals => "two_signals",
+            Fault::Clipped => "clipped",
+        }
+    }
+}
+
+/// One erroneous record made from a run's band-limited sensor pressures (`None` when no
+/// sensor triggered), with what was done, for `sim_params`.
+pub fn fault_record(
+    acq: &Acquisition,
+    pressures: &[Vec<f64>],
+    fault: Fault,
+    fs: f64,
+    key: u64,
+) -> Option<(Recorded, serde_json::Map<String, serde_json::Value>)> {
+    let mut rng = crate::util::Rng::new(key ^ 0x00E7_7A0E_0000_0000 ^ acq.seed);
+    let heard: Vec<usize> = (0..pressures.len())
+        .filter(|&k| acq.record(&pressures[k], key).is_some())
+        .collect();
+    if heard.is_empty() {
+        return None;
+    }
+    let pick = |rng: &mut crate::util::Rng| heard[(rng.next_u64() % heard.len() as u64) as usize];
+    let a = pick(&mut rng);
+    let mut info = serde_json::Map::new();
+    info.insert("fault".into(), fault.as_str().into());
+    info.insert("fault_sensor".into(), (a + 1).into());
+    let rec = match fault {
+        Fault::BeforeFront => {
+            let lead = (rng.range(10e-6, 30e-6) * fs).round() as usize;
+            info.insert("fault_lead_us".into(), (lead as f64 / fs * 1e6).into());
+            acq.record_with_lead(&pressures[a], key, lead)?
+        }
+        Fault::TwoSignals => {
+            let b = pick(&mut rng);
+            let delay = (rng.range(20e-6, 35e-6) * fs).round() as usize;
+            let gain = rng.range(0.7, 1.0);
+            let peak = |x: &[f64]| x.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+            let g = gain * peak(&pressures[a]) / peak(&pressures[b]).max(f64::MIN_POSITIVE);
+            let mut sum = pressures[a].clone();
+            for (i, v) in pressures[b].iter().enumerate() {
+                if let Some(o) = sum.get_mut(i + delay) {
+                    *o += g * v;
+                }
+            }
+            info.insert("fault_second_sensor".into(), (b + 1).into());
+            info.insert("fault_delay_us".into(), (delay as f64 / fs * 1e6).into());
+            info.insert("fault_gain".into(), gain.into());
+            acq.record(&sum, key)?
+        }
+        Fault::Clipped => {
+            let level = rng.range(0.05, 0.2);
+            let mut r = acq.record(&pressures[a], key)?;
+            let peak = r.samples.iter().fold(0.0f32, |m, v| m.max(v.abs()));
+            let clip = (level as f32) * peak;
+            for v in &mut r.samples {
+                *v = v.clamp(-clip, clip);
+            }
+            info.insert("fault_clip_share".into(), level.into());
+            r
+        }
+    };
+    Some((rec, info))
 }
 
 /// The pressure a sensor passes on: the simulated signal band-limited to what the grid
@@ -171,44 +267,78 @@ pub fn band_limited(sig: &[f64], g: &super::model::GridSpec) -> Vec<f64> {
     super::acoustic::low_pass(sig, 1.0 / g.dt, b.pass_hz, b.stop_hz)
 }
 
-/// Rows of the simulated waveform table, one per sensor that triggered.
+/// Rows of the simulated waveform table, one per sensor that triggered, then the run's
+/// erroneous records (`run.faults`, channels 101, 102, …).
 pub fn rows(run: &Run) -> Vec<store::Row> {
     let g = match &run.model.grid {
         Some(g) => g,
         None => return vec![],
     };
-    run.out
-        .sensors
+    let fs = run.out.sample_rate_hz;
+    let pressures: Vec<Vec<f64>> = run.out.sensors.iter().map(|s| band_limited(s, g)).collect();
+    let row = |channel: i32,
+               rec: Recorded,
+               label: Option<String>,
+               params: String,
+               (x, y): (f64, f64),
+               p: &[f64]| {
+        vec![
+            Value::Str(Some(run.model.name.clone())),
+            Value::I32(Some(channel)),
+            Value::I64(Some(run.hit as i64)),
+            Value::F64(Some(0.0)),
+            Value::F64(Some(fs)),
+            Value::I32(Some(rec.pretrigger as i32)),
+            Value::I32(Some(rec.samples.len() as i32)),
+            Value::F64(None),
+            Value::F64(None),
+            Value::Str(label),
+            Value::F64(Some(rec.threshold_v)),
+            Value::F32s(Some(rec.samples)),
+            Value::Str(Some(run.source.clone())),
+            Value::Str(Some(run.source.clone())),
+            Value::Str(Some(params)),
+            Value::F64(Some(x)),
+            Value::F64(Some(y)),
+            Value::F64(Some(run.acq.scale_v_per_pa)),
+            Value::F64(Some(super::dominant_frequency(p, fs))),
+        ]
+    };
+    let mut out: Vec<store::Row> = pressures
         .iter()
         .zip(&run.model.sensors)
         .enumerate()
-        .filter_map(|(k, (sig, spec))| {
-            let (x, y) = g.centre(spec.i, spec.j);
-            let p = band_limited(sig, g);
-            let rec = run.acq.record(&p, (run.hit << 16) | k as u64)?;
-            Some(vec![
-                Value::Str(Some(run.model.name.clone())),
-                Value::I32(Some(k as i32 + 1)),
-                Value::I64(Some(run.hit as i64)),
-                Value::F64(Some(0.0)),
-                Value::F64(Some(run.out.sample_rate_hz)),
-                Value::I32(Some(rec.pretrigger as i32)),
-                Value::I32(Some(rec.samples.len() as i32)),
-                Value::F64(None),
-                Value::F64(None),
-                Value::Str(run.model.label.clone()),
-                Value::F64(Some(rec.threshold_v)),
-                Value::F32s(Some(rec.samples)),
-                Value::Str(Some(run.source.clone())),
-                Value::Str(Some(run.source.clone())),
-                Value::Str(Some(run.params.clone())),
-                Value::F64(Some(x)),
-                Value::F64(Some(y)),
-                Value::F64(Some(run.acq.scale_v_per_pa)),
-                Value::F64(Some(super::dominant_frequency(&p, run.out.sample_rate_hz))),
-            ])
+        .filter_map(|(k, (p, spec))| {
+            let rec = run.acq.record(p, (run.hit << 16) | k as u64)?;
+            Some(row(
+                k as i32 + 1,
+                rec,
+                run.model.label.clone(),
+                run.params.clone(),
+                g.centre(spec.i, spec.j),
+                p,
+            ))
         })
-        .collect()
+        .collect();
+    for (j, &fault) in run.faults.iter().enumerate() {
+        let key = (run.hit << 16) | (0x100 + j as u64);
+        let Some((rec, info)) = fault_record(run.acq, &pressures, fault, fs, key) else {
+            continue;
+        };
+        let mut params: serde_json::Map<String, serde_json::Value> =
+            serde_json::from_str(&run.params).unwrap_or_default();
+        params.extend(info.clone());
+        let a = info["fault_sensor"].as_u64().unwrap_or(1) as usize - 1;
+        out.push(row(
+            101 + j as i32,
+            rec,
+            Some(crate::model::Mechanism::Erroneous.as_str().to_string()),
+            serde_json::Value::Object(params).to_string(),
+            g.centre(run.model.sensors[a].i, run.model.sensors[a].j),
+            &pressures[a],
+        ));
+    }
+    out
 }
 
 /// Write the simulated waveform table (atomic, like every table).
@@ -291,4 +421,86 @@ pub fn snapshot_png(
         root.present().map_err(|x| e(x.to_string()))?;
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A 250 kHz ring decaying over ~20 µs that starts at sample 100 of 600, in pascals.
+    fn ring(start: usize) -> Vec<f64> {
+        (0..600)
+            .map(|i| {
+                if i < start {
+                    return 0.0;
+                }
+                let t = (i - start) as f64 * 1e-7;
+                300.0 * (-t / 20e-6).exp() * (2.0 * std::f64::consts::PI * 250e3 * t).sin()
+            })
+            .collect()
+    }
+
+    #[test]
+    fn a_record_starts_pretrigger_samples_before_the_first_crossing() {
+        let acq = Acquisition::default();
+        let r = acq.record(&ring(100), 7).unwrap();
+        let thr = acq.threshold_v();
+        assert_eq!(r.pretrigger, 500);
+        assert!(r.samples[..500].iter().all(|v| (*v as f64).abs() < thr));
+        assert!((r.samples[500] as f64).abs() >= thr);
+        // The noise floor before the signal is the configured 26 dB_AE (20 µV rms).
+        let rms = (r.samples[..400]
+            .iter()
+            .map(|v| (*v as f64).powi(2))
+            .sum::<f64>()
+            / 400.0)
+            .sqrt();
+        assert!((rms / 20e-6 - 1.0).abs() < 0.15, "{rms}");
+        // Nothing reaches the threshold: no record; the same key gives the same noise.
+        assert!(acq.record(&vec![0.0; 600], 7).is_none());
+        assert_eq!(acq.record(&ring(100), 7), Some(r));
+    }
+
+    #[test]
+    fn faults_are_what_ch_5_4_calls_erroneous() {
+        let acq = Acquisition::default();
+        let thr = acq.threshold_v() as f32;
+        let p = vec![ring(100), ring(150)];
+        // Triggered before the front: the threshold is first reached 10–30 µs after the
+        // trigger.
+        let (r, info) = fault_record(&acq, &p, Fault::BeforeFront, 1e7, 1).unwrap();
+        let first = r.samples.iter().position(|v| v.abs() >= thr).unwrap();
+        let lead = first - r.pretrigger;
+        assert!((100..=300).contains(&lead), "{lead}");
+        assert!((info["fault_lead_us"].as_f64().unwrap() - lead as f64 / 10.0).abs() < 1e-9);
+        // Clipped: a run of samples at the extreme, at 5–20 % of the unclipped peak.
+        let (r, _) = fault_record(&acq, &p, Fault::Clipped, 1e7, 2).unwrap();
+        let top = r.samples.iter().fold(0.0f32, |m, v| m.max(v.abs()));
+        assert!(r.samples.iter().filter(|v| v.abs() == top).count() >= 10);
+        let unclipped = 300.0 * acq.scale_v_per_pa;
+        assert!((0.04..0.21).contains(&(top as f64 / unclipped)), "{top}");
+        // Two signals: sensor b's signal added 20–35 µs later, scaled to 0.7–1 of sensor
+        // a's peak; the record is exactly that sum recorded.
+        let (r, info) = fault_record(&acq, &p, Fault::TwoSignals, 1e7, 3).unwrap();
+        let delay = (info["fault_delay_us"].as_f64().unwrap() * 10.0).round() as usize;
+        let gain = info["fault_gain"].as_f64().unwrap();
+        assert!(
+            (200..=350).contains(&delay) && (0.7..1.0).contains(&gain),
+            "{info:?}"
+        );
+        let a = info["fault_sensor"].as_u64().unwrap() as usize - 1;
+        let b = info["fault_second_sensor"].as_u64().unwrap() as usize - 1;
+        let mut sum = p[a].clone();
+        for i in delay..sum.len() {
+            sum[i] += gain * p[b][i - delay]; // both rings peak at 300 Pa
+        }
+        let again = acq.record(&sum, 3).unwrap();
+        assert_eq!(again.pretrigger, r.pretrigger);
+        let diff = again
+            .samples
+            .iter()
+            .zip(&r.samples)
+            .fold(0.0f32, |m, (x, y)| m.max((x - y).abs()));
+        assert!(diff < 1e-6, "{diff}");
+    }
 }

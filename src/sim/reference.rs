@@ -90,6 +90,10 @@ pub struct ScenarioGrid {
     pub name: String,
     #[serde(default)]
     pub params: BTreeMap<String, Vec<f64>>,
+    /// Erroneous records made from each of this scenario's simulations (ch. 5.4): run k's
+    /// j-th is fault (k + j) mod 3 of triggered-before-the-front, two signals, clipped.
+    #[serde(default)]
+    pub erroneous: usize,
 }
 
 /// `pipelines/reference-library.toml`, embedded so that the demo and `synth-experiment` need
@@ -169,6 +173,15 @@ pub fn expand(cfg: &ReferenceConfig) -> Vec<(String, Params)> {
         }
     }
     runs
+}
+
+/// Erroneous records per run of the scenario `name`.
+fn erroneous_of(cfg: &ReferenceConfig, name: &str) -> usize {
+    cfg.scenario
+        .iter()
+        .find(|g| g.name == name)
+        .map(|g| g.erroneous)
+        .unwrap_or(0)
 }
 
 /// Run the library into `out/waveforms.parquet`. Returns (runs, signals, seconds).
@@ -260,6 +273,9 @@ pub fn build_library_part(
             params: json.clone(),
             hit: runs[j].0 as u64 + 1,
             acq: &acq,
+            faults: (0..erroneous_of(cfg, &runs[j].1 .0))
+                .map(|e| output::Fault::ALL[(runs[j].0 + e) % output::Fault::ALL.len()])
+                .collect(),
         })
         .collect();
     let Some(sh) = shard else {

@@ -10,6 +10,7 @@
 //! Hyper-parameters are checked once into [`SomParams::check`] → [`ValidParams`] (linfa's
 //! way), then [`Som::fit`] trains and [`Som::bmu`] / [`Som::classify`] predict.
 
+pub mod profile;
 pub mod tables;
 
 use crate::util::Rng;
@@ -657,6 +658,56 @@ impl Som {
         Ok(())
     }
 
+    /// Relabel the nodes that win at least one of these labelled inputs by their
+    /// class-balanced majority (ties: the label that sorts first); the other nodes keep
+    /// their labels. Reading a trained map's areas with a calibration set: where it has no
+    /// evidence, the training labels stand.
+    pub fn relabel_where_hit(
+        &mut self,
+        data: ArrayView2<f64>,
+        labels: &[String],
+    ) -> Result<usize, SomError> {
+        let data = data.as_standard_layout();
+        let data = data.as_slice().expect("standard layout");
+        if data.len() / self.dim != labels.len() {
+            return Err(SomError::Data(format!(
+                "{} inputs but {} labels",
+                data.len() / self.dim,
+                labels.len()
+            )));
+        }
+        if self.labels.len() != self.nodes() {
+            return Err(SomError::Data("the nodes carry no labels to keep".into()));
+        }
+        // Each row votes 1 / (rows of its class): every class has the same total say, so a
+        // class the calibration set holds many of does not win a node by numbers alone.
+        let mut sizes: std::collections::BTreeMap<&str, usize> = Default::default();
+        for l in labels {
+            *sizes.entry(l.as_str()).or_default() += 1;
+        }
+        let mut votes: Vec<std::collections::BTreeMap<&str, f64>> =
+            vec![Default::default(); self.nodes()];
+        for (x, l) in data.chunks(self.dim).zip(labels) {
+            *votes[self.bmu(x).0].entry(l.as_str()).or_default() += 1.0 / sizes[l.as_str()] as f64;
+        }
+        let mut changed = 0;
+        for (j, v) in votes.iter().enumerate() {
+            let best = v
+                .iter()
+                .fold(None, |m: Option<(&str, f64)>, (l, &c)| match m {
+                    Some((_, mc)) if mc >= c => m,
+                    _ => Some((l, c)),
+                });
+            if let Some((l, _)) = best {
+                if self.labels[j] != l {
+                    self.labels[j] = l.to_string();
+                    changed += 1;
+                }
+            }
+        }
+        Ok(changed)
+    }
+
     /// BMU, distance and the BMU's label.
     pub fn classify(&self, x: &[f64]) -> (usize, f64, Option<&str>) {
         let (b, d) = self.bmu(x);
@@ -876,6 +927,50 @@ mod tests {
         assert!(a.iter().zip(&c).all(|(p, q)| (p - q).abs() <= 1e-15));
         // Nodes with h = 0 are untouched.
         assert_eq!(&a[..dim], &w0[..dim]);
+    }
+
+    /// Calibration relabels only the nodes it reaches, by a class-balanced majority.
+    #[test]
+    fn calibration_relabels_the_nodes_it_reaches() {
+        let mut rng = Rng::new(3);
+        let data: Vec<f64> = (0..300)
+            .map(|i| [0.0, 5.0, 10.0][i % 3] + 0.1 * rng.normal())
+            .collect();
+        let params = SomParams {
+            rows: 1,
+            cols: 3,
+            ..SomParams::default()
+        }
+        .check()
+        .unwrap();
+        let mut som = Som::fit(&params, m(&data, 1)).unwrap();
+        let node = |x: f64, som: &Som| som.bmu(&[x]).0;
+        assert_eq!(
+            [node(0.0, &som), node(5.0, &som), node(10.0, &som)]
+                .iter()
+                .collect::<std::collections::BTreeSet<_>>()
+                .len(),
+            3
+        );
+        let train: Vec<String> = data
+            .iter()
+            .map(|&x| if x < 7.5 { "a" } else { "b" }.to_string())
+            .collect();
+        som.label_nodes(m(&data, 1), &train).unwrap();
+        // Calibration: class "a" has 10 rows (8 at 0, 2 at 5), class "e" one row at 5.
+        let cal: Vec<f64> = [vec![0.0; 8], vec![5.0, 5.0, 5.0]].concat();
+        let labels: Vec<String> = [vec!["a"; 10], vec!["e"]]
+            .concat()
+            .into_iter()
+            .map(String::from)
+            .collect();
+        let changed = som.relabel_where_hit(m(&cal, 1), &labels).unwrap();
+        assert_eq!(changed, 1);
+        assert_eq!(som.classify(&[0.0]).2, Some("a"));
+        // At 5: "e" has 1/1 of its rows there, "a" 2/10 of its: "e" wins the node.
+        assert_eq!(som.classify(&[5.0]).2, Some("e"));
+        // No calibration row reaches 10: the training label stands.
+        assert_eq!(som.classify(&[10.0]).2, Some("b"));
     }
 
     #[test]

@@ -118,15 +118,27 @@ pub struct TrainingSet {
     /// repeated 8 times beside 32 bond failures).
     pub balance: bool,
     pub seed: u64,
+    /// After labelling the nodes with the training rows, relabel every node that wins at
+    /// least one labelled input row whose class is not in `calibration_exclude` (erroneous
+    /// ones included) by those rows' majority: the thesis read the map's areas with all its
+    /// labelled AEs (ch. 5.4, area (4) gathered 26 of 29 erroneous ones). Nodes no
+    /// calibration row reaches keep their training label. Models written before this field
+    /// were labelled by their training rows only.
+    #[serde(default)]
+    pub calibrate: bool,
+    #[serde(default)]
+    pub calibration_exclude: Vec<String>,
 }
 
 impl Default for TrainingSet {
     fn default() -> Self {
         TrainingSet {
             fraction: 0.1,
-            exclude: vec!["erroneous".into(), "unclassified".into()],
+            exclude: vec!["erroneous".into(), "unclassified".into(), "both".into()],
             balance: true,
             seed: 5,
+            calibrate: true,
+            calibration_exclude: vec!["unclassified".into(), "both".into()],
         }
     }
 }
@@ -234,6 +246,9 @@ pub struct Model {
     pub scaling: Option<Scaling>,
     pub training: TrainingSet,
     pub composition: Composition,
+    /// Class → rows that labelled the nodes (empty: the training rows did).
+    #[serde(default)]
+    pub calibration: Composition,
     pub tool_version: String,
 }
 
@@ -292,6 +307,32 @@ pub fn train(paths: &[PathBuf], out: &Path, o: &TrainOptions) -> Result<Model, S
     .check()?;
     let mut som = Som::fit(&params, data.view())?;
     som.label_nodes(data.view(), &labels)?;
+    let mut calibration = Composition::new();
+    if o.training.calibrate {
+        let keep: Vec<usize> = (0..inp.labels.len())
+            .filter(|&i| {
+                inp.labels[i]
+                    .as_ref()
+                    .is_some_and(|l| !o.training.calibration_exclude.contains(l))
+            })
+            .collect();
+        let mut cal = inp.data.select(Axis(0), &keep);
+        if let Some(s) = &scaling {
+            cal.rows_mut()
+                .into_iter()
+                .for_each(|mut x| s.apply(x.as_slice_mut().expect("standard layout")));
+        }
+        let cal_labels: Vec<String> = keep
+            .iter()
+            .map(|&i| inp.labels[i].clone().expect("kept rows are labelled"))
+            .collect();
+        for l in &cal_labels {
+            let e = calibration.entry(l.clone()).or_insert((0, 0));
+            e.0 += 1;
+            e.1 += 1;
+        }
+        som.relabel_where_hit(cal.view(), &cal_labels)?;
+    }
     let model = Model {
         som,
         columns: o.columns.clone(),
@@ -299,6 +340,7 @@ pub fn train(paths: &[PathBuf], out: &Path, o: &TrainOptions) -> Result<Model, S
         scaling,
         training: o.training.clone(),
         composition: comp,
+        calibration,
         tool_version: env!("CARGO_PKG_VERSION").into(),
     };
     std::fs::create_dir_all(out).map_err(|e| werr(out, e))?;

@@ -10,6 +10,7 @@ mod corpus;
 mod dta;
 mod e2e;
 mod exit_codes;
+mod fidelity;
 mod formats;
 mod hits;
 mod pipeline;

@@ -1,0 +1,130 @@
+//! Fidelity (issue 14): the simulator, the ch. 4.7 criteria and the fibre-failure sweep
+//! checked on signals the criteria were not tuned on. The library here is the embedded
+//! definition with seed 4242, a seed no design choice was made on (material draws and noise
+//! differ from every library looked at while choosing the criteria's thresholds).
+
+use crate::TempDir;
+use aepipe::sim::reference::{build_library, ReferenceFile};
+use std::collections::BTreeMap;
+
+/// (label, criteria label, fault) of every signal of a library's feature table.
+fn labelled(dir: &std::path::Path) -> Vec<(String, String, String)> {
+    let wf = dir.join("lib/waveforms.parquet");
+    let out = dir.join("feat");
+    let (c, _, se) = crate::aepipe(&[
+        "features",
+        &wf.display().to_string(),
+        "--out",
+        &out.display().to_string(),
+    ]);
+    assert_eq!(c, 0, "{se}");
+    let (names, rows) = crate::table_rows(&out.join("features.parquet"));
+    let (wn, wrows) = crate::table_rows(&wf);
+    let col = |n: &str, names: &[String]| names.iter().position(|x| x == n).unwrap();
+    let params: BTreeMap<(String, String), String> = wrows
+        .iter()
+        .map(|r| {
+            (
+                (r[col("hit", &wn)].clone(), r[col("channel", &wn)].clone()),
+                r[col("sim_params", &wn)].clone(),
+            )
+        })
+        .collect();
+    rows.iter()
+        .map(|r| {
+            let p = &params[&(
+                r[col("hit", &names)].clone(),
+                r[col("channel", &names)].clone(),
+            )];
+            let v: serde_json::Value = serde_json::from_str(p).unwrap();
+            (
+                r[col("label", &names)].clone(),
+                r[col("criteria_label", &names)].clone(),
+                v["fault"].as_str().unwrap_or("").to_string(),
+            )
+        })
+        .collect()
+}
+
+#[test]
+fn the_criteria_give_the_simulated_library_its_mechanisms() {
+    let d = TempDir::new("fidelity-lib");
+    let mut f = ReferenceFile::default_library();
+    f.reference.seed = 4242;
+    let (_, n, _) = build_library(&f.reference, &d.path().join("lib"), false).unwrap();
+    let rows = labelled(d.path());
+    assert_eq!(rows.len() as u64, n);
+    let count =
+        |pred: &dyn Fn(&(String, String, String)) -> bool| rows.iter().filter(|r| pred(r)).count();
+    // Bond failures must be called bond failures; a fibre failure may also be called "both"
+    // (ch. 5.4: a fibre failure's contraction is a pulse and the structure it shakes a wave,
+    // "theoretically all the AEs within this group should be classified as fibre failures").
+    let bond = count(&|r| r.0 == "bond_failure");
+    let fibre = count(&|r| r.0 == "fibre_failure");
+    let bond_ok = count(&|r| r.0 == "bond_failure" && r.1 == "bond_failure");
+    let fibre_ok = count(&|r| r.0 == "fibre_failure" && (r.1 == "fibre_failure" || r.1 == "both"));
+    let both_for_fibre = count(&|r| r.0 == "fibre_failure" && r.1 == "both");
+    eprintln!(
+        "library (seed 4242): bond {bond_ok}/{bond}, fibre {fibre_ok}/{fibre} ({both_for_fibre} as both)"
+    );
+    assert_eq!((bond, fibre), (32, 96));
+    assert!(
+        (bond_ok + fibre_ok) as f64 >= 0.90 * (bond + fibre) as f64,
+        "bond {bond_ok}/{bond}, fibre {fibre_ok}/{fibre}"
+    );
+    assert!(
+        bond_ok as f64 >= 0.90 * bond as f64,
+        "bond {bond_ok}/{bond}"
+    );
+    // The erroneous records: the time-domain checks see the faults they were made with.
+    for fault in ["before_front", "clipped", "two_signals"] {
+        let all = count(&|r| r.2 == fault);
+        let seen = count(&|r| r.2 == fault && r.1 == "erroneous");
+        eprintln!("{fault}: {seen}/{all} erroneous by the criteria");
+        assert_eq!(all, 16, "{fault}");
+        let need = if fault == "two_signals" { 0.75 } else { 1.0 };
+        assert!(seen as f64 >= need * all as f64, "{fault}: {seen}/{all}");
+    }
+}
+
+/// Fig. 4.23: the frequency of a fibre failure rises with 1/L of the piece left on fibre 2's
+/// side (13 − p springs of 71.4 µm), as far as the grid carries it. Past point 8 the fit
+/// asks for ≥ 1.45 MHz, at the edge of what the 72 µm grid carries (group velocity 20 % low
+/// at 1.50 MHz, see `acoustic::band_limit`), and the order breaks: the README gives the
+/// numbers.
+#[test]
+fn fibre_failure_frequency_rises_with_one_over_the_released_length() {
+    use aepipe::sim::scenario::{self, Params};
+    let g = scenario::paper_grid();
+    let pass = aepipe::sim::acoustic::band_limit(&g).pass_hz;
+    let mut f = Vec::new();
+    for p in 1..=12 {
+        let m = scenario::build(
+            "structure2x1-fibre-failure",
+            &Params(vec![
+                ("point".into(), p as f64),
+                ("iterations".into(), 6000.0),
+            ]),
+        )
+        .unwrap();
+        let out = aepipe::sim::simulate(&m, &Default::default()).unwrap();
+        let s = aepipe::sim::output::band_limited(&out.sensors[0], &g);
+        f.push(aepipe::sim::dominant_frequency(&s, 1e7));
+    }
+    eprintln!(
+        "dominant (kHz): {:?}",
+        f.iter().map(|x| (x / 1e3).round()).collect::<Vec<_>>()
+    );
+    let inv_l: Vec<f64> = (1..=12).map(|p| 1.0 / (13 - p) as f64).collect();
+    // Points 1–8: strictly rising, in the thesis's 800–1700 kHz, and linear in 1/L.
+    assert!(f[..8].windows(2).all(|w| w[1] > w[0]), "{f:?}");
+    assert!(f.iter().all(|&x| (800e3..1700e3).contains(&x)), "{f:?}");
+    let fit = aepipe::analysis::stats::linear_trend(&inv_l[..8], &f[..8]).unwrap();
+    assert!(fit.r > 0.9, "r = {}", fit.r);
+    // Points 9–12: the fit asks for what the grid barely or no longer carries.
+    for p in 9..=12 {
+        let want = fit.intercept + fit.slope * inv_l[p - 1];
+        assert!(want > 0.95 * pass, "point {p}: {want} vs pass {pass}");
+        assert!(f[p - 1] < want, "point {p}: {} vs {want}", f[p - 1]);
+    }
+}
