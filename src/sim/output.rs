@@ -201,19 +201,18 @@ impl Fault {
     }
 }
 
-/// One erroneous record made from a run's band-limited sensor pressures (`None` when no
-/// sensor triggered), with what was done, for `sim_params`.
+/// One erroneous record made from a run's band-limited sensor pressures, drawing from the
+/// sensors in `heard` (those that triggered; `None` when there is none), with what was done,
+/// for `sim_params`.
 pub fn fault_record(
     acq: &Acquisition,
     pressures: &[Vec<f64>],
+    heard: &[usize],
     fault: Fault,
     fs: f64,
     key: u64,
 ) -> Option<(Recorded, serde_json::Map<String, serde_json::Value>)> {
     let mut rng = crate::util::Rng::new(key ^ 0x00E7_7A0E_0000_0000 ^ acq.seed);
-    let heard: Vec<usize> = (0..pressures.len())
-        .filter(|&k| acq.record(&pressures[k], key).is_some())
-        .collect();
     if heard.is_empty() {
         return None;
     }
@@ -275,7 +274,13 @@ pub fn rows(run: &Run) -> Vec<store::Row> {
         None => return vec![],
     };
     let fs = run.out.sample_rate_hz;
-    let pressures: Vec<Vec<f64>> = run.out.sensors.iter().map(|s| band_limited(s, g)).collect();
+    let band = super::acoustic::band_limit(g);
+    let pressures: Vec<Vec<f64>> = run
+        .out
+        .sensors
+        .iter()
+        .map(|s| super::acoustic::low_pass(s, fs, band.pass_hz, band.stop_hz))
+        .collect();
     let row = |channel: i32,
                rec: Recorded,
                label: Option<String>,
@@ -304,25 +309,24 @@ pub fn rows(run: &Run) -> Vec<store::Row> {
             Value::F64(Some(super::dominant_frequency(p, fs))),
         ]
     };
-    let mut out: Vec<store::Row> = pressures
-        .iter()
-        .zip(&run.model.sensors)
-        .enumerate()
-        .filter_map(|(k, (p, spec))| {
-            let rec = run.acq.record(p, (run.hit << 16) | k as u64)?;
-            Some(row(
+    let mut out = Vec::new();
+    let mut heard = Vec::new();
+    for (k, (p, spec)) in pressures.iter().zip(&run.model.sensors).enumerate() {
+        if let Some(rec) = run.acq.record(p, (run.hit << 16) | k as u64) {
+            heard.push(k);
+            out.push(row(
                 k as i32 + 1,
                 rec,
                 run.model.label.clone(),
                 run.params.clone(),
                 g.centre(spec.i, spec.j),
                 p,
-            ))
-        })
-        .collect();
+            ));
+        }
+    }
     for (j, &fault) in run.faults.iter().enumerate() {
         let key = (run.hit << 16) | (0x100 + j as u64);
-        let Some((rec, info)) = fault_record(run.acq, &pressures, fault, fs, key) else {
+        let Some((rec, info)) = fault_record(run.acq, &pressures, &heard, fault, fs, key) else {
             continue;
         };
         let mut params: serde_json::Map<String, serde_json::Value> =
@@ -468,20 +472,20 @@ mod tests {
         let p = vec![ring(100), ring(150)];
         // Triggered before the front: the threshold is first reached 10–30 µs after the
         // trigger.
-        let (r, info) = fault_record(&acq, &p, Fault::BeforeFront, 1e7, 1).unwrap();
+        let (r, info) = fault_record(&acq, &p, &[0, 1], Fault::BeforeFront, 1e7, 1).unwrap();
         let first = r.samples.iter().position(|v| v.abs() >= thr).unwrap();
         let lead = first - r.pretrigger;
         assert!((100..=300).contains(&lead), "{lead}");
         assert!((info["fault_lead_us"].as_f64().unwrap() - lead as f64 / 10.0).abs() < 1e-9);
         // Clipped: a run of samples at the extreme, at 5–20 % of the unclipped peak.
-        let (r, _) = fault_record(&acq, &p, Fault::Clipped, 1e7, 2).unwrap();
+        let (r, _) = fault_record(&acq, &p, &[0, 1], Fault::Clipped, 1e7, 2).unwrap();
         let top = r.samples.iter().fold(0.0f32, |m, v| m.max(v.abs()));
         assert!(r.samples.iter().filter(|v| v.abs() == top).count() >= 10);
         let unclipped = 300.0 * acq.scale_v_per_pa;
         assert!((0.04..0.21).contains(&(top as f64 / unclipped)), "{top}");
         // Two signals: sensor b's signal added 20–35 µs later, scaled to 0.7–1 of sensor
         // a's peak; the record is exactly that sum recorded.
-        let (r, info) = fault_record(&acq, &p, Fault::TwoSignals, 1e7, 3).unwrap();
+        let (r, info) = fault_record(&acq, &p, &[0, 1], Fault::TwoSignals, 1e7, 3).unwrap();
         let delay = (info["fault_delay_us"].as_f64().unwrap() * 10.0).round() as usize;
         let gain = info["fault_gain"].as_f64().unwrap();
         assert!(

@@ -141,8 +141,9 @@ impl ReferenceFile {
     }
 }
 
-/// Every run of the library: scenario name and parameters.
-pub fn expand(cfg: &ReferenceConfig) -> Vec<(String, Params)> {
+/// Every run of the library: scenario name, parameters, and how many erroneous records to
+/// make from it (its grid's `erroneous`).
+pub fn expand(cfg: &ReferenceConfig) -> Vec<(String, Params, usize)> {
     let mut rng = crate::util::Rng::new(cfg.seed);
     let mut runs = Vec::new();
     for g in &cfg.scenario {
@@ -168,20 +169,11 @@ pub fn expand(cfg: &ReferenceConfig) -> Vec<(String, Params)> {
                         p.push((key.to_string(), rng.range(1.0 - s, 1.0 + s)));
                     }
                 }
-                runs.push((g.name.clone(), Params(p)));
+                runs.push((g.name.clone(), Params(p), g.erroneous));
             }
         }
     }
     runs
-}
-
-/// Erroneous records per run of the scenario `name`.
-fn erroneous_of(cfg: &ReferenceConfig, name: &str) -> usize {
-    cfg.scenario
-        .iter()
-        .find(|g| g.name == name)
-        .map(|g| g.erroneous)
-        .unwrap_or(0)
 }
 
 /// Run the library into `out/waveforms.parquet`. Returns (runs, signals, seconds).
@@ -230,7 +222,8 @@ pub fn build_library_part(
     let keep: Vec<usize> = (0..all.len())
         .filter(|k| shard.is_none_or(|s| s.owns(&k.to_string())))
         .collect();
-    let runs: Vec<(usize, (String, Params))> = keep.iter().map(|&k| (k, all[k].clone())).collect();
+    let runs: Vec<(usize, (String, Params, usize))> =
+        keep.iter().map(|&k| (k, all[k].clone())).collect();
     let pb = if progress {
         let pb = indicatif::ProgressBar::new(runs.len() as u64);
         pb.set_style(
@@ -245,7 +238,7 @@ pub fn build_library_part(
     };
     let results: Vec<_> = runs
         .par_iter()
-        .map(|(_, (name, p))| {
+        .map(|(_, (name, p, _))| {
             let mut m = scenario::build(name, p)?;
             if !cfg.sensors.is_empty() && m.grid.is_some() {
                 m.sensors = cfg
@@ -273,7 +266,7 @@ pub fn build_library_part(
             params: json.clone(),
             hit: runs[j].0 as u64 + 1,
             acq: &acq,
-            faults: (0..erroneous_of(cfg, &runs[j].1 .0))
+            faults: (0..runs[j].1 .2)
                 .map(|e| output::Fault::ALL[(runs[j].0 + e) % output::Fault::ALL.len()])
                 .collect(),
         })

@@ -604,14 +604,14 @@ impl Som {
         Array2::from_shape_vec((self.rows, self.cols), u).expect("rows × cols")
     }
 
-    /// Label nodes by majority vote of the labelled inputs mapped to them (ties: the label
-    /// that sorts first); nodes that won no input take the label of the nearest labelled node
-    /// in weight space.
-    pub fn label_nodes(
-        &mut self,
+    /// Each node's winning label among the labelled inputs mapped to it (`None`: it won
+    /// none), every input voting `weight(its label)`; ties go to the label that sorts first.
+    fn vote(
+        &self,
         data: ArrayView2<f64>,
         labels: &[String],
-    ) -> Result<(), SomError> {
+        weight: impl Fn(&str) -> f64,
+    ) -> Result<Vec<Option<String>>, SomError> {
         let data = data.as_standard_layout();
         let data = data.as_slice().expect("standard layout");
         if data.len() / self.dim != labels.len() {
@@ -621,22 +621,33 @@ impl Som {
                 labels.len()
             )));
         }
-        let mut votes: Vec<std::collections::BTreeMap<&str, usize>> =
+        let mut votes: Vec<std::collections::BTreeMap<&str, f64>> =
             vec![Default::default(); self.nodes()];
         for (x, l) in data.chunks(self.dim).zip(labels) {
-            *votes[self.bmu(x).0].entry(l.as_str()).or_default() += 1;
+            *votes[self.bmu(x).0].entry(l.as_str()).or_default() += weight(l);
         }
-        let voted: Vec<Option<String>> = votes
+        Ok(votes
             .iter()
             .map(|v| {
                 v.iter()
-                    .fold(None, |m: Option<(&str, usize)>, (l, &c)| match m {
+                    .fold(None, |m: Option<(&str, f64)>, (l, &c)| match m {
                         Some((_, mc)) if mc >= c => m,
                         _ => Some((l, c)),
                     })
                     .map(|(l, _)| l.to_string())
             })
-            .collect();
+            .collect())
+    }
+
+    /// Label nodes by majority vote of the labelled inputs mapped to them (ties: the label
+    /// that sorts first); nodes that won no input take the label of the nearest labelled node
+    /// in weight space.
+    pub fn label_nodes(
+        &mut self,
+        data: ArrayView2<f64>,
+        labels: &[String],
+    ) -> Result<(), SomError> {
+        let voted = self.vote(data, labels, |_| 1.0)?;
         if voted.iter().all(Option::is_none) {
             return Err(SomError::Data("no labelled input".into()));
         }
@@ -667,15 +678,6 @@ impl Som {
         data: ArrayView2<f64>,
         labels: &[String],
     ) -> Result<usize, SomError> {
-        let data = data.as_standard_layout();
-        let data = data.as_slice().expect("standard layout");
-        if data.len() / self.dim != labels.len() {
-            return Err(SomError::Data(format!(
-                "{} inputs but {} labels",
-                data.len() / self.dim,
-                labels.len()
-            )));
-        }
         if self.labels.len() != self.nodes() {
             return Err(SomError::Data("the nodes carry no labels to keep".into()));
         }
@@ -685,22 +687,12 @@ impl Som {
         for l in labels {
             *sizes.entry(l.as_str()).or_default() += 1;
         }
-        let mut votes: Vec<std::collections::BTreeMap<&str, f64>> =
-            vec![Default::default(); self.nodes()];
-        for (x, l) in data.chunks(self.dim).zip(labels) {
-            *votes[self.bmu(x).0].entry(l.as_str()).or_default() += 1.0 / sizes[l.as_str()] as f64;
-        }
+        let voted = self.vote(data, labels, |l| 1.0 / sizes[l] as f64)?;
         let mut changed = 0;
-        for (j, v) in votes.iter().enumerate() {
-            let best = v
-                .iter()
-                .fold(None, |m: Option<(&str, f64)>, (l, &c)| match m {
-                    Some((_, mc)) if mc >= c => m,
-                    _ => Some((l, c)),
-                });
-            if let Some((l, _)) = best {
+        for (j, v) in voted.into_iter().enumerate() {
+            if let Some(l) = v {
                 if self.labels[j] != l {
-                    self.labels[j] = l.to_string();
+                    self.labels[j] = l;
                     changed += 1;
                 }
             }

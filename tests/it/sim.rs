@@ -461,17 +461,15 @@ fn simulated_waveforms_feed_the_feature_pipeline_and_match_their_schema() {
     let acq = aepipe::sim::output::Acquisition::default();
     let thr = 1e-4;
     let g = aepipe::sim::scenario::paper_grid();
-    let sensors: Vec<(usize, usize)> = vec![
-        (125, 100),
-        (125, 80),
-        (125, 5),
-        (100, 125),
-        (80, 125),
-        (5, 125),
-        (100, 100),
-        (80, 80),
-        (5, 5),
-    ];
+    // The scenario's nine Appendix-A sensor cells, in channel order.
+    let sensors: Vec<(usize, usize)> =
+        aepipe::sim::scenario::build("paper-fibre", &params(&[("iterations", 2000.0)]))
+            .unwrap()
+            .sensors
+            .iter()
+            .map(|s| (s.i, s.j))
+            .collect();
+    assert_eq!(sensors.len(), 9);
     let mut heard = 0;
     for r in &recs {
         let pre = r.pretrigger as usize;
@@ -623,7 +621,7 @@ fn reference_library_runs_the_grid_with_varied_material() {
     let f = ReferenceFile::read(&cfg).unwrap();
     let runs = expand(&f.reference);
     assert_eq!(runs.len(), 4);
-    for (_, p) in &runs {
+    for (_, p, _) in &runs {
         for k in ["e_scale", "t_scale", "w_scale"] {
             let v = p.get(k, 0.0);
             assert!((0.9..=1.1).contains(&v), "{k} = {v}");
