@@ -4,7 +4,7 @@
 use super::{Init, Som, SomError, SomParams};
 use crate::store::{ColType, ColumnSpec, HitKey, TableScan, TableSchema, TableWriter, Value};
 use ndarray::{Array2, ArrayView2, Axis};
-use polars::prelude::col;
+use polars::prelude::{col, DataType};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
@@ -47,6 +47,9 @@ fn werr(p: &Path, m: impl std::fmt::Display) -> SomError {
     }
 }
 
+/// The name the label column is read under (a name no table of aepipe's uses).
+const LABEL_ALIAS: &str = "__aepipe_label";
+
 /// Read `columns` (a fixed-size list such as `tf_bins` expands to its elements; numeric
 /// scalars give one dimension each) and the optional label column, through the store's
 /// table reader.
@@ -61,12 +64,14 @@ pub fn read_inputs(
         let mut need = vec!["experiment", "channel", "hit"];
         need.extend(label);
         t.require(&need, "").map_err(serr)?;
+        // The label may be any column, a key column included (`--label experiment`): it is
+        // read under its own alias, as text, so it never clashes with the key columns.
         let mut sel = vec![col("experiment"), col("channel"), col("hit")];
-        sel.extend(label.map(col));
+        sel.extend(label.map(|l| col(l).cast(DataType::String).alias(LABEL_ALIAS)));
         let df = t.select(sel).map_err(serr)?;
         let k = t.hit_keys(&df).map_err(serr)?;
         let l = match label {
-            Some(l) => t.strings(&df, l).map_err(serr)?,
+            Some(_) => t.strings(&df, LABEL_ALIAS).map_err(serr)?,
             None => vec![None; k.len()],
         };
         let (m, keep) = t.matrix(columns).map_err(serr)?;
