@@ -114,6 +114,7 @@ pub fn synthetic_items(n: u64, w: Workload) -> impl Iterator<Item = Item> + Send
         };
         let proto = &protos[(i % protos.len() as u64) as usize];
         Item::Record(crate::model::AeRecord {
+            kind: crate::model::RecordKind::Hit,
             experiment: "bench".into(),
             channel: 1,
             hit: i + 1,
@@ -276,6 +277,7 @@ pub fn cwt_bench(
         .chunks(n)
         .enumerate()
         .map(|(i, s)| crate::model::AeRecord {
+            kind: crate::model::RecordKind::Hit,
             experiment: "w1".into(),
             channel: 1,
             hit: i as u64 + 1,

@@ -79,6 +79,67 @@ pub struct PipelineConfig {
     pub trend: TrendConfig,
     pub som: SomConfig,
     pub report: ReportConfig,
+    /// The test machine's own load file beside the AE files.
+    pub load: LoadConfig,
+}
+
+/// A column of a delimited file: its header name (surrounding spaces trimmed) or its
+/// 1-based index.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(untagged)]
+pub enum ColumnRef {
+    Index(usize),
+    Name(String),
+}
+
+impl std::fmt::Display for ColumnRef {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            ColumnRef::Index(i) => write!(f, "column {i}"),
+            ColumnRef::Name(n) => write!(f, "column {n:?}"),
+        }
+    }
+}
+
+/// `[load]`: a test machine (MTS, Zwick, Instron…) that logs load and extension on its own
+/// clock into a delimited text file beside the AE recordings. Each hit gets the load and
+/// extension interpolated at its time; the file's rows go to `parametric.parquet`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct LoadConfig {
+    /// Path of the load file relative to the folder that holds the experiment's recordings
+    /// (or absolute); `{experiment}` is replaced by the experiment id, `{stem}` by the
+    /// recording's file stem (folder name for a folder of one-hit files). Empty: no file.
+    pub file: String,
+    /// Header name or 1-based index of the time column.
+    pub time_column: ColumnRef,
+    pub load_column: ColumnRef,
+    /// Optional: the extension column.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub extension_column: Option<ColumnRef>,
+    /// Multiply the file's time by this to get seconds.
+    pub time_scale_s: f64,
+    /// Multiply the file's load by this to get newtons (1000 for kN).
+    pub load_scale_n: f64,
+    /// Multiply the file's extension by this to get metres (0.001 for mm).
+    pub extension_scale_m: f64,
+    /// Per experiment id: test-machine time = AE time − offset, seconds (0 where absent).
+    pub offset_s: std::collections::BTreeMap<String, f64>,
+}
+
+impl Default for LoadConfig {
+    fn default() -> Self {
+        LoadConfig {
+            file: String::new(),
+            time_column: ColumnRef::Name("Time".into()),
+            load_column: ColumnRef::Name("Load".into()),
+            extension_column: None,
+            time_scale_s: 1.0,
+            load_scale_n: 1.0,
+            extension_scale_m: 1.0,
+            offset_s: Default::default(),
+        }
+    }
 }
 
 /// The trend stage of `aepipe run` (ch. 4.5.5).
@@ -120,11 +181,16 @@ pub struct SomConfig {
     pub rows: usize,
     pub cols: usize,
     pub seed: u64,
+    /// The features column the classes are checked against in the confusion report and,
+    /// with `train_on = "criteria"`, trained on: any column (criteria_label, label,
+    /// experiment, channel, …).
+    pub label: String,
 }
 
 impl Default for SomConfig {
     fn default() -> Self {
         SomConfig {
+            label: "criteria_label".into(),
             enabled: true,
             train_on: "reference".into(),
             reference_library: String::new(),
@@ -341,6 +407,33 @@ pub struct MistrasConfig {
     pub extension_param: u8,
     /// Metres per volt of that input.
     pub extension_m_per_v: f64,
+    /// Sizes of CHIDs the specification leaves open (reserved or undefined ones, e.g.
+    /// `31 = 2`), bytes. Without one, a single such CHID in a hit takes what the message
+    /// length leaves; two or more end the decoding of that message's features.
+    pub chid_sizes: std::collections::BTreeMap<String, usize>,
+    /// For a continuation file read alone (its setup is in the base file): the hit features
+    /// (CHIDs in record order), hit parametrics per hit and partial-power segments, used only
+    /// when the stream holds no hit definition of its own (a manifest note says so).
+    pub hit_chids: Vec<u8>,
+    pub hit_parametrics: usize,
+    pub partial_power_segments: usize,
+    /// …the waveform sample rate (Hz, 0 = none) and pretrigger (samples), used for channels
+    /// without a waveform setup (message 173,42);
+    pub sample_rate_hz: f64,
+    pub pretrigger_samples: u32,
+    /// …and the gain (dB) for channels without a gain message (23). Unset: 0 dB, noted.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub gain_db: Option<f64>,
+}
+
+impl MistrasConfig {
+    /// [`Self::chid_sizes`] as (CHID, bytes); keys are checked by [`PipelineConfig::validate`].
+    pub fn size_overrides(&self) -> Vec<(u8, usize)> {
+        self.chid_sizes
+            .iter()
+            .filter_map(|(k, v)| k.trim().parse::<u8>().ok().map(|c| (c, *v)))
+            .collect()
+    }
 }
 
 impl Default for MistrasConfig {
@@ -350,6 +443,13 @@ impl Default for MistrasConfig {
             load_n_per_v: 1.0,
             extension_param: 0,
             extension_m_per_v: 1e-3,
+            chid_sizes: Default::default(),
+            hit_chids: Vec::new(),
+            hit_parametrics: 0,
+            partial_power_segments: 0,
+            sample_rate_hz: 0.0,
+            pretrigger_samples: 0,
+            gain_db: None,
         }
     }
 }
@@ -519,6 +619,11 @@ impl PipelineConfig {
                 self.som.train_on
             )));
         }
+        if self.som.label.trim().is_empty() {
+            return Err(ConfigError::Invalid(
+                "som.label must name a column of the features table".into(),
+            ));
+        }
         if !(self.trend.alpha > 0.0 && self.trend.alpha < 1.0) {
             return Err(ConfigError::Invalid(format!(
                 "trend.alpha must be in (0, 1), got {}",
@@ -574,6 +679,50 @@ impl PipelineConfig {
         if (bin_bands - bin_bands.round()).abs() > 1e-9 || bin_bands.round() < 1.0 {
             return Err(ConfigError::Invalid(format!(
                 "dsp.band_max_hz / dsp.bins.band_hz must be a whole number, got {bin_bands}"
+            )));
+        }
+        let m = &self.ingest.mistras;
+        for (k, v) in &m.chid_sizes {
+            if k.trim().parse::<u8>().map_or(true, |c| c == 0) || *v > 4096 {
+                return Err(ConfigError::Invalid(format!(
+                    "ingest.mistras.chid_sizes: {k:?} = {v}: keys are CHIDs 1–255, sizes at most 4096 bytes"
+                )));
+            }
+        }
+        if !(m.sample_rate_hz >= 0.0 && m.sample_rate_hz.is_finite()) {
+            return Err(ConfigError::Invalid(format!(
+                "ingest.mistras.sample_rate_hz must be ≥ 0, got {}",
+                m.sample_rate_hz
+            )));
+        }
+        if m.partial_power_segments > 255 || m.hit_parametrics > 255 {
+            return Err(ConfigError::Invalid(
+                "ingest.mistras: partial_power_segments and hit_parametrics are at most 255".into(),
+            ));
+        }
+        let l = &self.load;
+        pos(l.time_scale_s, "load.time_scale_s")?;
+        pos(l.load_scale_n, "load.load_scale_n")?;
+        pos(l.extension_scale_m, "load.extension_scale_m")?;
+        for c in [
+            Some(&l.time_column),
+            Some(&l.load_column),
+            l.extension_column.as_ref(),
+        ]
+        .into_iter()
+        .flatten()
+        {
+            if matches!(c, ColumnRef::Index(0))
+                || matches!(c, ColumnRef::Name(n) if n.trim().is_empty())
+            {
+                return Err(ConfigError::Invalid(format!(
+                    "load: {c} is not a column (indices start at 1, names must not be empty)"
+                )));
+            }
+        }
+        if let Some((k, v)) = l.offset_s.iter().find(|(_, v)| !v.is_finite()) {
+            return Err(ConfigError::Invalid(format!(
+                "load.offset_s.{k} must be a finite number of seconds, got {v}"
             )));
         }
         for p in [

@@ -42,7 +42,7 @@ pub fn run_demo(
     let inspect = disc
         .sources
         .iter()
-        .map(|s| inspect::summarise(s, &cfg.ingest))
+        .map(|s| inspect::summarise(s, &cfg))
         .collect();
     let truth = root.join("truth.parquet");
     let run = crate::workflow::run(&crate::workflow::RunJob {

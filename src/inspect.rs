@@ -1,7 +1,7 @@
 //! `aepipe inspect`: a human summary per experiment — format, channels, hits, sample rates,
 //! record lengths, time span, load/extension channels found, rejects.
 
-use crate::config::IngestConfig;
+use crate::config::PipelineConfig;
 use crate::ingest::{self, Source};
 use crate::model::Item;
 use std::collections::BTreeSet;
@@ -17,8 +17,12 @@ pub struct Summary {
     pub channels: BTreeSet<u32>,
     /// Hit rows (the acquisition system's hits).
     pub hits: u64,
-    /// Transient records (waveforms) read.
+    /// Transient records (waveforms) read, and how many no hit points to.
     pub transients: u64,
+    pub standalone: u64,
+    /// Parametric rows (the recording's own and a `[load]` file's) and marker/status rows.
+    pub parametric: u64,
+    pub markers: u64,
     pub notes: Vec<String>,
     pub rejects: u64,
     pub first_reject: Option<String>,
@@ -42,7 +46,7 @@ fn widen(r: &mut Option<(f64, f64)>, v: f64) {
 }
 
 /// Read a source fully (one record at a time) and summarise it.
-pub fn summarise(src: &Source, cfg: &IngestConfig) -> Summary {
+pub fn summarise(src: &Source, cfg: &PipelineConfig) -> Summary {
     let mut s = Summary {
         id: src.id.clone(),
         format: src.format.as_str().into(),
@@ -70,7 +74,7 @@ pub fn summarise(src: &Source, cfg: &IngestConfig) -> Summary {
             s.max_len = t.longest;
             s.sample_rates_hz.extend(t.sample_rates_hz.iter().copied());
             s.channels.extend(t.channels.iter().copied());
-            ingest::vallen::open_hits(src, cfg)
+            ingest::loadfile::attach(ingest::vallen::open_hits(src, &cfg.ingest), src, &cfg.load)
         }
         None => ingest::open(src, cfg),
     };
@@ -92,8 +96,14 @@ pub fn summarise(src: &Source, cfg: &IngestConfig) -> Summary {
                 }
             }
             Item::Note(n) => s.notes.push(n.message),
+            Item::Parametric(_) => s.parametric += 1,
+            Item::Marker(_) => s.markers += 1,
+            Item::Setup(_) | Item::Tally(_) => {}
             Item::Record(r) => {
                 s.transients += 1;
+                if r.kind == crate::model::RecordKind::Standalone {
+                    s.standalone += 1;
+                }
                 s.channels.insert(r.channel);
                 s.experiments.insert(r.experiment.clone());
                 s.sample_rates_hz.insert(r.sample_rate_hz.round() as u64);
@@ -155,7 +165,22 @@ impl fmt::Display for Summary {
             )?;
         }
         writeln!(f, "  hits           {}", self.hits)?;
-        writeln!(f, "  transients     {}", self.transients)?;
+        if self.standalone > 0 {
+            writeln!(
+                f,
+                "  transients     {} ({} without a hit)",
+                self.transients, self.standalone
+            )?;
+        } else {
+            writeln!(f, "  transients     {}", self.transients)?;
+        }
+        if self.parametric + self.markers > 0 {
+            writeln!(
+                f,
+                "  parametric     {} row(s); markers/status {}",
+                self.parametric, self.markers
+            )?;
+        }
         writeln!(
             f,
             "  channels       {}",

@@ -34,6 +34,37 @@ pub struct AeRecord {
     pub threshold_v: Option<f64>,
     /// The file the samples came from.
     pub source_file: String,
+    /// Whether a hit of the acquisition points to this record, or it stands alone.
+    pub kind: RecordKind,
+}
+
+/// Whether a transient record belongs to a hit (`features.parquet`/`waveforms.parquet`
+/// column `record_kind`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum RecordKind {
+    /// The waveform of a hit (a hit row links to it, or the format has no hit list and the
+    /// record is its own hit).
+    #[default]
+    Hit,
+    /// A waveform no hit points to: a MISTRAS waveform message without its hit message
+    /// (e.g. an automatic sensor test), a `.tradb` transient no `.pridb` hit links to.
+    Standalone,
+}
+
+impl RecordKind {
+    pub fn as_str(self) -> &'static str {
+        match self {
+            RecordKind::Hit => "hit",
+            RecordKind::Standalone => "standalone",
+        }
+    }
+
+    pub fn parse(s: &str) -> Option<RecordKind> {
+        [RecordKind::Hit, RecordKind::Standalone]
+            .into_iter()
+            .find(|k| k.as_str() == s)
+    }
 }
 
 impl AeRecord {
@@ -59,6 +90,72 @@ pub struct Reject {
     pub stage: Stage,
     /// One line saying what is wrong.
     pub reason: String,
+    /// What kind of record is lost: a transient (most rejects), a hit, a parametric or
+    /// marker row, or a whole file (or the rest of one) of unknown content.
+    #[serde(default)]
+    pub record_type: RecordType,
+}
+
+/// The kinds of record a recording holds, for the accounting of what was read and where it
+/// went (`manifest.json` `counts.by_experiment.*.records`, `rejects.parquet` `record_type`).
+#[derive(
+    Debug,
+    Clone,
+    Copy,
+    PartialEq,
+    Eq,
+    PartialOrd,
+    Ord,
+    Hash,
+    Default,
+    serde::Serialize,
+    serde::Deserialize,
+)]
+#[serde(rename_all = "lowercase")]
+pub enum RecordType {
+    /// A hit (Vallen `SetType` 2, MISTRAS message 1, a row of a hit list).
+    Hit,
+    /// A transient waveform (Vallen `tr_data`, MISTRAS message 173, a file of a folder).
+    #[default]
+    Transient,
+    /// A parametric / time-driven row (Vallen `SetType` 1, MISTRAS message 2/3, a row of
+    /// the test machine's load file).
+    Parametric,
+    /// A status row (Vallen `SetType` 3).
+    Status,
+    /// A marker: label, date/time, section start (Vallen `SetType` 4–6); a MISTRAS
+    /// start/stop/pause/comment message.
+    Marker,
+    /// A whole file, or the rest of one, whose records could not be told apart.
+    File,
+}
+
+impl RecordType {
+    pub const ALL: [RecordType; 6] = [
+        RecordType::Hit,
+        RecordType::Transient,
+        RecordType::Parametric,
+        RecordType::Status,
+        RecordType::Marker,
+        RecordType::File,
+    ];
+
+    pub fn as_str(self) -> &'static str {
+        match self {
+            RecordType::Hit => "hit",
+            RecordType::Transient => "transient",
+            RecordType::Parametric => "parametric",
+            RecordType::Status => "status",
+            RecordType::Marker => "marker",
+            RecordType::File => "file",
+        }
+    }
+}
+
+impl fmt::Display for RecordType {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.as_str())
+    }
 }
 
 /// Where in the pipeline a reject happened.
@@ -185,14 +282,179 @@ pub struct Note {
     pub message: String,
 }
 
-/// What a reader yields: a transient record, a hit row, the reason a transient (or file)
-/// could not be read, or a note for the manifest.
+/// Where a parametric row came from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum ParametricSource {
+    /// Vallen `.pridb`, `SetType` 1.
+    #[default]
+    Vallen,
+    /// MISTRAS `.DTA`, message 2 (time-driven) or 3 (user-forced).
+    Mistras,
+    /// The test machine's own load file (`[load]` in the pipeline TOML).
+    LoadFile,
+    /// An AEwin export's machine log (`Specimen_RawData_<n>.csv`).
+    MachineLog,
+}
+
+impl ParametricSource {
+    pub fn as_str(self) -> &'static str {
+        match self {
+            ParametricSource::Vallen => "vallen",
+            ParametricSource::Mistras => "mistras",
+            ParametricSource::LoadFile => "load_file",
+            ParametricSource::MachineLog => "machine_log",
+        }
+    }
+}
+
+/// A parametric (time-driven) row: the test machine's inputs at a time, as recorded: a row
+/// of `parametric.parquet`.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct ParametricRow {
+    pub experiment: String,
+    /// 1-based order of the row in its experiment and source.
+    pub row: u64,
+    pub time_s: Option<f64>,
+    /// The mapped load and extension (the pipeline's `[ingest.*]` or `[load]` mapping).
+    pub load_n: Option<f64>,
+    pub extension_m: Option<f64>,
+    /// The raw inputs as a JSON object under the vendor's names (`{"PA0": 1492.4}` in mV for
+    /// Vallen, `{"PARA1": 0.0095}` in V for MISTRAS, the file's columns for a load file).
+    pub inputs: Option<String>,
+    /// MISTRAS time-driven per-channel features, JSON `{"3": {"ASL": 25}}`; Vallen `PCTD`,
+    /// `PCTA` counters and status flags as `{"PCTD": 0, "PCTA": 0, "Status": 12}`.
+    pub extra: Option<String>,
+    pub source: ParametricSource,
+    pub source_file: String,
+}
+
+/// What a marker row marks.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum MarkerKind {
+    /// Vallen label marker (`SetType` 4), MISTRAS user comment (message 7).
+    #[default]
+    Label,
+    /// Vallen date/time marker (`SetType` 5), MISTRAS test start (message 99).
+    Datetime,
+    /// Vallen section marker (`SetType` 6): acquisition (re)started or settings changed.
+    Section,
+    /// Vallen status record (`SetType` 3): a channel's periodic state.
+    Status,
+    /// MISTRAS start/resume (128), stop (129), pause (130), abort (15).
+    Start,
+    Stop,
+    Pause,
+    Abort,
+}
+
+impl MarkerKind {
+    pub fn as_str(self) -> &'static str {
+        match self {
+            MarkerKind::Label => "label",
+            MarkerKind::Datetime => "datetime",
+            MarkerKind::Section => "section",
+            MarkerKind::Status => "status",
+            MarkerKind::Start => "start",
+            MarkerKind::Stop => "stop",
+            MarkerKind::Pause => "pause",
+            MarkerKind::Abort => "abort",
+        }
+    }
+}
+
+/// A marker or status record: a row of `markers.parquet`.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct MarkerRow {
+    pub experiment: String,
+    /// 1-based order of the row in its experiment.
+    pub row: u64,
+    pub time_s: Option<f64>,
+    pub kind: MarkerKind,
+    /// Status rows: the channel.
+    pub channel: Option<u32>,
+    /// Vallen marker number.
+    pub number: Option<i64>,
+    /// Label text, date/time.
+    pub text: Option<String>,
+    /// Status rows: threshold, energy, RMS, signal strength, status flags.
+    pub threshold_db: Option<f64>,
+    pub energy_eu: Option<f64>,
+    pub rms_v: Option<f64>,
+    pub signal_strength_vs: Option<f64>,
+    pub flags: Option<i64>,
+    pub source_file: String,
+}
+
+/// One channel's acquisition settings as the recording states them (the manifest's
+/// `experiments[].acquisition.channels`). `None` where the file does not say.
+#[derive(Debug, Clone, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct ChannelSetup {
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub threshold_db: Option<f64>,
+    /// Gain the waveform volts are divided by (MISTRAS message 23).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub gain_db: Option<f64>,
+    /// Preamplifier gain (MISTRAS message 20, "reserved for recording pre-amp gain").
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub preamp_gain_db: Option<f64>,
+    /// Peak definition, hit definition and hit lockout times.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub pdt_s: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub hdt_s: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub hlt_s: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub sample_rate_hz: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub pretrigger_samples: Option<u32>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub samples_per_record: Option<u32>,
+    /// Where a setting came from when not from the file itself (e.g. `pipeline TOML`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub source: Option<String>,
+}
+
+/// What a recording says about its acquisition system and settings.
+#[derive(Debug, Clone, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct AcquisitionSetup {
+    pub experiment: String,
+    pub source_file: String,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub product: Option<String>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub test_start: Option<String>,
+    /// The hit features the system recorded (vendor names, in record order).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub hit_features: Vec<String>,
+    #[serde(default, skip_serializing_if = "std::collections::BTreeMap::is_empty")]
+    pub channels: std::collections::BTreeMap<u32, ChannelSetup>,
+    /// Vendor records seen, by type name (`MID 1`, `MID 173,1`, `SetType 2`, …).
+    #[serde(default, skip_serializing_if = "std::collections::BTreeMap::is_empty")]
+    pub vendor_records: std::collections::BTreeMap<String, u64>,
+}
+
+/// What a reader counted in its files, by record type, independently of the rows it
+/// yielded: the manifest checks `read = rows + rejects` per type against it.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Tally {
+    pub experiment: String,
+    pub read: std::collections::BTreeMap<RecordType, u64>,
+}
+
+/// What a reader yields: a transient record, a hit row, the reason a record (or file)
+/// could not be read, a note for the manifest, a parametric or marker row, what the
+/// recording says of its setup, and what the reader counted.
 #[derive(Debug, Clone)]
 pub enum Item {
     Record(AeRecord),
     Hit(Box<HitRow>),
     Reject(Reject),
     Note(Note),
+    Parametric(Box<ParametricRow>),
+    Marker(Box<MarkerRow>),
+    Setup(Box<AcquisitionSetup>),
+    Tally(Tally),
 }
 
 /// The damage mechanisms of the thesis (ch. 4.7, Table 5.1) plus the two bookkeeping classes.

@@ -275,7 +275,7 @@ impl Library {
         let d = crate::ingest::discover(&[path.to_path_buf()], &cfg.ingest);
         let mut lib = Library::default();
         for src in &d.sources {
-            for it in crate::ingest::open(src, &cfg.ingest) {
+            for it in crate::ingest::open(src, &cfg) {
                 let crate::model::Item::Record(r) = it else {
                     continue;
                 };
@@ -413,6 +413,7 @@ impl Experiment {
                 None => (waveform(&spec, &mut rng), String::new()),
             };
             let rec = AeRecord {
+                kind: crate::model::RecordKind::Hit,
                 experiment: self.id.clone(),
                 channel: 1,
                 hit: i as u64 + 1,

@@ -252,34 +252,14 @@ pub fn rebuild_report(dir: &Path) -> Result<PathBuf, WorkflowError> {
     let config = PipelineConfig::from_toml(&f.config).map_err(|e| input_err(&rp, e))?;
     let fdir = dir.join("features");
     let mp = fdir.join("manifest.json");
-    let m: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(&mp).map_err(|e| input_err(&mp, e))?)
-            .map_err(|e| input_err(&mp, e))?;
-    let c = &m["counts"];
-    let mut stats = crate::pipeline::StreamStats {
-        records_read: c["records_read"].as_u64().unwrap_or(0),
-        hits: c["hits_written"].as_u64().unwrap_or(0),
-        rows: c["rows_written"].as_u64().unwrap_or(0),
-        rejects: c["rejects"].as_u64().unwrap_or(0),
-        ..Default::default()
-    };
-    if let Some(o) = c["by_experiment"].as_object() {
-        for (k, v) in o {
-            stats.by_experiment.insert(
-                k.clone(),
-                crate::pipeline::Counts {
-                    hits: v["hits"].as_u64().unwrap_or(0),
-                    rows: v["rows"].as_u64().unwrap_or(0),
-                    rejects: v["rejects"].as_u64().unwrap_or(0),
-                },
-            );
-        }
-    }
+    let m = crate::pipeline::Manifest::read(&mp).map_err(|e| input_err(&mp, e))?;
     let features = RunReport {
-        stats,
+        stats: m.stats(),
         table_path: fdir.join("features.parquet"),
         hits_path: fdir.join("hits.parquet"),
         rejects_path: fdir.join("rejects.parquet"),
+        parametric_path: fdir.join("parametric.parquet"),
+        markers_path: fdir.join("markers.parquet"),
         manifest_path: mp,
         sources: vec![],
         skipped: vec![],
@@ -297,7 +277,7 @@ pub fn rebuild_report(dir: &Path) -> Result<PathBuf, WorkflowError> {
     if config.som.enabled && sdir.join("model/model.json").is_file() {
         let model = crate::som::tables::load_model(&sdir.join("model"))?;
         let confusion =
-            crate::som::tables::classify_tables(&model, &feats, Some("criteria_label"), &sdir)?;
+            crate::som::tables::classify_tables(&model, &feats, Some(&config.som.label), &sdir)?;
         let classes = classes_of(&confusion);
         let existing = |p: PathBuf| p.is_file().then_some(p);
         let (profile, profile_plots) = profile_stage(&config, &feats[0], &sdir)?;
@@ -461,12 +441,20 @@ fn som_stage(job: &RunJob, feats: &[PathBuf]) -> Result<SomStage, WorkflowError>
     } else {
         (
             feats.to_vec(),
-            "criteria_label".to_string(),
+            cfg.som.label.clone(),
             cfg.som.fraction,
-            format!(
-                "{:.0} % of the run's hits, criteria labels (ch. 5.4)",
-                100.0 * cfg.som.fraction
-            ),
+            if cfg.som.label == "criteria_label" {
+                format!(
+                    "{:.0} % of the run's hits, criteria labels (ch. 5.4)",
+                    100.0 * cfg.som.fraction
+                )
+            } else {
+                format!(
+                    "{:.0} % of the run's hits, labels of column {}",
+                    100.0 * cfg.som.fraction,
+                    cfg.som.label
+                )
+            },
         )
     };
     let o = TrainOptions {
@@ -483,7 +471,7 @@ fn som_stage(job: &RunJob, feats: &[PathBuf]) -> Result<SomStage, WorkflowError>
     };
     let model_dir = som_dir.join("model");
     let model = train(&train_paths, &model_dir, &o)?;
-    let confusion = classify_tables(&model, feats, Some("criteria_label"), &som_dir)?;
+    let confusion = classify_tables(&model, feats, Some(&cfg.som.label), &som_dir)?;
     let u = som_dir.join("u_matrix.png");
     crate::plot::u_matrix_png(&u, &model.som)?;
     let hm = som_dir.join("hit_maps.png");
@@ -555,7 +543,7 @@ fn draw_gallery(
     let mut ex = crate::features::FeatureExtractor::new(cfg);
     let d = crate::ingest::discover(inputs, &cfg.ingest);
     for src in &d.sources {
-        for it in crate::ingest::open(src, &cfg.ingest) {
+        for it in crate::ingest::open(src, cfg) {
             let crate::model::Item::Record(r) = it else {
                 continue;
             };
@@ -604,7 +592,7 @@ pub fn cwt_of_hit(
         .filter(|s| {
             experiment.is_none_or(|e| s.id == e || s.format == crate::ingest::Format::Parquet)
         })
-        .flat_map(|s| crate::ingest::open(s, &cfg.ingest))
+        .flat_map(|s| crate::ingest::open(s, cfg))
         .find_map(|it| match it {
             crate::model::Item::Record(r)
                 if r.hit == hit
@@ -686,6 +674,8 @@ pub const TABLES: &[&str] = &[
     "waveforms",
     "rejects",
     "hits",
+    "parametric",
+    "markers",
     "trend",
     "classification",
     "damage_profile",
@@ -701,6 +691,8 @@ pub fn table_schema(name: &str, cfg: &PipelineConfig) -> Option<crate::store::Ta
         "waveforms" => crate::store::waveforms_table(),
         "rejects" => crate::store::rejects_table(),
         "hits" => crate::store::hits_table(),
+        "parametric" => crate::store::parametric_table().schema(),
+        "markers" => crate::store::markers_table().schema(),
         "trend" => crate::analysis::trend::trend_table(),
         "classification" => crate::som::tables::classification_table(),
         "damage_profile" => crate::som::profile::profile_table(),

@@ -152,6 +152,7 @@ pub fn dispatch(cli: Cli) -> Result<Outcome> {
             threads,
             resume,
             shard,
+            label,
         } => {
             // `--config P IN…`, or the positional form `P IN…`.
             let (pipeline, inputs) = match config {
@@ -163,7 +164,10 @@ pub fn dispatch(cli: Cli) -> Result<Outcome> {
                 )
                 .into()),
             };
-            let cfg = load_config(Some(&pipeline))?;
+            let mut cfg = load_config(Some(&pipeline))?;
+            if let Some(l) = label {
+                cfg.som.label = l;
+            }
             let outcome = crate::workflow::run_or_shard(&crate::workflow::RunJob {
                 config: &cfg,
                 inputs: &inputs,
@@ -276,7 +280,7 @@ fn inspect(paths: &[PathBuf], config: Option<&Path>) -> Result<Outcome> {
     let cfg = load_config(config)?;
     let d = crate::ingest::discover(paths, &cfg.ingest);
     for s in &d.sources {
-        println!("{}", crate::inspect::summarise(s, &cfg.ingest));
+        println!("{}", crate::inspect::summarise(s, &cfg));
     }
     for r in &d.rejects {
         eprintln!("aepipe: {}: {}", r.source_file, r.reason);

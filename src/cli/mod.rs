@@ -212,6 +212,11 @@ pub enum Cmd {
         /// dataset in --out; `aepipe merge` then runs trend, SOM and report on all N
         #[arg(long)]
         shard: Option<crate::util::Shard>,
+        /// The features column the map's classes are checked against (and, with
+        /// `[som] train_on = "criteria"`, trained on): any column, e.g. criteria_label,
+        /// label, experiment, channel (overrides `[som] label`)
+        #[arg(long)]
+        label: Option<String>,
     },
     /// Check the N shards of a sharded run folder (all present, one config and version) and
     /// run the whole-batch stages on their union: OUT/features/, trend, SOM, report — the
@@ -298,8 +303,9 @@ pub enum SomCmd {
         features: Vec<PathBuf>,
         #[arg(long)]
         out: PathBuf,
-        /// Reference column for the confusion report (default: the model's label column)
-        #[arg(long)]
+        /// Reference column for the confusion report, any column of the table (default: the
+        /// model's label column)
+        #[arg(long, visible_alias = "label")]
         reference: Option<String>,
     },
     /// Summarise a model and draw its U-matrix with node labels

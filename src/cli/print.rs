@@ -17,8 +17,12 @@ pub fn stream_run(report: &RunReport, what: &str) {
         s.rows as f64 / s.seconds.max(1e-9)
     );
     for (exp, c) in &s.by_experiment {
+        let extra = match (c.parametric, c.markers) {
+            (0, 0) => String::new(),
+            (p, m) => format!(" {p:>7} parametric {m:>5} markers"),
+        };
         println!(
-            "  {:<40} {:>7} rows {:>6} rejects",
+            "  {:<40} {:>7} rows {:>6} rejects{extra}",
             if exp.is_empty() {
                 "(no experiment)"
             } else {
@@ -26,6 +30,21 @@ pub fn stream_run(report: &RunReport, what: &str) {
             },
             c.rows,
             c.rejects
+        );
+    }
+    for (exp, t, c) in s.unbalanced() {
+        eprintln!(
+            "  not accounted for: {exp}: {} {t} record(s) read, {} rows + {} rejects",
+            c.read.unwrap_or(0),
+            c.rows,
+            c.rejects
+        );
+    }
+    if !s.notes.is_empty() {
+        println!(
+            "  {} note(s) on what readers had to assume or could not decode (in the manifest), e.g.: {}",
+            s.notes.len(),
+            s.notes[0].message
         );
     }
     if !report.skipped.is_empty() {
@@ -42,9 +61,12 @@ pub fn stream_run(report: &RunReport, what: &str) {
         );
     }
     println!(
-        "  wrote {}, {}, {}",
+        "  wrote {}, {}, {}, {}, {}, {}",
         report.table_path.display(),
+        report.hits_path.display(),
         report.rejects_path.display(),
+        report.parametric_path.display(),
+        report.markers_path.display(),
         report.manifest_path.display()
     );
 }

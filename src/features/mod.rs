@@ -518,6 +518,7 @@ mod tests {
 
     fn rec(samples: Vec<f32>, pre: u32) -> AeRecord {
         AeRecord {
+            kind: crate::model::RecordKind::Hit,
             experiment: "e".into(),
             channel: 1,
             hit: 1,

@@ -52,6 +52,9 @@ fn parse_decimal(s: &str) -> Option<f64> {
 pub struct MachineLog {
     pub load_n: TimeSeries,
     pub extension_m: TimeSeries,
+    /// The log's rows on its own clock: (time s, load N, extension m, the numeric cells
+    /// under their header names as JSON).
+    pub rows: Vec<(f64, Option<f64>, Option<f64>, String)>,
 }
 
 impl MachineLog {
@@ -77,6 +80,7 @@ impl MachineLog {
         let (ti, li, ei) = (col("time").unwrap_or(0), col("load"), col("extension"));
         let mut factors = (1.0, 1.0, 1e-3);
         let mut rows = Vec::new();
+        let mut raw: Vec<String> = Vec::new();
         for l in lines {
             let cells: Vec<&str> = l.split(';').collect();
             if cells.len() < header.len() {
@@ -104,6 +108,14 @@ impl MachineLog {
                 let load = li.and_then(|i| parse_decimal(cells[i]));
                 let ext = ei.and_then(|i| parse_decimal(cells[i]));
                 rows.push((t, load, ext));
+                let inputs: serde_json::Map<String, serde_json::Value> = header
+                    .iter()
+                    .zip(&cells)
+                    .filter_map(|(h, c)| {
+                        parse_decimal(c).map(|v| (h.clone(), serde_json::json!(v)))
+                    })
+                    .collect();
+                raw.push(serde_json::Value::Object(inputs).to_string());
             }
         }
         if rows.is_empty() {
@@ -121,6 +133,11 @@ impl MachineLog {
                     .filter_map(|r| r.2.map(|v| (r.0 * ft, v * fe)))
                     .collect(),
             ),
+            rows: rows
+                .iter()
+                .zip(raw)
+                .map(|(r, j)| (r.0 * ft, r.1.map(|v| v * fl), r.2.map(|v| v * fe), j))
+                .collect(),
         })
     }
 }
@@ -144,6 +161,7 @@ impl Iterator for Reader {
                 let t = time_us as f64 * 1e-6;
                 let tm = t - self.offset_s;
                 Item::Record(AeRecord {
+                    kind: crate::model::RecordKind::Hit,
                     experiment: self.experiment.clone(),
                     channel: ch,
                     hit,
@@ -159,6 +177,7 @@ impl Iterator for Reader {
                 })
             }
             Err(e) => Item::Reject(Reject {
+                record_type: crate::model::RecordType::Transient,
                 experiment: self.experiment.clone(),
                 source_file: path.display().to_string(),
                 record_id: format!("ch{ch} hit {hit}"),
@@ -184,8 +203,33 @@ pub fn open(src: &Source, cfg: &IngestConfig) -> Box<dyn Iterator<Item = Item> +
     for c in &src.companions {
         if looks_like_machine_log(&super::head(c, 4096).unwrap_or_default()) {
             match MachineLog::read(c) {
-                Ok(l) => log = l,
+                Ok(mut l) => {
+                    // The log's rows, on the AE clock (AE time = log time + offset).
+                    let off = cfg.aewin.log_time_offset_s;
+                    let n = l.rows.len() as u64;
+                    for (k, (t, load, ext, inputs)) in
+                        std::mem::take(&mut l.rows).into_iter().enumerate()
+                    {
+                        first.push(Item::Parametric(Box::new(crate::model::ParametricRow {
+                            experiment: src.id.clone(),
+                            row: k as u64 + 1,
+                            time_s: Some(t + off),
+                            load_n: load,
+                            extension_m: ext,
+                            inputs: Some(inputs),
+                            extra: None,
+                            source: crate::model::ParametricSource::MachineLog,
+                            source_file: c.display().to_string(),
+                        })));
+                    }
+                    first.push(Item::Tally(crate::model::Tally {
+                        experiment: src.id.clone(),
+                        read: [(crate::model::RecordType::Parametric, n)].into(),
+                    }));
+                    log = l;
+                }
                 Err(e) => first.push(Item::Reject(Reject {
+                    record_type: crate::model::RecordType::File,
                     experiment: src.id.clone(),
                     source_file: c.display().to_string(),
                     record_id: String::new(),

@@ -236,6 +236,7 @@ pub fn open_per_hit(src: &Source, cfg: &IngestConfig) -> Box<dyn Iterator<Item =
         let hit = i as u64 + 1;
         match read_per_hit(&p, &cfg) {
             Ok((samples, rate, pre)) => Item::Record(AeRecord {
+                kind: crate::model::RecordKind::Hit,
                 experiment: experiment.clone(),
                 channel: 0,
                 hit,
@@ -250,6 +251,7 @@ pub fn open_per_hit(src: &Source, cfg: &IngestConfig) -> Box<dyn Iterator<Item =
                 source_file: p.display().to_string(),
             }),
             Err(reason) => Item::Reject(Reject {
+                record_type: crate::model::RecordType::Transient,
                 experiment: experiment.clone(),
                 source_file: p.display().to_string(),
                 record_id: format!("hit {hit}"),
@@ -290,6 +292,7 @@ impl LongReader {
 
     fn reject(&self, id: String, reason: String) -> Item {
         Item::Reject(Reject {
+            record_type: crate::model::RecordType::Transient,
             experiment: self.experiment.clone(),
             source_file: self.path.clone(),
             record_id: id,
@@ -379,6 +382,7 @@ impl Iterator for LongReader {
             self.cfg.pretrigger_samples,
         );
         Some(Item::Record(AeRecord {
+            kind: crate::model::RecordKind::Hit,
             experiment: self.experiment.clone(),
             channel: key.0.max(0) as u32,
             hit: key.1.max(0) as u64,
@@ -409,6 +413,7 @@ pub fn open_long(src: &Source, cfg: &IngestConfig) -> Box<dyn Iterator<Item = It
             done: false,
         }),
         Err(reason) => Box::new(std::iter::once(Item::Reject(Reject {
+            record_type: crate::model::RecordType::File,
             experiment: src.id.clone(),
             source_file: path.display().to_string(),
             record_id: String::new(),

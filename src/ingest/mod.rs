@@ -9,13 +9,14 @@
 mod aewin;
 mod csvfmt;
 pub mod dta;
+pub mod loadfile;
 mod parquetfmt;
 mod text;
 pub mod vallen;
 mod waveexplorer;
 pub mod wavfmt;
 
-use crate::config::{FormatChoice, IngestConfig};
+use crate::config::{FormatChoice, IngestConfig, PipelineConfig};
 use crate::model::{HitRow, Item, Reject, Stage};
 use std::path::{Path, PathBuf};
 
@@ -58,6 +59,14 @@ pub enum Format {
 }
 
 impl Format {
+    /// Formats whose experiment is a folder of one-hit files (its id is the folder's name).
+    pub fn one_hit_per_file(self) -> bool {
+        matches!(
+            self,
+            Format::Aewin | Format::Wav | Format::CsvPerHit | Format::Text
+        )
+    }
+
     pub fn as_str(self) -> &'static str {
         match self {
             Format::Vallen => "vallen",
@@ -334,6 +343,9 @@ pub fn discover(inputs: &[PathBuf], cfg: &IngestConfig) -> Discovery {
     let mut d = Discovery::default();
     // (path, explicitly named?)
     let mut files: Vec<(PathBuf, bool)> = Vec::new();
+    // The input folder each file was found in (its own folder for a file named explicitly):
+    // colliding experiment ids are made unique by their path below it.
+    let mut roots: std::collections::HashMap<PathBuf, PathBuf> = Default::default();
     let mut seen_dirs = std::collections::HashSet::new();
     for inp in inputs {
         if inp.is_dir() {
@@ -343,8 +355,14 @@ pub fn discover(inputs: &[PathBuf], cfg: &IngestConfig) -> Discovery {
             for (p, why) in errs {
                 d.rejects.push(whole_file_reject(&p, Stage::Discover, why));
             }
+            for p in &found {
+                roots.entry(p.clone()).or_insert_with(|| inp.clone());
+            }
             files.extend(found.into_iter().map(|p| (p, false)));
         } else if inp.exists() || inp.symlink_metadata().is_ok() {
+            roots
+                .entry(inp.clone())
+                .or_insert_with(|| inp.parent().map(Path::to_path_buf).unwrap_or_default());
             files.push((inp.clone(), true));
         } else {
             d.rejects.push(whole_file_reject(
@@ -552,13 +570,93 @@ pub fn discover(inputs: &[PathBuf], cfg: &IngestConfig) -> Discovery {
                 .push((h, "AEwin hit list with no waveform folder beside it".into()));
         }
     }
+    unique_ids(&mut d.sources, &roots);
     d.sources
         .sort_by(|a, b| (&a.id, a.all_files().next()).cmp(&(&b.id, b.all_files().next())));
     d
 }
 
+/// The path that names a source: its folder for a folder of one-hit files, else its first
+/// file without extension (a MISTRAS chain without its `__N`).
+fn source_base(s: &Source) -> PathBuf {
+    let Some(first) = s.all_files().next() else {
+        return PathBuf::from(&s.id);
+    };
+    let dir = first.parent().map(Path::to_path_buf).unwrap_or_default();
+    if s.format.one_hit_per_file() {
+        dir
+    } else if s.format == Format::Mistras {
+        dir.join(dta::chain_key(first).0)
+    } else {
+        first.with_extension("")
+    }
+}
+
+fn slash_path(p: &Path) -> String {
+    p.components()
+        .map(|c| c.as_os_str().to_string_lossy().to_string())
+        .filter(|c| !c.is_empty() && c != "/")
+        .collect::<Vec<_>>()
+        .join("/")
+}
+
+/// Experiment ids unique in a batch: sources whose names collide (`a/bearing.pridb` and
+/// `b/bearing.pridb`) take their path relative to the input folder they were found in
+/// (`a/bearing`, `b/bearing`); where that still collides (the same path below two input
+/// folders), the shortest tail of the full path that tells them apart.
+fn unique_ids(sources: &mut [Source], roots: &std::collections::HashMap<PathBuf, PathBuf>) {
+    let mut by_id: std::collections::BTreeMap<String, Vec<usize>> = Default::default();
+    for (i, s) in sources.iter().enumerate() {
+        by_id.entry(s.id.clone()).or_default().push(i);
+    }
+    for group in by_id.into_values().filter(|g| g.len() > 1) {
+        let bases: Vec<PathBuf> = group.iter().map(|&i| source_base(&sources[i])).collect();
+        let rel: Vec<String> = group
+            .iter()
+            .zip(&bases)
+            .map(|(&i, b)| {
+                let root = sources[i]
+                    .all_files()
+                    .next()
+                    .and_then(|f| roots.get(f))
+                    .cloned()
+                    .unwrap_or_default();
+                slash_path(b.strip_prefix(&root).unwrap_or(b))
+            })
+            .collect();
+        let distinct: std::collections::HashSet<&String> = rel.iter().collect();
+        let ids = if distinct.len() == rel.len() {
+            rel
+        } else {
+            // Grow the tail of each full path until the group's ids differ.
+            let comps: Vec<Vec<String>> = bases
+                .iter()
+                .map(|b| slash_path(b).split('/').map(str::to_string).collect())
+                .collect();
+            let longest = comps.iter().map(Vec::len).max().unwrap_or(1);
+            (1..=longest)
+                .map(|k| {
+                    comps
+                        .iter()
+                        .map(|c| c[c.len().saturating_sub(k)..].join("/"))
+                        .collect::<Vec<_>>()
+                })
+                .find(|ids| ids.iter().collect::<std::collections::HashSet<_>>().len() == ids.len())
+                .unwrap_or_else(|| comps.iter().map(|c| c.join("/")).collect())
+        };
+        // Two sources of one path (a folder of WAV and of CSV files): numbered.
+        let mut seen: std::collections::HashMap<String, usize> = Default::default();
+        for (&i, id) in group.iter().zip(ids) {
+            let n = seen.entry(id.clone()).or_insert(0);
+            *n += 1;
+            sources[i].id = if *n == 1 { id } else { format!("{id}-{n}") };
+        }
+    }
+}
+
 pub(crate) fn whole_file_reject(p: &Path, stage: Stage, reason: String) -> Reject {
     Reject {
+        record_type: crate::model::RecordType::File,
         experiment: String::new(),
         source_file: p.display().to_string(),
         record_id: String::new(),
@@ -603,6 +701,7 @@ impl Iterator for Guarded {
                     .or_else(|| p.downcast_ref::<&str>().map(|s| s.to_string()))
                     .unwrap_or_default();
                 Some(Item::Reject(Reject {
+                    record_type: crate::model::RecordType::File,
                     experiment: self.experiment.clone(),
                     source_file: self.file.clone(),
                     record_id: String::new(),
@@ -616,9 +715,16 @@ impl Iterator for Guarded {
     }
 }
 
-/// Read a source: an iterator of records, hit rows and reject rows, in (experiment,
-/// channel, hit) order. The reader runs under a guard (a panic is a reject row).
-pub fn open(src: &Source, cfg: &IngestConfig) -> Box<dyn Iterator<Item = Item> + Send> {
+/// Read a source: an iterator of records, hit rows, reject rows and the rest of what the
+/// recording holds (parametric and marker rows, setup, notes, the reader's tally), in
+/// (experiment, channel, hit) order. The reader runs under a guard (a panic is a reject
+/// row); with `[load] file` set, the test machine's load file gives the load.
+pub fn open(src: &Source, cfg: &PipelineConfig) -> Box<dyn Iterator<Item = Item> + Send> {
+    loadfile::attach(open_recording(src, &cfg.ingest), src, &cfg.load)
+}
+
+/// [`open`] without the load file: what the recording itself holds.
+pub fn open_recording(src: &Source, cfg: &IngestConfig) -> Box<dyn Iterator<Item = Item> + Send> {
     let (s, c) = (src.clone(), cfg.clone());
     let items: Box<dyn Iterator<Item = Item> + Send> = Box::new(Guarded {
         open: Some(Box::new(move || open_format(&s, &c))),

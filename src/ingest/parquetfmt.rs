@@ -60,6 +60,10 @@ fn records(b: &RecordBatch, path: &str) -> Result<Vec<AeRecord>, String> {
     let src = b
         .column_by_name("source_file")
         .and_then(|a| a.as_string_opt::<i32>().cloned());
+    // Written since the column was added; older tables' records are their hits'.
+    let kind = b
+        .column_by_name("record_kind")
+        .and_then(|a| a.as_string_opt::<i32>().cloned());
     let opt = |a: &arrow::array::PrimitiveArray<Float64Type>, i: usize| {
         if a.is_null(i) {
             None
@@ -74,6 +78,11 @@ fn records(b: &RecordBatch, path: &str) -> Result<Vec<AeRecord>, String> {
                 .as_primitive_opt::<Float32Type>()
                 .ok_or("samples_v: expected list<float32>")?;
             Ok(AeRecord {
+                kind: match &kind {
+                    Some(a) if !a.is_null(i) => crate::model::RecordKind::parse(a.value(i))
+                        .ok_or_else(|| format!("record_kind: unknown value {:?}", a.value(i)))?,
+                    _ => crate::model::RecordKind::Hit,
+                },
                 experiment: exp.value(i).to_string(),
                 channel: ch.value(i).max(0) as u32,
                 hit: hit.value(i).max(0) as u64,
@@ -114,6 +123,7 @@ impl Iterator for Reader {
                 Err(reason) => {
                     // A broken batch: report it and stop (later offsets cannot be trusted).
                     self.queue.push_back(Item::Reject(Reject {
+                        record_type: crate::model::RecordType::File,
                         experiment: self.id.clone(),
                         source_file: self.path.clone(),
                         record_id: String::new(),
@@ -139,6 +149,7 @@ pub fn open(src: &Source, _cfg: &IngestConfig) -> Box<dyn Iterator<Item = Item> 
             })
         }
         Ok(_) => Box::new(std::iter::once(Item::Reject(Reject {
+            record_type: crate::model::RecordType::File,
             experiment: src.id.clone(),
             source_file: path.display().to_string(),
             record_id: String::new(),
@@ -146,6 +157,7 @@ pub fn open(src: &Source, _cfg: &IngestConfig) -> Box<dyn Iterator<Item = Item> 
             reason: "Parquet file has no samples_v column: not an aepipe waveforms table".into(),
         }))),
         Err(e) => Box::new(std::iter::once(Item::Reject(Reject {
+            record_type: crate::model::RecordType::File,
             experiment: src.id.clone(),
             source_file: path.display().to_string(),
             record_id: String::new(),

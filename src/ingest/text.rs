@@ -54,6 +54,7 @@ pub fn open(src: &Source, cfg: &IngestConfig) -> Box<dyn Iterator<Item = Item> +
         let hit = i as u64 + 1;
         match read_values(&p) {
             Ok(v) => Item::Record(AeRecord {
+                kind: crate::model::RecordKind::Hit,
                 experiment: experiment.clone(),
                 channel: 0,
                 hit,
@@ -68,6 +69,7 @@ pub fn open(src: &Source, cfg: &IngestConfig) -> Box<dyn Iterator<Item = Item> +
                 source_file: p.display().to_string(),
             }),
             Err(e) => Item::Reject(Reject {
+                record_type: crate::model::RecordType::Transient,
                 experiment: experiment.clone(),
                 source_file: p.display().to_string(),
                 record_id: format!("hit {hit}"),

@@ -118,6 +118,7 @@ impl Iterator for Reader {
             // After a structural error the rest of the events cannot be located: each is
             // reported, none is silently missing.
             return Some(Item::Reject(Reject {
+                record_type: crate::model::RecordType::Transient,
                 experiment: self.experiment.clone(),
                 source_file: self.path.display().to_string(),
                 record_id: format!("event {ev}"),
@@ -128,6 +129,7 @@ impl Iterator for Reader {
         for ch in 1..=self.channels {
             let item = match self.read_block() {
                 Ok(samples) => Item::Record(AeRecord {
+                    kind: crate::model::RecordKind::Hit,
                     experiment: self.experiment.clone(),
                     channel: ch as u32,
                     hit: ev,
@@ -144,6 +146,7 @@ impl Iterator for Reader {
                 Err(reason) => {
                     self.failed = true;
                     Item::Reject(Reject {
+                        record_type: crate::model::RecordType::Transient,
                         experiment: self.experiment.clone(),
                         source_file: self.path.display().to_string(),
                         record_id: format!("event {ev}"),
@@ -165,6 +168,7 @@ pub fn open(src: &Source, cfg: &IngestConfig) -> Box<dyn Iterator<Item = Item> +
     let path = src.files[0].clone();
     let reject = |reason: String| -> Box<dyn Iterator<Item = Item> + Send> {
         Box::new(std::iter::once(Item::Reject(Reject {
+            record_type: crate::model::RecordType::File,
             experiment: src.id.clone(),
             source_file: path.display().to_string(),
             record_id: String::new(),

@@ -60,6 +60,7 @@ pub fn open(src: &Source, cfg: &IngestConfig) -> Box<dyn Iterator<Item = Item> +
                 .map(|(c, mut s)| {
                     s.iter_mut().for_each(|x| *x *= gain);
                     Item::Record(AeRecord {
+                        kind: crate::model::RecordKind::Hit,
                         experiment: experiment.clone(),
                         channel: c as u32 + 1,
                         hit,
@@ -76,6 +77,7 @@ pub fn open(src: &Source, cfg: &IngestConfig) -> Box<dyn Iterator<Item = Item> +
                 })
                 .collect(),
             Err(reason) => vec![Item::Reject(Reject {
+                record_type: crate::model::RecordType::Transient,
                 experiment: experiment.clone(),
                 source_file: p.display().to_string(),
                 record_id: format!("hit {hit}"),

@@ -54,7 +54,7 @@ pub struct ShardManifest {
     pub discover_rejects: Vec<Reject>,
     pub skipped: Vec<(PathBuf, String)>,
     /// The manifest's `inputs` entries of the shard's files.
-    pub input_files: Vec<serde_json::Value>,
+    pub input_files: Vec<super::InputFile>,
 }
 
 #[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
@@ -123,6 +123,8 @@ pub(super) fn publish(
         table_path: out_dir.join(table_stem(job.table_file())),
         hits_path: out_dir.join("hits"),
         rejects_path: out_dir.join("rejects"),
+        parametric_path: out_dir.join("parametric"),
+        markers_path: out_dir.join("markers"),
         manifest_path,
         sources: p.sources,
         skipped: p.skipped,

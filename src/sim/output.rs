@@ -287,27 +287,32 @@ pub fn rows(run: &Run) -> Vec<store::Row> {
                params: String,
                (x, y): (f64, f64),
                p: &[f64]| {
-        vec![
-            Value::Str(Some(run.model.name.clone())),
-            Value::I32(Some(channel)),
-            Value::I64(Some(run.hit as i64)),
-            Value::F64(Some(0.0)),
-            Value::F64(Some(fs)),
-            Value::I32(Some(rec.pretrigger as i32)),
-            Value::I32(Some(rec.samples.len() as i32)),
-            Value::F64(None),
-            Value::F64(None),
-            Value::Str(label),
-            Value::F64(Some(rec.threshold_v)),
-            Value::F32s(Some(rec.samples)),
-            Value::Str(Some(run.source.clone())),
+        // The waveform table's cells come from the record (one definition, store's), then
+        // the simulation's own columns.
+        let mut cells = store::waveform_row(crate::model::AeRecord {
+            experiment: run.model.name.clone(),
+            channel: channel as u32,
+            hit: run.hit,
+            time_s: Some(0.0),
+            sample_rate_hz: fs,
+            pretrigger: rec.pretrigger as u32,
+            samples: rec.samples,
+            load_n: None,
+            extension_m: None,
+            label,
+            threshold_v: Some(rec.threshold_v),
+            source_file: run.source.clone(),
+            kind: crate::model::RecordKind::Hit,
+        });
+        cells.extend([
             Value::Str(Some(run.source.clone())),
             Value::Str(Some(params)),
             Value::F64(Some(x)),
             Value::F64(Some(y)),
             Value::F64(Some(run.acq.scale_v_per_pa)),
             Value::F64(Some(super::dominant_frequency(p, fs))),
-        ]
+        ]);
+        cells
     };
     let mut out = Vec::new();
     let mut heard = Vec::new();

@@ -310,7 +310,9 @@ pub struct TableWriter {
 pub use crate::util::tmp_path_for;
 
 pub mod read;
+pub mod table;
 pub use read::{HitKey, TableScan};
+pub use table::{markers_table, parametric_table, Table};
 
 /// Remove temporary files left in `dir` by an interrupted earlier run.
 pub fn clean_stale_tmp(dir: &Path) {
@@ -613,6 +615,7 @@ pub fn identity_columns() -> Vec<ColumnSpec> {
         ColumnSpec::new("extension_m", ColType::Float64, "m", "test-machine extension at the hit time (null: none)").nullable(),
         ColumnSpec::new("label", ColType::Utf8, "", "ground-truth or user label (simulator mechanism, hand label); null if none").nullable(),
         ColumnSpec::new("threshold_v", ColType::Float64, "V", "detection threshold the acquisition used (Vallen Thr); null if not recorded").nullable(),
+        ColumnSpec::new("record_kind", ColType::Utf8, "", "`hit`: the waveform of a hit (hits.parquet links to it, or the format has no hit list); `standalone`: a waveform no hit points to (a MISTRAS waveform message without its hit, e.g. an automatic sensor test; a .tradb transient no .pridb hit links to)"),
     ]
 }
 
@@ -630,6 +633,7 @@ pub fn identity_values(r: &crate::model::AeRecord) -> Row {
         Value::F64(r.extension_m),
         Value::Str(r.label.clone()),
         Value::F64(r.threshold_v),
+        Value::Str(Some(r.kind.as_str().to_string())),
     ]
 }
 
@@ -666,6 +670,12 @@ pub fn rejects_table() -> TableSchema {
                 "pipeline stage: discover, read, validate or features",
             ),
             ColumnSpec::new("reason", ColType::Utf8, "", "one line saying what is wrong"),
+            ColumnSpec::new(
+                "record_type",
+                ColType::Utf8,
+                "",
+                "what is lost: transient, hit, parametric, status, marker, or file (a whole file, or the rest of one, whose records could not be told apart)",
+            ),
         ],
     }
 }
@@ -782,6 +792,7 @@ pub fn reject_row(r: &crate::model::Reject) -> Row {
         Value::Str(Some(r.record_id.clone())),
         Value::Str(Some(r.stage.as_str().to_string())),
         Value::Str(Some(r.reason.clone())),
+        Value::Str(Some(r.record_type.as_str().to_string())),
     ]
 }
 
@@ -820,7 +831,7 @@ mod tests {
     #[test]
     fn wrong_cell_type_is_an_error_not_a_panic() {
         let t = rejects_table();
-        let row = vec![Value::I32(Some(1)); 5];
+        let row = vec![Value::I32(Some(1)); 6];
         let err = rows_to_batch(&t, &[row]).unwrap_err();
         assert!(err.contains("experiment"), "{err}");
     }
@@ -833,6 +844,7 @@ mod tests {
         {
             let mut w = TableWriter::create(&path, rejects_table(), &[], 10).unwrap();
             w.push(reject_row(&crate::model::Reject {
+                record_type: crate::model::RecordType::Transient,
                 experiment: "e".into(),
                 source_file: "f".into(),
                 record_id: "r".into(),

@@ -16,7 +16,14 @@ impl Rejects {
         let (names, rows) = table_rows(p);
         assert_eq!(
             names,
-            ["experiment", "source_file", "record_id", "stage", "reason"]
+            [
+                "experiment",
+                "source_file",
+                "record_id",
+                "stage",
+                "reason",
+                "record_type"
+            ]
         );
         Rejects {
             rows: rows

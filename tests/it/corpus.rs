@@ -747,7 +747,14 @@ fn rejects(p: &Path) -> Vec<[String; 5]> {
     let (names, rows) = table_rows(p);
     assert_eq!(
         names,
-        ["experiment", "source_file", "record_id", "stage", "reason"]
+        [
+            "experiment",
+            "source_file",
+            "record_id",
+            "stage",
+            "reason",
+            "record_type"
+        ]
     );
     rows.into_iter()
         .map(|r| {

@@ -15,12 +15,13 @@ fn items(inputs: &[PathBuf]) -> (Vec<HitRow>, Vec<AeRecord>, Vec<String>, Vec<St
     let d = aepipe::ingest::discover(inputs, &cfg.ingest);
     let (mut h, mut r, mut rej, mut notes) = (vec![], vec![], vec![], vec![]);
     for s in &d.sources {
-        for it in aepipe::ingest::open(s, &cfg.ingest) {
+        for it in aepipe::ingest::open(s, &cfg) {
             match it {
                 Item::Hit(x) => h.push(*x),
                 Item::Record(x) => r.push(x),
                 Item::Reject(x) => rej.push(format!("{} {}", x.record_id, x.reason)),
                 Item::Note(n) => notes.push(n.message),
+                _ => {}
             }
         }
     }
@@ -117,7 +118,7 @@ fn the_real_dta_gives_the_hits_and_samples_mistrasdta_gives() {
         },
     )
     .unwrap();
-    let c = run.stats.by_experiment["210527-CH1-15"];
+    let c = &run.stats.by_experiment["210527-CH1-15"];
     assert_eq!((c.hits, c.rows, c.rejects), (8, 8, 0));
     let (names, rows) = table_rows(&run.hits_path);
     let tr = names.iter().position(|n| n == "transient").unwrap();
@@ -333,7 +334,7 @@ fn written_dta_files_four_channels_a_chain_and_bad_endings() {
         },
     )
     .unwrap();
-    let x = r.stats.by_experiment["X"];
+    let x = &r.stats.by_experiment["X"];
     assert_eq!((x.hits, x.rows + x.rejects), (6, 7));
     let m: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&r.manifest_path).unwrap()).unwrap();

@@ -120,7 +120,7 @@ fn two_acquisitions_and_missing_transients_keep_every_hit_and_link_each_transien
         assert_eq!(hit_of.get(h), Some(&(ch, time)), "feature row hit {h}");
     }
     // The missing transient is a reject that names its TRAI; the accounting adds up.
-    let c = r.stats.by_experiment["acq"];
+    let c = &r.stats.by_experiment["acq"];
     assert_eq!((c.hits, c.rows, c.rejects), (9, 7, 1));
     let (rn, rr) = table_rows(&r.rejects_path);
     assert!(
@@ -228,6 +228,13 @@ fn the_accounting_rule_holds_on_every_real_data_set() {
             "{id}: transients in = rows + rejects"
         );
     }
+    // Per record type (hits, transients, parametric, status and marker rows), what each
+    // reader counted in its files is rows + rejects.
+    assert!(
+        r.stats.unbalanced().is_empty(),
+        "{:?}",
+        r.stats.unbalanced()
+    );
     // PLBS4 holds 4 hits without a transient: rows, not losses.
     assert_eq!(by["PLBS4_CP090_PCLO1"].hits, 73);
     assert_eq!(by["PLBS4_CP090_PCLO1"].rows, 69);
@@ -257,7 +264,7 @@ fn inspect_counts_hits_and_transients_without_decoding_a_waveform() {
         .unwrap();
     let cfg = PipelineConfig::default();
     let d = aepipe::ingest::discover(std::slice::from_ref(&data), &cfg.ingest);
-    let s = aepipe::inspect::summarise(&d.sources[0], &cfg.ingest);
+    let s = aepipe::inspect::summarise(&d.sources[0], &cfg);
     assert_eq!((s.hits, s.transients, s.rejects), (5, 5, 0), "{s}");
     assert_eq!((s.min_len, s.max_len), (300, 300));
     assert_eq!(
@@ -273,7 +280,7 @@ fn inspect_counts_hits_and_transients_without_decoding_a_waveform() {
         &opts(),
     )
     .unwrap();
-    let c = r.stats.by_experiment["x"];
+    let c = &r.stats.by_experiment["x"];
     assert_eq!((c.hits, c.rows, c.rejects), (5, 4, 1));
 }
 
@@ -295,7 +302,7 @@ fn the_steel_plate_trfdb_features_join_its_hits_by_trai() {
     // Independent: the trf_data row of each TRAI, read here with SQLite.
     let trf = rusqlite::Connection::open(dir.join("sample.trfdb")).unwrap();
     let mut checked = 0;
-    for it in aepipe::ingest::open(src, &cfg.ingest) {
+    for it in aepipe::ingest::open(src, &cfg) {
         let aepipe::model::Item::Hit(h) = it else {
             continue;
         };

@@ -20,6 +20,7 @@ mod shard;
 mod sim;
 mod som;
 mod trend;
+mod vendor;
 
 use std::path::{Path, PathBuf};
 
@@ -160,11 +161,11 @@ pub fn read_all(
     let mut recs = Vec::new();
     let mut rejs = d.rejects;
     for s in &d.sources {
-        for it in aepipe::ingest::open(s, &cfg.ingest) {
+        for it in aepipe::ingest::open(s, cfg) {
             match it {
                 aepipe::model::Item::Record(r) => recs.push(r),
                 aepipe::model::Item::Reject(r) => rejs.push(r),
-                aepipe::model::Item::Hit(_) | aepipe::model::Item::Note(_) => {}
+                _ => {}
             }
         }
     }

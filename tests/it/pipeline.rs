@@ -385,11 +385,11 @@ fn python_readers_open_every_table() {
         "{so}{}",
         String::from_utf8_lossy(&o.stderr)
     );
-    // features, waveforms, and the hits and rejects of each run; each again in the run's
-    // one per-experiment part (`parts/`).
+    // features, waveforms, and the hits, rejects, parametric and marker rows of each run;
+    // each again in the run's one per-experiment part (`parts/`).
     assert_eq!(
         so.lines().filter(|l| l.starts_with("ok ")).count(),
-        12,
+        20,
         "{so}"
     );
 }

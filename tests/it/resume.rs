@@ -117,6 +117,8 @@ fn check_nothing_half_written(out: &Path) {
                 let key = match name.as_str() {
                     "hits.parquet" => "hits",
                     "rejects.parquet" => "rejects",
+                    "parametric.parquet" => "parametric",
+                    "markers.parquet" => "markers",
                     _ => "rows",
                 };
                 assert_eq!(
@@ -172,8 +174,8 @@ fn killed_runs_resume_to_the_uninterrupted_result_20_times() {
             .iter()
             .filter(|n| n.starts_with("features/parts/"))
             .count(),
-        30,
-        "ten experiments, three tables each: {names:?}"
+        50,
+        "ten experiments, five tables each: {names:?}"
     );
 
     let seed = 0x5eed_2026;

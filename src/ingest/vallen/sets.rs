@@ -1,0 +1,333 @@
+//! The `.pridb` sets that are not hits: markers (`SetType` 4–6: label, date/time, section),
+//! parametric rows (1) and status rows (3), read in chunks of 1 024 sets (bounded memory),
+//! and the count of every set type for the manifest's accounting.
+
+use super::{columns, open_ro};
+use crate::config::VallenConfig;
+use crate::ingest::IngestError;
+use crate::model::{
+    db_ae, Item, MarkerKind, MarkerRow, ParametricRow, ParametricSource, RecordType,
+};
+use rusqlite::Connection;
+use std::collections::BTreeMap;
+use std::path::Path;
+
+/// How many sets of each type a `.pridb` holds, as record types.
+pub fn set_counts(conn: &Connection) -> BTreeMap<RecordType, u64> {
+    let mut out = BTreeMap::new();
+    let Ok(mut st) = conn.prepare("SELECT SetType, count(*) FROM ae_data GROUP BY SetType") else {
+        return out;
+    };
+    let rows = st.query_map([], |r| {
+        Ok((r.get::<_, Option<i64>>(0)?, r.get::<_, i64>(1)?))
+    });
+    if let Ok(rows) = rows {
+        for (t, n) in rows.flatten() {
+            let ty = match t {
+                Some(1) => RecordType::Parametric,
+                Some(2) => RecordType::Hit,
+                Some(3) => RecordType::Status,
+                Some(4..=6) => RecordType::Marker,
+                _ => continue,
+            };
+            *out.entry(ty).or_default() += n.max(0) as u64;
+        }
+    }
+    out
+}
+
+/// Which kind of set a chunk reads.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Stage {
+    Markers,
+    Parametric,
+    Status,
+    Done,
+}
+
+/// The non-hit sets of a `.pridb`, as items.
+pub struct SetRows {
+    conn: Connection,
+    experiment: String,
+    path: String,
+    time_base: f64,
+    stage: Stage,
+    last: i64,
+    markers_sql: String,
+    parametric_sql: String,
+    /// Names of the parametric inputs, in the order of `parametric_sql`'s columns.
+    inputs: Vec<String>,
+    status_sql: String,
+    cfg: VallenConfig,
+    marker_rows: u64,
+    parametric_rows: u64,
+}
+
+impl SetRows {
+    pub fn open(
+        path: &Path,
+        experiment: &str,
+        time_base: f64,
+        cfg: &VallenConfig,
+    ) -> Result<SetRows, IngestError> {
+        let conn = open_ro(path)?;
+        let cols = columns(&conn, "ae_data");
+        let has = |c: &str| cols.iter().any(|x| x == c);
+        let raw = |c: &str| {
+            if has(c) {
+                format!("d.{c}")
+            } else {
+                "NULL".into()
+            }
+        };
+        let markers_sql = if columns(&conn, "ae_markers").is_empty() {
+            "SELECT d.SetID, d.SetType, d.Time, NULL, NULL FROM ae_data d \
+             WHERE d.SetType IN (4, 5, 6) AND d.SetID > ?1 ORDER BY d.SetID LIMIT 1024"
+                .to_string()
+        } else {
+            "SELECT d.SetID, d.SetType, d.Time, m.Number, m.Data FROM ae_data d \
+             LEFT JOIN ae_markers m ON m.SetID = d.SetID \
+             WHERE d.SetType IN (4, 5, 6) AND d.SetID > ?1 ORDER BY d.SetID LIMIT 1024"
+                .to_string()
+        };
+        let params = columns(&conn, "ae_params");
+        let inputs: Vec<String> = cols
+            .iter()
+            .filter(|c| c.starts_with("PA") && c[2..].parse::<u32>().is_ok())
+            .cloned()
+            .collect();
+        let pa: Vec<String> = inputs
+            .iter()
+            .map(|c| {
+                if params.iter().any(|p| p == &format!("{c}_mV")) {
+                    format!("d.{c} * p.{c}_mV")
+                } else {
+                    format!("d.{c}")
+                }
+            })
+            .collect();
+        let parametric_sql = format!(
+            "SELECT d.SetID, d.Time, {}, {}, {}{}{} FROM ae_data d \
+             LEFT JOIN ae_params p ON p.ID = d.ParamID \
+             WHERE d.SetType = 1 AND d.SetID > ?1 ORDER BY d.SetID LIMIT 1024",
+            raw("Status"),
+            raw("PCTD"),
+            raw("PCTA"),
+            if pa.is_empty() { "" } else { ", " },
+            pa.join(", ")
+        );
+        // Status rows: the file's own scaling (view_ae_data), as for hits.
+        let view = columns(&conn, "view_ae_data");
+        let pick = |c: &str| {
+            if view.iter().any(|v| v == c) {
+                format!("v.{c}")
+            } else {
+                "NULL".to_string()
+            }
+        };
+        let status_sql = if view.is_empty() {
+            format!(
+                "SELECT d.SetID, d.Time, {}, {}, NULL, NULL, NULL, NULL FROM ae_data d \
+                 WHERE d.SetType = 3 AND d.SetID > ?1 ORDER BY d.SetID LIMIT 1024",
+                raw("Chan"),
+                raw("Status")
+            )
+        } else {
+            format!(
+                "SELECT d.SetID, d.Time, {}, {}, {}, {}, {}, {} FROM ae_data d \
+                 JOIN view_ae_data v ON v.SetID = d.SetID \
+                 WHERE d.SetType = 3 AND d.SetID > ?1 ORDER BY d.SetID LIMIT 1024",
+                raw("Chan"),
+                raw("Status"),
+                pick("Thr"),
+                pick("Eny"),
+                pick("SS"),
+                pick("RMS"),
+            )
+        };
+        Ok(SetRows {
+            conn,
+            experiment: experiment.to_string(),
+            path: path.display().to_string(),
+            time_base,
+            stage: Stage::Markers,
+            last: i64::MIN,
+            markers_sql,
+            parametric_sql,
+            inputs,
+            status_sql,
+            cfg: cfg.clone(),
+            marker_rows: 0,
+            parametric_rows: 0,
+        })
+    }
+
+    pub fn path(&self) -> &str {
+        &self.path
+    }
+
+    /// The next chunk of items (empty when every set is read).
+    pub(super) fn chunk(&mut self) -> Result<Vec<Item>, String> {
+        loop {
+            let out = match self.stage {
+                Stage::Done => return Ok(vec![]),
+                Stage::Markers => self.markers()?,
+                Stage::Parametric => self.parametric()?,
+                Stage::Status => self.status()?,
+            };
+            if out.len() < 1024 {
+                self.stage = match self.stage {
+                    Stage::Markers => Stage::Parametric,
+                    Stage::Parametric => Stage::Status,
+                    _ => Stage::Done,
+                };
+                self.last = i64::MIN;
+            }
+            if !out.is_empty() {
+                return Ok(out);
+            }
+        }
+    }
+
+    fn seconds(&self, ticks: Option<i64>) -> Option<f64> {
+        ticks.map(|t| t as f64 / self.time_base)
+    }
+
+    fn markers(&mut self) -> Result<Vec<Item>, String> {
+        let mut st = self
+            .conn
+            .prepare_cached(&self.markers_sql)
+            .map_err(|e| e.to_string())?;
+        #[allow(clippy::type_complexity)]
+        let rows: Vec<(i64, i64, Option<i64>, Option<i64>, Option<String>)> = st
+            .query_map([self.last], |r| {
+                Ok((
+                    r.get(0)?,
+                    r.get::<_, Option<i64>>(1)?.unwrap_or(0),
+                    r.get(2)?,
+                    r.get(3)?,
+                    r.get(4)?,
+                ))
+            })
+            .and_then(|it| it.collect())
+            .map_err(|e| e.to_string())?;
+        drop(st);
+        let mut out = Vec::with_capacity(rows.len());
+        for (setid, ty, time, number, data) in rows {
+            self.last = setid;
+            self.marker_rows += 1;
+            out.push(Item::Marker(Box::new(MarkerRow {
+                experiment: self.experiment.clone(),
+                row: self.marker_rows,
+                time_s: self.seconds(time),
+                kind: match ty {
+                    4 => MarkerKind::Label,
+                    5 => MarkerKind::Datetime,
+                    _ => MarkerKind::Section,
+                },
+                number,
+                text: data,
+                source_file: self.path.clone(),
+                ..Default::default()
+            })));
+        }
+        Ok(out)
+    }
+
+    fn parametric(&mut self) -> Result<Vec<Item>, String> {
+        let n_in = self.inputs.len();
+        let mut st = self
+            .conn
+            .prepare_cached(&self.parametric_sql)
+            .map_err(|e| e.to_string())?;
+        #[allow(clippy::type_complexity)]
+        let rows: Vec<(i64, Option<i64>, [Option<i64>; 3], Vec<Option<f64>>)> = st
+            .query_map([self.last], |r| {
+                let mut v = Vec::with_capacity(n_in);
+                for k in 0..n_in {
+                    v.push(r.get::<_, Option<f64>>(5 + k)?);
+                }
+                Ok((r.get(0)?, r.get(1)?, [r.get(2)?, r.get(3)?, r.get(4)?], v))
+            })
+            .and_then(|it| it.collect())
+            .map_err(|e| e.to_string())?;
+        drop(st);
+        let mut out = Vec::with_capacity(rows.len());
+        for (setid, time, [status, pctd, pcta], values) in rows {
+            self.last = setid;
+            self.parametric_rows += 1;
+            let value = |name: &str| {
+                self.inputs
+                    .iter()
+                    .position(|c| c == name)
+                    .and_then(|k| values[k])
+            };
+            let c = &self.cfg;
+            let inputs: serde_json::Map<String, serde_json::Value> = self
+                .inputs
+                .iter()
+                .zip(&values)
+                .filter_map(|(n, v)| v.map(|v| (n.clone(), serde_json::json!(v))))
+                .collect();
+            let mut extra = serde_json::Map::new();
+            for (k, v) in [("Status", status), ("PCTD", pctd), ("PCTA", pcta)] {
+                if let Some(v) = v {
+                    extra.insert(k.into(), serde_json::json!(v));
+                }
+            }
+            out.push(Item::Parametric(Box::new(ParametricRow {
+                experiment: self.experiment.clone(),
+                row: self.parametric_rows,
+                time_s: self.seconds(time),
+                load_n: value(&c.load_param).map(|v| v * c.load_n_per_mv),
+                extension_m: value(&c.extension_param).map(|v| v * c.extension_m_per_mv),
+                inputs: (!inputs.is_empty()).then(|| serde_json::Value::Object(inputs).to_string()),
+                extra: (!extra.is_empty()).then(|| serde_json::Value::Object(extra).to_string()),
+                source: ParametricSource::Vallen,
+                source_file: self.path.clone(),
+            })));
+        }
+        Ok(out)
+    }
+
+    fn status(&mut self) -> Result<Vec<Item>, String> {
+        let mut st = self
+            .conn
+            .prepare_cached(&self.status_sql)
+            .map_err(|e| e.to_string())?;
+        #[allow(clippy::type_complexity)]
+        let rows: Vec<(i64, Option<i64>, Option<i64>, Option<i64>, [Option<f64>; 4])> = st
+            .query_map([self.last], |r| {
+                Ok((
+                    r.get(0)?,
+                    r.get(1)?,
+                    r.get(2)?,
+                    r.get(3)?,
+                    [r.get(4)?, r.get(5)?, r.get(6)?, r.get(7)?],
+                ))
+            })
+            .and_then(|it| it.collect())
+            .map_err(|e| e.to_string())?;
+        drop(st);
+        let mut out = Vec::with_capacity(rows.len());
+        for (setid, time, chan, status, [thr, eny, ss, rms]) in rows {
+            self.last = setid;
+            self.marker_rows += 1;
+            out.push(Item::Marker(Box::new(MarkerRow {
+                experiment: self.experiment.clone(),
+                row: self.marker_rows,
+                time_s: self.seconds(time),
+                kind: MarkerKind::Status,
+                channel: chan.map(|c| c.max(0) as u32),
+                threshold_db: thr.filter(|v| *v > 0.0).map(|v| db_ae(v * 1e-6)),
+                energy_eu: eny,
+                rms_v: rms.map(|v| v * 1e-6),
+                signal_strength_vs: ss.map(|v| v * 1e-9),
+                flags: status,
+                source_file: self.path.clone(),
+                ..Default::default()
+            })));
+        }
+        Ok(out)
+    }
+}

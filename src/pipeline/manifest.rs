@@ -1,0 +1,328 @@
+//! `manifest.json`: one typed struct, written by [`super::assemble`] and read back by the
+//! same type (`aepipe report`, tests), so a key cannot be renamed on one side only.
+
+use super::counts::{Counts, StreamStats};
+use super::parts::{part_tables, table_schemas, Produced};
+use super::stream::table_metadata;
+use super::{PipelineError, RunReport, StreamJob, StreamOptions};
+use crate::config::PipelineConfig;
+use crate::model::AcquisitionSetup;
+use crate::store::{reject_row, TableWriter};
+use crate::util::{num_cpus, utc_now, write_atomic};
+use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
+use std::path::Path;
+use std::time::Instant;
+
+/// A `manifest.json` that cannot be read or is not one of this version.
+#[derive(Debug, thiserror::Error)]
+#[error("{0}")]
+pub struct ManifestError(pub String);
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Tool {
+    pub name: String,
+    pub version: String,
+}
+
+impl Tool {
+    pub fn this() -> Tool {
+        Tool {
+            name: "aepipe".into(),
+            version: env!("CARGO_PKG_VERSION").into(),
+        }
+    }
+}
+
+/// One input file: where, which experiment, its size and digest.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct InputFile {
+    pub path: String,
+    pub experiment: String,
+    pub format: String,
+    /// Null when the file could not be read.
+    pub size_bytes: Option<u64>,
+    /// The SHA-256, or `unreadable: …`.
+    pub sha256: String,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct PartEntry {
+    pub experiment: String,
+    pub dir: String,
+    pub reused: bool,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Skipped {
+    pub path: String,
+    pub reason: String,
+}
+
+/// One source (experiment) as discovered, with what its recordings say of their setup.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ExperimentEntry {
+    pub id: String,
+    pub format: String,
+    pub files: usize,
+    pub companions: Vec<String>,
+    /// What the recordings say of the acquisition (product, channels' thresholds, gains,
+    /// timing parameters, sample rates), one entry per file that says something.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub acquisition: Vec<AcquisitionSetup>,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct TableOut {
+    pub path: String,
+    pub rows: u64,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Outputs {
+    pub table: TableOut,
+    pub rejects: TableOut,
+    pub hits: TableOut,
+    pub parametric: TableOut,
+    pub markers: TableOut,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct NoteEntry {
+    pub experiment: String,
+    pub file: String,
+    pub note: String,
+}
+
+/// One record type of one experiment whose `read` is not `rows + rejects`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Unbalanced {
+    pub experiment: String,
+    pub record_type: crate::model::RecordType,
+    pub read: u64,
+    pub rows: u64,
+    pub rejects: u64,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ManifestCounts {
+    pub records_read: u64,
+    pub hits_written: u64,
+    pub rows_written: u64,
+    pub rejects: u64,
+    pub parametric_written: u64,
+    pub markers_written: u64,
+    pub rejects_by_stage: BTreeMap<String, u64>,
+    pub by_experiment: BTreeMap<String, Counts>,
+    /// Record types whose `read` is not `rows + rejects` (empty when everything read is
+    /// accounted for).
+    pub unbalanced: Vec<Unbalanced>,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Timings {
+    pub discover: f64,
+    pub hash_inputs: f64,
+    pub stream: f64,
+    pub total: f64,
+}
+
+/// `manifest.json` (documented in `data-schema/manifest.md`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Manifest {
+    pub tool: Tool,
+    pub job: String,
+    pub started_utc: String,
+    pub finished_utc: String,
+    pub threads: usize,
+    pub config_sha256: String,
+    pub config: PipelineConfig,
+    pub inputs: Vec<InputFile>,
+    pub parts: Vec<PartEntry>,
+    pub skipped: Vec<Skipped>,
+    pub experiments: Vec<ExperimentEntry>,
+    pub outputs: Outputs,
+    pub notes: Vec<NoteEntry>,
+    pub counts: ManifestCounts,
+    pub timings_s: Timings,
+}
+
+impl Manifest {
+    /// Read a `manifest.json`.
+    pub fn read(path: &std::path::Path) -> Result<Manifest, ManifestError> {
+        let text = std::fs::read_to_string(path).map_err(|e| ManifestError(e.to_string()))?;
+        serde_json::from_str(&text).map_err(|e| ManifestError(e.to_string()))
+    }
+
+    /// The counts of the run, as [`StreamStats`] (what `aepipe report` needs of them).
+    pub fn stats(&self) -> StreamStats {
+        let c = &self.counts;
+        StreamStats {
+            records_read: c.records_read,
+            hits: c.hits_written,
+            rows: c.rows_written,
+            rejects: c.rejects,
+            parametric: c.parametric_written,
+            markers: c.markers_written,
+            by_experiment: c.by_experiment.clone(),
+            by_stage: c.rejects_by_stage.clone(),
+            ..Default::default()
+        }
+    }
+}
+
+impl ManifestCounts {
+    pub fn of(stats: &StreamStats) -> ManifestCounts {
+        ManifestCounts {
+            records_read: stats.records_read,
+            hits_written: stats.hits,
+            rows_written: stats.rows,
+            rejects: stats.rejects,
+            parametric_written: stats.parametric,
+            markers_written: stats.markers,
+            rejects_by_stage: stats.by_stage.clone(),
+            by_experiment: stats.by_experiment.clone(),
+            unbalanced: stats
+                .unbalanced()
+                .into_iter()
+                .map(|(experiment, record_type, c)| Unbalanced {
+                    experiment,
+                    record_type,
+                    read: c.read.unwrap_or(0),
+                    rows: c.rows,
+                    rejects: c.rejects,
+                })
+                .collect(),
+        }
+    }
+}
+
+/// The whole-batch tables (discovery's rejects, then every part in order) and the manifest.
+pub(crate) fn assemble(
+    job: StreamJob,
+    out_dir: &Path,
+    cfg: &PipelineConfig,
+    opts: &StreamOptions,
+    started: String,
+    t0: Instant,
+    p: Produced,
+) -> Result<RunReport, PipelineError> {
+    let names = part_tables(job);
+    let paths = names.map(|n| out_dir.join(n));
+    let manifest_path = out_dir.join("manifest.json");
+    let mut stats = StreamStats::default();
+    for r in &p.discover_rejects {
+        stats.add_reject(r);
+    }
+    for part in &p.parts {
+        part.stats.add_to(&mut stats);
+    }
+    let (table_meta, meta) = table_metadata(job, cfg);
+    for (k, schema) in table_schemas(job, cfg).into_iter().enumerate() {
+        let kv = if k == 0 { &table_meta } else { &meta };
+        let mut w = TableWriter::create(&paths[k], schema, kv, cfg.pipeline.row_group_rows)?;
+        if k == 2 {
+            for r in &p.discover_rejects {
+                w.push(reject_row(r))?;
+            }
+        }
+        for part in &p.parts {
+            w.append_file(&part.tables[k])?;
+        }
+        w.finish()?;
+    }
+    stats.seconds = p.t_stream;
+
+    let out = |k: usize, rows: u64| TableOut {
+        path: paths[k].display().to_string(),
+        rows,
+    };
+    let manifest = Manifest {
+        tool: Tool::this(),
+        job: job.name().into(),
+        started_utc: started,
+        finished_utc: utc_now(),
+        threads: if opts.threads == 0 {
+            num_cpus()
+        } else {
+            opts.threads
+        },
+        config_sha256: cfg.hash(),
+        config: cfg.clone(),
+        inputs: p.inputs_json.clone(),
+        parts: p
+            .parts
+            .iter()
+            .map(|x| PartEntry {
+                experiment: x.id.clone(),
+                dir: x.dir.display().to_string(),
+                reused: x.reused,
+            })
+            .collect(),
+        skipped: p
+            .skipped
+            .iter()
+            .map(|(p, why)| Skipped {
+                path: p.display().to_string(),
+                reason: why.clone(),
+            })
+            .collect(),
+        experiments: p
+            .sources
+            .iter()
+            .map(|s| ExperimentEntry {
+                id: s.id.clone(),
+                format: s.format.as_str().into(),
+                files: s.files.len(),
+                companions: s
+                    .companions
+                    .iter()
+                    .map(|p| p.display().to_string())
+                    .collect(),
+                acquisition: stats
+                    .setups
+                    .iter()
+                    .filter(|a| a.experiment == s.id)
+                    .cloned()
+                    .collect(),
+            })
+            .collect(),
+        outputs: Outputs {
+            table: out(0, stats.rows),
+            hits: out(1, stats.hits),
+            rejects: out(2, stats.rejects),
+            parametric: out(3, stats.parametric),
+            markers: out(4, stats.markers),
+        },
+        notes: stats
+            .notes
+            .iter()
+            .map(|n| NoteEntry {
+                experiment: n.experiment.clone(),
+                file: n.source_file.clone(),
+                note: n.message.clone(),
+            })
+            .collect(),
+        counts: ManifestCounts::of(&stats),
+        timings_s: Timings {
+            discover: p.t_discover,
+            hash_inputs: p.t_hash,
+            stream: stats.seconds,
+            total: t0.elapsed().as_secs_f64(),
+        },
+    };
+    let text = serde_json::to_string_pretty(&manifest).expect("manifest serialises");
+    write_atomic(&manifest_path, text.as_bytes())?;
+    let [table_path, hits_path, rejects_path, parametric_path, markers_path] = paths;
+    Ok(RunReport {
+        stats,
+        table_path,
+        hits_path,
+        rejects_path,
+        parametric_path,
+        markers_path,
+        manifest_path,
+        sources: p.sources,
+        skipped: p.skipped,
+    })
+}

@@ -1,0 +1,247 @@
+//! Per-experiment parts: each experiment is streamed into its own folder
+//! (`OUT/parts/<id>-<hash>/`: its tables, then `part.json`), so a run can resume and shards
+//! can publish experiments independently.
+
+use super::counts::PartStats;
+use super::manifest::InputFile;
+use super::{stream, PipelineError, StreamJob, StreamOptions};
+use crate::config::PipelineConfig;
+use crate::features::features_table;
+use crate::ingest::{self, Discovery, Source};
+use crate::model::Reject;
+use crate::store::{self, rejects_table, waveforms_table, TableSchema};
+use crate::util::{file_digest, write_atomic, IoAt};
+use rayon::prelude::*;
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+/// What `OUT/parts/<key>/part.json` records of one finished experiment: enough to reuse
+/// it on `--resume` only when nothing it depends on has changed.
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize, PartialEq)]
+struct PartRecord {
+    tool_version: String,
+    job: String,
+    config_sha256: String,
+    /// The source ids of the part (one experiment id).
+    experiment: String,
+    /// `(path, sha256)` of every input file the part read.
+    inputs: Vec<(String, String)>,
+    /// `(file name, sha256)` of each table in the part folder.
+    outputs: Vec<(String, String)>,
+    stats: PartStats,
+}
+
+/// The folder of one experiment's part: its file-safe id and a short hash of the id itself,
+/// so two ids that sanitise alike never share a folder.
+fn part_dir(parts: &Path, id: &str) -> PathBuf {
+    let h = crate::util::sha256_hex(id.as_bytes());
+    parts.join(format!("{}-{}", crate::util::file_safe(id), &h[..8]))
+}
+
+/// The tables a part folder holds, in assembly order.
+pub(crate) fn part_tables(job: StreamJob) -> [&'static str; 5] {
+    [
+        job.table_file(),
+        "hits.parquet",
+        "rejects.parquet",
+        "parametric.parquet",
+        "markers.parquet",
+    ]
+}
+
+/// The schemas of [`part_tables`], in the same order.
+pub(crate) fn table_schemas(job: StreamJob, cfg: &PipelineConfig) -> [TableSchema; 5] {
+    [
+        match job {
+            StreamJob::Features => features_table(cfg),
+            StreamJob::Waveforms => waveforms_table(),
+        },
+        store::hits_table(),
+        rejects_table(),
+        store::parametric_table().schema(),
+        store::markers_table().schema(),
+    ]
+}
+
+/// A finished part that may be reused: its record parses and matches `want` (tool, job,
+/// config, inputs), and every table still has the hash it was written with.
+fn reusable_part(dir: &Path, want: &PartRecord) -> Option<PartRecord> {
+    let text = std::fs::read_to_string(dir.join("part.json")).ok()?;
+    let rec: PartRecord = serde_json::from_str(&text).ok()?;
+    if (
+        &rec.tool_version,
+        &rec.job,
+        &rec.config_sha256,
+        &rec.experiment,
+        &rec.inputs,
+    ) != (
+        &want.tool_version,
+        &want.job,
+        &want.config_sha256,
+        &want.experiment,
+        &want.inputs,
+    ) {
+        return None;
+    }
+    for (name, sha) in &rec.outputs {
+        match file_digest(&dir.join(name)) {
+            Ok((_, h)) if &h == sha => {}
+            _ => return None,
+        }
+    }
+    Some(rec)
+}
+
+/// One experiment's finished part: where its three tables are and what it counted.
+pub(crate) struct Part {
+    pub(crate) id: String,
+    /// The tables of [`part_tables`], in that order.
+    pub(crate) tables: [PathBuf; 5],
+    pub(crate) stats: PartStats,
+    pub(crate) reused: bool,
+    /// `(path, sha256)` of the files it read.
+    pub(crate) inputs: Vec<(String, String)>,
+    /// `(file name, sha256)` of its tables, as recorded when they were written.
+    pub(crate) outputs: Vec<(String, String)>,
+    pub(crate) dir: PathBuf,
+}
+
+/// Discovery, the input digests and every owned experiment streamed into its part.
+pub(crate) struct Produced {
+    pub(crate) sources: Vec<Source>,
+    pub(crate) discover_rejects: Vec<Reject>,
+    pub(crate) skipped: Vec<(PathBuf, String)>,
+    /// The manifest's `inputs` entries of the owned experiments.
+    pub(crate) inputs_json: Vec<InputFile>,
+    pub(crate) parts: Vec<Part>,
+    pub(crate) t_discover: f64,
+    pub(crate) t_hash: f64,
+    pub(crate) t_stream: f64,
+}
+
+pub(crate) fn produce(
+    job: StreamJob,
+    inputs: &[PathBuf],
+    out_dir: &Path,
+    cfg: &PipelineConfig,
+    opts: &StreamOptions,
+) -> Result<Produced, PipelineError> {
+    let t0 = Instant::now();
+    let parts_root = out_dir.join("parts");
+    if !opts.resume {
+        let _ = std::fs::remove_dir_all(&parts_root);
+    }
+    let Discovery {
+        mut sources,
+        rejects: discover_rejects,
+        skipped,
+    } = ingest::discover(inputs, &cfg.ingest);
+    if let Some(sh) = opts.shard {
+        sources.retain(|s| sh.owns(&s.id));
+    }
+    let t_discover = t0.elapsed().as_secs_f64();
+
+    let t1 = Instant::now();
+    let files: Vec<(PathBuf, &Source)> = sources
+        .iter()
+        .flat_map(|s| s.all_files().map(move |f| (f.clone(), s)))
+        .collect();
+    let digested: Vec<InputFile> = files
+        .par_iter()
+        .map(|(f, s)| {
+            let (size_bytes, sha256) = match file_digest(f) {
+                Ok((n, h)) => (Some(n), h),
+                Err(e) => (None, format!("unreadable: {e}")),
+            };
+            InputFile {
+                path: f.display().to_string(),
+                experiment: s.id.clone(),
+                format: s.format.as_str().to_string(),
+                size_bytes,
+                sha256,
+            }
+        })
+        .collect();
+    let t_hash = t1.elapsed().as_secs_f64();
+    let input_hash: BTreeMap<&Path, &str> = files
+        .iter()
+        .zip(&digested)
+        .map(|((f, _), d)| (f.as_path(), d.sha256.as_str()))
+        .collect();
+
+    let t2 = Instant::now();
+    let config_sha256 = cfg.hash();
+    let mut parts = Vec::new();
+    // Sources are sorted by id: one part per run of equal ids.
+    for g in sources.chunk_by(|a, b| a.id == b.id) {
+        let id = g[0].id.clone();
+        let dir = part_dir(&parts_root, &id);
+        let want = PartRecord {
+            tool_version: env!("CARGO_PKG_VERSION").into(),
+            job: job.name().into(),
+            config_sha256: config_sha256.clone(),
+            experiment: id.clone(),
+            inputs: g
+                .iter()
+                .flat_map(|s| s.all_files())
+                .map(|f| {
+                    (
+                        f.display().to_string(),
+                        input_hash
+                            .get(f.as_path())
+                            .copied()
+                            .unwrap_or("")
+                            .to_string(),
+                    )
+                })
+                .collect(),
+            outputs: Vec::new(),
+            stats: PartStats::default(),
+        };
+        let reused = if opts.resume {
+            reusable_part(&dir, &want)
+        } else {
+            None
+        };
+        let reused_flag = reused.is_some();
+        let rec = match reused {
+            Some(rec) => rec,
+            None => {
+                let _ = std::fs::remove_dir_all(&dir);
+                std::fs::create_dir_all(&dir).map_err(|e| IoAt::new(&dir, e))?;
+                let items = g.iter().flat_map(|s| ingest::open(s, cfg));
+                let st = stream(items, job, &dir, cfg, opts)?;
+                let mut rec = want;
+                for name in part_tables(job) {
+                    let p = dir.join(name);
+                    let (_, h) = file_digest(&p).map_err(|e| IoAt::new(&p, e))?;
+                    rec.outputs.push((name.to_string(), h));
+                }
+                rec.stats = PartStats::of(&st);
+                let text = serde_json::to_string_pretty(&rec).expect("part record serialises");
+                write_atomic(&dir.join("part.json"), text.as_bytes())?;
+                rec
+            }
+        };
+        parts.push(Part {
+            tables: part_tables(job).map(|n| dir.join(n)),
+            id,
+            stats: rec.stats,
+            reused: reused_flag,
+            inputs: rec.inputs,
+            outputs: rec.outputs,
+            dir,
+        });
+    }
+    Ok(Produced {
+        discover_rejects,
+        skipped,
+        inputs_json: digested,
+        parts,
+        t_discover,
+        t_hash,
+        t_stream: t2.elapsed().as_secs_f64(),
+        sources,
+    })
+}
