@@ -1,7 +1,6 @@
 //! `aepipe bench stream`: stream synthetic hits through the real feature pipeline and report
 //! throughput and peak memory. Benchmarks print numbers; they never pass or fail on time.
 
-use crate::config::PipelineConfig;
 use crate::model::{Item, Mechanism};
 use crate::pipeline::{stream, StreamJob, StreamOptions, StreamStats};
 use crate::synth::{waveform, HitSpec, Rng};
@@ -17,6 +16,15 @@ pub enum BenchError {
     Peer(String),
     #[error("{0}")]
     Run(String),
+}
+
+impl crate::util::HasKind for BenchError {
+    fn kind(&self) -> crate::util::ErrorKind {
+        match self {
+            BenchError::Input { .. } => crate::util::ErrorKind::Usage,
+            BenchError::Peer(_) | BenchError::Run(_) => crate::util::ErrorKind::Failed,
+        }
+    }
 }
 
 impl BenchError {
@@ -148,7 +156,7 @@ pub fn stream_point(
     threads: usize,
     out_dir: &Path,
 ) -> Result<StreamPoint, crate::pipeline::PipelineError> {
-    let cfg = PipelineConfig::default();
+    let cfg = crate::config::ValidConfig::default();
     std::fs::create_dir_all(out_dir).map_err(|e| crate::util::IoAt::new(out_dir, e))?;
     let stats = stream(
         synthetic_items(hits, workload),
@@ -272,7 +280,7 @@ pub fn cwt_bench(
     }
     drop(out);
     // The whole feature path (thesis defaults) on the same signals.
-    let cfg = PipelineConfig::default();
+    let cfg = crate::config::ValidConfig::default();
     let recs: Vec<crate::model::AeRecord> = x
         .chunks(n)
         .enumerate()

@@ -19,8 +19,20 @@ pub enum ConfigError {
     Invalid(String),
 }
 
-/// Which hits enter the statistics.
-#[derive(Debug, Clone, Copy, PartialEq)]
+impl crate::util::HasKind for ConfigError {
+    fn kind(&self) -> crate::util::ErrorKind {
+        match self {
+            ConfigError::Read { .. } | ConfigError::Parse { .. } | ConfigError::Invalid(_) => {
+                crate::util::ErrorKind::Usage
+            }
+        }
+    }
+}
+
+/// Which hits enter the statistics (in TOML and on the command line: `none`, `peak-load`,
+/// `time:SECONDS`, `hits:N`).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(try_from = "String", into = "String")]
 pub enum Cutoff {
     None,
     /// Hits up to (and including) the one at the highest load.
@@ -29,6 +41,42 @@ pub enum Cutoff {
     Time(f64),
     /// The first N hits.
     Hits(usize),
+}
+
+impl std::fmt::Display for Cutoff {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Cutoff::None => f.write_str("none"),
+            Cutoff::PeakLoad => f.write_str("peak-load"),
+            Cutoff::Time(t) => write!(f, "time:{t}"),
+            Cutoff::Hits(n) => write!(f, "hits:{n}"),
+        }
+    }
+}
+
+impl TryFrom<String> for Cutoff {
+    type Error = ConfigError;
+    fn try_from(s: String) -> Result<Cutoff, ConfigError> {
+        s.parse()
+    }
+}
+
+impl From<Cutoff> for String {
+    fn from(c: Cutoff) -> String {
+        c.to_string()
+    }
+}
+
+/// What the SOM of `aepipe run` is trained on (ch. 5).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum TrainOn {
+    /// A simulated reference library (labels = the simulator's mechanisms, ch. 3–4).
+    #[default]
+    Reference,
+    /// A balanced subset of the run's own hits labelled by a column (the ch. 4.7 criteria:
+    /// the thesis's ch. 5.4 procedure).
+    Criteria,
 }
 
 impl std::str::FromStr for Cutoff {
@@ -148,7 +196,7 @@ impl Default for LoadConfig {
 pub struct TrendConfig {
     pub enabled: bool,
     /// `none`, `peak-load` (ch. 4.5.5: only hits before the load falls), `time:S`, `hits:N`.
-    pub cutoff: String,
+    pub cutoff: Cutoff,
     /// Significance level (Table 4.2: 1 %).
     pub alpha: f64,
 }
@@ -157,7 +205,7 @@ impl Default for TrendConfig {
     fn default() -> Self {
         TrendConfig {
             enabled: true,
-            cutoff: "peak-load".into(),
+            cutoff: Cutoff::PeakLoad,
             alpha: 0.01,
         }
     }
@@ -171,7 +219,7 @@ pub struct SomConfig {
     /// `reference`: train on a simulated reference library (labels = mechanism, ch. 3–4);
     /// `criteria`: train on a balanced subset of the run's own hits labelled by the ch. 4.7
     /// criteria (the thesis's ch. 5.4 procedure).
-    pub train_on: String,
+    pub train_on: TrainOn,
     /// Reference library `waveforms.parquet`; empty: build the embedded
     /// `pipelines/reference-library.toml` into the run's folder.
     pub reference_library: String,
@@ -192,7 +240,7 @@ impl Default for SomConfig {
         SomConfig {
             label: "criteria_label".into(),
             enabled: true,
-            train_on: "reference".into(),
+            train_on: TrainOn::Reference,
             reference_library: String::new(),
             fraction: 0.1,
             rows: 10,
@@ -563,9 +611,51 @@ impl Default for ValidateConfig {
     }
 }
 
+/// A checked pipeline configuration (linfa's "validated hyper-parameters"): only
+/// [`PipelineConfig::check`] (and [`PipelineConfig::from_toml`], [`PipelineConfig::from_file`],
+/// which call it) makes one, so every stage that takes a `&ValidConfig` works on values that
+/// passed every check. It reads as a [`PipelineConfig`] (`Deref`); to change a value, take
+/// it out with [`ValidConfig::into_inner`] and check it again.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ValidConfig(PipelineConfig);
+
+impl std::ops::Deref for ValidConfig {
+    type Target = PipelineConfig;
+    fn deref(&self) -> &PipelineConfig {
+        &self.0
+    }
+}
+
+impl Default for ValidConfig {
+    fn default() -> Self {
+        PipelineConfig::default()
+            .check()
+            .expect("the default configuration passes its checks")
+    }
+}
+
+impl ValidConfig {
+    pub fn into_inner(self) -> PipelineConfig {
+        self.0
+    }
+
+    /// The same configuration with `edit` applied, checked again.
+    pub fn with(self, edit: impl FnOnce(&mut PipelineConfig)) -> Result<ValidConfig, ConfigError> {
+        let mut c = self.0;
+        edit(&mut c);
+        c.check()
+    }
+}
+
 impl PipelineConfig {
+    /// Check every value serde cannot check: the configuration every stage may rely on.
+    pub fn check(self) -> Result<ValidConfig, ConfigError> {
+        self.problems()?;
+        Ok(ValidConfig(self))
+    }
+
     /// Read and check a pipeline TOML file.
-    pub fn from_file(path: &Path) -> Result<PipelineConfig, ConfigError> {
+    pub fn from_file(path: &Path) -> Result<ValidConfig, ConfigError> {
         let text = std::fs::read_to_string(path).map_err(|source| ConfigError::Read {
             path: path.display().to_string(),
             source,
@@ -585,17 +675,16 @@ impl PipelineConfig {
     }
 
     /// Parse and check TOML text (unknown keys are errors).
-    pub fn from_toml(text: &str) -> Result<PipelineConfig, ConfigError> {
+    pub fn from_toml(text: &str) -> Result<ValidConfig, ConfigError> {
         let cfg: PipelineConfig = toml::from_str(text).map_err(|e| ConfigError::Parse {
             path: "<config>".into(),
             message: e.to_string().replace('\n', " "),
         })?;
-        cfg.validate()?;
-        Ok(cfg)
+        cfg.check()
     }
 
     /// The checks that serde cannot express.
-    pub fn validate(&self) -> Result<(), ConfigError> {
+    fn problems(&self) -> Result<(), ConfigError> {
         if self.ingest.max_samples_per_record == 0 {
             return Err(ConfigError::Invalid(
                 "ingest.max_samples_per_record must be ≥ 1".into(),
@@ -613,12 +702,6 @@ impl PipelineConfig {
             self.ingest.aewin.sample_rate_hz,
             "ingest.aewin.sample_rate_hz",
         )?;
-        if !matches!(self.som.train_on.as_str(), "reference" | "criteria") {
-            return Err(ConfigError::Invalid(format!(
-                "som.train_on must be \"reference\" or \"criteria\", got {:?}",
-                self.som.train_on
-            )));
-        }
         if self.som.label.trim().is_empty() {
             return Err(ConfigError::Invalid(
                 "som.label must name a column of the features table".into(),
@@ -630,10 +713,6 @@ impl PipelineConfig {
                 self.trend.alpha
             )));
         }
-        self.trend.cutoff.parse::<Cutoff>().map_err(|e| match e {
-            ConfigError::Invalid(m) => ConfigError::Invalid(format!("trend.cutoff: {m}")),
-            e => e,
-        })?;
         if self.pipeline.batch_size == 0 {
             return Err(ConfigError::Invalid(
                 "pipeline.batch_size must be ≥ 1".into(),
@@ -759,7 +838,7 @@ mod tests {
     #[test]
     fn empty_toml_is_the_default() {
         assert_eq!(
-            PipelineConfig::from_toml("").unwrap(),
+            PipelineConfig::from_toml("").unwrap().into_inner(),
             PipelineConfig::default()
         );
     }
@@ -780,6 +859,22 @@ mod tests {
     }
 
     #[test]
+    fn typed_values_read_and_write_as_their_toml_words() {
+        let c = PipelineConfig::from_toml(
+            "[trend]\ncutoff = \"time:2.5\"\n[som]\ntrain_on = \"criteria\"\n",
+        )
+        .unwrap();
+        assert_eq!(c.trend.cutoff, Cutoff::Time(2.5));
+        assert_eq!(c.som.train_on, TrainOn::Criteria);
+        let t = c.to_toml();
+        assert!(t.contains("cutoff = \"time:2.5\""), "{t}");
+        assert!(t.contains("train_on = \"criteria\""), "{t}");
+        assert!(PipelineConfig::from_toml("[som]\ntrain_on = \"maybe\"\n").is_err());
+        let e = PipelineConfig::from_toml("[trend]\ncutoff = \"soon\"\n").unwrap_err();
+        assert!(e.to_string().contains("cutoff"), "{e}");
+    }
+
+    #[test]
     fn bad_values_are_rejected() {
         assert!(PipelineConfig::from_toml("[ingest]\nsample_rate_hz = -1.0\n").is_err());
         assert!(PipelineConfig::from_toml("[ingest.vallen]\nload_param = \"X7\"\n").is_err());
@@ -790,13 +885,13 @@ mod tests {
     fn layouts_that_would_leave_bins_empty_are_refused() {
         let mut c = PipelineConfig::default();
         c.dsp.bins.n_windows = 65;
-        assert!(c.validate().unwrap_err().to_string().contains("n_windows"));
+        assert!(c.check().unwrap_err().to_string().contains("n_windows"));
         let mut c = PipelineConfig::default();
         c.dsp.bins.band_hz = 1e13; // band_max / band_hz ≈ 2.5e-7: zero bands
-        assert!(c.validate().is_err());
+        assert!(c.check().is_err());
         let mut c = PipelineConfig::default();
         c.dsp.band_hz = 1e13;
-        assert!(c.validate().is_err());
-        assert!(PipelineConfig::default().validate().is_ok());
+        assert!(c.check().is_err());
+        assert!(PipelineConfig::default().check().is_ok());
     }
 }

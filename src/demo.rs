@@ -17,7 +17,7 @@ pub struct DemoResult {
 
 /// The demo's pipeline definition, `pipelines/demo.toml`, embedded in the binary so that
 /// `aepipe demo` needs no file beside it.
-pub fn demo_config() -> PipelineConfig {
+pub fn demo_config() -> crate::config::ValidConfig {
     PipelineConfig::from_toml(include_str!("../pipelines/demo.toml"))
         .expect("pipelines/demo.toml is valid")
 }

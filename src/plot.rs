@@ -21,6 +21,15 @@ pub enum PlotError {
     Draw { path: String, message: String },
 }
 
+impl crate::util::HasKind for PlotError {
+    fn kind(&self) -> crate::util::ErrorKind {
+        match self {
+            PlotError::Font { .. } => crate::util::ErrorKind::Usage,
+            PlotError::Draw { .. } => crate::util::ErrorKind::Failed,
+        }
+    }
+}
+
 /// Register the sans-serif font with plotters once: the file `AEPIPE_FONT` names, else
 /// DejaVu Sans embedded in the binary (the `dejavu` crate), so pictures never depend on the
 /// machine's fonts.

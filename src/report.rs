@@ -23,6 +23,14 @@ pub enum ReportError {
     Write(#[from] IoAt),
 }
 
+impl crate::util::HasKind for ReportError {
+    fn kind(&self) -> crate::util::ErrorKind {
+        match self {
+            ReportError::Write(_) => crate::util::ErrorKind::Failed,
+        }
+    }
+}
+
 /// What a run produced, for the terminal and the report.
 pub struct RunSummary {
     pub out: PathBuf,
@@ -32,7 +40,7 @@ pub struct RunSummary {
     pub trend_plots: Vec<(String, PathBuf)>,
     pub som: Option<SomStage>,
     pub truth: Option<TruthScore>,
-    pub config: crate::config::PipelineConfig,
+    pub config: crate::config::ValidConfig,
     pub seconds: Vec<(String, f64)>,
 }
 

@@ -22,6 +22,17 @@ pub enum SynthError {
     #[error(transparent)]
     Store(#[from] crate::store::StoreError),
 }
+
+impl crate::util::HasKind for SynthError {
+    fn kind(&self) -> crate::util::ErrorKind {
+        match self {
+            SynthError::Library { .. } => crate::util::ErrorKind::Usage,
+            SynthError::Sim(s) => s.kind(),
+            SynthError::Vallen { .. } => crate::util::ErrorKind::Failed,
+            SynthError::Store(s) => s.kind(),
+        }
+    }
+}
 use std::f64::consts::PI;
 
 /// Parameters of one synthetic hit.
@@ -508,35 +519,65 @@ pub fn synth_experiment(
     ))
 }
 
+/// One hit's ground truth: a row of `truth.parquet`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TruthRow {
+    pub experiment: String,
+    pub channel: u32,
+    pub hit: u64,
+    pub time_s: Option<f64>,
+    pub mechanism: Mechanism,
+    pub reference_signals: String,
+}
+
 /// `truth.parquet`: the ground truth of a synthetic experiment.
-pub fn truth_table() -> crate::store::TableSchema {
-    use crate::store::{ColType, ColumnSpec};
-    crate::store::TableSchema {
-        name: "truth".into(),
-        columns: vec![
+pub fn truth_table() -> crate::store::Table<TruthRow> {
+    use crate::store::{ColType, ColumnSpec, Value};
+    let classes: Vec<&str> = Mechanism::ALL
+        .iter()
+        .filter(|m| **m != Mechanism::Unclassified)
+        .map(|m| m.as_str())
+        .collect();
+    crate::store::Table::new("truth")
+        .col(
             ColumnSpec::new(
                 "experiment",
                 ColType::Utf8,
                 "",
                 "experiment id (the Vallen file stem)",
             ),
+            |t: &TruthRow| Value::Str(Some(t.experiment.clone())),
+        )
+        .col(
             ColumnSpec::new("channel", ColType::Int32, "", "sensor channel"),
+            |t| Value::I32(Some(t.channel as i32)),
+        )
+        .col(
             ColumnSpec::new("hit", ColType::Int64, "", "hit number (Vallen TRAI)"),
+            |t| Value::I64(Some(t.hit as i64)),
+        )
+        .col(
             ColumnSpec::new("time_s", ColType::Float64, "s", "hit time"),
+            |t| Value::F64(t.time_s),
+        )
+        .col(
             ColumnSpec::new(
                 "mechanism",
                 ColType::Utf8,
                 "",
-                "what made the hit: bond_failure, fibre_failure, both, erroneous",
+                &format!("what made the hit: {}", classes.join(", ")),
             ),
+            |t| Value::Str(Some(t.mechanism.as_str().to_string())),
+        )
+        .col(
             ColumnSpec::new(
                 "reference_signals",
                 ColType::Utf8,
                 "",
                 "the reference-library signals the hit was built from (empty: analytic waveform)",
             ),
-        ],
-    }
+            |t| Value::Str(Some(t.reference_signals.clone())),
+        )
 }
 
 impl Experiment {
@@ -547,7 +588,7 @@ impl Experiment {
         dir: &std::path::Path,
         truth: &std::path::Path,
     ) -> Result<std::path::PathBuf, SynthError> {
-        use crate::store::{TableWriter, Value};
+        use crate::store::TableWriter;
         let (recs, sources): (Vec<AeRecord>, Vec<String>) = self.hits().unzip();
         self.write_vallen_records(dir, &recs)
             .map_err(|e| SynthError::Vallen {
@@ -555,21 +596,27 @@ impl Experiment {
                 message: e.to_string(),
             })?;
         let path = truth.to_path_buf();
+        let table = truth_table();
         let mut w = TableWriter::create(
             &path,
-            truth_table(),
+            table.schema(),
             &[("aepipe.config_sha256".into(), format!("{:064x}", self.seed))],
             65_536,
         )?;
         for (r, src) in recs.iter().zip(sources) {
-            w.push(vec![
-                Value::Str(Some(r.experiment.clone())),
-                Value::I32(Some(r.channel as i32)),
-                Value::I64(Some(r.hit as i64)),
-                Value::F64(r.time_s),
-                Value::Str(r.label.clone()),
-                Value::Str(Some(src)),
-            ])?;
+            let mechanism = r
+                .label
+                .as_deref()
+                .and_then(Mechanism::parse)
+                .expect("every synthetic hit is labelled with its mechanism");
+            w.push(table.row(TruthRow {
+                experiment: r.experiment.clone(),
+                channel: r.channel,
+                hit: r.hit,
+                time_s: r.time_s,
+                mechanism,
+                reference_signals: src,
+            }))?;
         }
         w.finish()?;
         Ok(path)

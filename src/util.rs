@@ -6,6 +6,29 @@ use std::f64::consts::PI;
 use std::io::Read;
 use std::path::{Path, PathBuf};
 
+/// What kind of failure an error is, decided by the room that raises it (each room's error
+/// enum implements [`HasKind`], variant by variant, with no catch-all arm): the CLI's exit
+/// code and, for another front door, the exception class follow from it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ErrorKind {
+    /// The input is at fault: a flag, a configuration, model or library file, a table or
+    /// folder that is not what the command needs (exit code 1).
+    Usage,
+    /// The run failed: an output could not be written, a stage failed (exit code 3).
+    Failed,
+}
+
+/// An error that knows its [`ErrorKind`].
+pub trait HasKind {
+    fn kind(&self) -> ErrorKind;
+}
+
+impl HasKind for IoAt {
+    fn kind(&self) -> ErrorKind {
+        ErrorKind::Failed
+    }
+}
+
 /// An I/O failure at a path: the one error this module returns.
 #[derive(Debug, thiserror::Error)]
 #[error("{path}: {source}")]

@@ -7,7 +7,7 @@
 //! a load channel; otherwise all hits, and the table says so.
 
 use super::stats::{linear_trend, LinearTrend};
-use crate::store::{ColType, ColumnSpec, Row, TableSchema, TableWriter, Value};
+use crate::store::{ColType, ColumnSpec, Table, TableWriter, Value};
 use crate::store::{StoreError, TableScan};
 use polars::prelude::col;
 use std::path::{Path, PathBuf};
@@ -20,6 +20,15 @@ pub enum TrendError {
     Store(#[from] crate::store::StoreError),
     #[error("{0}")]
     Usage(String),
+}
+
+impl crate::util::HasKind for TrendError {
+    fn kind(&self) -> crate::util::ErrorKind {
+        match self {
+            TrendError::Read { .. } | TrendError::Usage(_) => crate::util::ErrorKind::Usage,
+            TrendError::Store(s) => s.kind(),
+        }
+    }
 }
 
 pub use crate::config::Cutoff;
@@ -66,48 +75,56 @@ pub struct TrendRow {
     pub channel: i32,
     pub column: String,
     pub n: usize,
+    /// Which hits were used (the selection's description).
+    pub cutoff: String,
     pub fit: Option<LinearTrend>,
     pub significant: bool,
     pub note: Option<String>,
 }
 
-pub fn trend_table() -> TableSchema {
+/// `trend.parquet`: one row per experiment × channel × tested column.
+pub fn trend_table() -> Table<TrendRow> {
     let f = |n: &str, u: &str, d: &str| ColumnSpec::new(n, ColType::Float64, u, d).nullable();
-    TableSchema {
-        name: "trend".into(),
-        columns: vec![
-            ColumnSpec::new("experiment", ColType::Utf8, "", "experiment id"),
-            ColumnSpec::new("channel", ColType::Int32, "", "sensor channel"),
-            ColumnSpec::new("column", ColType::Utf8, "", "the per-hit feature tested (y), e.g. pr_200_300khz"),
-            ColumnSpec::new("n", ColType::Int64, "", "hits used (after the cut-off)"),
-            ColumnSpec::new("cutoff", ColType::Utf8, "", "which hits were used: none, peak-load (up to hit N at L newtons), time ≤ S, first N hits"),
-            f("r", "1", "Pearson's correlation coefficient of y against x = AE number (Eq. 4.5.5); null with a note when undefined"),
-            f("p", "1", "two-sided p value of H0: no correlation (Student t, n − 2 degrees of freedom)"),
-            f("slope", "1/AE", "m of the least-squares line y = m·x + c (Table 4.3)"),
-            f("intercept", "1", "c of that line: y at x = 0"),
-            f("slope_stderr", "1/AE", "standard error of the slope"),
-            ColumnSpec::new("significant", ColType::Bool, "", "p < alpha (default 0.01, as Table 4.2)"),
-            ColumnSpec::new("note", ColType::Utf8, "", "why r and p are null (n < 3, constant series), or how the cut-off fell back").nullable(),
-        ],
-    }
+    Table::new("trend")
+        .col(ColumnSpec::new("experiment", ColType::Utf8, "", "experiment id"), |t: &TrendRow| Value::Str(Some(t.experiment.clone())))
+        .col(ColumnSpec::new("channel", ColType::Int32, "", "sensor channel"), |t| Value::I32(Some(t.channel)))
+        .col(ColumnSpec::new("column", ColType::Utf8, "", "the per-hit feature tested (y), e.g. pr_200_300khz"), |t| Value::Str(Some(t.column.clone())))
+        .col(ColumnSpec::new("n", ColType::Int64, "", "hits used (after the cut-off)"), |t| Value::I64(Some(t.n as i64)))
+        .col(ColumnSpec::new("cutoff", ColType::Utf8, "", "which hits were used: none, peak-load (up to hit N at L newtons), time ≤ S, first N hits"), |t| Value::Str(Some(t.cutoff.clone())))
+        .col(f("r", "1", "Pearson's correlation coefficient of y against x = AE number (Eq. 4.5.5); null with a note when undefined"), |t| Value::F64(t.fit.map(|f| f.r)))
+        .col(f("p", "1", "two-sided p value of H0: no correlation (Student t, n − 2 degrees of freedom)"), |t| Value::F64(t.fit.map(|f| f.p)))
+        .col(f("slope", "1/AE", "m of the least-squares line y = m·x + c (Table 4.3)"), |t| Value::F64(t.fit.map(|f| f.slope)))
+        .col(f("intercept", "1", "c of that line: y at x = 0"), |t| Value::F64(t.fit.map(|f| f.intercept)))
+        .col(f("slope_stderr", "1/AE", "standard error of the slope"), |t| Value::F64(t.fit.map(|f| f.slope_stderr)))
+        .col(ColumnSpec::new("significant", ColType::Bool, "", "p < alpha (default 0.01, as Table 4.2)"), |t| Value::Bool(Some(t.significant)))
+        .col(ColumnSpec::new("note", ColType::Utf8, "", "why r and p are null (n < 3, constant series), or how the cut-off fell back").nullable(), |t| Value::Str(t.note.clone()))
 }
 
-fn row_cells(t: &TrendRow, sel: &Selection) -> Row {
-    let fit = t.fit;
-    vec![
-        Value::Str(Some(t.experiment.clone())),
-        Value::I32(Some(t.channel)),
-        Value::Str(Some(t.column.clone())),
-        Value::I64(Some(t.n as i64)),
-        Value::Str(Some(sel.cutoff.clone())),
-        Value::F64(fit.map(|f| f.r)),
-        Value::F64(fit.map(|f| f.p)),
-        Value::F64(fit.map(|f| f.slope)),
-        Value::F64(fit.map(|f| f.intercept)),
-        Value::F64(fit.map(|f| f.slope_stderr)),
-        Value::Bool(Some(t.significant)),
-        Value::Str(t.note.clone()),
-    ]
+/// What a trend folder holds (`aepipe trend --out`, a run's `trend/`).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct TrendDir(PathBuf);
+
+impl TrendDir {
+    pub fn new(p: impl Into<PathBuf>) -> TrendDir {
+        TrendDir(p.into())
+    }
+    pub fn path(&self) -> &Path {
+        &self.0
+    }
+    pub fn table(&self) -> PathBuf {
+        self.0.join("trend.parquet")
+    }
+    pub fn manifest(&self) -> PathBuf {
+        self.0.join("trend_manifest.json")
+    }
+    /// The Fig. 4.18 plot of one experiment × channel (the id made file-safe: an experiment
+    /// id read from a table never writes outside the folder).
+    pub fn png(&self, experiment: &str, channel: i32) -> PathBuf {
+        self.0.join(format!(
+            "trend_{}_ch{channel}.png",
+            crate::util::file_safe(experiment)
+        ))
+    }
 }
 
 /// The per-hit data of one experiment × channel, in hit order.
@@ -309,6 +326,7 @@ pub fn trends(s: &TrendSeries, columns: &[String], sel: &Selection, alpha: f64) 
                 channel: s.channel,
                 column: name.clone(),
                 n: x.len(),
+                cutoff: sel.cutoff.clone(),
                 significant: fit.is_some_and(|f| f.p < alpha),
                 fit,
                 note,
@@ -344,7 +362,8 @@ pub fn run_trend(
         source,
     })?;
     crate::store::clean_stale_tmp(out_dir);
-    let table_path = out_dir.join("trend.parquet");
+    let dir = TrendDir::new(out_dir);
+    let table_path = dir.table();
     let meta = vec![
         ("aepipe.alpha".to_string(), opts.alpha.to_string()),
         (
@@ -352,13 +371,14 @@ pub fn run_trend(
             "AE number: 1-based order of the hit in its experiment and channel".to_string(),
         ),
     ];
-    let mut w = TableWriter::create(&table_path, trend_table(), &meta, 4096)?;
+    let table = trend_table();
+    let mut w = TableWriter::create(&table_path, table.schema(), &meta, 4096)?;
     let mut rows = Vec::new();
     let mut selections = Vec::new();
     for s in &series {
         let sel = select(s, opts.cutoff);
         for t in trends(s, &columns, &sel, opts.alpha) {
-            w.push(row_cells(&t, &sel))?;
+            w.push(table.row(t.clone()))?;
             rows.push(t);
         }
         selections.push(sel);
@@ -374,7 +394,7 @@ pub fn run_trend(
         "selections": selections,
     });
     crate::util::write_atomic(
-        &out_dir.join("trend_manifest.json"),
+        &dir.manifest(),
         serde_json::to_string_pretty(&manifest)
             .expect("json")
             .as_bytes(),

@@ -3,7 +3,7 @@
 
 use super::print;
 use super::{BenchCmd, Cli, Cmd, InitArg, RunArgs, SomCmd, UsageError};
-use crate::config::PipelineConfig;
+use crate::config::{PipelineConfig, ValidConfig};
 use crate::pipeline::{StreamJob, StreamOptions};
 use anyhow::Result;
 use std::path::{Path, PathBuf};
@@ -25,14 +25,14 @@ impl Outcome {
     }
 }
 
-fn load_config(path: Option<&Path>) -> Result<PipelineConfig> {
+fn load_config(path: Option<&Path>) -> Result<ValidConfig> {
     Ok(match path {
-        None => PipelineConfig::default(),
+        None => ValidConfig::default(),
         Some(p) => PipelineConfig::from_file(p)?,
     })
 }
 
-/// Run the parsed command.
+/// Run the parsed command: one function per command.
 pub fn dispatch(cli: Cli) -> Result<Outcome> {
     match cli.cmd {
         Cmd::Waveforms(a) => stream_job(StreamJob::Waveforms, a),
@@ -45,20 +45,14 @@ pub fn dispatch(cli: Cli) -> Result<Outcome> {
             experiment,
             png,
             config,
-        } => {
-            let cfg = load_config(config.as_deref())?;
-            let summary = crate::workflow::cwt_of_hit(
-                &inputs,
-                &cfg,
-                experiment.as_deref(),
-                channel,
-                hit,
-                &png,
-            )?;
-            println!("{summary}");
-            println!("wrote {}", png.display());
-            Ok(Outcome::Success)
-        }
+        } => cwt(
+            &inputs,
+            hit,
+            channel,
+            experiment.as_deref(),
+            &png,
+            config.as_deref(),
+        ),
         Cmd::Trend {
             features,
             out,
@@ -66,19 +60,9 @@ pub fn dispatch(cli: Cli) -> Result<Outcome> {
             alpha,
             columns,
             no_plots,
-        } => trend(&features, &out, &cutoff, alpha, columns, no_plots),
+        } => trend(&features, &out, cutoff, alpha, columns, no_plots),
         Cmd::Som { which } => som(which),
-        Cmd::Schema { table, config } => {
-            let cfg = load_config(config.as_deref())?;
-            let t = crate::workflow::table_schema(&table, &cfg).ok_or_else(|| {
-                UsageError(format!(
-                    "unknown table '{table}' ({})",
-                    crate::workflow::TABLES.join(", ")
-                ))
-            })?;
-            print!("{}", t.markdown_columns());
-            Ok(Outcome::Success)
-        }
+        Cmd::Schema { table, config } => schema(&table, config.as_deref()),
         Cmd::Simulate {
             model,
             scenario,
@@ -92,58 +76,34 @@ pub fn dispatch(cli: Cli) -> Result<Outcome> {
             threshold_db,
             noise_db,
             pretrigger,
-        } => {
-            let sweep = sweep
+        } => simulate(crate::sim::SimJob {
+            model,
+            scenario,
+            params: crate::sim::scenario::Params(params),
+            sweep: sweep
                 .as_deref()
                 .map(crate::sim::scenario::parse_sweep)
-                .transpose()?;
-            let job = crate::sim::SimJob {
-                model,
-                scenario,
-                params: crate::sim::scenario::Params(params),
-                sweep,
-                solver,
-                out,
-                run: crate::sim::SimOptions {
-                    trajectory_every: trajectories,
-                    snapshot_every: snapshots,
-                },
-                acquisition: crate::sim::output::Acquisition {
-                    scale_v_per_pa: scale,
-                    threshold_db,
-                    noise_db,
-                    pretrigger,
-                    ..Default::default()
-                },
-            };
-            for l in crate::sim::run_job(&job)? {
-                println!("{l}");
-            }
-            Ok(Outcome::Success)
-        }
+                .transpose()?,
+            solver,
+            out,
+            run: crate::sim::SimOptions {
+                trajectory_every: trajectories,
+                snapshot_every: snapshots,
+            },
+            acquisition: crate::sim::output::Acquisition {
+                scale_v_per_pa: scale,
+                threshold_db,
+                noise_db,
+                pretrigger,
+                ..Default::default()
+            },
+        }),
         Cmd::Reference {
             config,
             out,
             threads,
             shard,
-        } => {
-            use crate::sim::reference::{build_library_part, ReferenceFile};
-            let f = ReferenceFile::read(&config)?;
-            let (runs, n, secs) = crate::util::with_threads(threads, || {
-                build_library_part(&f.reference, &out, shard, true)
-            })?;
-            let file = match shard {
-                None => out.join("waveforms.parquet"),
-                Some(s) => out
-                    .join("waveforms/experiment=reference")
-                    .join(format!("part-{}.parquet", s.k)),
-            };
-            println!(
-                "{runs} simulations, {n} labelled signals → {} in {secs:.1} s",
-                file.display()
-            );
-            Ok(Outcome::Success)
-        }
+        } => reference(&config, &out, threads, shard),
         Cmd::Run {
             inputs,
             config,
@@ -153,107 +113,215 @@ pub fn dispatch(cli: Cli) -> Result<Outcome> {
             resume,
             shard,
             label,
-        } => {
-            // `--config P IN…`, or the positional form `P IN…`.
-            let (pipeline, inputs) = match config {
-                Some(p) => (p, inputs),
-                None if inputs.len() >= 2 => (inputs[0].clone(), inputs[1..].to_vec()),
-                None => return Err(UsageError(
-                    "aepipe run needs a pipeline definition (--config FILE) and at least one input"
-                        .into(),
-                )
-                .into()),
-            };
-            let mut cfg = load_config(Some(&pipeline))?;
-            if let Some(l) = label {
-                cfg.som.label = l;
-            }
-            let outcome = crate::workflow::run_or_shard(&crate::workflow::RunJob {
-                config: &cfg,
-                inputs: &inputs,
-                out: &out,
-                truth: truth.as_deref(),
-                threads,
-                progress: true,
-                resume,
-                shard,
-            })?;
-            match outcome {
-                crate::workflow::RunOutcome::Whole(s) => {
-                    for l in crate::workflow::headline(&s) {
-                        println!("{l}");
-                    }
-                    if cfg.report.enabled {
-                        println!("report: {}", out.join("report.html").display());
-                    }
-                }
-                crate::workflow::RunOutcome::Shard(r) => print::shard_run(&r),
-            }
-            Ok(Outcome::Success)
-        }
+        } => run(
+            inputs,
+            config,
+            &out,
+            truth.as_deref(),
+            threads,
+            resume,
+            shard,
+            label,
+        ),
         Cmd::Merge {
             dir,
             out,
             truth,
             threads,
             tables_only,
-        } => {
-            let out = out.unwrap_or_else(|| dir.join("merged"));
-            let is_library = std::fs::read_dir(dir.join("shards")).is_ok_and(|rd| {
-                rd.flatten()
-                    .any(|e| e.file_name().to_string_lossy().starts_with("reference-"))
-            });
-            if is_library {
-                let n = crate::sim::reference::merge_library(&dir, &out)?;
-                println!(
-                    "{n} labelled signals → {}",
-                    out.join("waveforms.parquet").display()
-                );
-                return Ok(Outcome::Success);
-            }
-            if tables_only {
-                let (r, _) = crate::pipeline::merge(&dir, &out, threads, None)?;
-                print::stream_run(&r, "merged");
-                return Ok(Outcome::Success);
-            }
-            let s = crate::workflow::merge(&dir, &out, truth.as_deref(), threads, true)?;
-            for l in crate::workflow::headline(&s) {
-                println!("{l}");
-            }
-            if s.config.report.enabled {
-                println!("report: {}", out.join("report.html").display());
-            }
-            Ok(Outcome::Success)
-        }
-        Cmd::Report { run_dir } => {
-            let p = crate::workflow::rebuild_report(&run_dir)?;
-            println!("report: {}", p.display());
-            Ok(Outcome::Success)
-        }
+        } => merge(&dir, out, truth.as_deref(), threads, tables_only),
+        Cmd::Report { run_dir } => report(&run_dir),
         Cmd::SynthExperiment {
             out,
             hits,
             seed,
             library,
             id,
-        } => {
-            let s =
-                crate::synth::synth_experiment(&out, &id, hits, seed, library.as_deref(), true)?;
-            println!("{s}");
-            Ok(Outcome::Success)
-        }
+        } => synth_experiment(&out, &id, hits, seed, library.as_deref()),
         Cmd::Demo {
             out,
             hits,
             seed,
             threads,
-        } => {
-            let d = crate::demo::run_demo(&out, hits, seed, threads)?;
-            print::demo(&d, &out);
-            Ok(Outcome::Success)
-        }
+        } => demo(&out, hits, seed, threads),
         Cmd::Bench { which } => bench(which),
     }
+}
+
+fn cwt(
+    inputs: &[PathBuf],
+    hit: u64,
+    channel: Option<u32>,
+    experiment: Option<&str>,
+    png: &Path,
+    config: Option<&Path>,
+) -> Result<Outcome> {
+    let cfg = load_config(config)?;
+    let summary = crate::workflow::cwt_of_hit(inputs, &cfg, experiment, channel, hit, png)?;
+    println!("{summary}");
+    println!("wrote {}", png.display());
+    Ok(Outcome::Success)
+}
+
+fn schema(table: &str, config: Option<&Path>) -> Result<Outcome> {
+    let cfg = load_config(config)?;
+    let t = crate::workflow::table_schema(table, &cfg).ok_or_else(|| {
+        UsageError(format!(
+            "unknown table '{table}' ({})",
+            crate::workflow::TABLES.join(", ")
+        ))
+    })?;
+    print!("{}", t.markdown_columns());
+    Ok(Outcome::Success)
+}
+
+fn simulate(job: crate::sim::SimJob) -> Result<Outcome> {
+    for l in crate::sim::run_job(&job)? {
+        println!("{l}");
+    }
+    Ok(Outcome::Success)
+}
+
+fn reference(
+    config: &Path,
+    out: &Path,
+    threads: usize,
+    shard: Option<crate::util::Shard>,
+) -> Result<Outcome> {
+    use crate::sim::reference::{build_library_part, LibraryDir, ReferenceFile};
+    let f = ReferenceFile::read(config)?;
+    let (runs, n, secs) = crate::util::with_threads(threads, || {
+        build_library_part(&f.reference, out, shard, true)
+    })?;
+    let dir = LibraryDir::new(out);
+    let file = match shard {
+        None => dir.waveforms(),
+        Some(s) => dir.part(s.k),
+    };
+    println!(
+        "{runs} simulations, {n} labelled signals → {} in {secs:.1} s",
+        file.display()
+    );
+    Ok(Outcome::Success)
+}
+
+#[allow(clippy::too_many_arguments)]
+fn run(
+    inputs: Vec<PathBuf>,
+    config: Option<PathBuf>,
+    out: &Path,
+    truth: Option<&Path>,
+    threads: usize,
+    resume: bool,
+    shard: Option<crate::util::Shard>,
+    label: Option<String>,
+) -> Result<Outcome> {
+    // `--config P IN…`, or the positional form `P IN…`.
+    let (pipeline, inputs) = match config {
+        Some(p) => (p, inputs),
+        None if inputs.len() >= 2 => (inputs[0].clone(), inputs[1..].to_vec()),
+        None => {
+            return Err(UsageError(
+                "aepipe run needs a pipeline definition (--config FILE) and at least one input"
+                    .into(),
+            )
+            .into())
+        }
+    };
+    let mut cfg = load_config(Some(&pipeline))?;
+    if let Some(l) = label {
+        // The flag is a value of the configuration: checked like one.
+        cfg = cfg.with(|c| c.som.label = l)?;
+    }
+    let outcome = crate::workflow::run_or_shard(&crate::workflow::RunJob {
+        config: &cfg,
+        inputs: &inputs,
+        out,
+        truth,
+        threads,
+        progress: true,
+        resume,
+        shard,
+    })?;
+    match outcome {
+        crate::workflow::RunOutcome::Whole(s) => {
+            for l in crate::workflow::headline(&s) {
+                println!("{l}");
+            }
+            if cfg.report.enabled {
+                println!(
+                    "report: {}",
+                    crate::workflow::RunDir::new(out).report_html().display()
+                );
+            }
+        }
+        crate::workflow::RunOutcome::Shard(r) => print::shard_run(&r),
+    }
+    Ok(Outcome::Success)
+}
+
+/// `aepipe merge`: the shards' own kind says which merge (feature run, tables only, library).
+fn merge(
+    dir: &Path,
+    out: Option<PathBuf>,
+    truth: Option<&Path>,
+    threads: usize,
+    tables_only: bool,
+) -> Result<Outcome> {
+    use crate::store::shard::{detect, ShardKind};
+    let out = out.unwrap_or_else(|| dir.join("merged"));
+    match detect(dir)? {
+        ShardKind::ReferenceLibrary => {
+            let n = crate::sim::reference::merge_library(dir, &out)?;
+            println!(
+                "{n} labelled signals → {}",
+                crate::sim::reference::LibraryDir::new(&out)
+                    .waveforms()
+                    .display()
+            );
+        }
+        ShardKind::Waveforms | ShardKind::Features if tables_only => {
+            let (r, _) = crate::pipeline::merge(dir, &out, threads, None)?;
+            print::stream_run(&r, "merged");
+        }
+        ShardKind::Waveforms | ShardKind::Features => {
+            let s = crate::workflow::merge(dir, &out, truth, threads, true)?;
+            for l in crate::workflow::headline(&s) {
+                println!("{l}");
+            }
+            if s.config.report.enabled {
+                println!(
+                    "report: {}",
+                    crate::workflow::RunDir::new(&out).report_html().display()
+                );
+            }
+        }
+    }
+    Ok(Outcome::Success)
+}
+
+fn report(run_dir: &Path) -> Result<Outcome> {
+    let p = crate::workflow::rebuild_report(run_dir)?;
+    println!("report: {}", p.display());
+    Ok(Outcome::Success)
+}
+
+fn synth_experiment(
+    out: &Path,
+    id: &str,
+    hits: usize,
+    seed: u64,
+    library: Option<&Path>,
+) -> Result<Outcome> {
+    let s = crate::synth::synth_experiment(out, id, hits, seed, library, true)?;
+    println!("{s}");
+    Ok(Outcome::Success)
+}
+
+fn demo(out: &Path, hits: usize, seed: u64, threads: usize) -> Result<Outcome> {
+    let d = crate::demo::run_demo(out, hits, seed, threads)?;
+    print::demo(&d, out);
+    Ok(Outcome::Success)
 }
 
 fn stream_job(job: StreamJob, a: RunArgs) -> Result<Outcome> {
@@ -308,14 +376,14 @@ fn inspect(paths: &[PathBuf], config: Option<&Path>) -> Result<Outcome> {
 fn trend(
     features: &[PathBuf],
     out: &Path,
-    cutoff: &str,
+    cutoff: crate::config::Cutoff,
     alpha: f64,
     columns: Vec<String>,
     no_plots: bool,
 ) -> Result<Outcome> {
     use crate::analysis::trend;
     let opts = trend::TrendOptions {
-        cutoff: cutoff.parse()?,
+        cutoff,
         alpha,
         columns,
     };
@@ -323,7 +391,7 @@ fn trend(
     print!("{}", trend::format_table(&rep));
     if !no_plots {
         for sel in &rep.selections {
-            let png = crate::workflow::trend_png_path(out, &sel.experiment, sel.channel);
+            let png = trend::TrendDir::new(out).png(&sel.experiment, sel.channel);
             if crate::plot::trend_png(&png, &rep, &sel.experiment, sel.channel, 4)? {
                 println!("plot: {}", png.display());
             }
@@ -332,7 +400,7 @@ fn trend(
     println!(
         "wrote {} and {}",
         rep.table_path.display(),
-        out.join("trend_manifest.json").display()
+        trend::TrendDir::new(out).manifest().display()
     );
     Ok(Outcome::Success)
 }

@@ -95,7 +95,7 @@ pub enum Cmd {
         out: PathBuf,
         /// none | peak-load | time:SECONDS | hits:N
         #[arg(long, default_value = "peak-load")]
-        cutoff: String,
+        cutoff: crate::config::Cutoff,
         /// Significance level
         #[arg(long, default_value_t = 0.01)]
         alpha: f64,

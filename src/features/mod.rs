@@ -12,15 +12,13 @@
 
 pub mod criteria;
 
-use crate::config::PipelineConfig;
+use crate::config::{PipelineConfig, ValidConfig};
 use crate::dsp::cwt::{Cwt, WaveletBank};
 use crate::dsp::hit::hit_features;
 use crate::dsp::spectrum::{band_column, power_ratios};
 use crate::dsp::{condition, hit::HitFeatures};
 use crate::model::{db_ae, AeRecord};
-use crate::store::{
-    identity_columns, identity_values, ColType, ColumnSpec, Row, TableSchema, Value,
-};
+use crate::store::{identity_table, table::s, ColType, ColumnSpec, Identity, Row, Table, Value};
 use criteria::{acquisition_fault, decide, Component, Components};
 use ndarray::Array2;
 
@@ -124,78 +122,54 @@ fn n_ratio_bands(cfg: &PipelineConfig) -> usize {
     (cfg.dsp.band_max_hz / cfg.dsp.band_hz).round() as usize
 }
 
-/// The columns of `features.parquet` for a configuration.
-pub fn features_table(cfg: &PipelineConfig) -> TableSchema {
-    let mut c = identity_columns();
+/// One row of `features.parquet`: the record's identity and what the DSP found in it.
+pub struct FeatureRow {
+    pub id: Identity,
+    pub source_file: String,
+    /// First threshold crossing from the trigger, s.
+    pub first_crossing_s: Option<f64>,
+    pub an: Analysis,
+}
+
+/// The columns of `features.parquet` for a configuration, each with the cell it takes from a
+/// [`FeatureRow`]: the only place a feature column is declared.
+pub fn features_table(cfg: &PipelineConfig) -> Table<FeatureRow> {
     let f64c =
         |name: &str, unit: &str, doc: &str| ColumnSpec::new(name, ColType::Float64, unit, doc);
-    c.push(ColumnSpec::new(
-        "source_file",
-        ColType::Utf8,
-        "",
-        "file the samples were read from",
-    ));
-    c.push(f64c("peak_amplitude_v", "V", "largest absolute sample after removing the DC offset (the mean of the pretrigger; nothing is removed from a record without one)"));
-    c.push(f64c(
-        "peak_amplitude_db",
-        "dB_AE",
-        "peak amplitude in dB re 1 µV, 20·log10(peak_amplitude_v / 1 µV)",
-    ));
-    c.push(f64c("threshold_used_v", "V", "detection threshold used for the hit features: the record's own (Vallen Thr) or dsp.hit.threshold_db"));
-    c.push(f64c("first_crossing_s", "s", "first sample with absolute value ≥ threshold, from the trigger (negative: before it); null if never reached").nullable());
-    c.push(f64c("rise_time_s", "s", "first threshold crossing to peak amplitude (vallenae); 0 if the threshold is never reached"));
-    c.push(f64c(
-        "duration_s",
-        "s",
-        "first to last sample with absolute value ≥ threshold (ASTM E1316); 0 if never reached",
-    ));
-    c.push(ColumnSpec::new(
-        "counts",
-        ColType::Int64,
-        "",
-        "positive-going crossings of +threshold (vallenae)",
-    ));
-    c.push(f64c(
-        "energy_eu",
-        "eu",
-        "Σx²/fs over the record, 1 eu = 1e-14 V²s (vallenae)",
-    ));
-    c.push(f64c(
-        "signal_strength_nvs",
-        "nVs",
-        "Σ|x|/fs over the record (vallenae)",
-    ));
-    c.push(f64c("rms_v", "V", "root mean square of the record"));
-    c.push(
-        f64c(
-            "peak_freq_hz",
-            "Hz",
-            "frequency of the largest power-spectrum bin (DC excluded); null for a flat record",
-        )
-        .nullable(),
-    );
-    c.push(
-        f64c(
-            "centroid_freq_hz",
-            "Hz",
-            "power-weighted mean frequency of the spectrum up to fs/2; null for a flat record",
-        )
-        .nullable(),
-    );
+    let mut t = Table::new("features")
+        .embed(identity_table(), |r: &mut FeatureRow| &mut r.id)
+        .col(ColumnSpec::new("source_file", ColType::Utf8, "", "file the samples were read from"), |r| s(&r.source_file))
+        .col(f64c("peak_amplitude_v", "V", "largest absolute sample after removing the DC offset (the mean of the pretrigger; nothing is removed from a record without one)"), |r| Value::F64(Some(r.an.hit.amplitude_v)))
+        .col(f64c("peak_amplitude_db", "dB_AE", "peak amplitude in dB re 1 µV, 20·log10(peak_amplitude_v / 1 µV)"), |r| {
+            let a = r.an.hit.amplitude_v;
+            Value::F64(Some(if a > 0.0 { db_ae(a) } else { f64::NEG_INFINITY }))
+        })
+        .col(f64c("threshold_used_v", "V", "detection threshold used for the hit features: the record's own (Vallen Thr) or dsp.hit.threshold_db"), |r| Value::F64(Some(r.an.hit.threshold_v)))
+        .col(f64c("first_crossing_s", "s", "first sample with absolute value ≥ threshold, from the trigger (negative: before it); null if never reached").nullable(), |r| Value::F64(r.first_crossing_s))
+        .col(f64c("rise_time_s", "s", "first threshold crossing to peak amplitude (vallenae); 0 if the threshold is never reached"), |r| Value::F64(Some(r.an.hit.rise_time_s)))
+        .col(f64c("duration_s", "s", "first to last sample with absolute value ≥ threshold (ASTM E1316); 0 if never reached"), |r| Value::F64(Some(r.an.hit.duration_s)))
+        .col(ColumnSpec::new("counts", ColType::Int64, "", "positive-going crossings of +threshold (vallenae)"), |r| Value::I64(Some(r.an.hit.counts)))
+        .col(f64c("energy_eu", "eu", "Σx²/fs over the record, 1 eu = 1e-14 V²s (vallenae)"), |r| Value::F64(Some(r.an.hit.energy_eu)))
+        .col(f64c("signal_strength_nvs", "nVs", "Σ|x|/fs over the record (vallenae)"), |r| Value::F64(Some(r.an.hit.signal_strength_nvs)))
+        .col(f64c("rms_v", "V", "root mean square of the record"), |r| Value::F64(Some(r.an.hit.rms_v)))
+        .col(f64c("peak_freq_hz", "Hz", "frequency of the largest power-spectrum bin (DC excluded); null for a flat record").nullable(), |r| Value::F64(r.an.peak_freq_hz))
+        .col(f64c("centroid_freq_hz", "Hz", "power-weighted mean frequency of the spectrum up to fs/2; null for a flat record").nullable(), |r| Value::F64(r.an.centroid_freq_hz));
     let nb = n_ratio_bands(cfg);
     for i in 0..nb {
         let lo = i as f64 * cfg.dsp.band_hz / 1e3;
-        c.push(
+        t = t.col(
             f64c(
                 &band_column(i, cfg.dsp.band_hz),
                 "1",
                 &format!("power ratio W_{} (Eq. 4.5.4): power in [{lo}, {}) kHz / power in [0, {}) kHz; the {nb} sum to 1; null for a flat record", i + 1, lo + cfg.dsp.band_hz / 1e3, cfg.dsp.band_max_hz / 1e3),
             )
             .nullable(),
+            move |r: &FeatureRow| Value::F64(r.an.ratios.get(i).copied()),
         );
     }
     let g = BinGrid::from_config(cfg);
-    c.push(
+    let opt = |v: Option<Component>, f: fn(Component) -> f64| Value::F64(v.map(f));
+    t.col_take(
         ColumnSpec::new(
             "tf_bins",
             ColType::FixedListF32(g.len() as i32),
@@ -210,50 +184,33 @@ pub fn features_table(cfg: &PipelineConfig) -> TableSchema {
             ),
         )
         .nullable(),
-    );
-    c.push(ColumnSpec::new(
-        "criteria_label",
-        ColType::Utf8,
-        "",
-        "ch. 4.7 label: bond_failure, fibre_failure, both, erroneous or unclassified",
-    ));
-    c.push(ColumnSpec::new(
-        "criteria_reason",
-        ColType::Utf8,
-        "",
-        "the numbers behind the label, in words",
-    ));
-    c.push(f64c("dominant_freq_hz", "Hz", "CWT frequency with the largest |W|² in the bins' window; null when the window holds no power").nullable());
-    c.push(
-        f64c(
-            "dominant_duration_s",
-            "s",
-            "time around its peak that the dominant component stays ≥ half its peak power",
-        )
-        .nullable(),
-    );
-    c.push(
-        f64c(
-            "dominant_arrival_s",
-            "s",
-            "first time the dominant component reaches half its peak power, from the trigger",
-        )
-        .nullable(),
-    );
-    c.push(
-        f64c(
-            "cwt_onset_s",
-            "s",
-            "first time any CWT frequency reaches criteria.component_min_ratio of the window's largest |W|², from the trigger (where a CWT picture shows the AE start); null when the window holds no power",
-        )
-        .nullable(),
-    );
-    c.push(f64c("bond_low_duration_s", "s", "half-power duration of the strongest component near criteria.bond_low_hz (≈250 kHz); null if absent").nullable());
-    c.push(f64c("bond_high_duration_s", "s", "half-power duration of the strongest component near criteria.bond_high_hz (≈750 kHz); null if absent").nullable());
-    TableSchema {
-        name: "features".into(),
-        columns: c,
-    }
+        |r| Value::F32s(r.an.bins.take()),
+    )
+    .col(ColumnSpec::new("criteria_label", ColType::Utf8, "", &format!("ch. 4.7 label: {}", mechanism_list())), |r| s(r.an.label.as_str()))
+    .col(ColumnSpec::new("criteria_reason", ColType::Utf8, "", "the numbers behind the label, in words"), |r| s(&r.an.reason))
+    .col(f64c("dominant_freq_hz", "Hz", "CWT frequency with the largest |W|² in the bins' window; null when the window holds no power").nullable(), move |r| opt(r.an.components.dominant, |d| d.freq_hz))
+    .col(f64c("dominant_duration_s", "s", "time around its peak that the dominant component stays ≥ half its peak power").nullable(), move |r| opt(r.an.components.dominant, |d| d.duration_s))
+    .col(f64c("dominant_arrival_s", "s", "first time the dominant component reaches half its peak power, from the trigger").nullable(), move |r| opt(r.an.components.dominant, |d| d.arrival_s))
+    .col(f64c("cwt_onset_s", "s", "first time any CWT frequency reaches criteria.component_min_ratio of the window's largest |W|², from the trigger (where a CWT picture shows the AE start); null when the window holds no power").nullable(), |r| {
+        let k = &r.an.components;
+        Value::F64(k.dominant.map(|_| k.onset_s))
+    })
+    .col(f64c("bond_low_duration_s", "s", "half-power duration of the strongest component near criteria.bond_low_hz (≈250 kHz); null if absent").nullable(), move |r| opt(r.an.components.low, |d| d.duration_s))
+    .col(f64c("bond_high_duration_s", "s", "half-power duration of the strongest component near criteria.bond_high_hz (≈750 kHz); null if absent").nullable(), move |r| opt(r.an.components.high, |d| d.duration_s))
+}
+
+/// The class names the criteria give, in words for the column's documentation.
+fn mechanism_list() -> String {
+    let n = crate::model::Mechanism::ALL.len();
+    crate::model::Mechanism::ALL
+        .iter()
+        .enumerate()
+        .map(|(i, m)| match i {
+            0 => m.as_str().to_string(),
+            i if i + 1 == n => format!(" or {m}"),
+            _ => format!(", {m}"),
+        })
+        .collect()
 }
 
 /// Extra Parquet metadata of `features.parquet`: the bin layout and the CWT.
@@ -291,7 +248,9 @@ fn strongest_peak(freqs: &[f64], peaks: &[f32], lo: f64, hi: f64) -> Option<usiz
 
 /// Per-worker state for computing feature rows.
 pub struct FeatureExtractor {
-    cfg: PipelineConfig,
+    cfg: ValidConfig,
+    /// The table the rows are made for (its columns depend on the configuration).
+    table: Table<FeatureRow>,
     grid: BinGrid,
     cwt: Cwt,
     cond: Vec<f32>,
@@ -321,10 +280,11 @@ pub struct Analysis {
 }
 
 impl FeatureExtractor {
-    pub fn new(cfg: &PipelineConfig) -> FeatureExtractor {
+    pub fn new(cfg: &ValidConfig) -> FeatureExtractor {
         let bank = WaveletBank::from_config(&cfg.dsp.cwt);
         FeatureExtractor {
             freqs: bank.freqs_hz.clone(),
+            table: features_table(cfg),
             cfg: cfg.clone(),
             grid: BinGrid::from_config(cfg),
             cwt: Cwt::new(bank),
@@ -337,7 +297,7 @@ impl FeatureExtractor {
         }
     }
 
-    pub fn config(&self) -> &PipelineConfig {
+    pub fn config(&self) -> &ValidConfig {
         &self.cfg
     }
 
@@ -471,42 +431,16 @@ impl FeatureExtractor {
     pub fn row(&mut self, r: &AeRecord) -> Row {
         let an = self.analyse(r);
         let fs = r.sample_rate_hz;
-        let h = &an.hit;
-        let mut row = identity_values(r);
-        row.push(Value::Str(Some(r.source_file.clone())));
-        row.push(Value::F64(Some(h.amplitude_v)));
-        row.push(Value::F64(Some(if h.amplitude_v > 0.0 {
-            db_ae(h.amplitude_v)
-        } else {
-            f64::NEG_INFINITY
-        })));
-        row.push(Value::F64(Some(h.threshold_v)));
-        row.push(Value::F64(
-            h.first_crossing
-                .map(|i| (i as f64 - r.pretrigger as f64) / fs),
-        ));
-        row.push(Value::F64(Some(h.rise_time_s)));
-        row.push(Value::F64(Some(h.duration_s)));
-        row.push(Value::I64(Some(h.counts)));
-        row.push(Value::F64(Some(h.energy_eu)));
-        row.push(Value::F64(Some(h.signal_strength_nvs)));
-        row.push(Value::F64(Some(h.rms_v)));
-        row.push(Value::F64(an.peak_freq_hz));
-        row.push(Value::F64(an.centroid_freq_hz));
-        for i in 0..self.ratios.len() {
-            row.push(Value::F64(an.ratios.get(i).copied()));
-        }
-        row.push(Value::F32s(an.bins));
-        row.push(Value::Str(Some(an.label.as_str().to_string())));
-        row.push(Value::Str(Some(an.reason)));
-        let k = &an.components;
-        row.push(Value::F64(k.dominant.map(|d| d.freq_hz)));
-        row.push(Value::F64(k.dominant.map(|d| d.duration_s)));
-        row.push(Value::F64(k.dominant.map(|d| d.arrival_s)));
-        row.push(Value::F64(k.dominant.map(|_| k.onset_s)));
-        row.push(Value::F64(k.low.map(|d| d.duration_s)));
-        row.push(Value::F64(k.high.map(|d| d.duration_s)));
-        row
+        let first_crossing_s = an
+            .hit
+            .first_crossing
+            .map(|i| (i as f64 - r.pretrigger as f64) / fs);
+        self.table.row(FeatureRow {
+            id: Identity::of(r),
+            source_file: r.source_file.clone(),
+            first_crossing_s,
+            an,
+        })
     }
 }
 
@@ -534,14 +468,14 @@ mod tests {
         }
     }
 
-    fn get(row: &Row, t: &TableSchema, name: &str) -> Value {
+    fn get(row: &Row, t: &crate::store::TableSchema, name: &str) -> Value {
         row[t.index_of(name).unwrap_or_else(|| panic!("{name}"))].clone()
     }
 
     #[test]
     fn row_matches_the_table_and_sums_to_one() {
-        let cfg = PipelineConfig::default();
-        let t = features_table(&cfg);
+        let cfg = ValidConfig::default();
+        let t = features_table(&cfg).schema();
         let spec = HitSpec::new(Mechanism::BondFailure);
         let r = rec(waveform(&spec, &mut Rng::new(1)), spec.pretrigger as u32);
         let row = FeatureExtractor::new(&cfg).row(&r);
@@ -562,12 +496,12 @@ mod tests {
 
     #[test]
     fn peak_is_measured_from_the_pretrigger_baseline() {
-        let cfg = PipelineConfig::default();
+        let cfg = ValidConfig::default();
         let mut s = vec![0.5f32; 100];
         s[60] = 0.5 + 0.01;
         s[70] = 0.5 - 0.02;
         let row = FeatureExtractor::new(&cfg).row(&rec(s, 50));
-        let t = features_table(&cfg);
+        let t = features_table(&cfg).schema();
         let Value::F64(Some(p)) = get(&row, &t, "peak_amplitude_v") else {
             panic!()
         };
@@ -579,7 +513,7 @@ mod tests {
     }
 
     fn label_of(m: Mechanism, seed: u64) -> (Mechanism, String) {
-        let cfg = PipelineConfig::default();
+        let cfg = ValidConfig::default();
         let spec = HitSpec::new(m);
         let r = rec(waveform(&spec, &mut Rng::new(seed)), spec.pretrigger as u32);
         let a = FeatureExtractor::new(&cfg).analyse(&r);
@@ -603,7 +537,7 @@ mod tests {
 
     #[test]
     fn early_trigger_and_clipping_are_erroneous() {
-        let cfg = PipelineConfig::default();
+        let cfg = ValidConfig::default();
         let mut spec = HitSpec::new(Mechanism::BondFailure);
         spec.pretrigger = 50; // the wave starts 450 samples (45 µs) before the trigger
         let mut w = waveform(&spec, &mut Rng::new(3));
@@ -628,7 +562,7 @@ mod tests {
 
     /// Sum a full-resolution CWT into the bins the way the thesis describes (independently of
     /// the windowed path).
-    fn bins_from_full(cfg: &PipelineConfig, r: &AeRecord) -> Vec<f64> {
+    fn bins_from_full(cfg: &ValidConfig, r: &AeRecord) -> Vec<f64> {
         let g = BinGrid::from_config(cfg);
         let (freqs, p) = FeatureExtractor::new(cfg).full_cwt(r);
         let n = r.samples.len();
@@ -657,6 +591,7 @@ mod tests {
         for (fs, len) in [(10e6, 4096usize), (5e6, 2048)] {
             let mut cfg = PipelineConfig::default();
             cfg.dsp.hit.threshold_db = 30.0;
+            let cfg = cfg.check().unwrap();
             for (k, m) in [
                 Mechanism::BondFailure,
                 Mechanism::FibreFailure,

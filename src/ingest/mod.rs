@@ -28,6 +28,14 @@ pub enum IngestError {
     File { path: String, message: String },
 }
 
+impl crate::util::HasKind for IngestError {
+    fn kind(&self) -> crate::util::ErrorKind {
+        match self {
+            IngestError::File { .. } => crate::util::ErrorKind::Usage,
+        }
+    }
+}
+
 pub(crate) fn file_err(path: &Path, message: impl std::fmt::Display) -> IngestError {
     IngestError::File {
         path: path.display().to_string(),

@@ -2,16 +2,16 @@
 //! same type (`aepipe report`, tests), so a key cannot be renamed on one side only.
 
 use super::counts::{Counts, StreamStats};
-use super::parts::{part_tables, table_schemas, Produced};
+use super::layout::{PartTable, StreamDir};
+use super::parts::Produced;
 use super::stream::table_metadata;
 use super::{PipelineError, RunReport, StreamJob, StreamOptions};
 use crate::config::PipelineConfig;
 use crate::model::AcquisitionSetup;
-use crate::store::{reject_row, TableWriter};
+use crate::store::{rejects_table, TableWriter};
 use crate::util::{num_cpus, utc_now, write_atomic};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
-use std::path::Path;
 use std::time::Instant;
 
 /// A `manifest.json` that cannot be read or is not one of this version.
@@ -200,16 +200,14 @@ impl ManifestCounts {
 /// The whole-batch tables (discovery's rejects, then every part in order) and the manifest.
 pub(crate) fn assemble(
     job: StreamJob,
-    out_dir: &Path,
+    out_dir: &StreamDir,
     cfg: &PipelineConfig,
     opts: &StreamOptions,
     started: String,
     t0: Instant,
     p: Produced,
 ) -> Result<RunReport, PipelineError> {
-    let names = part_tables(job);
-    let paths = names.map(|n| out_dir.join(n));
-    let manifest_path = out_dir.join("manifest.json");
+    let manifest_path = out_dir.manifest();
     let mut stats = StreamStats::default();
     for r in &p.discover_rejects {
         stats.add_reject(r);
@@ -218,23 +216,33 @@ pub(crate) fn assemble(
         part.stats.add_to(&mut stats);
     }
     let (table_meta, meta) = table_metadata(job, cfg);
-    for (k, schema) in table_schemas(job, cfg).into_iter().enumerate() {
-        let kv = if k == 0 { &table_meta } else { &meta };
-        let mut w = TableWriter::create(&paths[k], schema, kv, cfg.pipeline.row_group_rows)?;
-        if k == 2 {
+    for t in PartTable::ALL {
+        let kv = if t == PartTable::Main {
+            &table_meta
+        } else {
+            &meta
+        };
+        let mut w = TableWriter::create(
+            &out_dir.table(t, job),
+            t.schema(job, cfg),
+            kv,
+            cfg.pipeline.row_group_rows,
+        )?;
+        if t == PartTable::Rejects {
+            let rows = rejects_table();
             for r in &p.discover_rejects {
-                w.push(reject_row(r))?;
+                w.push(rows.row(r.clone()))?;
             }
         }
         for part in &p.parts {
-            w.append_file(&part.tables[k])?;
+            w.append_file(part.table(t))?;
         }
         w.finish()?;
     }
     stats.seconds = p.t_stream;
 
-    let out = |k: usize, rows: u64| TableOut {
-        path: paths[k].display().to_string(),
+    let out = |t: PartTable, rows: u64| TableOut {
+        path: out_dir.table(t, job).display().to_string(),
         rows,
     };
     let manifest = Manifest {
@@ -288,11 +296,11 @@ pub(crate) fn assemble(
             })
             .collect(),
         outputs: Outputs {
-            table: out(0, stats.rows),
-            hits: out(1, stats.hits),
-            rejects: out(2, stats.rejects),
-            parametric: out(3, stats.parametric),
-            markers: out(4, stats.markers),
+            table: out(PartTable::Main, stats.rows),
+            hits: out(PartTable::Hits, stats.hits),
+            rejects: out(PartTable::Rejects, stats.rejects),
+            parametric: out(PartTable::Parametric, stats.parametric),
+            markers: out(PartTable::Markers, stats.markers),
         },
         notes: stats
             .notes
@@ -313,14 +321,13 @@ pub(crate) fn assemble(
     };
     let text = serde_json::to_string_pretty(&manifest).expect("manifest serialises");
     write_atomic(&manifest_path, text.as_bytes())?;
-    let [table_path, hits_path, rejects_path, parametric_path, markers_path] = paths;
     Ok(RunReport {
         stats,
-        table_path,
-        hits_path,
-        rejects_path,
-        parametric_path,
-        markers_path,
+        table_path: out_dir.table(PartTable::Main, job),
+        hits_path: out_dir.table(PartTable::Hits, job),
+        rejects_path: out_dir.table(PartTable::Rejects, job),
+        parametric_path: out_dir.table(PartTable::Parametric, job),
+        markers_path: out_dir.table(PartTable::Markers, job),
         manifest_path,
         sources: p.sources,
         skipped: p.skipped,

@@ -11,7 +11,7 @@
 //! iterator), so the output is the same, byte for byte, for any thread count. Every record
 //! ends as a row or a reject row; a panic inside a per-record transform becomes a reject row.
 
-use crate::config::PipelineConfig;
+use crate::config::ValidConfig;
 use crate::ingest::Source;
 use crate::store;
 use crate::util::{utc_now, IoAt};
@@ -28,6 +28,17 @@ pub enum PipelineError {
     Pool(String),
     #[error("no input given")]
     NoInput,
+}
+
+impl crate::util::HasKind for PipelineError {
+    fn kind(&self) -> crate::util::ErrorKind {
+        use crate::util::ErrorKind;
+        match self {
+            PipelineError::Store(s) => s.kind(),
+            PipelineError::Io(_) | PipelineError::Pool(_) => ErrorKind::Failed,
+            PipelineError::NoInput => ErrorKind::Usage,
+        }
+    }
 }
 
 /// What a run produces.
@@ -108,7 +119,7 @@ pub fn run(
     job: StreamJob,
     inputs: &[PathBuf],
     out_dir: &Path,
-    cfg: &PipelineConfig,
+    cfg: &ValidConfig,
     opts: &StreamOptions,
 ) -> Result<RunReport, PipelineError> {
     if inputs.is_empty() {
@@ -121,26 +132,30 @@ pub fn run(
     // Outputs of an earlier run are removed first: the files in `out_dir` always belong to
     // one complete run (an interrupted run leaves none rather than a stale mixture). Parts
     // stay only for `--resume`, which checks each before reusing it.
-    for f in part_tables(job).into_iter().chain(["manifest.json"]) {
-        let _ = std::fs::remove_file(out_dir.join(f));
+    let out = StreamDir::new(out_dir);
+    for t in PartTable::ALL {
+        let _ = std::fs::remove_file(out.table(t, job));
     }
-    let produced = produce(job, inputs, out_dir, cfg, opts)?;
+    let _ = std::fs::remove_file(out.manifest());
+    let produced = produce(job, inputs, &out, cfg, opts)?;
     match opts.shard {
-        None => assemble(job, out_dir, cfg, opts, started, t0, produced),
-        Some(sh) => shard::publish(job, inputs, out_dir, cfg, sh, started, produced),
+        None => assemble(job, &out, cfg, opts, started, t0, produced),
+        Some(sh) => shard::publish(job, inputs, &out, cfg, sh, started, produced),
     }
 }
 
 mod counts;
+pub mod layout;
 mod manifest;
 mod parts;
 mod shard;
 mod stream;
 pub(crate) use counts::PartStats;
 pub use counts::{Counts, RecordCounts, StreamStats, MAX_NOTES};
+pub use layout::{PartDir, PartTable, StreamDir};
 pub(crate) use manifest::assemble;
 pub use manifest::{InputFile, Manifest};
 use parts::produce;
-pub(crate) use parts::{part_tables, table_schemas, Part, Produced};
+pub(crate) use parts::{Part, Produced};
 pub use shard::{merge, read_shards, MergeError, ShardExperiment, ShardManifest};
 pub use stream::{stream, Checkout, StatePool};

@@ -3,13 +3,12 @@
 //! can publish experiments independently.
 
 use super::counts::PartStats;
+use super::layout::{PartDir, PartTable, StreamDir};
 use super::manifest::InputFile;
 use super::{stream, PipelineError, StreamJob, StreamOptions};
-use crate::config::PipelineConfig;
-use crate::features::features_table;
+use crate::config::ValidConfig;
 use crate::ingest::{self, Discovery, Source};
 use crate::model::Reject;
-use crate::store::{self, rejects_table, waveforms_table, TableSchema};
 use crate::util::{file_digest, write_atomic, IoAt};
 use rayon::prelude::*;
 use std::collections::BTreeMap;
@@ -32,42 +31,10 @@ struct PartRecord {
     stats: PartStats,
 }
 
-/// The folder of one experiment's part: its file-safe id and a short hash of the id itself,
-/// so two ids that sanitise alike never share a folder.
-fn part_dir(parts: &Path, id: &str) -> PathBuf {
-    let h = crate::util::sha256_hex(id.as_bytes());
-    parts.join(format!("{}-{}", crate::util::file_safe(id), &h[..8]))
-}
-
-/// The tables a part folder holds, in assembly order.
-pub(crate) fn part_tables(job: StreamJob) -> [&'static str; 5] {
-    [
-        job.table_file(),
-        "hits.parquet",
-        "rejects.parquet",
-        "parametric.parquet",
-        "markers.parquet",
-    ]
-}
-
-/// The schemas of [`part_tables`], in the same order.
-pub(crate) fn table_schemas(job: StreamJob, cfg: &PipelineConfig) -> [TableSchema; 5] {
-    [
-        match job {
-            StreamJob::Features => features_table(cfg),
-            StreamJob::Waveforms => waveforms_table(),
-        },
-        store::hits_table(),
-        rejects_table(),
-        store::parametric_table().schema(),
-        store::markers_table().schema(),
-    ]
-}
-
 /// A finished part that may be reused: its record parses and matches `want` (tool, job,
 /// config, inputs), and every table still has the hash it was written with.
-fn reusable_part(dir: &Path, want: &PartRecord) -> Option<PartRecord> {
-    let text = std::fs::read_to_string(dir.join("part.json")).ok()?;
+fn reusable_part(dir: &PartDir, want: &PartRecord) -> Option<PartRecord> {
+    let text = std::fs::read_to_string(dir.record()).ok()?;
     let rec: PartRecord = serde_json::from_str(&text).ok()?;
     if (
         &rec.tool_version,
@@ -85,7 +52,7 @@ fn reusable_part(dir: &Path, want: &PartRecord) -> Option<PartRecord> {
         return None;
     }
     for (name, sha) in &rec.outputs {
-        match file_digest(&dir.join(name)) {
+        match file_digest(&dir.path().join(name)) {
             Ok((_, h)) if &h == sha => {}
             _ => return None,
         }
@@ -93,10 +60,10 @@ fn reusable_part(dir: &Path, want: &PartRecord) -> Option<PartRecord> {
     Some(rec)
 }
 
-/// One experiment's finished part: where its three tables are and what it counted.
+/// One experiment's finished part: where its tables are and what it counted.
 pub(crate) struct Part {
     pub(crate) id: String,
-    /// The tables of [`part_tables`], in that order.
+    /// The tables, in [`PartTable::ALL`] order.
     pub(crate) tables: [PathBuf; 5],
     pub(crate) stats: PartStats,
     pub(crate) reused: bool,
@@ -105,6 +72,13 @@ pub(crate) struct Part {
     /// `(file name, sha256)` of its tables, as recorded when they were written.
     pub(crate) outputs: Vec<(String, String)>,
     pub(crate) dir: PathBuf,
+}
+
+impl Part {
+    /// Where this part's `t` is.
+    pub(crate) fn table(&self, t: PartTable) -> &Path {
+        &self.tables[t as usize]
+    }
 }
 
 /// Discovery, the input digests and every owned experiment streamed into its part.
@@ -123,12 +97,12 @@ pub(crate) struct Produced {
 pub(crate) fn produce(
     job: StreamJob,
     inputs: &[PathBuf],
-    out_dir: &Path,
-    cfg: &PipelineConfig,
+    out: &StreamDir,
+    cfg: &ValidConfig,
     opts: &StreamOptions,
 ) -> Result<Produced, PipelineError> {
     let t0 = Instant::now();
-    let parts_root = out_dir.join("parts");
+    let parts_root = out.parts();
     if !opts.resume {
         let _ = std::fs::remove_dir_all(&parts_root);
     }
@@ -176,7 +150,7 @@ pub(crate) fn produce(
     // Sources are sorted by id: one part per run of equal ids.
     for g in sources.chunk_by(|a, b| a.id == b.id) {
         let id = g[0].id.clone();
-        let dir = part_dir(&parts_root, &id);
+        let dir = out.part(&id);
         let want = PartRecord {
             tool_version: env!("CARGO_PKG_VERSION").into(),
             job: job.name().into(),
@@ -208,30 +182,30 @@ pub(crate) fn produce(
         let rec = match reused {
             Some(rec) => rec,
             None => {
-                let _ = std::fs::remove_dir_all(&dir);
-                std::fs::create_dir_all(&dir).map_err(|e| IoAt::new(&dir, e))?;
+                let _ = std::fs::remove_dir_all(dir.path());
+                std::fs::create_dir_all(dir.path()).map_err(|e| IoAt::new(dir.path(), e))?;
                 let items = g.iter().flat_map(|s| ingest::open(s, cfg));
-                let st = stream(items, job, &dir, cfg, opts)?;
+                let st = stream(items, job, dir.path(), cfg, opts)?;
                 let mut rec = want;
-                for name in part_tables(job) {
-                    let p = dir.join(name);
+                for t in PartTable::ALL {
+                    let p = dir.table(t, job);
                     let (_, h) = file_digest(&p).map_err(|e| IoAt::new(&p, e))?;
-                    rec.outputs.push((name.to_string(), h));
+                    rec.outputs.push((t.file_name(job).to_string(), h));
                 }
                 rec.stats = PartStats::of(&st);
                 let text = serde_json::to_string_pretty(&rec).expect("part record serialises");
-                write_atomic(&dir.join("part.json"), text.as_bytes())?;
+                write_atomic(&dir.record(), text.as_bytes())?;
                 rec
             }
         };
         parts.push(Part {
-            tables: part_tables(job).map(|n| dir.join(n)),
+            tables: PartTable::ALL.map(|t| dir.table(t, job)),
             id,
             stats: rec.stats,
             reused: reused_flag,
             inputs: rec.inputs,
             outputs: rec.outputs,
-            dir,
+            dir: dir.path().to_path_buf(),
         });
     }
     Ok(Produced {

@@ -1,47 +1,28 @@
 //! Sharded runs: a shard publishes its experiments' parts as a Hive-partitioned dataset with
-//! a shard manifest; [`merge`] checks that all N shards agree and assembles the batch from
-//! them, the same bytes an unsharded run writes.
+//! a shard manifest ([`crate::store::shard`], the one mechanism the reference library uses
+//! too); [`merge`] checks that all N shards agree and assembles the batch from them, the same
+//! bytes an unsharded run writes.
 
+use super::layout::{PartTable, StreamDir};
 use super::{
-    assemble, part_tables, Part, PartStats, PipelineError, Produced, RunReport, StreamJob,
-    StreamOptions, StreamStats,
+    assemble, Part, PartStats, PipelineError, Produced, RunReport, StreamJob, StreamOptions,
+    StreamStats,
 };
 use crate::config::PipelineConfig;
 use crate::ingest::Source;
 use crate::model::Reject;
 use crate::store;
-use crate::util::{file_digest, utc_now, write_atomic, IoAt};
-use std::collections::BTreeMap;
+use crate::store::shard::{self as sh_store, ShardFile, ShardHeader, ShardKind, ShardSetError};
+use crate::util::{utc_now, IoAt};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-/// The Hive folder of `table` (`features`, `waveforms`, `hits`, `rejects`) in a sharded
-/// output folder.
-fn hive_file(out_dir: &Path, table: &str, experiment: &str, k: u32) -> PathBuf {
-    out_dir
-        .join(table)
-        .join(format!(
-            "experiment={}",
-            crate::util::hive_value(experiment)
-        ))
-        .join(format!("part-{k}.parquet"))
-}
-
-fn table_stem(f: &str) -> &str {
-    f.trim_end_matches(".parquet")
-}
-
-/// What `OUT/shards/shard-K-of-N.json` records: enough for [`merge`] to check the shards
-/// agree and to assemble the batch without reading any input again.
+/// What a feature or waveform shard records besides its header: enough for [`merge`] to
+/// assemble the batch without reading any input again.
 #[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 pub struct ShardManifest {
-    pub tool_version: String,
-    pub job: String,
-    pub config_sha256: String,
     /// The effective pipeline definition (canonical TOML).
     pub config: String,
-    pub k: u32,
-    pub n: u32,
     pub inputs: Vec<PathBuf>,
     pub started_utc: String,
     pub finished_utc: String,
@@ -60,71 +41,87 @@ pub struct ShardManifest {
 #[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 pub struct ShardExperiment {
     pub id: String,
-    /// `(table, sha256)` of each published file.
-    pub tables: Vec<(String, String)>,
     stats: PartStats,
     pub inputs: Vec<(String, String)>,
+}
+
+/// The shard kind of a streaming job.
+pub(crate) fn kind_of(job: StreamJob) -> ShardKind {
+    match job {
+        StreamJob::Features => ShardKind::Features,
+        StreamJob::Waveforms => ShardKind::Waveforms,
+    }
 }
 
 pub(super) fn publish(
     job: StreamJob,
     inputs: &[PathBuf],
-    out_dir: &Path,
+    out: &StreamDir,
     cfg: &PipelineConfig,
     sh: crate::util::Shard,
     started: String,
     p: Produced,
 ) -> Result<RunReport, PipelineError> {
     let mut experiments = Vec::new();
+    let mut files = Vec::new();
     let mut stats = StreamStats::default();
     for part in &p.parts {
-        for (k, name) in part_tables(job).iter().enumerate() {
-            let dest = hive_file(out_dir, table_stem(name), &part.id, sh.k);
+        for t in PartTable::ALL {
+            let dest = out.hive_file(t, job, &part.id, sh.k);
             let dir = dest.parent().expect("hive file has a folder");
             std::fs::create_dir_all(dir).map_err(|e| IoAt::new(dir, e))?;
             let tmp = crate::util::tmp_path_for(&dest);
-            std::fs::copy(&part.tables[k], &tmp).map_err(|e| IoAt::new(&tmp, e))?;
+            std::fs::copy(part.table(t), &tmp).map_err(|e| IoAt::new(&tmp, e))?;
             std::fs::rename(&tmp, &dest).map_err(|e| IoAt::new(&dest, e))?;
+            // The copy carries the hash the part recorded when its table was written.
+            let sha = part
+                .outputs
+                .iter()
+                .find(|(n, _)| n == t.file_name(job))
+                .map(|(_, h)| h.clone())
+                .unwrap_or_default();
+            let rel = dest.strip_prefix(out.path()).unwrap_or(&dest);
+            files.push((rel.display().to_string(), sha));
         }
         part.stats.add_to(&mut stats);
-        // The copies carry the hashes the part recorded when its tables were written.
         experiments.push(ShardExperiment {
             id: part.id.clone(),
-            tables: part.outputs.clone(),
             stats: part.stats.clone(),
             inputs: part.inputs.clone(),
         });
     }
-    let m = ShardManifest {
-        tool_version: env!("CARGO_PKG_VERSION").into(),
-        job: job.name().into(),
-        config_sha256: cfg.hash(),
-        config: cfg.to_toml(),
-        k: sh.k,
-        n: sh.n,
-        inputs: inputs.to_vec(),
-        started_utc: started,
-        finished_utc: utc_now(),
-        seconds: p.t_stream,
-        sources: p.sources.clone(),
-        experiments,
-        discover_rejects: p.discover_rejects.clone(),
-        skipped: p.skipped.clone(),
-        input_files: p.inputs_json.clone(),
+    let m = ShardFile {
+        header: ShardHeader {
+            kind: kind_of(job),
+            tool_version: env!("CARGO_PKG_VERSION").into(),
+            definition_sha256: cfg.hash(),
+            k: sh.k,
+            n: sh.n,
+            keys: p.parts.iter().map(|x| x.id.clone()).collect(),
+            files,
+        },
+        payload: ShardManifest {
+            config: cfg.to_toml(),
+            inputs: inputs.to_vec(),
+            started_utc: started,
+            finished_utc: utc_now(),
+            seconds: p.t_stream,
+            sources: p.sources.clone(),
+            experiments,
+            discover_rejects: p.discover_rejects.clone(),
+            skipped: p.skipped.clone(),
+            input_files: p.inputs_json.clone(),
+        },
     };
-    let shards = out_dir.join("shards");
-    std::fs::create_dir_all(&shards).map_err(|e| IoAt::new(&shards, e))?;
-    let manifest_path = shards.join(format!("shard-{}-of-{}.json", sh.k, sh.n));
-    let text = serde_json::to_string_pretty(&m).expect("shard manifest serialises");
-    write_atomic(&manifest_path, text.as_bytes())?;
+    let manifest_path = sh_store::write_manifest(out.path(), &m)?;
     stats.seconds = p.t_stream;
     Ok(RunReport {
         stats,
-        table_path: out_dir.join(table_stem(job.table_file())),
-        hits_path: out_dir.join("hits"),
-        rejects_path: out_dir.join("rejects"),
-        parametric_path: out_dir.join("parametric"),
-        markers_path: out_dir.join("markers"),
+        table_path: out.hive_dir(PartTable::Main, job),
+        hits_path: out.hive_dir(PartTable::Hits, job),
+        rejects_path: out.hive_dir(PartTable::Rejects, job),
+        parametric_path: out.hive_dir(PartTable::Parametric, job),
+        markers_path: out.hive_dir(PartTable::Markers, job),
         manifest_path,
         sources: p.sources,
         skipped: p.skipped,
@@ -134,200 +131,111 @@ pub(super) fn publish(
 /// Why the shards of a folder cannot be merged.
 #[derive(Debug, thiserror::Error)]
 pub enum MergeError {
-    #[error(
-        "{dir}: no shard manifests (shards/shard-K-of-N.json): not the output of a --shard run"
-    )]
-    NoShards { dir: String },
+    #[error(transparent)]
+    Shards(#[from] ShardSetError),
     #[error("{path}: {message}")]
-    Manifest { path: String, message: String },
-    #[error("{dir}: the shards disagree: {message}")]
-    Disagree { dir: String, message: String },
-    #[error("{dir}: shard(s) {missing} of {n} missing (no shards/shard-K-of-{n}.json): resubmit those array tasks (--shard K/{n}), then merge again")]
-    Missing {
-        dir: String,
-        missing: String,
-        n: u32,
-    },
-    #[error("{dir}: shards of a {job} job: `aepipe merge --tables-only` assembles them")]
-    WrongJob { dir: String, job: String },
+    Config { path: String, message: String },
     #[error(transparent)]
     Pipeline(#[from] PipelineError),
 }
 
-/// Read and check the shard manifests of `dir`: all N present, one tool version, job and
-/// config, each experiment in exactly the shard its id hashes to, every published table
-/// still with its recorded hash.
-pub fn read_shards(dir: &Path) -> Result<Vec<ShardManifest>, MergeError> {
-    let sd = dir.join("shards");
-    let mut found: Vec<(PathBuf, ShardManifest)> = Vec::new();
-    if let Ok(rd) = std::fs::read_dir(&sd) {
-        for e in rd.flatten() {
-            let p = e.path();
-            let n = p
-                .file_name()
-                .unwrap_or_default()
-                .to_string_lossy()
-                .to_string();
-            if !(n.starts_with("shard-") && n.ends_with(".json")) {
-                continue;
-            }
-            let text = std::fs::read_to_string(&p).map_err(|e| MergeError::Manifest {
-                path: p.display().to_string(),
-                message: e.to_string(),
-            })?;
-            let m: ShardManifest =
-                serde_json::from_str(&text).map_err(|e| MergeError::Manifest {
-                    path: p.display().to_string(),
-                    message: e.to_string(),
-                })?;
-            found.push((p, m));
+impl crate::util::HasKind for MergeError {
+    fn kind(&self) -> crate::util::ErrorKind {
+        match self {
+            MergeError::Shards(e) => e.kind(),
+            MergeError::Config { .. } => crate::util::ErrorKind::Usage,
+            MergeError::Pipeline(e) => e.kind(),
         }
     }
-    if found.is_empty() {
-        return Err(MergeError::NoShards {
-            dir: dir.display().to_string(),
-        });
-    }
-    let d = dir.display().to_string();
-    let first = found[0].1.clone();
-    for (p, m) in &found {
-        let what = if m.n != first.n {
-            Some(format!(
-                "{} is of {} shards, another of {}",
-                p.display(),
-                m.n,
-                first.n
-            ))
-        } else if m.config_sha256 != first.config_sha256 {
-            Some(format!(
-                "{} was run with another config (sha256 {} vs {})",
-                p.display(),
-                m.config_sha256,
-                first.config_sha256
-            ))
-        } else if m.tool_version != first.tool_version {
-            Some(format!(
-                "{} was written by aepipe {} (another by {})",
-                p.display(),
-                m.tool_version,
-                first.tool_version
-            ))
-        } else if m.job != first.job {
-            Some(format!(
-                "{} is a {} job (another is {})",
-                p.display(),
-                m.job,
-                first.job
-            ))
-        } else {
-            None
-        };
-        if let Some(message) = what {
-            return Err(MergeError::Disagree { dir: d, message });
-        }
-    }
-    let n = first.n;
-    let mut by_k: BTreeMap<u32, ShardManifest> = BTreeMap::new();
-    for (_, m) in found {
-        by_k.insert(m.k, m);
-    }
-    let missing: Vec<String> = (0..n)
-        .filter(|k| !by_k.contains_key(k))
-        .map(|k| k.to_string())
-        .collect();
-    if !missing.is_empty() {
-        return Err(MergeError::Missing {
-            dir: d,
-            missing: missing.join(", "),
-            n,
-        });
-    }
-    for m in by_k.values() {
-        for e in &m.experiments {
-            if crate::util::Shard::of(&e.id, n) != m.k {
-                return Err(MergeError::Disagree {
-                    dir: d,
-                    message: format!(
-                        "experiment {:?} is in shard {} but hashes to shard {}",
-                        e.id,
-                        m.k,
-                        crate::util::Shard::of(&e.id, n)
-                    ),
-                });
-            }
-            for (name, sha) in &e.tables {
-                let f = hive_file(dir, table_stem(name), &e.id, m.k);
-                match file_digest(&f) {
-                    Ok((_, h)) if &h == sha => {}
-                    _ => {
-                        return Err(MergeError::Disagree {
-                            dir: d,
-                            message: format!(
-                                "{} is missing or changed since shard {} wrote it: resubmit it",
-                                f.display(),
-                                m.k
-                            ),
-                        })
-                    }
-                }
-            }
-        }
-    }
-    Ok(by_k.into_values().collect())
+}
+
+/// Read and check the shard manifests of a feature or waveform run in `dir` (see
+/// [`crate::store::shard::read_shards`]).
+pub fn read_shards(
+    dir: &Path,
+    job: StreamJob,
+) -> Result<Vec<ShardFile<ShardManifest>>, MergeError> {
+    Ok(sh_store::read_shards(dir, kind_of(job))?)
 }
 
 /// `aepipe merge`: the whole-batch tables and manifest of a sharded run, into `out_dir`,
-/// the same bytes an unsharded run writes.
-///
-/// `only`: refuse, before writing anything, shards of another job (`aepipe merge` without
-/// `--tables-only` runs the feature stages, which need feature shards).
+/// the same bytes an unsharded run writes. The job is the shards' own; `only` refuses,
+/// before writing anything, shards of another job (`aepipe merge` without `--tables-only`
+/// runs the feature stages, which need feature shards).
 pub fn merge(
     dir: &Path,
     out_dir: &Path,
     threads: usize,
     only: Option<StreamJob>,
-) -> Result<(RunReport, ShardManifest), MergeError> {
+) -> Result<(RunReport, crate::config::ValidConfig), MergeError> {
     let t0 = Instant::now();
     let started = utc_now();
-    let shards = read_shards(dir)?;
-    let first = shards[0].clone();
-    let cfg = PipelineConfig::from_toml(&first.config).map_err(|e| MergeError::Manifest {
-        path: dir.join("shards").display().to_string(),
+    let kind = sh_store::detect(dir)?;
+    let job = match kind {
+        ShardKind::Features => StreamJob::Features,
+        ShardKind::Waveforms => StreamJob::Waveforms,
+        ShardKind::ReferenceLibrary => {
+            return Err(ShardSetError::WrongKind {
+                dir: dir.display().to_string(),
+                found: kind.as_str(),
+                want: "features",
+            }
+            .into())
+        }
+    };
+    if let Some(j) = only.filter(|j| *j != job) {
+        return Err(ShardSetError::WrongKind {
+            dir: dir.display().to_string(),
+            found: kind.as_str(),
+            want: kind_of(j).as_str(),
+        }
+        .into());
+    }
+    let shards = read_shards(dir, job)?;
+    let first = &shards[0].payload;
+    let cfg = PipelineConfig::from_toml(&first.config).map_err(|e| MergeError::Config {
+        path: sh_store::shards_dir(dir).display().to_string(),
         message: e.to_string(),
     })?;
-    let job = if first.job == StreamJob::Waveforms.name() {
-        StreamJob::Waveforms
-    } else {
-        StreamJob::Features
-    };
-    if only.is_some_and(|j| j != job) {
-        return Err(MergeError::WrongJob {
-            dir: dir.display().to_string(),
-            job: first.job.clone(),
-        });
-    }
     std::fs::create_dir_all(out_dir).map_err(|e| PipelineError::from(IoAt::new(out_dir, e)))?;
     store::clean_stale_tmp(out_dir);
+    let src = StreamDir::new(dir);
     let mut parts = Vec::new();
     let mut sources = Vec::new();
     let mut inputs_json = Vec::new();
     for m in &shards {
-        for e in &m.experiments {
+        for e in &m.payload.experiments {
+            let outputs = PartTable::ALL
+                .iter()
+                .map(|t| {
+                    let f = src.hive_file(*t, job, &e.id, m.header.k);
+                    let rel = f.strip_prefix(dir).unwrap_or(&f).display().to_string();
+                    let sha = m
+                        .header
+                        .files
+                        .iter()
+                        .find(|(p, _)| *p == rel)
+                        .map(|(_, h)| h.clone())
+                        .unwrap_or_default();
+                    (t.file_name(job).to_string(), sha)
+                })
+                .collect();
             parts.push(Part {
-                tables: part_tables(job).map(|n| hive_file(dir, table_stem(n), &e.id, m.k)),
+                tables: PartTable::ALL.map(|t| src.hive_file(t, job, &e.id, m.header.k)),
                 id: e.id.clone(),
                 stats: e.stats.clone(),
                 reused: false,
                 inputs: e.inputs.clone(),
-                outputs: e.tables.clone(),
-                dir: hive_file(dir, table_stem(job.table_file()), &e.id, m.k)
+                outputs,
+                dir: src
+                    .hive_file(PartTable::Main, job, &e.id, m.header.k)
                     .parent()
                     .map(Path::to_path_buf)
                     .unwrap_or_default(),
             });
         }
-        sources.extend(m.sources.iter().cloned());
-        inputs_json.extend(m.input_files.iter().cloned());
+        sources.extend(m.payload.sources.iter().cloned());
+        inputs_json.extend(m.payload.input_files.iter().cloned());
     }
     // The unsharded order: sources by (id, first file), parts by id.
     parts.sort_by(|a, b| a.id.cmp(&b.id));
@@ -340,7 +248,7 @@ pub fn merge(
         parts,
         t_discover: 0.0,
         t_hash: 0.0,
-        t_stream: shards.iter().map(|m| m.seconds).sum(),
+        t_stream: shards.iter().map(|m| m.payload.seconds).sum(),
     };
     let opts = StreamOptions {
         threads,
@@ -348,6 +256,14 @@ pub fn merge(
         resume: false,
         shard: None,
     };
-    let r = assemble(job, out_dir, &cfg, &opts, started, t0, produced)?;
-    Ok((r, first))
+    let r = assemble(
+        job,
+        &StreamDir::new(out_dir),
+        &cfg,
+        &opts,
+        started,
+        t0,
+        produced,
+    )?;
+    Ok((r, cfg))
 }

@@ -1,11 +1,12 @@
 //! The streaming core: reader thread → bounded channel → worker pool (order kept) → sink
 //! thread writing the job's tables.
 
+use super::layout::PartTable;
 use super::{PipelineError, StreamJob, StreamOptions, StreamStats};
-use crate::config::PipelineConfig;
+use crate::config::{PipelineConfig, ValidConfig};
 use crate::features::{validate, FeatureExtractor};
 use crate::model::{Item, Reject, Stage};
-use crate::store::{self, reject_row, waveform_row, Row, TableWriter};
+use crate::store::{self, Row, TableWriter};
 use crate::util::num_cpus;
 use rayon::prelude::*;
 use std::io::IsTerminal;
@@ -90,7 +91,12 @@ fn record_reject(r: &crate::model::AeRecord, stage: Stage, reason: String) -> Re
     }
 }
 
-fn process(job: StreamJob, ex: &mut FeatureExtractor, item: Item) -> Out {
+fn process(
+    job: StreamJob,
+    ex: &mut FeatureExtractor,
+    waveforms: &store::Table<store::WaveformRow>,
+    item: Item,
+) -> Out {
     let rec = match item {
         Item::Record(r) => r,
         other => return Out::Item(other),
@@ -103,7 +109,10 @@ fn process(job: StreamJob, ex: &mut FeatureExtractor, item: Item) -> Out {
         )));
     }
     match job {
-        StreamJob::Waveforms => Out::Row(rec.experiment.clone(), waveform_row(rec)),
+        StreamJob::Waveforms => Out::Row(
+            rec.experiment.clone(),
+            waveforms.row(store::WaveformRow::from(rec)),
+        ),
         StreamJob::Features => {
             let res = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| ex.row(&rec)));
             match res {
@@ -158,37 +167,47 @@ pub(crate) fn table_metadata(
     (table_meta, meta)
 }
 
-/// The writers of a job's five tables, in [`super::part_tables`] order.
+/// The writers of a job's five tables ([`PartTable`]), with the typed tables that make
+/// their rows.
 pub(crate) struct JobWriters {
     pub(crate) table: TableWriter,
     pub(crate) hits: TableWriter,
     pub(crate) rejects: TableWriter,
     pub(crate) parametric: TableWriter,
     pub(crate) markers: TableWriter,
+    hit_rows: store::Table<crate::model::HitRow>,
+    reject_rows: store::Table<Reject>,
+    parametric_rows: store::Table<crate::model::ParametricRow>,
+    marker_rows: store::Table<crate::model::MarkerRow>,
 }
 
 impl JobWriters {
-    /// Create the five tables of `job` in `dir`, under the names of
-    /// [`super::part_tables`].
+    /// Create the five tables of `job` in `dir`, under their [`PartTable`] names.
     pub(crate) fn create(
         job: StreamJob,
         dir: &Path,
         cfg: &PipelineConfig,
     ) -> Result<JobWriters, PipelineError> {
         let (table_meta, meta) = table_metadata(job, cfg);
-        let names = super::part_tables(job);
-        let schemas = super::table_schemas(job, cfg);
         let rg = cfg.pipeline.row_group_rows;
-        let mk = |k: usize| {
-            let kv = if k == 0 { &table_meta } else { &meta };
-            TableWriter::create(&dir.join(names[k]), schemas[k].clone(), kv, rg)
+        let mk = |t: PartTable| {
+            let kv = if t == PartTable::Main {
+                &table_meta
+            } else {
+                &meta
+            };
+            TableWriter::create(&dir.join(t.file_name(job)), t.schema(job, cfg), kv, rg)
         };
         Ok(JobWriters {
-            table: mk(0)?,
-            hits: mk(1)?,
-            rejects: mk(2)?,
-            parametric: mk(3)?,
-            markers: mk(4)?,
+            table: mk(PartTable::Main)?,
+            hits: mk(PartTable::Hits)?,
+            rejects: mk(PartTable::Rejects)?,
+            parametric: mk(PartTable::Parametric)?,
+            markers: mk(PartTable::Markers)?,
+            hit_rows: store::hits_table(),
+            reject_rows: store::rejects_table(),
+            parametric_rows: store::parametric_table(),
+            marker_rows: store::markers_table(),
         })
     }
 
@@ -207,31 +226,25 @@ impl JobWriters {
 }
 
 /// Write one item that is not a feature/waveform row into its table and count it.
-fn sink_item(
-    w: &mut JobWriters,
-    st: &mut StreamStats,
-    it: Item,
-    par: &store::Table<crate::model::ParametricRow>,
-    mark: &store::Table<crate::model::MarkerRow>,
-) -> Result<(), PipelineError> {
+fn sink_item(w: &mut JobWriters, st: &mut StreamStats, it: Item) -> Result<(), PipelineError> {
     match it {
         Item::Record(_) => unreachable!("records become rows or rejects in the workers"),
         Item::Hit(h) => {
-            w.hits.push(store::hit_row(&h))?;
             st.add_hit(&h.experiment);
+            w.hits.push(w.hit_rows.row(*h))?;
         }
         Item::Reject(r) => {
-            w.rejects.push(reject_row(&r))?;
             st.add_reject(&r);
+            w.rejects.push(w.reject_rows.row(r))?;
         }
         Item::Note(n) => st.add_note(n),
         Item::Parametric(p) => {
-            w.parametric.push(par.row(&p))?;
             st.add_parametric(&p.experiment);
+            w.parametric.push(w.parametric_rows.row(*p))?;
         }
         Item::Marker(m) => {
-            w.markers.push(mark.row(&m))?;
             st.add_marker(&m.experiment, m.kind);
+            w.markers.push(w.marker_rows.row(*m))?;
         }
         Item::Setup(s) => st.setups.push(*s),
         Item::Tally(t) => st.add_tally(&t),
@@ -245,7 +258,7 @@ pub fn stream<I>(
     items: I,
     job: StreamJob,
     out_dir: &Path,
-    cfg: &PipelineConfig,
+    cfg: &ValidConfig,
     opts: &StreamOptions,
 ) -> Result<StreamStats, PipelineError>
 where
@@ -268,6 +281,7 @@ where
     let (tx_in, rx_in) = crossbeam_channel::bounded::<Vec<Item>>(q);
     let (tx_out, rx_out) = crossbeam_channel::bounded::<Vec<Out>>(q);
     let states: StatePool<FeatureExtractor> = StatePool::default();
+    let waveforms = store::waveforms_table();
     let pb = progress_bar(opts.progress);
     let read_count = std::sync::atomic::AtomicU64::new(0);
 
@@ -295,7 +309,6 @@ where
         let pb2 = pb.clone();
         let sink = s.spawn(move || -> Result<StreamStats, PipelineError> {
             let mut st = StreamStats::default();
-            let (par, mark) = (store::parametric_table(), store::markers_table());
             for outs in rx_out {
                 for o in outs {
                     match o {
@@ -308,7 +321,7 @@ where
                             if matches!(it, Item::Hit(_) | Item::Reject(_)) {
                                 pb2.inc(1);
                             }
-                            sink_item(&mut writers, &mut st, it, &par, &mark)?;
+                            sink_item(&mut writers, &mut st, it)?;
                         }
                     }
                 }
@@ -322,7 +335,7 @@ where
                     .into_par_iter()
                     .map_init(
                         || states.checkout(|| FeatureExtractor::new(cfg)),
-                        |ex, item| process(job, ex, item),
+                        |ex, item| process(job, ex, &waveforms, item),
                     )
                     .collect()
             });

@@ -34,6 +34,21 @@ pub enum SimError {
     /// An output could not be written.
     #[error("{0}")]
     Io(String),
+    /// The shards of a library do not make one (missing, disagreeing, changed files).
+    #[error(transparent)]
+    Shards(#[from] crate::store::shard::ShardSetError),
+}
+
+impl crate::util::HasKind for SimError {
+    fn kind(&self) -> crate::util::ErrorKind {
+        match self {
+            SimError::Model(_) | SimError::Parse { .. } | SimError::Read(_) => {
+                crate::util::ErrorKind::Usage
+            }
+            SimError::Solver(_) | SimError::Io(_) => crate::util::ErrorKind::Failed,
+            SimError::Shards(e) => e.kind(),
+        }
+    }
 }
 
 /// What to keep besides the sensor signals.

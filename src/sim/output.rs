@@ -4,73 +4,66 @@
 
 use super::model::ModelFile;
 use super::{Frame, SimError, SimOutput};
-use crate::store::{self, ColType, ColumnSpec, TableSchema, TableWriter, Value};
+use crate::store::{self, ColType, ColumnSpec, Table, TableWriter, Value};
 use sha2::Digest as _;
 use std::path::Path;
 
+/// One simulated signal: a row of the simulated waveform table.
+pub struct SimSignal {
+    pub wave: store::WaveformRow,
+    pub sim_model: String,
+    pub sim_params: String,
+    pub sensor_x_m: f64,
+    pub sensor_y_m: f64,
+    pub scale_v_per_pa: f64,
+    pub dominant_frequency_hz: f64,
+}
+
 /// `waveforms` columns, then the simulation's own.
-pub fn sim_waveforms_table() -> TableSchema {
-    let mut t = store::waveforms_table();
-    t.name = "sim_waveforms".into();
-    t.columns.extend([
-        ColumnSpec::new(
-            "sim_model",
-            ColType::Utf8,
-            "",
-            "scenario name or model file the signal was simulated from",
-        ),
-        ColumnSpec::new(
-            "sim_params",
-            ColType::Utf8,
-            "",
-            "scenario parameters as JSON (`{}` for a model file)",
-        ),
-        ColumnSpec::new(
-            "sensor_x_m",
-            ColType::Float64,
-            "m",
-            "x of the sensor cell's centre",
-        ),
-        ColumnSpec::new(
-            "sensor_y_m",
-            ColType::Float64,
-            "m",
-            "y of the sensor cell's centre",
-        ),
-        ColumnSpec::new(
-            "pressure_scale_v_per_pa",
-            ColType::Float64,
-            "V/Pa",
-            "sensor sensitivity: samples_v = pressure × this",
-        ),
-        ColumnSpec::new(
-            "dominant_frequency_hz",
-            ColType::Float64,
-            "Hz",
-            "peak of the band-limited pressure's power spectrum (the whole simulated signal, before noise)",
-        ),
-    ]);
-    t
+pub fn sim_waveforms_table() -> Table<SimSignal> {
+    let f = |name: &str, unit: &str, doc: &str| ColumnSpec::new(name, ColType::Float64, unit, doc);
+    Table::new("sim_waveforms")
+        .embed(store::waveforms_table(), |s: &mut SimSignal| &mut s.wave)
+        .col(ColumnSpec::new("sim_model", ColType::Utf8, "", "scenario name or model file the signal was simulated from"), |s| Value::Str(Some(s.sim_model.clone())))
+        .col(ColumnSpec::new("sim_params", ColType::Utf8, "", "scenario parameters as JSON (`{}` for a model file)"), |s| Value::Str(Some(s.sim_params.clone())))
+        .col(f("sensor_x_m", "m", "x of the sensor cell's centre"), |s| Value::F64(Some(s.sensor_x_m)))
+        .col(f("sensor_y_m", "m", "y of the sensor cell's centre"), |s| Value::F64(Some(s.sensor_y_m)))
+        .col(f("pressure_scale_v_per_pa", "V/Pa", "sensor sensitivity: samples_v = pressure × this"), |s| Value::F64(Some(s.scale_v_per_pa)))
+        .col(f("dominant_frequency_hz", "Hz", "peak of the band-limited pressure's power spectrum (the whole simulated signal, before noise)"), |s| Value::F64(Some(s.dominant_frequency_hz)))
+}
+
+/// One node at one time: a row of the trajectory table.
+pub struct TrajectoryPoint {
+    pub t_s: f64,
+    pub node: usize,
+    pub r: [f64; 2],
+    pub u: [f64; 2],
 }
 
 /// Node trajectory table.
-pub fn trajectory_table() -> TableSchema {
-    TableSchema {
-        name: "sim_trajectories".into(),
-        columns: vec![
-            ColumnSpec::new("t_s", ColType::Float64, "s", "simulation time"),
+pub fn trajectory_table() -> Table<TrajectoryPoint> {
+    let f = |name: &str, unit: &str, doc: &str| ColumnSpec::new(name, ColType::Float64, unit, doc);
+    Table::new("sim_trajectories")
+        .col(f("t_s", "s", "simulation time"), |p: &TrajectoryPoint| {
+            Value::F64(Some(p.t_s))
+        })
+        .col(
             ColumnSpec::new(
                 "node",
                 ColType::Int32,
                 "",
                 "node index (nodes made by bond failures are numbered after the given ones)",
             ),
-            ColumnSpec::new("x_m", ColType::Float64, "m", "position"),
-            ColumnSpec::new("y_m", ColType::Float64, "m", "position"),
-            ColumnSpec::new("u_m_s", ColType::Float64, "m/s", "velocity, x"),
-            ColumnSpec::new("v_m_s", ColType::Float64, "m/s", "velocity, y"),
-        ],
-    }
+            |p| Value::I32(Some(p.node as i32)),
+        )
+        .col(f("x_m", "m", "position"), |p| Value::F64(Some(p.r[0])))
+        .col(f("y_m", "m", "position"), |p| Value::F64(Some(p.r[1])))
+        .col(f("u_m_s", "m/s", "velocity, x"), |p| {
+            Value::F64(Some(p.u[0]))
+        })
+        .col(f("v_m_s", "m/s", "velocity, y"), |p| {
+            Value::F64(Some(p.u[1]))
+        })
 }
 
 /// One simulated run to be written.
@@ -266,9 +259,9 @@ pub fn band_limited(sig: &[f64], g: &super::model::GridSpec) -> Vec<f64> {
     super::acoustic::low_pass(sig, 1.0 / g.dt, b.pass_hz, b.stop_hz)
 }
 
-/// Rows of the simulated waveform table, one per sensor that triggered, then the run's
-/// erroneous records (`run.faults`, channels 101, 102, …).
-pub fn rows(run: &Run) -> Vec<store::Row> {
+/// The simulated signals of a run, one per sensor that triggered, then the run's erroneous
+/// records (`run.faults`, channels 101, 102, …).
+pub fn rows(run: &Run) -> Vec<SimSignal> {
     let g = match &run.model.grid {
         Some(g) => g,
         None => return vec![],
@@ -287,32 +280,29 @@ pub fn rows(run: &Run) -> Vec<store::Row> {
                params: String,
                (x, y): (f64, f64),
                p: &[f64]| {
-        // The waveform table's cells come from the record (one definition, store's), then
-        // the simulation's own columns.
-        let mut cells = store::waveform_row(crate::model::AeRecord {
-            experiment: run.model.name.clone(),
-            channel: channel as u32,
-            hit: run.hit,
-            time_s: Some(0.0),
-            sample_rate_hz: fs,
-            pretrigger: rec.pretrigger as u32,
-            samples: rec.samples,
-            load_n: None,
-            extension_m: None,
-            label,
-            threshold_v: Some(rec.threshold_v),
-            source_file: run.source.clone(),
-            kind: crate::model::RecordKind::Hit,
-        });
-        cells.extend([
-            Value::Str(Some(run.source.clone())),
-            Value::Str(Some(params)),
-            Value::F64(Some(x)),
-            Value::F64(Some(y)),
-            Value::F64(Some(run.acq.scale_v_per_pa)),
-            Value::F64(Some(super::dominant_frequency(p, fs))),
-        ]);
-        cells
+        SimSignal {
+            wave: store::WaveformRow::from(crate::model::AeRecord {
+                experiment: run.model.name.clone(),
+                channel: channel as u32,
+                hit: run.hit,
+                time_s: Some(0.0),
+                sample_rate_hz: fs,
+                pretrigger: rec.pretrigger as u32,
+                samples: rec.samples,
+                load_n: None,
+                extension_m: None,
+                label,
+                threshold_v: Some(rec.threshold_v),
+                source_file: run.source.clone(),
+                kind: crate::model::RecordKind::Hit,
+            }),
+            sim_model: run.source.clone(),
+            sim_params: params,
+            sensor_x_m: x,
+            sensor_y_m: y,
+            scale_v_per_pa: run.acq.scale_v_per_pa,
+            dominant_frequency_hz: super::dominant_frequency(p, fs),
+        }
     };
     let mut out = Vec::new();
     let mut heard = Vec::new();
@@ -364,10 +354,11 @@ pub fn write_waveforms(path: &Path, runs: &[Run]) -> Result<u64, SimError> {
         .map(|b| format!("{b:02x}"))
         .collect();
     let meta = [("aepipe.config_sha256".to_string(), digest)];
-    let mut w = TableWriter::create(path, sim_waveforms_table(), &meta, 256).map_err(io)?;
+    let table = sim_waveforms_table();
+    let mut w = TableWriter::create(path, table.schema(), &meta, 256).map_err(io)?;
     for run in runs {
-        for row in rows(run) {
-            w.push(row).map_err(io)?;
+        for sig in rows(run) {
+            w.push(table.row(sig)).map_err(io)?;
         }
     }
     w.finish().map_err(io)
@@ -375,18 +366,17 @@ pub fn write_waveforms(path: &Path, runs: &[Run]) -> Result<u64, SimError> {
 
 pub fn write_trajectories(path: &Path, frames: &[Frame]) -> Result<u64, SimError> {
     let io = |e: store::StoreError| SimError::Io(e.to_string());
-    let mut w = TableWriter::create(path, trajectory_table(), &[], 65_536).map_err(io)?;
+    let table = trajectory_table();
+    let mut w = TableWriter::create(path, table.schema(), &[], 65_536).map_err(io)?;
     for f in frames {
-        for (i, (r, u)) in f.r.iter().zip(&f.u).enumerate() {
-            w.push(vec![
-                Value::F64(Some(f.t)),
-                Value::I32(Some(i as i32)),
-                Value::F64(Some(r[0])),
-                Value::F64(Some(r[1])),
-                Value::F64(Some(u[0])),
-                Value::F64(Some(u[1])),
-            ])
-            .map_err(io)?;
+        for (node, (r, u)) in f.r.iter().zip(&f.u).enumerate() {
+            let p = TrajectoryPoint {
+                t_s: f.t,
+                node,
+                r: *r,
+                u: *u,
+            };
+            w.push(table.row(p)).map_err(io)?;
         }
     }
     w.finish().map_err(io)

@@ -185,16 +185,34 @@ pub fn build_library(
     build_library_part(cfg, out, None, progress)
 }
 
-/// What `DIR/shards/reference-K-of-N.json` records of one shard of a library.
+/// The experiment id of every signal of a reference library (and its Hive partition).
+pub const LIBRARY_EXPERIMENT: &str = "reference";
+
+/// What a library's folder holds, by name.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct LibraryDir(std::path::PathBuf);
+
+impl LibraryDir {
+    pub fn new(p: impl Into<std::path::PathBuf>) -> LibraryDir {
+        LibraryDir(p.into())
+    }
+    pub fn path(&self) -> &Path {
+        &self.0
+    }
+    /// The whole library (`aepipe reference`, `aepipe merge` of library shards).
+    pub fn waveforms(&self) -> std::path::PathBuf {
+        self.0.join("waveforms.parquet")
+    }
+    /// Shard K's signals (`waveforms/experiment=reference/part-K.parquet`).
+    pub fn part(&self, k: u32) -> std::path::PathBuf {
+        crate::store::shard::hive_file(&self.0, "waveforms", LIBRARY_EXPERIMENT, k)
+    }
+}
+
+/// What a library shard's manifest (`shards/shard-K-of-N.json`, kind `reference_library`)
+/// records besides its header (whose `keys` are the grid indices it simulated).
 #[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct LibraryShard {
-    pub tool_version: String,
-    /// SHA-256 of the library definition (canonical TOML).
-    pub definition_sha256: String,
-    pub k: u32,
-    pub n: u32,
-    /// The grid indices (0-based; a signal's `hit` is its index + 1) this shard simulated.
-    pub runs: Vec<usize>,
     pub signals: u64,
 }
 
@@ -248,7 +266,7 @@ pub fn build_library_part(
                     .collect();
                 m.check()?;
             }
-            m.name = "reference".into();
+            m.name = LIBRARY_EXPERIMENT.into();
             let o = simulate(&m, &SimOptions::default())?;
             pb.inc(1);
             Ok((m, o, format!("scenario:{name}"), p.to_json()))
@@ -272,31 +290,29 @@ pub fn build_library_part(
         })
         .collect();
     let Some(sh) = shard else {
-        let n = output::write_waveforms(&out.join("waveforms.parquet"), &rows)?;
+        let n = output::write_waveforms(&LibraryDir::new(out).waveforms(), &rows)?;
         return Ok((runs.len(), n, t0.elapsed().as_secs_f64()));
     };
-    let io = |p: &Path, e: std::io::Error| SimError::Io(format!("{}: {e}", p.display()));
-    let dir = out.join("waveforms").join("experiment=reference");
-    std::fs::create_dir_all(&dir).map_err(|e| io(&dir, e))?;
-    let n = output::write_waveforms(&dir.join(format!("part-{}.parquet", sh.k)), &rows)?;
-    let m = LibraryShard {
-        tool_version: env!("CARGO_PKG_VERSION").into(),
-        definition_sha256: definition_hash(cfg),
-        k: sh.k,
-        n: sh.n,
-        runs: keep,
-        signals: n,
+    let dir = LibraryDir::new(out);
+    let part = dir.part(sh.k);
+    let folder = part.parent().expect("a part has a folder");
+    std::fs::create_dir_all(folder)
+        .map_err(|e| SimError::Io(format!("{}: {e}", folder.display())))?;
+    let n = output::write_waveforms(&part, &rows)?;
+    let file = crate::store::shard::published(out, &part)?;
+    let m = crate::store::shard::ShardFile {
+        header: crate::store::shard::ShardHeader {
+            kind: crate::store::shard::ShardKind::ReferenceLibrary,
+            tool_version: env!("CARGO_PKG_VERSION").into(),
+            definition_sha256: definition_hash(cfg),
+            k: sh.k,
+            n: sh.n,
+            keys: keep.iter().map(|k| k.to_string()).collect(),
+            files: vec![file],
+        },
+        payload: LibraryShard { signals: n },
     };
-    let sd = out.join("shards");
-    std::fs::create_dir_all(&sd).map_err(|e| io(&sd, e))?;
-    let mp = sd.join(format!("reference-{}-of-{}.json", sh.k, sh.n));
-    crate::util::write_atomic(
-        &mp,
-        serde_json::to_string_pretty(&m)
-            .expect("shard record serialises")
-            .as_bytes(),
-    )
-    .map_err(|e| SimError::Io(e.to_string()))?;
+    crate::store::shard::write_manifest(out, &m).map_err(|e| SimError::Io(e.to_string()))?;
     Ok((runs.len(), n, t0.elapsed().as_secs_f64()))
 }
 
@@ -305,50 +321,15 @@ pub fn build_library_part(
 /// missing or were made from another definition or tool version.
 pub fn merge_library(dir: &Path, out: &Path) -> Result<u64, SimError> {
     let bad = |m: String| SimError::Model(format!("{}: {m}", dir.display()));
-    let mut shards: BTreeMap<u32, LibraryShard> = BTreeMap::new();
-    for e in std::fs::read_dir(dir.join("shards"))
-        .map_err(|e| bad(format!("no shards/ folder ({e})")))?
-        .flatten()
-    {
-        let name = e.file_name().to_string_lossy().to_string();
-        if name.starts_with("reference-") && name.ends_with(".json") {
-            let text = std::fs::read_to_string(e.path()).map_err(|x| bad(x.to_string()))?;
-            let m: LibraryShard =
-                serde_json::from_str(&text).map_err(|x| bad(format!("{name}: {x}")))?;
-            shards.insert(m.k, m);
-        }
-    }
-    let first =
-        shards.values().next().cloned().ok_or_else(|| {
-            bad("no reference shard manifests (shards/reference-K-of-N.json)".into())
-        })?;
-    if let Some(m) = shards.values().find(|m| {
-        (m.n, &m.definition_sha256, &m.tool_version)
-            != (first.n, &first.definition_sha256, &first.tool_version)
-    }) {
-        return Err(bad(format!(
-            "shard {} disagrees with shard {} (N, definition or tool version)",
-            m.k, first.k
-        )));
-    }
-    let missing: Vec<String> = (0..first.n)
-        .filter(|k| !shards.contains_key(k))
-        .map(|k| k.to_string())
-        .collect();
-    if !missing.is_empty() {
-        return Err(bad(format!(
-            "library shard(s) {} of {} missing: resubmit them",
-            missing.join(", "),
-            first.n
-        )));
-    }
+    let shards: Vec<crate::store::shard::ShardFile<LibraryShard>> =
+        crate::store::shard::read_shards(dir, crate::store::shard::ShardKind::ReferenceLibrary)?;
+    let first = shards[0].header.clone();
+    let src = LibraryDir::new(dir);
     // Every part's rows, then in grid order (hit, channel).
     let mut batches = Vec::new();
     let mut schema = None;
-    for k in shards.keys() {
-        let p = dir
-            .join("waveforms/experiment=reference")
-            .join(format!("part-{k}.parquet"));
+    for m in &shards {
+        let p = src.part(m.header.k);
         let (sch, _, b) =
             crate::store::read_parquet(&p).map_err(|e| SimError::Read(e.to_string()))?;
         schema.get_or_insert(sch);
@@ -375,8 +356,8 @@ pub fn merge_library(dir: &Path, out: &Path) -> Result<u64, SimError> {
         first.definition_sha256.clone(),
     )];
     let mut w = crate::store::TableWriter::create(
-        &out.join("waveforms.parquet"),
-        output::sim_waveforms_table(),
+        &LibraryDir::new(out).waveforms(),
+        output::sim_waveforms_table().schema(),
         &meta,
         256,
     )

@@ -10,6 +10,7 @@
 //! Hyper-parameters are checked once into [`SomParams::check`] → [`ValidParams`] (linfa's
 //! way), then [`Som::fit`] trains and [`Som::bmu`] / [`Som::classify`] predict.
 
+pub mod layout;
 pub mod profile;
 pub mod tables;
 
@@ -30,6 +31,18 @@ pub enum SomError {
     Write { path: String, message: String },
     #[error("SOM_PAK codebook: {0}")]
     Codebook(String),
+}
+
+impl crate::util::HasKind for SomError {
+    fn kind(&self) -> crate::util::ErrorKind {
+        match self {
+            SomError::Params(_)
+            | SomError::Data(_)
+            | SomError::File { .. }
+            | SomError::Codebook(_) => crate::util::ErrorKind::Usage,
+            SomError::Write { .. } => crate::util::ErrorKind::Failed,
+        }
+    }
 }
 
 /// One training stage.

@@ -3,70 +3,103 @@
 //! each class, so that "fibre failures occur before final fracture" can be read off a test.
 
 use super::SomError;
-use crate::store::{ColType, ColumnSpec, HitKey, TableScan, TableSchema, TableWriter, Value};
+use crate::model::Mechanism;
+use crate::store::{ColType, ColumnSpec, HitKey, Table, TableScan, TableWriter, Value};
 use polars::prelude::col;
 use std::collections::BTreeMap;
 use std::path::Path;
 
 /// The classes with a column of their own; any other class (e.g. `unclassified` from a map
 /// labelled by criteria) counts in `n_other`.
-pub const CLASSES: [&str; 3] = ["bond_failure", "fibre_failure", "erroneous"];
+pub const CLASSES: [Mechanism; 3] = [
+    Mechanism::BondFailure,
+    Mechanism::FibreFailure,
+    Mechanism::Erroneous,
+];
 
 /// `damage_profile.parquet`.
-pub fn profile_table() -> TableSchema {
-    let mut columns = vec![
-        ColumnSpec::new("experiment", ColType::Utf8, "", "experiment id"),
-        ColumnSpec::new("channel", ColType::Int32, "", "sensor channel"),
-        ColumnSpec::new("hit", ColType::Int64, "", "hit number"),
-        ColumnSpec::new(
-            "time_s",
-            ColType::Float64,
-            "s",
-            "hit time (null: the format records none; rows are then in hit order)",
+pub fn profile_table() -> Table<ProfileRow> {
+    let mut t = Table::new("damage_profile")
+        .col(
+            ColumnSpec::new("experiment", ColType::Utf8, "", "experiment id"),
+            |r: &ProfileRow| Value::Str(Some(r.key.0.clone())),
         )
-        .nullable(),
-        ColumnSpec::new(
-            "load_n",
-            ColType::Float64,
-            "N",
-            "test-machine load at the hit (null: no load channel)",
+        .col(
+            ColumnSpec::new("channel", ColType::Int32, "", "sensor channel"),
+            |r| Value::I32(Some(r.key.1)),
         )
-        .nullable(),
-        ColumnSpec::new(
-            "extension_m",
-            ColType::Float64,
-            "m",
-            "test-machine extension at the hit (null: none)",
+        .col(
+            ColumnSpec::new("hit", ColType::Int64, "", "hit number"),
+            |r| Value::I64(Some(r.key.2)),
         )
-        .nullable(),
-        ColumnSpec::new("class", ColType::Utf8, "", "the SOM's class of the hit"),
-        ColumnSpec::new(
-            "before_peak_load",
-            ColType::Bool,
-            "",
-            "the hit comes before the experiment × channel's largest load (null: no load)",
+        .col(
+            ColumnSpec::new(
+                "time_s",
+                ColType::Float64,
+                "s",
+                "hit time (null: the format records none; rows are then in hit order)",
+            )
+            .nullable(),
+            |r| Value::F64(r.time_s),
         )
-        .nullable(),
-    ];
-    for c in CLASSES {
-        columns.push(ColumnSpec::new(
-            format!("n_{c}"),
+        .col(
+            ColumnSpec::new(
+                "load_n",
+                ColType::Float64,
+                "N",
+                "test-machine load at the hit (null: no load channel)",
+            )
+            .nullable(),
+            |r| Value::F64(r.load_n),
+        )
+        .col(
+            ColumnSpec::new(
+                "extension_m",
+                ColType::Float64,
+                "m",
+                "test-machine extension at the hit (null: none)",
+            )
+            .nullable(),
+            |r| Value::F64(r.extension_m),
+        )
+        .col(
+            ColumnSpec::new("class", ColType::Utf8, "", "the SOM's class of the hit"),
+            |r| Value::Str(Some(r.class.clone())),
+        )
+        .col(
+            ColumnSpec::new(
+                "before_peak_load",
+                ColType::Bool,
+                "",
+                "the hit comes before the experiment × channel's largest load (null: no load)",
+            )
+            .nullable(),
+            |r| Value::Bool(r.before_peak_load),
+        );
+    for (k, c) in CLASSES.iter().enumerate() {
+        t = t.col(
+            ColumnSpec::new(
+                format!("n_{c}"),
+                ColType::Int64,
+                "hits",
+                &format!("{c} hits of this experiment × channel up to and including this one"),
+            ),
+            move |r: &ProfileRow| Value::I64(Some(r.counts[k] as i64)),
+        );
+    }
+    t.col(
+        ColumnSpec::new(
+            "n_other",
             ColType::Int64,
             "hits",
-            &format!("{c} hits of this experiment × channel up to and including this one"),
-        ));
-    }
-    columns.push(ColumnSpec::new(
-        "n_other",
-        ColType::Int64,
-        "hits",
-        "hits of any other class up to and including this one",
-    ));
-    TableSchema {
-        name: "damage_profile".into(),
-        columns,
-    }
+            "hits of any other class up to and including this one",
+        ),
+        |r| Value::I64(Some(r.counts[OTHER] as i64)),
+    )
 }
+
+/// The slot of "any other class" in [`ProfileRow::counts`].
+pub const OTHER: usize = CLASSES.len();
 
 /// One classified hit of the profile.
 #[derive(Debug, Clone, PartialEq)]
@@ -77,8 +110,8 @@ pub struct ProfileRow {
     pub extension_m: Option<f64>,
     pub class: String,
     pub before_peak_load: Option<bool>,
-    /// Running counts of [`CLASSES`], then "other".
-    pub counts: [u64; 4],
+    /// Running counts of [`CLASSES`], then "other" (at [`OTHER`]).
+    pub counts: [u64; OTHER + 1],
 }
 
 /// Per experiment × channel: the class totals and how many came before the peak load.
@@ -122,7 +155,9 @@ impl ProfileSummary {
 }
 
 fn slot(class: &str) -> usize {
-    CLASSES.iter().position(|c| *c == class).unwrap_or(3)
+    Mechanism::parse(class)
+        .and_then(|m| CLASSES.iter().position(|c| *c == m))
+        .unwrap_or(OTHER)
 }
 
 /// Build the profile from a feature table (time, load, extension) and the classification
@@ -207,7 +242,7 @@ pub fn build(
             if before == Some(true) {
                 e.1 += 1;
             }
-            if class == "fibre_failure" {
+            if Mechanism::parse(&class) == Some(Mechanism::FibreFailure) {
                 summary.last_fibre_s = time[i].or(summary.last_fibre_s);
             }
             summary.last_hit_s = time[i].or(summary.last_hit_s);
@@ -236,20 +271,10 @@ pub fn write(path: &Path, rows: &[ProfileRow], config_sha256: &str) -> Result<u6
         "aepipe.config_sha256".to_string(),
         config_sha256.to_string(),
     )];
-    let mut w = TableWriter::create(path, profile_table(), &meta, 65_536).map_err(werr)?;
+    let table = profile_table();
+    let mut w = TableWriter::create(path, table.schema(), &meta, 65_536).map_err(werr)?;
     for r in rows {
-        let mut v = vec![
-            Value::Str(Some(r.key.0.clone())),
-            Value::I32(Some(r.key.1)),
-            Value::I64(Some(r.key.2)),
-            Value::F64(r.time_s),
-            Value::F64(r.load_n),
-            Value::F64(r.extension_m),
-            Value::Str(Some(r.class.clone())),
-            Value::Bool(r.before_peak_load),
-        ];
-        v.extend(r.counts.iter().map(|&n| Value::I64(Some(n as i64))));
-        w.push(v).map_err(werr)?;
+        w.push(table.row(r.clone())).map_err(werr)?;
     }
     w.finish().map_err(werr)
 }

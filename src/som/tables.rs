@@ -1,8 +1,9 @@
 //! The SOM workflow on feature tables: inputs, the balanced training set of ch. 5.4, model
 //! files, classification of every hit and the confusion report of Table 5.4.
 
+use super::layout::{ClassifyDir, ModelDir};
 use super::{Init, Som, SomError, SomParams};
-use crate::store::{ColType, ColumnSpec, HitKey, TableScan, TableSchema, TableWriter, Value};
+use crate::store::{ColType, ColumnSpec, HitKey, Table, TableScan, TableWriter, Value};
 use ndarray::{Array2, ArrayView2, Axis};
 use polars::prelude::{col, DataType};
 use std::collections::BTreeMap;
@@ -349,12 +350,12 @@ pub fn train(paths: &[PathBuf], out: &Path, o: &TrainOptions) -> Result<Model, S
         tool_version: env!("CARGO_PKG_VERSION").into(),
     };
     std::fs::create_dir_all(out).map_err(|e| werr(out, e))?;
-    let w = |name: &str, text: String| {
-        crate::util::write_atomic(&out.join(name), text.as_bytes())
-            .map_err(|e| werr(&out.join(name), e))
+    let dir = ModelDir::new(out);
+    let w = |p: PathBuf, text: String| {
+        crate::util::write_atomic(&p, text.as_bytes()).map_err(|e| werr(&p, e))
     };
-    w("model.json", serde_json::to_string(&model).expect("json"))?;
-    w("model.cod", model.som.to_cod())?;
+    w(dir.json(), serde_json::to_string(&model).expect("json"))?;
+    w(dir.cod(), model.som.to_cod())?;
     let mut dat = format!("{dim}\n");
     for (x, l) in data.rows().into_iter().zip(&labels) {
         dat.push_str(
@@ -367,7 +368,7 @@ pub fn train(paths: &[PathBuf], out: &Path, o: &TrainOptions) -> Result<Model, S
         dat.push_str(l);
         dat.push('\n');
     }
-    w("train.dat", dat)?;
+    w(dir.train_dat(), dat)?;
     Ok(model)
 }
 
@@ -380,9 +381,9 @@ pub fn load_model(path: &Path) -> Result<Model, SomError> {
         .extension()
         .is_some_and(|e| e.eq_ignore_ascii_case("cod"));
     let json = if path.is_dir() {
-        path.join("model.json")
+        ModelDir::new(path).json()
     } else if is_cod {
-        path.with_file_name("model.json")
+        ModelDir::new(path.parent().unwrap_or(Path::new(""))).json()
     } else {
         path.to_path_buf()
     };
@@ -413,20 +414,28 @@ pub fn load_model(path: &Path) -> Result<Model, SomError> {
     Ok(m)
 }
 
-pub fn classification_table() -> TableSchema {
-    TableSchema {
-        name: "classification".into(),
-        columns: vec![
-            ColumnSpec::new("experiment", ColType::Utf8, "", "experiment id"),
-            ColumnSpec::new("channel", ColType::Int32, "", "sensor channel"),
-            ColumnSpec::new("hit", ColType::Int64, "", "hit number"),
-            ColumnSpec::new("bmu_row", ColType::Int32, "", "row of the best-matching unit on the map"),
-            ColumnSpec::new("bmu_col", ColType::Int32, "", "column of the best-matching unit"),
-            ColumnSpec::new("bmu_distance", ColType::Float64, "1", "Euclidean distance of the hit's vector to its BMU (in the model's, possibly standardised, units)"),
-            ColumnSpec::new("som_label", ColType::Utf8, "", "label of the BMU node: the class the SOM assigns"),
-            ColumnSpec::new("reference_label", ColType::Utf8, "", "the hit's label in the reference column (e.g. criteria_label or label); null if none").nullable(),
-        ],
-    }
+/// One classified hit: a row of `classification.parquet`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Classified {
+    pub key: HitKey,
+    pub bmu_row: usize,
+    pub bmu_col: usize,
+    pub bmu_distance: f64,
+    pub som_label: String,
+    pub reference_label: Option<String>,
+}
+
+/// `classification.parquet`: the SOM class of every hit.
+pub fn classification_table() -> Table<Classified> {
+    Table::new("classification")
+        .col(ColumnSpec::new("experiment", ColType::Utf8, "", "experiment id"), |c: &Classified| Value::Str(Some(c.key.0.clone())))
+        .col(ColumnSpec::new("channel", ColType::Int32, "", "sensor channel"), |c| Value::I32(Some(c.key.1)))
+        .col(ColumnSpec::new("hit", ColType::Int64, "", "hit number"), |c| Value::I64(Some(c.key.2)))
+        .col(ColumnSpec::new("bmu_row", ColType::Int32, "", "row of the best-matching unit on the map"), |c| Value::I32(Some(c.bmu_row as i32)))
+        .col(ColumnSpec::new("bmu_col", ColType::Int32, "", "column of the best-matching unit"), |c| Value::I32(Some(c.bmu_col as i32)))
+        .col(ColumnSpec::new("bmu_distance", ColType::Float64, "1", "Euclidean distance of the hit's vector to its BMU (in the model's, possibly standardised, units)"), |c| Value::F64(Some(c.bmu_distance)))
+        .col(ColumnSpec::new("som_label", ColType::Utf8, "", "label of the BMU node: the class the SOM assigns"), |c| Value::Str(Some(c.som_label.clone())))
+        .col(ColumnSpec::new("reference_label", ColType::Utf8, "", "the hit's label in the reference column (e.g. criteria_label or label); null if none").nullable(), |c| Value::Str(c.reference_label.clone()))
 }
 
 /// The confusion report: for each SOM class, how its hits split over reference groups.
@@ -520,9 +529,10 @@ pub fn classify_tables(
         )));
     }
     std::fs::create_dir_all(out).map_err(|e| werr(out, e))?;
-    let path = out.join("classification.parquet");
-    let mut w = TableWriter::create(&path, classification_table(), &[], 4096)
-        .map_err(|e| werr(&path, e))?;
+    let path = ClassifyDir::new(out).classification();
+    let table = classification_table();
+    let mut w =
+        TableWriter::create(&path, table.schema(), &[], 4096).map_err(|e| werr(&path, e))?;
     let mut conf = Confusion::default();
     let mut x = vec![0.0; inp.dim()];
     for (i, key) in inp.keys.iter().enumerate() {
@@ -542,16 +552,14 @@ pub fn classify_tables(
                 conf.correct += 1;
             }
         }
-        w.push(vec![
-            Value::Str(Some(key.0.clone())),
-            Value::I32(Some(key.1)),
-            Value::I64(Some(key.2)),
-            Value::I32(Some((b / model.som.cols) as i32)),
-            Value::I32(Some((b % model.som.cols) as i32)),
-            Value::F64(Some(d)),
-            Value::Str(Some(l)),
-            Value::Str(inp.labels[i].clone()),
-        ])
+        w.push(table.row(Classified {
+            key: key.clone(),
+            bmu_row: b / model.som.cols,
+            bmu_col: b % model.som.cols,
+            bmu_distance: d,
+            som_label: l,
+            reference_label: inp.labels[i].clone(),
+        }))
         .map_err(|e| werr(&path, e))?;
     }
     w.finish().map_err(|e| werr(&path, e))?;

@@ -48,6 +48,18 @@ pub enum StoreError {
     Read { path: String, message: String },
 }
 
+impl crate::util::HasKind for StoreError {
+    fn kind(&self) -> crate::util::ErrorKind {
+        match self {
+            StoreError::Read { .. } => crate::util::ErrorKind::Usage,
+            StoreError::Io { .. }
+            | StoreError::Parquet { .. }
+            | StoreError::Arrow { .. }
+            | StoreError::Schema { .. } => crate::util::ErrorKind::Failed,
+        }
+    }
+}
+
 /// The column types aepipe writes.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum ColType {
@@ -310,9 +322,13 @@ pub struct TableWriter {
 pub use crate::util::tmp_path_for;
 
 pub mod read;
+pub mod shard;
 pub mod table;
 pub use read::{HitKey, TableScan};
-pub use table::{markers_table, parametric_table, Table};
+pub use table::{
+    hits_table, identity_table, markers_table, parametric_table, rejects_table, waveforms_table,
+    Identity, Table, WaveformRow,
+};
 
 /// Remove temporary files left in `dir` by an interrupted earlier run.
 pub fn clean_stale_tmp(dir: &Path) {
@@ -579,230 +595,13 @@ pub fn parse_schema_markdown(text: &str) -> Vec<(String, String, bool)> {
         .collect()
 }
 
-/// The canonical waveform table: one row per hit, samples in volts.
-pub fn waveforms_table() -> TableSchema {
-    let mut columns = identity_columns();
-    columns.push(ColumnSpec::new(
-        "samples_v",
-        ColType::ListF32,
-        "V",
-        "the waveform, volts at the sensor",
-    ));
-    columns.push(ColumnSpec::new(
-        "source_file",
-        ColType::Utf8,
-        "",
-        "file the samples were read from",
-    ));
-    TableSchema {
-        name: "waveforms".into(),
-        columns,
-    }
-}
-
-/// Columns that identify a hit and carry its acquisition metadata, shared by the waveform and
-/// feature tables (same names, same order).
-pub fn identity_columns() -> Vec<ColumnSpec> {
-    vec![
-        ColumnSpec::new("experiment", ColType::Utf8, "", "experiment id: file stem of a Vallen pair or multi-hit file, folder name for one-hit-per-file folders; when two experiments of a batch would share one, their path below the input folder (`a/bearing`, `b/bearing`)"),
-        ColumnSpec::new("channel", ColType::Int32, "", "sensor channel as numbered by the acquisition system (0 = unknown)"),
-        ColumnSpec::new("hit", ColType::Int64, "", "transient number inside the experiment, 1-based: Vallen TRAI (plus the largest TRAI of the earlier acquisitions after a restart), MISTRAS waveform #, AEwin hit #, event #; hits.parquet links each hit to it"),
-        ColumnSpec::new("time_s", ColType::Float64, "s", "trigger time since the start of the acquisition (null: the format does not record it)").nullable(),
-        ColumnSpec::new("sample_rate_hz", ColType::Float64, "Hz", "sampling rate"),
-        ColumnSpec::new("pretrigger_samples", ColType::Int32, "samples", "samples recorded before the trigger"),
-        ColumnSpec::new("n_samples", ColType::Int32, "samples", "record length"),
-        ColumnSpec::new("load_n", ColType::Float64, "N", "test-machine load at the hit time (null: no load channel)").nullable(),
-        ColumnSpec::new("extension_m", ColType::Float64, "m", "test-machine extension at the hit time (null: none)").nullable(),
-        ColumnSpec::new("label", ColType::Utf8, "", "ground-truth or user label (simulator mechanism, hand label); null if none").nullable(),
-        ColumnSpec::new("threshold_v", ColType::Float64, "V", "detection threshold the acquisition used (Vallen Thr); null if not recorded").nullable(),
-        ColumnSpec::new("record_kind", ColType::Utf8, "", "`hit`: the waveform of a hit (hits.parquet links to it, or the format has no hit list); `standalone`: a waveform no hit points to (a MISTRAS waveform message without its hit, e.g. an automatic sensor test; a .tradb transient no .pridb hit links to)"),
-    ]
-}
-
-/// The identity cells of a record, in [`identity_columns`] order.
-pub fn identity_values(r: &crate::model::AeRecord) -> Row {
-    vec![
-        Value::Str(Some(r.experiment.clone())),
-        Value::I32(Some(r.channel as i32)),
-        Value::I64(Some(r.hit as i64)),
-        Value::F64(r.time_s),
-        Value::F64(Some(r.sample_rate_hz)),
-        Value::I32(Some(r.pretrigger as i32)),
-        Value::I32(Some(r.samples.len() as i32)),
-        Value::F64(r.load_n),
-        Value::F64(r.extension_m),
-        Value::Str(r.label.clone()),
-        Value::F64(r.threshold_v),
-        Value::Str(Some(r.kind.as_str().to_string())),
-    ]
-}
-
-/// A waveform-table row for one record (consumes it: the samples move, no copy).
-pub fn waveform_row(r: crate::model::AeRecord) -> Row {
-    let mut row = identity_values(&r);
-    row.push(Value::F32s(Some(r.samples)));
-    row.push(Value::Str(Some(r.source_file)));
-    row
-}
-
-/// The reject table: every hit (or file) that did not become a feature row.
-pub fn rejects_table() -> TableSchema {
-    TableSchema {
-        name: "rejects".into(),
-        columns: vec![
-            ColumnSpec::new(
-                "experiment",
-                ColType::Utf8,
-                "",
-                "experiment id (empty when the file could not be assigned to one)",
-            ),
-            ColumnSpec::new("source_file", ColType::Utf8, "", "the input file"),
-            ColumnSpec::new(
-                "record_id",
-                ColType::Utf8,
-                "",
-                "which record (`ch1 hit 17`, `TRAI 12`, `event 3`); empty for a whole file",
-            ),
-            ColumnSpec::new(
-                "stage",
-                ColType::Utf8,
-                "",
-                "pipeline stage: discover, read, validate or features",
-            ),
-            ColumnSpec::new("reason", ColType::Utf8, "", "one line saying what is wrong"),
-            ColumnSpec::new(
-                "record_type",
-                ColType::Utf8,
-                "",
-                "what is lost: transient, hit, parametric, status, marker, or file (a whole file, or the rest of one, whose records could not be told apart)",
-            ),
-        ],
-    }
-}
-
-/// The hit table: one row per hit of every source, with the acquisition system's own
-/// features (see `data-schema/hits.md` for each vendor's name of each column).
-pub fn hits_table() -> TableSchema {
-    let f = |name: &str, unit: &str, doc: &str| {
-        ColumnSpec::new(name, ColType::Float64, unit, doc).nullable()
-    };
-    TableSchema {
-        name: "hits".into(),
-        columns: vec![
-            ColumnSpec::new("experiment", ColType::Utf8, "", "experiment id"),
-            ColumnSpec::new(
-                "acquisition",
-                ColType::Int32,
-                "",
-                "1-based acquisition in the experiment (a Vallen database restarted into the same file holds several)",
-            ),
-            ColumnSpec::new("channel", ColType::Int32, "", "sensor channel"),
-            ColumnSpec::new(
-                "hit",
-                ColType::Int64,
-                "",
-                "1-based order of the hit in its experiment, as the system stored the hits",
-            ),
-            f("time_s", "s", "hit time since the start of the acquisition"),
-            f("amplitude_db", "dB_AE", "peak amplitude, dB re 1 µV at the sensor"),
-            f("threshold_db", "dB_AE", "detection threshold"),
-            f("rise_time_s", "s", "rise time"),
-            f("duration_s", "s", "duration"),
-            ColumnSpec::new("counts", ColType::Int64, "", "threshold crossings").nullable(),
-            ColumnSpec::new("counts_to_peak", ColType::Int64, "", "crossings up to the peak").nullable(),
-            f("energy_eu", "eu", "Vallen energy (1 eu = 1e-14 V²s)"),
-            f("energy_counts", "", "MISTRAS energy counts (ENER)"),
-            f("abs_energy_aj", "aJ", "MISTRAS absolute energy"),
-            f("signal_strength_vs", "V·s", "signal strength"),
-            f("rms_v", "V", "RMS of the signal"),
-            f("avg_freq_hz", "Hz", "average frequency (counts / duration)"),
-            f("centroid_freq_hz", "Hz", "frequency centroid"),
-            f("peak_freq_hz", "Hz", "peak frequency"),
-            f("load_n", "N", "test-machine load at the hit"),
-            f("extension_m", "m", "test-machine extension at the hit"),
-            ColumnSpec::new(
-                "parametric",
-                ColType::Utf8,
-                "",
-                "the hit's parametric inputs as a JSON object of volts",
-            )
-            .nullable(),
-            ColumnSpec::new(
-                "transient",
-                ColType::Int64,
-                "",
-                "`hit` of this hit's transient in features/waveforms/rejects; null: no transient",
-            )
-            .nullable(),
-            ColumnSpec::new("trai", ColType::Int64, "", "Vallen TRAI as stored").nullable(),
-            ColumnSpec::new(
-                "vendor_features",
-                ColType::Utf8,
-                "",
-                "further features the system recorded, a JSON object under the vendor's names and units (Vallen .trfdb, other MISTRAS CHIDs)",
-            )
-            .nullable(),
-            ColumnSpec::new(
-                "source",
-                ColType::Utf8,
-                "",
-                "who recorded the features: vallen, mistras, aewin, or record (a format without a hit list)",
-            ),
-            ColumnSpec::new("source_file", ColType::Utf8, "", "the file the hit came from"),
-        ],
-    }
-}
-
-pub fn hit_row(h: &crate::model::HitRow) -> Row {
-    vec![
-        Value::Str(Some(h.experiment.clone())),
-        Value::I32(Some(h.acquisition as i32)),
-        Value::I32(Some(h.channel as i32)),
-        Value::I64(Some(h.hit as i64)),
-        Value::F64(h.time_s),
-        Value::F64(h.amplitude_db),
-        Value::F64(h.threshold_db),
-        Value::F64(h.rise_time_s),
-        Value::F64(h.duration_s),
-        Value::I64(h.counts),
-        Value::I64(h.counts_to_peak),
-        Value::F64(h.energy_eu),
-        Value::F64(h.energy_counts),
-        Value::F64(h.abs_energy_aj),
-        Value::F64(h.signal_strength_vs),
-        Value::F64(h.rms_v),
-        Value::F64(h.avg_freq_hz),
-        Value::F64(h.centroid_freq_hz),
-        Value::F64(h.peak_freq_hz),
-        Value::F64(h.load_n),
-        Value::F64(h.extension_m),
-        Value::Str(h.parametric.clone()),
-        Value::I64(h.transient.map(|t| t as i64)),
-        Value::I64(h.trai),
-        Value::Str(h.vendor_features.clone()),
-        Value::Str(Some(h.source.as_str().to_string())),
-        Value::Str(Some(h.source_file.clone())),
-    ]
-}
-
-pub fn reject_row(r: &crate::model::Reject) -> Row {
-    vec![
-        Value::Str(Some(r.experiment.clone())),
-        Value::Str(Some(r.source_file.clone())),
-        Value::Str(Some(r.record_id.clone())),
-        Value::Str(Some(r.stage.as_str().to_string())),
-        Value::Str(Some(r.reason.clone())),
-        Value::Str(Some(r.record_type.as_str().to_string())),
-    ]
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
 
     #[test]
     fn markdown_round_trips_through_the_parser() {
-        let t = waveforms_table();
+        let t = waveforms_table().schema();
         let parsed = parse_schema_markdown(&t.markdown_columns());
         assert_eq!(parsed.len(), t.columns.len());
         for (c, (n, ty, nullable)) in t.columns.iter().zip(parsed) {
@@ -830,7 +629,7 @@ mod tests {
 
     #[test]
     fn wrong_cell_type_is_an_error_not_a_panic() {
-        let t = rejects_table();
+        let t = rejects_table().schema();
         let row = vec![Value::I32(Some(1)); 6];
         let err = rows_to_batch(&t, &[row]).unwrap_err();
         assert!(err.contains("experiment"), "{err}");
@@ -842,8 +641,8 @@ mod tests {
         std::fs::create_dir_all(&dir).unwrap();
         let path = dir.join("t.parquet");
         {
-            let mut w = TableWriter::create(&path, rejects_table(), &[], 10).unwrap();
-            w.push(reject_row(&crate::model::Reject {
+            let mut w = TableWriter::create(&path, rejects_table().schema(), &[], 10).unwrap();
+            w.push(rejects_table().row(crate::model::Reject {
                 record_type: crate::model::RecordType::Transient,
                 experiment: "e".into(),
                 source_file: "f".into(),

@@ -1,12 +1,16 @@
 //! Tables declared once: every column is one entry holding its [`ColumnSpec`] and the
 //! function that fills it from the row's value, so the Arrow schema, the cells of a row and
 //! the documentation in `data-schema/` all come from one list and cannot drift apart.
-//! Adding a column is one `.col(…)` call.
+//! Adding a column is one `.col(…)` call in the table's declaration.
+//!
+//! A row consumes its value: a column declared with [`Table::col_take`] may move a payload
+//! (a waveform's samples, a record's bins) into its cell instead of copying it.
 
 use super::{ColType, ColumnSpec, Row, TableSchema, Value};
-use crate::model::{MarkerRow, ParametricRow};
+use crate::model::{AeRecord, HitRow, MarkerRow, ParametricRow, RecordKind, Reject};
+use std::sync::Arc;
 
-type Getter<T> = Box<dyn Fn(&T) -> Value + Send + Sync>;
+type Getter<T> = Arc<dyn Fn(&mut T) -> Value + Send + Sync>;
 
 /// A table of rows made from values of `T`.
 pub struct Table<T> {
@@ -14,12 +18,31 @@ pub struct Table<T> {
     cols: Vec<(ColumnSpec, Getter<T>)>,
 }
 
-impl<T> Table<T> {
+impl<T> Clone for Table<T> {
+    fn clone(&self) -> Self {
+        Table {
+            name: self.name.clone(),
+            cols: self.cols.clone(),
+        }
+    }
+}
+
+impl<T: 'static> Table<T> {
     pub fn new(name: &str) -> Table<T> {
         Table {
             name: name.to_string(),
             cols: Vec::new(),
         }
+    }
+
+    pub fn name(&self) -> &str {
+        &self.name
+    }
+
+    /// The same columns under another table name.
+    pub fn renamed(mut self, name: &str) -> Self {
+        self.name = name.to_string();
+        self
     }
 
     /// Add a column: its spec and how a `T` fills it.
@@ -28,7 +51,33 @@ impl<T> Table<T> {
         spec: ColumnSpec,
         get: impl Fn(&T) -> Value + Send + Sync + 'static,
     ) -> Self {
-        self.cols.push((spec, Box::new(get)));
+        self.cols.push((spec, Arc::new(move |t: &mut T| get(t))));
+        self
+    }
+
+    /// Add a column whose cell moves a payload out of the value (e.g. a waveform's samples
+    /// with `std::mem::take`), so the row holds it without a copy. Only this column may read
+    /// the payload.
+    pub fn col_take(
+        mut self,
+        spec: ColumnSpec,
+        get: impl Fn(&mut T) -> Value + Send + Sync + 'static,
+    ) -> Self {
+        self.cols.push((spec, Arc::new(get)));
+        self
+    }
+
+    /// Add every column of `inner`, filled from the part of `T` that `part` points to.
+    pub fn embed<U: 'static>(
+        mut self,
+        inner: Table<U>,
+        part: impl Fn(&mut T) -> &mut U + Send + Sync + Clone + 'static,
+    ) -> Self {
+        for (spec, get) in inner.cols {
+            let part = part.clone();
+            self.cols
+                .push((spec, Arc::new(move |t: &mut T| get(part(t)))));
+        }
         self
     }
 
@@ -41,13 +90,158 @@ impl<T> Table<T> {
     }
 
     /// The cells of one row, in column order.
-    pub fn row(&self, t: &T) -> Row {
-        self.cols.iter().map(|(_, get)| get(t)).collect()
+    pub fn row(&self, mut t: T) -> Row {
+        self.cols.iter().map(|(_, get)| get(&mut t)).collect()
     }
 }
 
-fn s(v: &str) -> Value {
+/// A string cell.
+pub fn s(v: &str) -> Value {
     Value::Str(Some(v.to_string()))
+}
+
+/// What identifies a transient record and carries its acquisition metadata: the leading
+/// columns of the waveform, feature and simulated-waveform tables (same names, same order).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Identity {
+    pub experiment: String,
+    pub channel: u32,
+    pub hit: u64,
+    pub time_s: Option<f64>,
+    pub sample_rate_hz: f64,
+    pub pretrigger: u32,
+    pub n_samples: usize,
+    pub load_n: Option<f64>,
+    pub extension_m: Option<f64>,
+    pub label: Option<String>,
+    pub threshold_v: Option<f64>,
+    pub kind: RecordKind,
+}
+
+impl Identity {
+    pub fn of(r: &AeRecord) -> Identity {
+        Identity {
+            experiment: r.experiment.clone(),
+            channel: r.channel,
+            hit: r.hit,
+            time_s: r.time_s,
+            sample_rate_hz: r.sample_rate_hz,
+            pretrigger: r.pretrigger,
+            n_samples: r.samples.len(),
+            load_n: r.load_n,
+            extension_m: r.extension_m,
+            label: r.label.clone(),
+            threshold_v: r.threshold_v,
+            kind: r.kind,
+        }
+    }
+}
+
+/// The identity columns (see [`Identity`]).
+pub fn identity_table() -> Table<Identity> {
+    Table::new("identity")
+        .col(ColumnSpec::new("experiment", ColType::Utf8, "", "experiment id: file stem of a Vallen pair or multi-hit file, folder name for one-hit-per-file folders; when two experiments of a batch would share one, their path below the input folder (`a/bearing`, `b/bearing`)"), |r: &Identity| s(&r.experiment))
+        .col(ColumnSpec::new("channel", ColType::Int32, "", "sensor channel as numbered by the acquisition system (0 = unknown)"), |r| Value::I32(Some(r.channel as i32)))
+        .col(ColumnSpec::new("hit", ColType::Int64, "", "transient number inside the experiment, 1-based: Vallen TRAI (plus the largest TRAI of the earlier acquisitions after a restart), MISTRAS waveform #, AEwin hit #, event #; hits.parquet links each hit to it"), |r| Value::I64(Some(r.hit as i64)))
+        .col(ColumnSpec::new("time_s", ColType::Float64, "s", "trigger time since the start of the acquisition (null: the format does not record it)").nullable(), |r| Value::F64(r.time_s))
+        .col(ColumnSpec::new("sample_rate_hz", ColType::Float64, "Hz", "sampling rate"), |r| Value::F64(Some(r.sample_rate_hz)))
+        .col(ColumnSpec::new("pretrigger_samples", ColType::Int32, "samples", "samples recorded before the trigger"), |r| Value::I32(Some(r.pretrigger as i32)))
+        .col(ColumnSpec::new("n_samples", ColType::Int32, "samples", "record length"), |r| Value::I32(Some(r.n_samples as i32)))
+        .col(ColumnSpec::new("load_n", ColType::Float64, "N", "test-machine load at the hit time (null: no load channel)").nullable(), |r| Value::F64(r.load_n))
+        .col(ColumnSpec::new("extension_m", ColType::Float64, "m", "test-machine extension at the hit time (null: none)").nullable(), |r| Value::F64(r.extension_m))
+        .col(ColumnSpec::new("label", ColType::Utf8, "", "ground-truth or user label (simulator mechanism, hand label); null if none").nullable(), |r| Value::Str(r.label.clone()))
+        .col(ColumnSpec::new("threshold_v", ColType::Float64, "V", "detection threshold the acquisition used (Vallen Thr); null if not recorded").nullable(), |r| Value::F64(r.threshold_v))
+        .col(ColumnSpec::new("record_kind", ColType::Utf8, "", "`hit`: the waveform of a hit (hits.parquet links to it, or the format has no hit list); `standalone`: a waveform no hit points to (a MISTRAS waveform message without its hit, e.g. an automatic sensor test; a .tradb transient no .pridb hit links to)"), |r| s(r.kind.as_str()))
+}
+
+/// A row of the canonical waveform table: a record's identity, its samples (moved, not
+/// copied) and its file.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct WaveformRow {
+    pub id: Identity,
+    pub samples: Vec<f32>,
+    pub source_file: String,
+}
+
+impl From<AeRecord> for WaveformRow {
+    fn from(r: AeRecord) -> WaveformRow {
+        WaveformRow {
+            id: Identity::of(&r),
+            samples: r.samples,
+            source_file: r.source_file,
+        }
+    }
+}
+
+/// The canonical waveform table: one row per hit, samples in volts.
+pub fn waveforms_table() -> Table<WaveformRow> {
+    Table::new("waveforms")
+        .embed(identity_table(), |w: &mut WaveformRow| &mut w.id)
+        .col_take(
+            ColumnSpec::new(
+                "samples_v",
+                ColType::ListF32,
+                "V",
+                "the waveform, volts at the sensor",
+            ),
+            |w| Value::F32s(Some(std::mem::take(&mut w.samples))),
+        )
+        .col(
+            ColumnSpec::new(
+                "source_file",
+                ColType::Utf8,
+                "",
+                "file the samples were read from",
+            ),
+            |w| s(&w.source_file),
+        )
+}
+
+/// The reject table: every hit (or file) that did not become a feature row.
+pub fn rejects_table() -> Table<Reject> {
+    Table::new("rejects")
+        .col(ColumnSpec::new("experiment", ColType::Utf8, "", "experiment id (empty when the file could not be assigned to one)"), |r: &Reject| s(&r.experiment))
+        .col(ColumnSpec::new("source_file", ColType::Utf8, "", "the input file"), |r| s(&r.source_file))
+        .col(ColumnSpec::new("record_id", ColType::Utf8, "", "which record (`ch1 hit 17`, `TRAI 12`, `event 3`); empty for a whole file"), |r| s(&r.record_id))
+        .col(ColumnSpec::new("stage", ColType::Utf8, "", "pipeline stage: discover, read, validate or features"), |r| s(r.stage.as_str()))
+        .col(ColumnSpec::new("reason", ColType::Utf8, "", "one line saying what is wrong"), |r| s(&r.reason))
+        .col(ColumnSpec::new("record_type", ColType::Utf8, "", "what is lost: transient, hit, parametric, status, marker, or file (a whole file, or the rest of one, whose records could not be told apart)"), |r| s(r.record_type.as_str()))
+}
+
+/// The hit table: one row per hit of every source, with the acquisition system's own
+/// features (see `data-schema/hits.md` for each vendor's name of each column).
+pub fn hits_table() -> Table<HitRow> {
+    let f = |name: &str, unit: &str, doc: &str| {
+        ColumnSpec::new(name, ColType::Float64, unit, doc).nullable()
+    };
+    Table::new("hits")
+        .col(ColumnSpec::new("experiment", ColType::Utf8, "", "experiment id"), |h: &HitRow| s(&h.experiment))
+        .col(ColumnSpec::new("acquisition", ColType::Int32, "", "1-based acquisition in the experiment (a Vallen database restarted into the same file holds several)"), |h| Value::I32(Some(h.acquisition as i32)))
+        .col(ColumnSpec::new("channel", ColType::Int32, "", "sensor channel"), |h| Value::I32(Some(h.channel as i32)))
+        .col(ColumnSpec::new("hit", ColType::Int64, "", "1-based order of the hit in its experiment, as the system stored the hits"), |h| Value::I64(Some(h.hit as i64)))
+        .col(f("time_s", "s", "hit time since the start of the acquisition"), |h| Value::F64(h.time_s))
+        .col(f("amplitude_db", "dB_AE", "peak amplitude, dB re 1 µV at the sensor"), |h| Value::F64(h.amplitude_db))
+        .col(f("threshold_db", "dB_AE", "detection threshold"), |h| Value::F64(h.threshold_db))
+        .col(f("rise_time_s", "s", "rise time"), |h| Value::F64(h.rise_time_s))
+        .col(f("duration_s", "s", "duration"), |h| Value::F64(h.duration_s))
+        .col(ColumnSpec::new("counts", ColType::Int64, "", "threshold crossings").nullable(), |h| Value::I64(h.counts))
+        .col(ColumnSpec::new("counts_to_peak", ColType::Int64, "", "crossings up to the peak").nullable(), |h| Value::I64(h.counts_to_peak))
+        .col(f("energy_eu", "eu", "Vallen energy (1 eu = 1e-14 V²s)"), |h| Value::F64(h.energy_eu))
+        .col(f("energy_counts", "", "MISTRAS energy counts (ENER)"), |h| Value::F64(h.energy_counts))
+        .col(f("abs_energy_aj", "aJ", "MISTRAS absolute energy"), |h| Value::F64(h.abs_energy_aj))
+        .col(f("signal_strength_vs", "V·s", "signal strength"), |h| Value::F64(h.signal_strength_vs))
+        .col(f("rms_v", "V", "RMS of the signal"), |h| Value::F64(h.rms_v))
+        .col(f("avg_freq_hz", "Hz", "average frequency (counts / duration)"), |h| Value::F64(h.avg_freq_hz))
+        .col(f("centroid_freq_hz", "Hz", "frequency centroid"), |h| Value::F64(h.centroid_freq_hz))
+        .col(f("peak_freq_hz", "Hz", "peak frequency"), |h| Value::F64(h.peak_freq_hz))
+        .col(f("load_n", "N", "test-machine load at the hit"), |h| Value::F64(h.load_n))
+        .col(f("extension_m", "m", "test-machine extension at the hit"), |h| Value::F64(h.extension_m))
+        .col(ColumnSpec::new("parametric", ColType::Utf8, "", "the hit's parametric inputs as a JSON object of volts").nullable(), |h| Value::Str(h.parametric.clone()))
+        .col(ColumnSpec::new("transient", ColType::Int64, "", "`hit` of this hit's transient in features/waveforms/rejects; null: no transient").nullable(), |h| Value::I64(h.transient.map(|t| t as i64)))
+        .col(ColumnSpec::new("trai", ColType::Int64, "", "Vallen TRAI as stored").nullable(), |h| Value::I64(h.trai))
+        .col(ColumnSpec::new("vendor_features", ColType::Utf8, "", "further features the system recorded, a JSON object under the vendor's names and units (Vallen .trfdb, other MISTRAS CHIDs)").nullable(), |h| Value::Str(h.vendor_features.clone()))
+        .col(ColumnSpec::new("source", ColType::Utf8, "", "who recorded the features: vallen, mistras, aewin, or record (a format without a hit list)"), |h| s(h.source.as_str()))
+        .col(ColumnSpec::new("source_file", ColType::Utf8, "", "the file the hit came from"), |h| s(&h.source_file))
 }
 
 /// `parametric.parquet`: the parametric / time-driven rows of every source, as recorded, with
@@ -97,7 +291,7 @@ mod tests {
     #[test]
     fn schema_and_row_come_from_one_list() {
         let t = parametric_table();
-        let row = t.row(&ParametricRow {
+        let row = t.row(ParametricRow {
             experiment: "e".into(),
             row: 3,
             time_s: Some(1.5),
@@ -106,8 +300,37 @@ mod tests {
         assert_eq!(row.len(), t.schema().columns.len());
         let batch = super::super::rows_to_batch(&t.schema(), &[row]).unwrap();
         assert_eq!(batch.num_rows(), 1);
+        for schema in [
+            markers_table().schema(),
+            hits_table().schema(),
+            rejects_table().schema(),
+        ] {
+            assert!(!schema.columns.is_empty());
+        }
         let m = markers_table();
-        let row = m.row(&MarkerRow::default());
-        assert!(super::super::rows_to_batch(&m.schema(), &[row]).is_ok());
+        assert!(super::super::rows_to_batch(&m.schema(), &[m.row(MarkerRow::default())]).is_ok());
+        let h = hits_table();
+        assert!(super::super::rows_to_batch(&h.schema(), &[h.row(HitRow::default())]).is_ok());
+    }
+
+    #[test]
+    fn a_waveform_row_moves_its_samples_and_keeps_its_length() {
+        let w = WaveformRow {
+            id: Identity {
+                n_samples: 3,
+                ..Default::default()
+            },
+            samples: vec![1.0, 2.0, 3.0],
+            source_file: "f".into(),
+        };
+        let t = waveforms_table();
+        let sch = t.schema();
+        let row = t.row(w);
+        assert_eq!(row[sch.index_of("n_samples").unwrap()], Value::I32(Some(3)));
+        assert_eq!(
+            row[sch.index_of("samples_v").unwrap()],
+            Value::F32s(Some(vec![1.0, 2.0, 3.0]))
+        );
+        assert!(super::super::rows_to_batch(&sch, &[row]).is_ok());
     }
 }

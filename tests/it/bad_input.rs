@@ -2,7 +2,6 @@
 //! written. Every fixture is made here with aepipe's own writers.
 
 use crate::{table_rows, vallen_fixture, TempDir};
-use aepipe::config::PipelineConfig;
 use aepipe::pipeline::{run, StreamJob, StreamOptions};
 use aepipe::synth::Experiment;
 use std::path::Path;
@@ -108,7 +107,7 @@ fn each_bad_input_becomes_a_clear_reject_and_good_hits_are_all_written() {
         StreamJob::Features,
         &[d.clone(), unknown.clone(), t.path().join("missing_folder")],
         &out,
-        &PipelineConfig::default(),
+        &aepipe::config::ValidConfig::default(),
         &StreamOptions {
             threads: 2,
             progress: false,
@@ -202,7 +201,7 @@ fn malformed_text_lines_are_named() {
     let dir = t.path().join("txt");
     std::fs::create_dir_all(&dir).unwrap();
     std::fs::write(dir.join("a.txt"), "0.1\n0.2\n0.3\nbanana\n0.4\n").unwrap();
-    let (recs, rejs) = crate::read_all(&[dir], &PipelineConfig::default());
+    let (recs, rejs) = crate::read_all(&[dir], &aepipe::config::ValidConfig::default());
     assert!(recs.is_empty());
     assert_eq!(rejs.len(), 1);
     assert!(
@@ -218,7 +217,7 @@ fn truncated_waveexplorer_file_reports_every_missing_event() {
     let f = t.path().join("x_wave.txt");
     // Header promises 3 events of 4 samples; only 1.5 events are present.
     std::fs::write(&f, "10\t3\t4\t1\n0.1\n0.2\n0.3\n0.4\n0.5\n0.6\n").unwrap();
-    let (recs, rejs) = crate::read_all(&[f], &PipelineConfig::default());
+    let (recs, rejs) = crate::read_all(&[f], &aepipe::config::ValidConfig::default());
     assert_eq!(recs.len(), 1);
     assert_eq!(rejs.len(), 2);
     assert!(
@@ -339,7 +338,7 @@ fn an_experiment_id_never_writes_outside_the_output_folder() {
         items,
         StreamJob::Features,
         &f,
-        &PipelineConfig::default(),
+        &aepipe::config::ValidConfig::default(),
         &StreamOptions {
             threads: 2,
             progress: false,

@@ -685,7 +685,7 @@ fn recordings(batch: &Path) -> Vec<Case> {
                 items,
                 aepipe::pipeline::StreamJob::Waveforms,
                 &tmp,
-                &aepipe::config::PipelineConfig::default(),
+                &aepipe::config::ValidConfig::default(),
                 &aepipe::pipeline::StreamOptions {
                     threads: 1,
                     progress: false,

@@ -4,14 +4,13 @@
 //! a continuation file read alone.
 
 use crate::{table_rows, TempDir};
-use aepipe::config::PipelineConfig;
 use aepipe::model::{AeRecord, HitRow, Item};
 use aepipe::pipeline::{run, StreamJob, StreamOptions};
 use std::path::{Path, PathBuf};
 
 /// Every item the ingest yields for `inputs`.
 fn items(inputs: &[PathBuf]) -> (Vec<HitRow>, Vec<AeRecord>, Vec<String>, Vec<String>) {
-    let cfg = PipelineConfig::default();
+    let cfg = aepipe::config::ValidConfig::default();
     let d = aepipe::ingest::discover(inputs, &cfg.ingest);
     let (mut h, mut r, mut rej, mut notes) = (vec![], vec![], vec![], vec![]);
     for s in &d.sources {
@@ -109,7 +108,7 @@ fn the_real_dta_gives_the_hits_and_samples_mistrasdta_gives() {
         StreamJob::Features,
         &[file],
         t.path(),
-        &PipelineConfig::default(),
+        &aepipe::config::ValidConfig::default(),
         &StreamOptions {
             threads: 2,
             progress: false,
@@ -325,7 +324,7 @@ fn written_dta_files_four_channels_a_chain_and_bad_endings() {
         StreamJob::Features,
         &[dir, alone],
         &t.path().join("out"),
-        &PipelineConfig::default(),
+        &aepipe::config::ValidConfig::default(),
         &StreamOptions {
             threads: 2,
             progress: false,

@@ -109,9 +109,10 @@ fn run_classifies_against_truth_finds_the_trend_and_writes_a_report_a_browser_re
     let lib = small_library_seeded(d.path(), "exp-lib", 12, 2);
     // The experiment: 300 hits from its library, seed 9.
     aepipe::synth::synth_experiment(d.path(), "exp", 300, 9, Some(&lib), false).unwrap();
-    let mut cfg = aepipe::demo::demo_config();
+    let mut cfg = aepipe::demo::demo_config().into_inner();
     cfg.som.reference_library = train.display().to_string();
     cfg.report.gallery_per_class = 2;
+    let cfg = cfg.check().unwrap();
     let out = d.path().join("run");
     let s = aepipe::workflow::run(&aepipe::workflow::RunJob {
         config: &cfg,
@@ -171,9 +172,13 @@ fn run_classifies_against_truth_finds_the_trend_and_writes_a_report_a_browser_re
 
     // The thesis's own procedure (ch. 5.4): train on a balanced 10 % of the run's hits with
     // their criteria labels; the map then reproduces those labels for most hits.
-    let mut crit = cfg.clone();
-    crit.som.train_on = "criteria".into();
-    crit.report.enabled = false;
+    let crit = cfg
+        .clone()
+        .with(|c| {
+            c.som.train_on = aepipe::config::TrainOn::Criteria;
+            c.report.enabled = false;
+        })
+        .unwrap();
     let c = aepipe::workflow::run(&aepipe::workflow::RunJob {
         config: &crit,
         inputs: &[d.path().join("data")],

@@ -34,7 +34,10 @@ fn wav_folder_is_one_experiment_with_one_hit_per_file() {
         w.write_sample(-32768i16).unwrap(); // channel 2: -1 V
     }
     w.finalize().unwrap();
-    let (recs, rejs) = read_all(&[t.path().to_path_buf()], &PipelineConfig::default());
+    let (recs, rejs) = read_all(
+        &[t.path().to_path_buf()],
+        &aepipe::config::ValidConfig::default(),
+    );
     assert!(rejs.is_empty(), "{rejs:?}");
     assert_eq!(recs.len(), 4);
     assert!(recs.iter().all(|r| r.experiment == "wav_exp"));
@@ -65,6 +68,7 @@ fn csv_per_hit_takes_rate_and_pretrigger_from_the_time_column() {
     let mut cfg = PipelineConfig::default();
     cfg.ingest.sample_rate_hz = 1e6;
     cfg.ingest.pretrigger_samples = 1;
+    let cfg = cfg.check().unwrap();
     let (recs, rejs) = read_all(&[dir], &cfg);
     assert!(rejs.is_empty(), "{rejs:?}");
     assert_eq!(recs.len(), 2);
@@ -91,9 +95,12 @@ fn csv_long_table_groups_rows_by_hit_and_channel() {
     s.push_str("3,1,notanumber\n");
     let f = t.path().join("long.csv");
     std::fs::write(&f, s).unwrap();
-    let d = discover(std::slice::from_ref(&f), &PipelineConfig::default().ingest);
+    let d = discover(
+        std::slice::from_ref(&f),
+        &aepipe::config::ValidConfig::default().ingest,
+    );
     assert_eq!(d.sources[0].format, Format::CsvLong);
-    let (recs, rejs) = read_all(&[f], &PipelineConfig::default());
+    let (recs, rejs) = read_all(&[f], &aepipe::config::ValidConfig::default());
     let got: Vec<(u32, u64, usize)> = recs
         .iter()
         .map(|r| (r.channel, r.hit, r.samples.len()))
@@ -121,6 +128,7 @@ fn text_folder_uses_configured_rate_and_gain() {
     let mut cfg = PipelineConfig::default();
     cfg.ingest.gain_db = 20.0;
     cfg.ingest.sample_rate_hz = 2e6;
+    let cfg = cfg.check().unwrap();
     let (recs, _) = read_all(&[dir], &cfg);
     assert_eq!(recs.len(), 1);
     assert_eq!(recs[0].sample_rate_hz, 2e6);

@@ -3,7 +3,6 @@
 //! missing transients, written by aepipe's own writer.
 
 use crate::{table_rows, TempDir};
-use aepipe::config::PipelineConfig;
 use aepipe::ingest::vallen::{write_pair, HitToWrite};
 use aepipe::pipeline::{run, StreamJob, StreamOptions};
 use std::collections::BTreeMap;
@@ -76,7 +75,7 @@ fn two_acquisitions_and_missing_transients_keep_every_hit_and_link_each_transien
         StreamJob::Features,
         &[data],
         &t.path().join("f"),
-        &PipelineConfig::default(),
+        &aepipe::config::ValidConfig::default(),
         &opts(),
     )
     .unwrap();
@@ -171,7 +170,7 @@ fn the_accounting_rule_holds_on_every_real_data_set() {
         StreamJob::Features,
         std::slice::from_ref(&real),
         t.path(),
-        &PipelineConfig::default(),
+        &aepipe::config::ValidConfig::default(),
         &opts(),
     )
     .unwrap();
@@ -262,7 +261,7 @@ fn inspect_counts_hits_and_transients_without_decoding_a_waveform() {
         .unwrap()
         .execute("UPDATE tr_data SET Data = x'00' WHERE TRAI = 3", [])
         .unwrap();
-    let cfg = PipelineConfig::default();
+    let cfg = aepipe::config::ValidConfig::default();
     let d = aepipe::ingest::discover(std::slice::from_ref(&data), &cfg.ingest);
     let s = aepipe::inspect::summarise(&d.sources[0], &cfg);
     assert_eq!((s.hits, s.transients, s.rejects), (5, 5, 0), "{s}");
@@ -290,7 +289,7 @@ fn the_steel_plate_trfdb_features_join_its_hits_by_trai() {
     else {
         return;
     };
-    let cfg = PipelineConfig::default();
+    let cfg = aepipe::config::ValidConfig::default();
     let dir = real.join("vallen/steel_plate");
     let d = aepipe::ingest::discover(std::slice::from_ref(&dir), &cfg.ingest);
     let src = d.sources.iter().find(|s| s.id == "sample").unwrap();

@@ -107,7 +107,7 @@ pub fn synthetic_features(
     id: &str,
     hits: usize,
     seed: u64,
-    cfg: &aepipe::config::PipelineConfig,
+    cfg: &aepipe::config::ValidConfig,
     threads: usize,
 ) -> PathBuf {
     let data = dir.join("data");

@@ -25,12 +25,12 @@ fn synthetic(dir: &Path, id: &str, hits: usize, seed: u64) -> PathBuf {
     dir.to_path_buf()
 }
 
-fn demo_cfg() -> PipelineConfig {
+fn demo_cfg() -> aepipe::config::ValidConfig {
     let mut cfg = PipelineConfig::default();
     cfg.ingest.vallen.load_param = "PA0".into();
     cfg.ingest.vallen.extension_param = "PA1".into();
     cfg.pipeline.batch_size = 7; // many small batches: ordering is exercised
-    cfg
+    cfg.check().unwrap()
 }
 
 #[test]
@@ -335,7 +335,9 @@ fn every_shipped_pipeline_file_parses() {
     assert!(n >= 3);
     // The thesis-defaults file states the built-in defaults of every section it shares with
     // them (the Vallen parametric mapping is the one deliberate difference).
-    let mut np = PipelineConfig::from_file(&dir.join("notched-paper.toml")).unwrap();
+    let mut np = PipelineConfig::from_file(&dir.join("notched-paper.toml"))
+        .unwrap()
+        .into_inner();
     np.ingest.vallen = PipelineConfig::default().ingest.vallen;
     assert_eq!(np, PipelineConfig::default());
 }

@@ -2,13 +2,12 @@
 //! decoded values, FLAC against plain, AEwin amplitudes against the AEwin hit list.
 
 use crate::{read_all, real_data};
-use aepipe::config::PipelineConfig;
 use aepipe::ingest::{discover, open};
 use aepipe::model::Item;
 use std::collections::BTreeMap;
 
 fn counts(dir: &std::path::Path) -> BTreeMap<String, usize> {
-    let cfg = PipelineConfig::default();
+    let cfg = aepipe::config::ValidConfig::default();
     let d = discover(&[dir.to_path_buf()], &cfg.ingest);
     let mut m = BTreeMap::new();
     for s in &d.sources {
@@ -68,7 +67,7 @@ fn steel_plate_trai1_first_samples_are_adc_times_tr_mv() {
         .unwrap();
     let (recs, rejs) = read_all(
         &[real.join("vallen/steel_plate")],
-        &PipelineConfig::default(),
+        &aepipe::config::ValidConfig::default(),
     );
     assert!(rejs.is_empty(), "{rejs:?}");
     let r = recs
@@ -98,7 +97,7 @@ fn flac_and_plain_tradb_decode_to_identical_samples() {
     };
     let (recs, _) = read_all(
         &[real.join("vallen/steel_plate")],
-        &PipelineConfig::default(),
+        &aepipe::config::ValidConfig::default(),
     );
     let flac: Vec<_> = recs.iter().filter(|r| r.experiment == "sample").collect();
     let plain: Vec<_> = recs
@@ -122,7 +121,10 @@ fn aewin_amplitudes_match_the_hit_list_and_load_comes_from_the_log() {
         return;
     };
     let dir = real.join("aewin_cfrp_tensile");
-    let (recs, rejs) = read_all(std::slice::from_ref(&dir), &PipelineConfig::default());
+    let (recs, rejs) = read_all(
+        std::slice::from_ref(&dir),
+        &aepipe::config::ValidConfig::default(),
+    );
     assert!(rejs.is_empty(), "{rejs:?}");
     assert_eq!(recs.len(), 29);
     assert!(recs
@@ -168,7 +170,10 @@ fn waveexplorer_events_have_the_header_rate_and_the_angle_label() {
         return;
     };
     let f = real.join("plb_angle_waveexplorer/220426_30deg_4mm_wave.txt");
-    let (recs, rejs) = read_all(std::slice::from_ref(&f), &PipelineConfig::default());
+    let (recs, rejs) = read_all(
+        std::slice::from_ref(&f),
+        &aepipe::config::ValidConfig::default(),
+    );
     assert!(rejs.is_empty());
     assert_eq!(recs.len(), 113);
     assert!(recs.iter().all(|r| r.samples.len() == 1024
@@ -202,7 +207,7 @@ fn folders_of_companion_files_are_passed_over_not_rejected() {
     let Some(real) = real_data("folders_of_companion_files_are_passed_over_not_rejected") else {
         return;
     };
-    let cfg = PipelineConfig::default();
+    let cfg = aepipe::config::ValidConfig::default();
     let d = discover(std::slice::from_ref(&real), &cfg.ingest);
     assert!(d.rejects.is_empty(), "{:?}", d.rejects);
     let skipped: Vec<String> = d
@@ -257,7 +262,7 @@ fn hit_features_agree_with_vallenae() {
         StreamJob::Features,
         &[real.join("vallen")],
         t.path(),
-        &PipelineConfig::default(),
+        &aepipe::config::ValidConfig::default(),
         &StreamOptions {
             threads: 2,
             progress: false,

@@ -250,8 +250,18 @@ fn a_reference_library_in_three_shards_merges_to_the_same_signals() {
         a == b,
         "the merged library's rows differ from the unsharded library's"
     );
-    // A missing shard is refused.
-    std::fs::remove_file(dir.join("shards/reference-1-of-3.json")).unwrap();
+    // A changed part is refused (the shard recorded its hash), then a missing shard.
+    let part = dir.join("waveforms/experiment=reference/part-2.parquet");
+    let saved = std::fs::read(&part).unwrap();
+    std::fs::write(&part, b"not the part the shard wrote").unwrap();
+    let (c, _, se) = aepipe(&["merge", &s(&dir), "--out", &s(&t.path().join("m"))]);
+    assert_eq!(c, 1, "{se}");
+    assert!(
+        se.contains("missing or changed since shard 2 wrote it"),
+        "{se}"
+    );
+    std::fs::write(&part, saved).unwrap();
+    std::fs::remove_file(dir.join("shards/shard-1-of-3.json")).unwrap();
     let (c, _, se) = aepipe(&["merge", &s(&dir), "--out", &s(&t.path().join("m"))]);
     assert_eq!(c, 1, "{se}");
     assert!(se.contains("1 of 3 missing"), "{se}");

@@ -445,7 +445,7 @@ fn simulated_waveforms_feed_the_feature_pipeline_and_match_their_schema() {
     aepipe::sim::run_job(&job).unwrap();
     let wf = d.path().join("sim/waveforms.parquet");
     crate::pipeline::check_against_schema_file(&wf, "sim_waveforms.md");
-    let cfg = aepipe::config::PipelineConfig::default();
+    let cfg = aepipe::config::ValidConfig::default();
     let (recs, rejs) = crate::read_all(std::slice::from_ref(&wf), &cfg);
     assert!(rejs.is_empty(), "{rejs:?}");
     assert_eq!(recs[0].label.as_deref(), Some("fibre_vibration"));
@@ -534,7 +534,7 @@ fn analyse(name: &str, kv: &[(&str, f64)]) -> aepipe::features::Analysis {
         acquisition: Default::default(),
     };
     aepipe::sim::run_job(&job).unwrap();
-    let cfg = aepipe::config::PipelineConfig::default();
+    let cfg = aepipe::config::ValidConfig::default();
     let (recs, _) = crate::read_all(&[d.path().join("waveforms.parquet")], &cfg);
     let rec = recs.into_iter().find(|r| r.channel == 1).unwrap();
     aepipe::features::FeatureExtractor::new(&cfg).analyse(&rec)

@@ -2,15 +2,20 @@
 //! confusion report, model files.
 
 use crate::{table_rows, TempDir};
-use aepipe::config::PipelineConfig;
 use aepipe::som::tables::{classify_tables as classify, load_model, train, TrainOptions};
 use aepipe::som::Som;
 
 #[test]
 fn som_trained_on_criteria_labels_classifies_the_experiment() {
     let t = TempDir::new("som");
-    let features =
-        crate::synthetic_features(t.path(), "notched", 400, 31, &PipelineConfig::default(), 2);
+    let features = crate::synthetic_features(
+        t.path(),
+        "notched",
+        400,
+        31,
+        &aepipe::config::ValidConfig::default(),
+        2,
+    );
     let model_dir = t.path().join("model");
     let m = train(
         std::slice::from_ref(&features),
@@ -88,8 +93,14 @@ fn som_trained_on_criteria_labels_classifies_the_experiment() {
 #[test]
 fn som_pak_codebook_classifies_like_the_model_and_carries_its_labels() {
     let t = TempDir::new("som-cod");
-    let features =
-        crate::synthetic_features(t.path(), "cod", 200, 8, &PipelineConfig::default(), 2);
+    let features = crate::synthetic_features(
+        t.path(),
+        "cod",
+        200,
+        8,
+        &aepipe::config::ValidConfig::default(),
+        2,
+    );
     let dir = t.path().join("model");
     let m = train(
         std::slice::from_ref(&features),

@@ -92,6 +92,7 @@ fn designed_trend_is_found_with_the_right_signs_end_to_end() {
     e.write_vallen(&data).unwrap();
     let mut cfg = PipelineConfig::default();
     cfg.ingest.vallen.load_param = "PA0".into();
+    let cfg = cfg.check().unwrap();
     let f = run(
         StreamJob::Features,
         &[data],
@@ -157,8 +158,14 @@ fn designed_trend_is_found_with_the_right_signs_end_to_end() {
 fn missing_load_falls_back_to_all_hits_and_says_so() {
     let t = TempDir::new("trendnoload");
     // No load mapping: load_n is null.
-    let features =
-        crate::synthetic_features(t.path(), "noload", 60, 5, &PipelineConfig::default(), 1);
+    let features = crate::synthetic_features(
+        t.path(),
+        "noload",
+        60,
+        5,
+        &aepipe::config::ValidConfig::default(),
+        1,
+    );
     let rep = run_trend(
         &[features],
         &t.path().join("trend"),

@@ -175,6 +175,7 @@ fn a_mistras_chain_with_an_undefined_chid_and_waveforms_without_hits_loses_nothi
     let mut cfg = PipelineConfig::default();
     cfg.ingest.mistras.load_param = 1;
     cfg.ingest.mistras.load_n_per_v = 1000.0;
+    let cfg = cfg.check().unwrap();
     let r = run(
         StreamJob::Features,
         &[dir],
@@ -288,11 +289,10 @@ fn a_mistras_chain_with_an_undefined_chid_and_waveforms_without_hits_loses_nothi
     let alone = t.path().join("alone");
     std::fs::create_dir_all(&alone).unwrap();
     std::fs::copy(&cont, alone.join("M__2.DTA")).unwrap();
-    let mut cfg2 = PipelineConfig::from_toml(
-        "[ingest.mistras]\nhit_chids = [1, 3, 4, 5, 6, 31, 22, 23]\nhit_parametrics = 1\npartial_power_segments = 2\nsample_rate_hz = 10e6\npretrigger_samples = 100\ngain_db = 20.0\n",
+    let cfg2 = PipelineConfig::from_toml(
+        "[ingest.mistras]\nhit_chids = [1, 3, 4, 5, 6, 31, 22, 23]\nhit_parametrics = 1\npartial_power_segments = 2\nsample_rate_hz = 10e6\npretrigger_samples = 100\ngain_db = 20.0\nload_param = 1\n",
     )
     .unwrap();
-    cfg2.ingest.mistras.load_param = 1;
     let r2 = run(
         StreamJob::Features,
         &[alone],
@@ -328,7 +328,7 @@ fn a_mistras_chain_with_an_undefined_chid_and_waveforms_without_hits_loses_nothi
         StreamJob::Features,
         &[t.path().join("alone")],
         &t.path().join("out3"),
-        &PipelineConfig::default(),
+        &aepipe::config::ValidConfig::default(),
         &opts(),
     )
     .unwrap();
@@ -404,6 +404,7 @@ fn every_vallen_record_type_is_a_row_equal_to_what_vallenae_reads() {
     let t = TempDir::new("vendor-vallen");
     let mut cfg = PipelineConfig::default();
     cfg.ingest.vallen.load_param = "PA0".into();
+    let cfg = cfg.check().unwrap();
     for (dir, id) in [
         ("vallen/bearing", "bearing"),
         ("vallen/steel_plate", "sample"),
@@ -529,7 +530,7 @@ fn a_vallen_transient_no_hit_points_to_is_a_standalone_row() {
         StreamJob::Features,
         &[data],
         &t.path().join("o"),
-        &PipelineConfig::default(),
+        &aepipe::config::ValidConfig::default(),
         &opts(),
     )
     .unwrap();
@@ -704,7 +705,7 @@ fn experiments_of_the_same_name_in_two_folders_stay_two_experiments() {
         StreamJob::Features,
         &[root, t.path().join("more")],
         &t.path().join("o"),
-        &PipelineConfig::default(),
+        &aepipe::config::ValidConfig::default(),
         &opts(),
     )
     .unwrap();
@@ -754,6 +755,7 @@ fn the_som_takes_any_column_as_its_label() {
     let t = TempDir::new("vendor-som-label");
     let mut cfg = PipelineConfig::default();
     cfg.dsp.cwt.n_freqs = 50;
+    let cfg = cfg.check().unwrap();
     // Three experiments on two channels: labels "experiment" (3 classes), "channel" (2).
     let dir = t.path().join("data");
     for (k, id) in ["e1", "e2", "e3"].iter().enumerate() {
@@ -841,7 +843,7 @@ fn the_som_learns_the_plb_angles_from_the_experiment_column_on_held_out_hits() {
         StreamJob::Features,
         &[real.join("plb_angle_waveexplorer")],
         &t.path().join("f"),
-        &PipelineConfig::default(),
+        &aepipe::config::ValidConfig::default(),
         &opts(),
     )
     .unwrap();

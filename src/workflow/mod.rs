@@ -1,0 +1,259 @@
+//! `aepipe run`: the whole staged method from one pipeline definition — features → trend →
+//! SOM (trained on a reference library or on criteria-labelled hits) → classification →
+//! accuracy against ground truth when there is one → the HTML report. Also the commands
+//! that read inputs to draw (`aepipe cwt`) and rebuild a report from a run folder.
+
+use crate::analysis::trend::{TrendError, TrendReport};
+use crate::config::{ConfigError, PipelineConfig, ValidConfig};
+use crate::pipeline::{PipelineError, RunReport, StreamOptions};
+use crate::report::{Gallery, Gathered};
+pub use crate::report::{RunSummary, SomStage, TruthScore};
+use crate::som::tables::Confusion;
+use crate::som::SomError;
+use crate::store::{HitKey, StoreError, TableScan};
+use crate::util::IoAt;
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+/// Why a run (or a report rebuild, or a drawing) failed; each stage's own error inside.
+#[derive(Debug, thiserror::Error)]
+pub enum WorkflowError {
+    #[error(transparent)]
+    Config(#[from] ConfigError),
+    #[error(transparent)]
+    Pipeline(#[from] PipelineError),
+    #[error(transparent)]
+    Merge(#[from] crate::pipeline::MergeError),
+    #[error(transparent)]
+    Trend(#[from] TrendError),
+    #[error(transparent)]
+    Som(#[from] SomError),
+    #[error(transparent)]
+    Sim(#[from] crate::sim::SimError),
+    #[error(transparent)]
+    Synth(#[from] crate::synth::SynthError),
+    #[error(transparent)]
+    Store(#[from] StoreError),
+    #[error(transparent)]
+    Report(#[from] crate::report::ReportError),
+    #[error(transparent)]
+    Plot(#[from] crate::plot::PlotError),
+    #[error(transparent)]
+    Write(#[from] IoAt),
+    /// A folder or file given to a command is not what it should be (e.g. not a run folder).
+    #[error("{path}: {message}")]
+    Input { path: String, message: String },
+    /// The hit asked for is not in the inputs, or cannot be analysed.
+    #[error("{0}")]
+    NoHit(String),
+}
+
+impl crate::util::HasKind for WorkflowError {
+    fn kind(&self) -> crate::util::ErrorKind {
+        match self {
+            WorkflowError::Merge(x) => x.kind(),
+            WorkflowError::Config(_) | WorkflowError::Input { .. } | WorkflowError::NoHit(_) => {
+                crate::util::ErrorKind::Usage
+            }
+            WorkflowError::Pipeline(x) => x.kind(),
+            WorkflowError::Trend(x) => x.kind(),
+            WorkflowError::Som(x) => x.kind(),
+            WorkflowError::Sim(x) => x.kind(),
+            WorkflowError::Synth(x) => x.kind(),
+            WorkflowError::Store(x) => x.kind(),
+            WorkflowError::Report(x) => x.kind(),
+            WorkflowError::Plot(x) => x.kind(),
+            WorkflowError::Write(_) => crate::util::ErrorKind::Failed,
+        }
+    }
+}
+
+/// What `aepipe run` is given besides the pipeline definition.
+pub struct RunJob<'a> {
+    pub config: &'a ValidConfig,
+    pub inputs: &'a [PathBuf],
+    pub out: &'a Path,
+    pub truth: Option<&'a Path>,
+    pub threads: usize,
+    pub progress: bool,
+    /// Reuse the finished, unchanged per-experiment parts of an earlier run in `out`.
+    pub resume: bool,
+    /// Only this shard's experiments, features only, as a Hive-partitioned dataset in `out`
+    /// (`aepipe merge` runs the whole-batch stages).
+    pub shard: Option<crate::util::Shard>,
+}
+
+impl RunJob<'_> {
+    /// The run's folder.
+    pub fn dir(&self) -> RunDir {
+        RunDir::new(self.out)
+    }
+
+    /// How the run's own feature stage streams (threads, progress, resume, shard).
+    pub fn stream_options(&self) -> StreamOptions {
+        StreamOptions {
+            threads: self.threads,
+            progress: self.progress,
+            resume: self.resume,
+            shard: self.shard,
+        }
+    }
+}
+
+/// What a sharded `aepipe run` did: its part of the features, nothing else.
+pub enum RunOutcome {
+    Whole(Box<RunSummary>),
+    Shard(Box<crate::pipeline::RunReport>),
+}
+
+/// Run every enabled stage (or, with a shard, its features).
+pub fn run_or_shard(job: &RunJob) -> Result<RunOutcome, WorkflowError> {
+    match job.shard {
+        None => Ok(RunOutcome::Whole(Box::new(run(job)?))),
+        Some(_) => Ok(RunOutcome::Shard(Box::new(crate::pipeline::run(
+            crate::pipeline::StreamJob::Features,
+            job.inputs,
+            job.out,
+            job.config,
+            &job.stream_options(),
+        )?))),
+    }
+}
+
+/// Remove the temporary files of a killed earlier run (every output is written under a
+/// temporary name, then renamed): never read.
+fn clean_stale(dir: &RunDir) {
+    for d in dir.table_dirs() {
+        crate::store::clean_stale_tmp(&d);
+    }
+}
+
+/// `aepipe merge DIR`: check the N shards of a sharded run, assemble the whole-batch tables
+/// into `OUT/features/` and run the whole-batch stages (trend, SOM, classification, report)
+/// exactly as an unsharded `aepipe run` does.
+pub fn merge(
+    dir: &Path,
+    out: &Path,
+    truth: Option<&Path>,
+    threads: usize,
+    progress: bool,
+) -> Result<RunSummary, WorkflowError> {
+    let run_dir = RunDir::new(out);
+    clean_stale(&run_dir);
+    let t = std::time::Instant::now();
+    let (features, cfg) = crate::pipeline::merge(
+        dir,
+        run_dir.features().path(),
+        threads,
+        Some(crate::pipeline::StreamJob::Features),
+    )?;
+    let shards = crate::pipeline::read_shards(dir, crate::pipeline::StreamJob::Features)?;
+    let job = RunJob {
+        config: &cfg,
+        inputs: &shards[0].payload.inputs,
+        out,
+        truth,
+        threads,
+        progress,
+        resume: false,
+        shard: None,
+    };
+    stages(
+        &job,
+        features,
+        vec![("merge".to_string(), t.elapsed().as_secs_f64())],
+    )
+}
+
+/// Run every enabled stage.
+pub fn run(job: &RunJob) -> Result<RunSummary, WorkflowError> {
+    clean_stale(&job.dir());
+    let mut seconds = Vec::new();
+    let t = std::time::Instant::now();
+    let features = crate::pipeline::run(
+        crate::pipeline::StreamJob::Features,
+        job.inputs,
+        job.dir().features().path(),
+        job.config,
+        &job.stream_options(),
+    )?;
+    seconds.push(("features".to_string(), t.elapsed().as_secs_f64()));
+    stages(job, features, seconds)
+}
+
+/// The whole-batch stages after the features, in their order: trend, SOM, truth, report,
+/// run.json.
+fn stages(
+    job: &RunJob,
+    features: crate::pipeline::RunReport,
+    mut seconds: Vec<(String, f64)>,
+) -> Result<RunSummary, WorkflowError> {
+    let cfg = job.config;
+    let dir = job.dir();
+    let feats = vec![features.table_path.clone()];
+
+    let (mut trend, mut trend_plots) = (None, Vec::new());
+    if cfg.trend.enabled {
+        let t = std::time::Instant::now();
+        let (rep, plots) = trend_stage(cfg, &feats, &dir.trend())?;
+        trend = Some(rep);
+        trend_plots = plots;
+        seconds.push(("trend".to_string(), t.elapsed().as_secs_f64()));
+    }
+
+    let mut som = None;
+    if cfg.som.enabled {
+        let t = std::time::Instant::now();
+        som = Some(som_stage(job, &feats)?);
+        seconds.push(("som".to_string(), t.elapsed().as_secs_f64()));
+    }
+    let truth = match (job.truth, &som) {
+        (Some(p), Some(s)) => Some(score_truth(p, &s.classification)?),
+        _ => None,
+    };
+    let mut summary = RunSummary {
+        out: job.out.to_path_buf(),
+        inputs: job.inputs.to_vec(),
+        features,
+        trend,
+        trend_plots,
+        som,
+        truth,
+        config: cfg.clone(),
+        seconds,
+    };
+    if cfg.report.enabled {
+        let t = std::time::Instant::now();
+        let g = gather(&summary)?;
+        crate::report::write(&summary, &g, &dir.report_html())?;
+        summary
+            .seconds
+            .push(("report".to_string(), t.elapsed().as_secs_f64()));
+    }
+    write_run_json(&summary)?;
+    Ok(summary)
+}
+
+fn input_err(p: &Path, m: impl std::fmt::Display) -> WorkflowError {
+    WorkflowError::Input {
+        path: p.display().to_string(),
+        message: m.to_string(),
+    }
+}
+
+mod headline;
+pub mod layout;
+mod pictures;
+mod runfile;
+mod schema;
+mod stages;
+mod truth;
+pub use headline::headline;
+pub use layout::RunDir;
+pub use pictures::cwt_of_hit;
+use pictures::gather;
+pub use runfile::rebuild_report;
+use runfile::write_run_json;
+pub use schema::{table_schema, TABLES};
+use stages::{som_stage, trend_stage};
+pub use truth::score_truth;

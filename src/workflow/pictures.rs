@@ -1,0 +1,164 @@
+//! Pictures: what the report shows besides the summary (the CWT gallery), and `aepipe cwt`.
+
+use super::*;
+
+/// Read what the report shows besides the summary (the label columns, the manifest) and draw
+/// the CWT gallery (one pass over the inputs).
+pub(super) fn gather(s: &RunSummary) -> Result<Gathered, WorkflowError> {
+    let criteria: BTreeMap<HitKey, String> = TableScan::open(&s.features.table_path)?
+        .keyed_strings("criteria_label")?
+        .into_iter()
+        .collect();
+    let som: BTreeMap<HitKey, String> = match &s.som {
+        Some(m) => TableScan::open(&m.classification)?
+            .keyed_strings("som_label")?
+            .into_iter()
+            .collect(),
+        None => BTreeMap::new(),
+    };
+    let per = s.config.report.gallery_per_class;
+    let (by, labels) = if som.is_empty() {
+        ("criteria", &criteria)
+    } else {
+        ("SOM", &som)
+    };
+    let chosen = crate::report::choose_gallery(labels, per);
+    let pics = draw_gallery(&s.inputs, &s.config, &chosen, &RunDir::new(&s.out));
+    let gallery = Gallery {
+        by,
+        classes: chosen
+            .into_iter()
+            .map(|(c, keys)| {
+                let v = keys
+                    .into_iter()
+                    .map(|k| {
+                        let p = pics.get(&k).cloned();
+                        (k, p)
+                    })
+                    .collect();
+                (c, v)
+            })
+            .collect(),
+    };
+    let manifest = std::fs::read_to_string(&s.features.manifest_path)
+        .map_err(|e| input_err(&s.features.manifest_path, e))?;
+    Ok(Gathered {
+        criteria,
+        som,
+        gallery,
+        manifest,
+    })
+}
+
+/// Draw the CWT of the chosen hits (one pass over the inputs) into `dir`; returns the PNG
+/// of each hit drawn (a hit that cannot be read or drawn is left out, and the report says
+/// "not drawn").
+fn draw_gallery(
+    inputs: &[PathBuf],
+    cfg: &ValidConfig,
+    chosen: &BTreeMap<String, Vec<HitKey>>,
+    run: &RunDir,
+) -> BTreeMap<HitKey, PathBuf> {
+    let dir = run.gallery();
+    let want: std::collections::BTreeSet<&HitKey> = chosen.values().flatten().collect();
+    let mut out = BTreeMap::new();
+    if want.is_empty() || std::fs::create_dir_all(&dir).is_err() {
+        return out;
+    }
+    let mut ex = crate::features::FeatureExtractor::new(cfg);
+    let d = crate::ingest::discover(inputs, &cfg.ingest);
+    for src in &d.sources {
+        for it in crate::ingest::open(src, cfg) {
+            let crate::model::Item::Record(r) = it else {
+                continue;
+            };
+            let key = (r.experiment.clone(), r.channel as i32, r.hit as i64);
+            if !want.contains(&key) || crate::features::validate(&r, cfg).is_err() {
+                continue;
+            }
+            let a = ex.analyse(&r);
+            let (freqs, power) = ex.full_cwt(&r);
+            let png = run.gallery_png(&key);
+            if crate::plot::cwt_png(
+                &png,
+                &r,
+                &freqs,
+                power.view(),
+                &format!("{} — {}", r.id(), a.label),
+            )
+            .is_ok()
+            {
+                out.insert(key, png);
+            }
+        }
+    }
+    out
+}
+
+/// Find a hit in the inputs, analyse it and draw it: the `aepipe cwt` command. Returns a
+/// one-line summary (label, dominant frequency).
+pub fn cwt_of_hit(
+    inputs: &[std::path::PathBuf],
+    cfg: &ValidConfig,
+    experiment: Option<&str>,
+    channel: Option<u32>,
+    hit: u64,
+    png: &Path,
+) -> Result<String, WorkflowError> {
+    let d = crate::ingest::discover(inputs, &cfg.ingest);
+    let found = d
+        .sources
+        .iter()
+        .filter(|s| {
+            experiment.is_none_or(|e| s.id == e || s.format == crate::ingest::Format::Parquet)
+        })
+        .flat_map(|s| crate::ingest::open(s, cfg))
+        .find_map(|it| match it {
+            crate::model::Item::Record(r)
+                if r.hit == hit
+                    && channel.is_none_or(|c| r.channel == c)
+                    && experiment.is_none_or(|e| r.experiment == e) =>
+            {
+                Some(r)
+            }
+            _ => None,
+        });
+    let Some(rec) = found else {
+        return Err(WorkflowError::NoHit(format!(
+            "no hit {hit}{}{} in {}",
+            channel
+                .map(|c| format!(" on channel {c}"))
+                .unwrap_or_default(),
+            experiment.map(|e| format!(" of {e}")).unwrap_or_default(),
+            inputs
+                .iter()
+                .map(|p| p.display().to_string())
+                .collect::<Vec<_>>()
+                .join(", ")
+        )));
+    };
+    crate::features::validate(&rec, cfg)
+        .map_err(|e| WorkflowError::NoHit(format!("{}: {e}", rec.id())))?;
+    let mut ex = crate::features::FeatureExtractor::new(cfg);
+    let a = ex.analyse(&rec);
+    let (freqs, power) = ex.full_cwt(&rec);
+    let summary = format!(
+        "{}: {} ({}), dominant {} kHz, peak {:.1} dB_AE",
+        rec.id(),
+        a.label,
+        a.reason,
+        a.components
+            .dominant
+            .map(|d| format!("{:.0}", d.freq_hz / 1e3))
+            .unwrap_or_else(|| "–".into()),
+        a.hit.amplitude_db
+    );
+    crate::plot::cwt_png(
+        png,
+        &rec,
+        &freqs,
+        power.view(),
+        &format!("{} — {}", rec.id(), a.label),
+    )?;
+    Ok(summary)
+}

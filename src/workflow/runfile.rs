@@ -1,0 +1,116 @@
+//! `run.json` and `aepipe report`: rebuild the summary of a finished run from its folder.
+
+use super::stages::{classes_of, profile_stage, trend_stage};
+use super::*;
+use crate::pipeline::PartTable;
+
+/// `RUN_DIR/run.json`: what `aepipe report` needs besides the run's tables.
+#[derive(serde::Serialize, serde::Deserialize)]
+struct RunFile {
+    tool_version: String,
+    inputs: Vec<PathBuf>,
+    truth: Option<PathBuf>,
+    /// The effective pipeline definition (canonical TOML).
+    config: String,
+    seconds: Vec<(String, f64)>,
+    som_trained_on: Option<String>,
+    som_training_rows: Option<usize>,
+}
+
+pub(super) fn write_run_json(s: &RunSummary) -> Result<(), WorkflowError> {
+    let f = RunFile {
+        tool_version: env!("CARGO_PKG_VERSION").into(),
+        inputs: s.inputs.clone(),
+        truth: s.truth.as_ref().map(|t| t.path.clone()),
+        config: s.config.to_toml(),
+        seconds: s.seconds.clone(),
+        som_trained_on: s.som.as_ref().map(|m| m.trained_on.clone()),
+        som_training_rows: s.som.as_ref().map(|m| m.training_rows),
+    };
+    let p = RunDir::new(&s.out).run_json();
+    crate::util::write_atomic(
+        &p,
+        serde_json::to_string_pretty(&f).expect("json").as_bytes(),
+    )?;
+    Ok(())
+}
+
+/// `aepipe report RUN_DIR`: rebuild the summary of a finished run from its folder (tables,
+/// model, `run.json`; the trend and the classification are recomputed, deterministically)
+/// and write `RUN_DIR/report.html` again.
+pub fn rebuild_report(dir: &Path) -> Result<PathBuf, WorkflowError> {
+    let run = RunDir::new(dir);
+    let rp = run.run_json();
+    let text = std::fs::read_to_string(&rp)
+        .map_err(|e| input_err(&rp, format!("{e} (not a folder written by aepipe run)")))?;
+    let f: RunFile = serde_json::from_str(&text).map_err(|e| input_err(&rp, e))?;
+    let config = PipelineConfig::from_toml(&f.config).map_err(|e| input_err(&rp, e))?;
+    let fdir = run.features();
+    let mp = fdir.manifest();
+    let m = crate::pipeline::Manifest::read(&mp).map_err(|e| input_err(&mp, e))?;
+    let job = crate::pipeline::StreamJob::Features;
+    let features = RunReport {
+        stats: m.stats(),
+        table_path: fdir.table(PartTable::Main, job),
+        hits_path: fdir.table(PartTable::Hits, job),
+        rejects_path: fdir.table(PartTable::Rejects, job),
+        parametric_path: fdir.table(PartTable::Parametric, job),
+        markers_path: fdir.table(PartTable::Markers, job),
+        manifest_path: mp,
+        sources: vec![],
+        skipped: vec![],
+    };
+    let feats = vec![features.table_path.clone()];
+    let (mut trend, mut trend_plots) = (None, Vec::new());
+    if config.trend.enabled && run.trend().path().is_dir() {
+        let (rep, plots) = trend_stage(&config, &feats, &run.trend())?;
+        trend = Some(rep);
+        trend_plots = plots;
+    }
+    let mut som = None;
+    if config.som.enabled && run.som_model().json().is_file() {
+        let sdir = run.som();
+        let model = crate::som::tables::load_model(run.som_model().path())?;
+        let confusion = crate::som::tables::classify_tables(
+            &model,
+            &feats,
+            Some(&config.som.label),
+            sdir.path(),
+        )?;
+        let classes = classes_of(&confusion);
+        let existing = |p: PathBuf| p.is_file().then_some(p);
+        let (profile, profile_plots) = profile_stage(&config, &feats[0], &sdir)?;
+        som = Some(SomStage {
+            profile_table: sdir.damage_profile(),
+            profile,
+            profile_plots,
+            model_dir: run.som_model().path().to_path_buf(),
+            trained_on: f.som_trained_on.clone().unwrap_or_default(),
+            training_rows: f.som_training_rows.unwrap_or(0),
+            confusion,
+            classification: sdir.classification(),
+            u_matrix: existing(sdir.u_matrix()),
+            hit_maps: existing(sdir.hit_maps()),
+            classes,
+        });
+    }
+    let truth = match (&f.truth, &som) {
+        (Some(p), Some(s)) => Some(score_truth(p, &s.classification)?),
+        _ => None,
+    };
+    let summary = RunSummary {
+        out: dir.to_path_buf(),
+        inputs: f.inputs,
+        features,
+        trend,
+        trend_plots,
+        som,
+        truth,
+        config,
+        seconds: f.seconds,
+    };
+    let out = run.report_html();
+    let g = gather(&summary)?;
+    crate::report::write(&summary, &g, &out)?;
+    Ok(out)
+}

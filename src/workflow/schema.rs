@@ -1,0 +1,38 @@
+//! The tables `aepipe schema` prints.
+
+use super::*;
+
+/// The tables whose columns `aepipe schema` prints.
+pub const TABLES: &[&str] = &[
+    "features",
+    "waveforms",
+    "rejects",
+    "hits",
+    "parametric",
+    "markers",
+    "trend",
+    "classification",
+    "damage_profile",
+    "sim_waveforms",
+    "sim_trajectories",
+    "truth",
+];
+
+/// The schema of a written table by name (one of [`TABLES`]).
+pub fn table_schema(name: &str, cfg: &PipelineConfig) -> Option<crate::store::TableSchema> {
+    Some(match name {
+        "features" => crate::features::features_table(cfg).schema(),
+        "waveforms" => crate::store::waveforms_table().schema(),
+        "rejects" => crate::store::rejects_table().schema(),
+        "hits" => crate::store::hits_table().schema(),
+        "parametric" => crate::store::parametric_table().schema(),
+        "markers" => crate::store::markers_table().schema(),
+        "trend" => crate::analysis::trend::trend_table().schema(),
+        "classification" => crate::som::tables::classification_table().schema(),
+        "damage_profile" => crate::som::profile::profile_table().schema(),
+        "sim_waveforms" => crate::sim::output::sim_waveforms_table().schema(),
+        "sim_trajectories" => crate::sim::output::trajectory_table().schema(),
+        "truth" => crate::synth::truth_table().schema(),
+        _ => return None,
+    })
+}

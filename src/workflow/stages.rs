@@ -1,0 +1,156 @@
+//! The whole-batch stages after the features: trend, SOM (training, classification,
+//! damage profile).
+
+use super::*;
+use crate::analysis::trend::TrendDir;
+use crate::config::TrainOn;
+use crate::som::layout::ClassifyDir;
+
+/// The trend statistics of the feature tables into `dir`, with a Fig. 4.18 plot per
+/// experiment × channel that has significant windows.
+pub(super) fn trend_stage(
+    cfg: &ValidConfig,
+    feats: &[PathBuf],
+    dir: &TrendDir,
+) -> Result<(TrendReport, Vec<(String, PathBuf)>), WorkflowError> {
+    let opts = crate::analysis::trend::TrendOptions {
+        cutoff: cfg.trend.cutoff,
+        alpha: cfg.trend.alpha,
+        columns: vec![],
+    };
+    let rep = crate::analysis::trend::run_trend(feats, dir.path(), &opts)?;
+    let mut plots = Vec::new();
+    for sel in &rep.selections {
+        let png = dir.png(&sel.experiment, sel.channel);
+        // A picture that cannot be written fails the stage (exit 3), it is not skipped quietly.
+        if crate::plot::trend_png(&png, &rep, &sel.experiment, sel.channel, 4)? {
+            plots.push((format!("{} ch{}", sel.experiment, sel.channel), png));
+        }
+    }
+    Ok((rep, plots))
+}
+
+/// Hits per SOM class.
+pub(super) fn classes_of(c: &Confusion) -> BTreeMap<String, usize> {
+    let mut classes = BTreeMap::new();
+    for ((s, _), n) in &c.counts {
+        *classes.entry(s.clone()).or_insert(0) += n;
+    }
+    classes
+}
+
+pub(super) fn som_stage(job: &RunJob, feats: &[PathBuf]) -> Result<SomStage, WorkflowError> {
+    use crate::som::tables::{classify_tables, train, TrainOptions, TrainingSet};
+    let cfg = job.config;
+    let run = job.dir();
+    let som_dir = run.som();
+    let (train_paths, label, fraction, trained_on) = if cfg.som.train_on == TrainOn::Reference {
+        let lib = if cfg.som.reference_library.is_empty() {
+            let f = crate::sim::reference::ReferenceFile::default_library();
+            let dir = run.reference();
+            crate::sim::reference::build_library(&f.reference, dir.path(), job.progress)?;
+            dir.waveforms()
+        } else {
+            PathBuf::from(&cfg.som.reference_library)
+        };
+        // The library's features, with the run's own settings.
+        let rep = crate::pipeline::run(
+            crate::pipeline::StreamJob::Features,
+            std::slice::from_ref(&lib),
+            run.reference_features().path(),
+            cfg,
+            &StreamOptions {
+                threads: job.threads,
+                progress: false,
+                resume: false,
+                shard: None,
+            },
+        )?;
+        (
+            vec![rep.table_path],
+            "label".to_string(),
+            1.0,
+            format!("reference library {} (simulated labels)", lib.display()),
+        )
+    } else {
+        (
+            feats.to_vec(),
+            cfg.som.label.clone(),
+            cfg.som.fraction,
+            if cfg.som.label == "criteria_label" {
+                format!(
+                    "{:.0} % of the run's hits, criteria labels (ch. 5.4)",
+                    100.0 * cfg.som.fraction
+                )
+            } else {
+                format!(
+                    "{:.0} % of the run's hits, labels of column {}",
+                    100.0 * cfg.som.fraction,
+                    cfg.som.label
+                )
+            },
+        )
+    };
+    let o = TrainOptions {
+        label,
+        rows: cfg.som.rows,
+        cols: cfg.som.cols,
+        seed: cfg.som.seed,
+        training: TrainingSet {
+            fraction,
+            seed: cfg.som.seed,
+            ..Default::default()
+        },
+        ..Default::default()
+    };
+    let model_dir = run.som_model();
+    let model = train(&train_paths, model_dir.path(), &o)?;
+    let confusion = classify_tables(&model, feats, Some(&cfg.som.label), som_dir.path())?;
+    let u = som_dir.u_matrix();
+    crate::plot::u_matrix_png(&u, &model.som)?;
+    let hm = som_dir.hit_maps();
+    crate::plot::hit_maps_png(&hm, &model.som, &confusion.hits)?;
+    let (u_matrix, hit_maps) = (Some(u), Some(hm));
+    let classes = classes_of(&confusion);
+    let (profile, profile_plots) = profile_stage(cfg, &feats[0], &som_dir)?;
+    Ok(SomStage {
+        profile_table: som_dir.damage_profile(),
+        profile,
+        profile_plots,
+        model_dir: model_dir.path().to_path_buf(),
+        trained_on,
+        training_rows: model.composition.values().map(|(_, r)| r).sum(),
+        confusion,
+        classification: som_dir.classification(),
+        u_matrix,
+        hit_maps,
+        classes,
+    })
+}
+
+/// The damage profile of a classified run into `som_dir`: `damage_profile.parquet` and a
+/// Fig. 6.1 picture per experiment × channel.
+type Profile = (
+    Vec<crate::som::profile::ProfileSummary>,
+    Vec<(String, PathBuf)>,
+);
+
+pub(super) fn profile_stage(
+    cfg: &ValidConfig,
+    features: &Path,
+    som_dir: &ClassifyDir,
+) -> Result<Profile, WorkflowError> {
+    let (rows, summaries) = crate::som::profile::build(features, &som_dir.classification())?;
+    crate::som::profile::write(&som_dir.damage_profile(), &rows, &cfg.hash())?;
+    let mut plots = Vec::new();
+    for s in &summaries {
+        let group: Vec<&crate::som::profile::ProfileRow> = rows
+            .iter()
+            .filter(|r| r.key.0 == s.experiment && r.key.1 == s.channel)
+            .collect();
+        let png = som_dir.damage_profile_png(&s.experiment, s.channel);
+        crate::plot::damage_profile_png(&png, &group, s)?;
+        plots.push((format!("{} ch{}", s.experiment, s.channel), png));
+    }
+    Ok((summaries, plots))
+}
