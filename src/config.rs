@@ -242,12 +242,27 @@ impl Default for SomConfig {
             enabled: true,
             train_on: TrainOn::Reference,
             reference_library: String::new(),
-            fraction: 0.1,
-            rows: 10,
-            cols: 10,
-            seed: 2008,
+            fraction: som_defaults::FRACTION,
+            rows: som_defaults::ROWS,
+            cols: som_defaults::COLS,
+            seed: som_defaults::SEED,
         }
     }
+}
+
+/// The map's defaults, in one place (Table 5.2 and ch. 5.4): the library's
+/// `som::SomParams`, `som::tables::TrainOptions`, `[som]` of the pipeline TOML and the CLI's
+/// `som train` flags all take them from here.
+pub mod som_defaults {
+    /// A 10×10 map.
+    pub const ROWS: usize = 10;
+    pub const COLS: usize = 10;
+    /// The seed of the map's initialisation and sample order.
+    pub const SEED: u64 = 2008;
+    /// Share of the hits in the training set (ch. 5.4: 64 of 651 ≈ 10 %).
+    pub const FRACTION: f64 = 0.1;
+    /// The seed of `som train`'s training-set draw (a run draws with [`SEED`]).
+    pub const TRAINING_SEED: u64 = 5;
 }
 
 /// The HTML report of `aepipe run`.

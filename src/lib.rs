@@ -1,13 +1,33 @@
 //! aepipe: acoustic-emission recordings of paper tensile tests → Parquet feature tables,
-//! trend statistics, damage-mechanism classes and reports.
+//! trend statistics, damage-mechanism classes and reports, with a hybrid vibro-acoustic
+//! simulator for labelled reference signals.
 //!
-//! Rooms (see `DESIGN.md` of the team and the README): [`model`] (the shared vocabulary),
-//! [`ingest`] (sources), [`features`] (per-record transform), [`store`] (tables on disk),
-//! [`pipeline`] (the staged streaming runner), [`inspect`] (human summaries), [`synth`]
-//! (synthetic hits for the demo, fixtures and benchmarks).
+//! The rooms, one line each, in the order of the README's direction (a room uses only rooms
+//! above it; `tests/it/architecture.rs` enforces it):
+//!
+//! - [`util`]: hashing, atomic writes, shards, error kinds — used by everything.
+//! - [`model`]: the shared vocabulary (records, hits, rejects, mechanisms, parametric rows).
+//! - [`config`]: the pipeline TOML, checked once into a `ValidConfig`.
+//! - [`store`]: tables declared once, the atomic Parquet writer, the readers, shards.
+//! - [`ingest`]: sources — discovery and the readers of every recording format.
+//! - [`dsp`]: spectrum, power ratios, CWT, hit features, FFT filters.
+//! - [`features`]: the per-record transform into a feature row and its criteria label.
+//! - [`inspect`]: human summaries of what the inputs hold.
+//! - [`pipeline`]: the staged streaming runner, parts, manifest, shards.
+//! - [`analysis`]: trend statistics of the features (ch. 4.5.5).
+//! - [`som`]: the self-organising map, its tables and the damage profile (ch. 5).
+//! - [`sim`]: the hybrid vibro-acoustic simulator and reference libraries (ch. 3–4).
+//! - [`synth`]: synthetic experiments for the demo, fixtures and benchmarks.
+//! - [`plot`]: the pictures (PNG).
+//! - [`report`]: the self-contained HTML report.
+//! - [`workflow`]: `aepipe run`: the stages in order, the run folder, report rebuilds.
+//! - [`demo`]: the demo on data it makes itself.
+//! - [`bench`]: benchmarks against the peers.
+//! - [`cli`]: the command line (feature `cli`, on by default; the library builds without it).
 
 pub mod analysis;
 pub mod bench;
+#[cfg(feature = "cli")]
 pub mod cli;
 pub mod config;
 pub mod demo;

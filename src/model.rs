@@ -494,6 +494,17 @@ impl Mechanism {
     pub fn parse(s: &str) -> Option<Mechanism> {
         Mechanism::ALL.into_iter().find(|m| m.as_str() == s)
     }
+
+    /// A short tag for map nodes and legends: B, F, BF, E, U.
+    pub fn short(self) -> &'static str {
+        match self {
+            Mechanism::BondFailure => "B",
+            Mechanism::FibreFailure => "F",
+            Mechanism::Both => "BF",
+            Mechanism::Erroneous => "E",
+            Mechanism::Unclassified => "U",
+        }
+    }
 }
 
 impl fmt::Display for Mechanism {

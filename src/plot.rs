@@ -350,13 +350,9 @@ where
 }
 
 fn short_label(l: &str) -> String {
-    match l {
-        "bond_failure" => "B".into(),
-        "fibre_failure" => "F".into(),
-        "both" => "BF".into(),
-        "erroneous" => "E".into(),
-        "unclassified" => "U".into(),
-        other => other.chars().take(3).collect(),
+    match crate::model::Mechanism::parse(l) {
+        Some(m) => m.short().into(),
+        None => l.chars().take(3).collect(),
     }
 }
 

@@ -8,6 +8,7 @@
 //! no table; it only embeds the PNG files it is pointed at.
 
 use crate::analysis::trend::TrendReport;
+use crate::model::Mechanism;
 use crate::pipeline::RunReport;
 use crate::som::tables::Confusion;
 use crate::store::HitKey;
@@ -79,6 +80,7 @@ impl TruthScore {
             .then(|| self.bond_fibre_correct as f64 / self.bond_fibre_total as f64)
     }
 
+    /// Hits of a true class the SOM gave a class.
     fn count(&self, som: &str, truth: &str) -> usize {
         self.counts
             .get(&(som.to_string(), truth.to_string()))
@@ -86,33 +88,52 @@ impl TruthScore {
             .unwrap_or(0)
     }
 
+    /// Hits of a true mechanism the SOM gave that mechanism.
+    fn right(&self, m: Mechanism) -> usize {
+        self.count(m.as_str(), m.as_str())
+    }
+
     /// True erroneous hits the SOM calls erroneous, of all true erroneous hits.
     pub fn erroneous_recall(&self) -> (usize, usize) {
         let total = self
             .counts
             .iter()
-            .filter(|((_, t), _)| t == "erroneous")
+            .filter(|((_, t), _)| Mechanism::parse(t) == Some(Mechanism::Erroneous))
             .map(|(_, n)| n)
             .sum();
-        (self.count("erroneous", "erroneous"), total)
+        (self.right(Mechanism::Erroneous), total)
     }
 
     /// The thesis's overall figure (ch. 5.4: (537 + 8 + 26) / 651 = 87.71 %): hits given
     /// their true mechanism or recognised as erroneous, over all hits ("both" hits count
     /// as wrong whatever the SOM says, as in the thesis).
     pub fn thesis_overall(&self) -> (usize, usize) {
-        let correct = ["bond_failure", "fibre_failure", "erroneous"]
-            .iter()
-            .map(|c| self.count(c, c))
-            .sum();
+        let correct = [
+            Mechanism::BondFailure,
+            Mechanism::FibreFailure,
+            Mechanism::Erroneous,
+        ]
+        .iter()
+        .map(|&c| self.right(c))
+        .sum();
         (correct, self.counts.values().sum())
     }
 
     /// Table 5.4 as the thesis prints it: a column per SOM class, a row per true class,
     /// each cell the share of the SOM class's hits (and the ratio).
     pub fn format_table_5_4(&self) -> String {
-        let order = ["bond_failure", "fibre_failure", "erroneous", "both"];
-        let rank = |c: &str| order.iter().position(|o| *o == c).unwrap_or(order.len());
+        // Table 5.4's order (not the enum's): bond, fibre, erroneous, both, then the rest.
+        let order = [
+            Mechanism::BondFailure,
+            Mechanism::FibreFailure,
+            Mechanism::Erroneous,
+            Mechanism::Both,
+        ];
+        let rank = |c: &str| {
+            Mechanism::parse(c)
+                .and_then(|m| order.iter().position(|o| *o == m))
+                .unwrap_or(order.len())
+        };
         let mut soms: Vec<&String> = self.counts.keys().map(|k| &k.0).collect();
         let mut truths: Vec<&String> = self.counts.keys().map(|k| &k.1).collect();
         for v in [&mut soms, &mut truths] {

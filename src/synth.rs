@@ -309,10 +309,10 @@ impl Library {
                     source: format!("{} hit {} ch {}", r.experiment, r.hit, r.channel),
                     clipped,
                 };
-                match r.label.as_deref() {
-                    Some("bond_failure") => lib.bond.push(sig),
-                    Some("fibre_failure") => lib.fibre.push(sig),
-                    Some("erroneous") => lib.erroneous.push(sig),
+                match r.label.as_deref().and_then(Mechanism::parse) {
+                    Some(Mechanism::BondFailure) => lib.bond.push(sig),
+                    Some(Mechanism::FibreFailure) => lib.fibre.push(sig),
+                    Some(Mechanism::Erroneous) => lib.erroneous.push(sig),
                     _ => {}
                 }
             }
@@ -338,16 +338,8 @@ pub fn split_band(x: &[f64], fs: f64, cut_hz: f64) -> (Vec<f64>, Vec<f64>) {
     (lo, hi)
 }
 
-/// Keep [lo, hi) Hz of a signal (FFT mask with 50 kHz cosine edges).
+/// Keep [lo, hi) Hz of a signal (FFT mask with 50 kHz cosine edges, no padding).
 pub fn band_pass(x: &[f64], fs: f64, lo: f64, hi: f64) -> Vec<f64> {
-    use rustfft::num_complex::Complex;
-    let n = x.len();
-    if n == 0 {
-        return vec![];
-    }
-    let mut planner = rustfft::FftPlanner::new();
-    let mut buf: Vec<Complex<f64>> = x.iter().map(|&v| Complex::new(v, 0.0)).collect();
-    planner.plan_fft_forward(n).process(&mut buf);
     let edge = 50e3;
     let gain = |f: f64| {
         let up = if lo <= 0.0 {
@@ -359,12 +351,7 @@ pub fn band_pass(x: &[f64], fs: f64, lo: f64, hi: f64) -> Vec<f64> {
         let g = up.min(down);
         0.5 - 0.5 * (PI * g).cos()
     };
-    for (k, c) in buf.iter_mut().enumerate() {
-        let f = k.min(n - k) as f64 * fs / n as f64;
-        *c *= gain(f) / n as f64;
-    }
-    planner.plan_fft_inverse(n).process(&mut buf);
-    buf.iter().map(|c| c.re).collect()
+    crate::dsp::filter::zero_phase(x, x.len(), fs, gain)
 }
 
 impl Experiment {

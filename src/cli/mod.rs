@@ -132,7 +132,8 @@ pub enum Cmd {
         /// Run once per integer value: key=LO..HI (e.g. point=1..12), one hit each
         #[arg(long)]
         sweep: Option<String>,
-        #[arg(long, value_enum)]
+        /// implicit-euler (the default), explicit-euler, rk4 or verlet
+        #[arg(long)]
         solver: Option<crate::sim::model::Solver>,
         #[arg(long)]
         out: PathBuf,
@@ -280,16 +281,16 @@ pub enum SomCmd {
         #[arg(long, default_value = "tf_bins", value_delimiter = ',')]
         columns: Vec<String>,
         /// Share of the hits in the training set
-        #[arg(long, default_value_t = 0.1)]
+        #[arg(long, default_value_t = crate::config::som_defaults::FRACTION)]
         fraction: f64,
         /// Standardise each dimension (z-score on the training set)
         #[arg(long)]
         standardise: bool,
-        #[arg(long, default_value_t = 10)]
+        #[arg(long, default_value_t = crate::config::som_defaults::ROWS)]
         rows: usize,
-        #[arg(long, default_value_t = 10)]
+        #[arg(long, default_value_t = crate::config::som_defaults::COLS)]
         cols: usize,
-        #[arg(long, default_value_t = 2008)]
+        #[arg(long, default_value_t = crate::config::som_defaults::SEED)]
         seed: u64,
         /// Initial codebook: random training vectors, uniform random, or linear (PCA plane)
         #[arg(long, value_enum, default_value_t = InitArg::Samples)]

@@ -6,6 +6,7 @@
 //! work allocates nothing once the caches are warm.
 
 pub mod cwt;
+pub mod filter;
 pub mod hit;
 pub mod spectrum;
 

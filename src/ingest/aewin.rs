@@ -182,7 +182,7 @@ impl Iterator for Reader {
                 source_file: path.display().to_string(),
                 record_id: format!("ch{ch} hit {hit}"),
                 stage: Stage::Read,
-                reason: e,
+                reason: e.to_string(),
             }),
         })
     }

@@ -20,8 +20,8 @@ pub fn looks_like_values(head: &str) -> bool {
 
 /// Read one value per line; a first line that is not a number is taken as a header.
 /// Any later line that is not a number is an error naming the line.
-pub(crate) fn read_values(path: &Path) -> Result<Vec<f64>, String> {
-    let text = std::fs::read(path).map_err(|e| format!("cannot read: {e}"))?;
+pub(crate) fn read_values(path: &Path) -> Result<Vec<f64>, super::RecordError> {
+    let text = std::fs::read(path).map_err(|e| super::RecordError(format!("cannot read: {e}")))?;
     let text = String::from_utf8_lossy(&text);
     let mut out = Vec::with_capacity(text.len() / 10);
     for (i, l) in text.lines().enumerate() {
@@ -33,11 +33,11 @@ pub(crate) fn read_values(path: &Path) -> Result<Vec<f64>, String> {
             Ok(v) => out.push(v),
             Err(_) if i == 0 => {}
             Err(_) => {
-                return Err(format!(
+                return Err(super::RecordError(format!(
                     "line {}: '{}' is not a number",
                     i + 1,
                     l.chars().take(40).collect::<String>()
-                ))
+                )))
             }
         }
     }
@@ -74,7 +74,7 @@ pub fn open(src: &Source, cfg: &IngestConfig) -> Box<dyn Iterator<Item = Item> +
                 source_file: p.display().to_string(),
                 record_id: format!("hit {hit}"),
                 stage: Stage::Read,
-                reason: e,
+                reason: e.to_string(),
             }),
         }
     }))

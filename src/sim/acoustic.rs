@@ -188,30 +188,20 @@ pub fn band_limit(g: &GridSpec) -> BandLimit {
 /// 90 dB_AE hit up to ~1 µs early.) The
 /// signal is zero-padded to twice its length so the filter's tails do not wrap round.
 pub fn low_pass(x: &[f64], fs: f64, pass_hz: f64, stop_hz: f64) -> Vec<f64> {
-    use rustfft::num_complex::Complex;
     if x.is_empty() || fs <= 0.0 {
         return x.to_vec();
     }
     let n = (2 * x.len()).next_power_of_two();
-    let mut buf: Vec<Complex<f64>> = (0..n)
-        .map(|k| Complex::new(x.get(k).copied().unwrap_or(0.0), 0.0))
-        .collect();
-    let mut planner = rustfft::FftPlanner::new();
-    planner.plan_fft_forward(n).process(&mut buf);
     let width = (stop_hz - pass_hz).max(f64::MIN_POSITIVE);
-    for (k, c) in buf.iter_mut().enumerate() {
-        let f = k.min(n - k) as f64 * fs / n as f64;
-        let g = if f <= pass_hz {
+    crate::dsp::filter::zero_phase(x, n, fs, |f| {
+        if f <= pass_hz {
             1.0
         } else if f >= stop_hz {
             0.0
         } else {
             0.5 + 0.5 * (std::f64::consts::PI * (f - pass_hz) / width).cos()
-        };
-        *c *= g / n as f64;
-    }
-    planner.plan_fft_inverse(n).process(&mut buf);
-    buf[..x.len()].iter().map(|c| c.re).collect()
+        }
+    })
 }
 
 #[cfg(test)]

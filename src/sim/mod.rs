@@ -213,18 +213,13 @@ fn splat(f: &mut Field, g: &GridSpec, p: [f64; 2], s: f64) {
 /// Dominant frequency of a signal: the largest bin of its zero-padded power spectrum
 /// (at least 16 384 points), refined by a parabola through the three bins around it.
 pub fn dominant_frequency(x: &[f64], fs: f64) -> f64 {
-    use rustfft::num_complex::Complex;
     if x.len() < 4 || fs <= 0.0 {
         return 0.0;
     }
     let mean = x.iter().sum::<f64>() / x.len() as f64;
     let n = x.len().next_power_of_two().max(16_384);
-    let mut buf: Vec<Complex<f64>> = (0..n)
-        .map(|k| Complex::new(if k < x.len() { x[k] - mean } else { 0.0 }, 0.0))
-        .collect();
-    rustfft::FftPlanner::new()
-        .plan_fft_forward(n)
-        .process(&mut buf);
+    let centred: Vec<f64> = x.iter().map(|v| v - mean).collect();
+    let buf = crate::dsp::filter::spectrum(&centred, n);
     let p: Vec<f64> = buf[..n / 2].iter().map(|c| c.norm_sqr()).collect();
     let k = (1..p.len())
         .max_by(|&a, &b| p[a].total_cmp(&p[b]))

@@ -6,7 +6,7 @@ use super::SimError;
 use serde::{Deserialize, Serialize};
 
 /// ODE solver for the mass/spring model (ch. 3.2.3–3.2.6).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum Solver {
     /// Explicit (symplectic) Euler, Alg. 1: u ← u + Δt·a(r, u), then r ← r + Δt·u.
@@ -18,6 +18,25 @@ pub enum Solver {
     /// Linearised implicit Euler, Eq. 3.2.29, solved by Jacobi-preconditioned BiCGSTAB on a
     /// sparse matrix assembled each step. The default, as in the thesis.
     ImplicitEuler,
+}
+
+impl std::str::FromStr for Solver {
+    type Err = SimError;
+    /// The names of the TOML (`explicit-euler`, `rk4`, `verlet`, `implicit-euler`) and the
+    /// Appendix-A file's words (`EEuler`, `IEuler`, `VVerlet`, …), case-insensitive.
+    fn from_str(word: &str) -> Result<Solver, SimError> {
+        Ok(match word.to_ascii_lowercase().as_str() {
+            "ieuler" | "implicit" | "implicit-euler" => Solver::ImplicitEuler,
+            "eeuler" | "euler" | "explicit-euler" => Solver::ExplicitEuler,
+            "rk4" => Solver::Rk4,
+            "verlet" | "vverlet" | "velocity-verlet" => Solver::Verlet,
+            _ => {
+                return Err(SimError::Model(format!(
+                    "solver {word:?}: expected implicit-euler (IEuler), explicit-euler (EEuler), rk4 or verlet"
+                )))
+            }
+        })
+    }
 }
 
 /// Spatial order of the acoustic FDTD scheme.

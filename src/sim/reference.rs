@@ -227,7 +227,7 @@ fn definition_hash(cfg: &ReferenceConfig) -> String {
 /// The library, or with `shard` = K/N only the grid points whose index hashes to K (the
 /// material draws are made for the whole grid first, so every point is the same in any
 /// layout), written to `OUT/waveforms/experiment=reference/part-K.parquet` with
-/// `OUT/shards/reference-K-of-N.json`; [`merge_library`] joins the N.
+/// `OUT/shards/shard-K-of-N.json` (kind `reference_library`); [`merge_library`] joins the N.
 pub fn build_library_part(
     cfg: &ReferenceConfig,
     out: &Path,

@@ -516,7 +516,7 @@ fn mesh3x3(p: &Params) -> ModelFile {
     }
     ModelFile {
         name: "mesh3x3-bond-failure".into(),
-        label: Some("bond_failure".into()),
+        label: Some(crate::model::Mechanism::BondFailure.as_str().into()),
         system: system(p.get("dt", 1e-8), p.get("damping", 1.5e-6), 4_000),
         nodes: lat.nodes,
         springs: lat.springs,
@@ -558,7 +558,7 @@ fn structure2x1(p: &Params) -> Result<ModelFile, SimError> {
         .expect("fibre 3 has the spring");
     Ok(ModelFile {
         name: format!("structure2x1-fibre-failure-p{point}"),
-        label: Some("fibre_failure".into()),
+        label: Some(crate::model::Mechanism::FibreFailure.as_str().into()),
         system: system(p.get("dt", 1e-8), p.get("damping", 1.5e-6), 4_000),
         nodes: lat.nodes,
         springs: lat.springs,

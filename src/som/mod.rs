@@ -140,11 +140,13 @@ pub struct SomParams {
     pub init: Init,
 }
 
+pub use crate::config::som_defaults as defaults;
+
 impl Default for SomParams {
     fn default() -> Self {
         SomParams {
-            rows: 10,
-            cols: 10,
+            rows: defaults::ROWS,
+            cols: defaults::COLS,
             stages: vec![
                 TrainingStage {
                     alpha: 0.05,
@@ -157,7 +159,7 @@ impl Default for SomParams {
                     iterations: 10_000,
                 },
             ],
-            seed: 2008,
+            seed: defaults::SEED,
             init: Init::Samples,
         }
     }

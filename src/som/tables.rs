@@ -3,6 +3,7 @@
 
 use super::layout::{ClassifyDir, ModelDir};
 use super::{Init, Som, SomError, SomParams};
+use crate::model::Mechanism;
 use crate::store::{ColType, ColumnSpec, HitKey, Table, TableScan, TableWriter, Value};
 use ndarray::{Array2, ArrayView2, Axis};
 use polars::prelude::{col, DataType};
@@ -139,12 +140,20 @@ pub struct TrainingSet {
 impl Default for TrainingSet {
     fn default() -> Self {
         TrainingSet {
-            fraction: 0.1,
-            exclude: vec!["erroneous".into(), "unclassified".into(), "both".into()],
+            fraction: super::defaults::FRACTION,
+            exclude: [
+                Mechanism::Erroneous,
+                Mechanism::Unclassified,
+                Mechanism::Both,
+            ]
+            .map(|m| m.as_str().to_string())
+            .to_vec(),
             balance: true,
-            seed: 5,
+            seed: super::defaults::TRAINING_SEED,
             calibrate: true,
-            calibration_exclude: vec!["unclassified".into(), "both".into()],
+            calibration_exclude: [Mechanism::Unclassified, Mechanism::Both]
+                .map(|m| m.as_str().to_string())
+                .to_vec(),
         }
     }
 }
@@ -277,9 +286,9 @@ impl Default for TrainOptions {
             columns: vec!["tf_bins".into()],
             label: "criteria_label".into(),
             standardise: false,
-            rows: 10,
-            cols: 10,
-            seed: 2008,
+            rows: super::defaults::ROWS,
+            cols: super::defaults::COLS,
+            seed: super::defaults::SEED,
             init: Init::Samples,
             training: TrainingSet::default(),
         }

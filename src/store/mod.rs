@@ -288,15 +288,21 @@ fn build_column(spec: &ColumnSpec, col: usize, rows: &[Row]) -> Result<ArrayRef,
 }
 
 /// Turn rows into one Arrow batch of the table's schema.
-pub(crate) fn rows_to_batch(table: &TableSchema, rows: &[Row]) -> Result<RecordBatch, String> {
+/// Rows that do not fit their table (a cell of another type, a row of another length): a
+/// bug in the code that made them, reported instead of a panic.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("{0}")]
+pub struct RowError(pub String);
+
+pub(crate) fn rows_to_batch(table: &TableSchema, rows: &[Row]) -> Result<RecordBatch, RowError> {
     for (i, r) in rows.iter().enumerate() {
         if r.len() != table.columns.len() {
-            return Err(format!(
+            return Err(RowError(format!(
                 "table {}: row {i} has {} cells, schema has {} columns",
                 table.name,
                 r.len(),
                 table.columns.len()
-            ));
+            )));
         }
     }
     let arrays = table
@@ -304,8 +310,9 @@ pub(crate) fn rows_to_batch(table: &TableSchema, rows: &[Row]) -> Result<RecordB
         .iter()
         .enumerate()
         .map(|(i, c)| build_column(c, i, rows))
-        .collect::<Result<Vec<_>, _>>()?;
-    RecordBatch::try_new(table.arrow_schema(), arrays).map_err(|e| e.to_string())
+        .collect::<Result<Vec<_>, _>>()
+        .map_err(RowError)?;
+    RecordBatch::try_new(table.arrow_schema(), arrays).map_err(|e| RowError(e.to_string()))
 }
 
 /// Streams rows of one table into a Parquet file, atomically.
@@ -415,11 +422,10 @@ impl TableWriter {
         if self.pending.is_empty() {
             return Ok(());
         }
-        let batch =
-            rows_to_batch(&self.table, &self.pending).map_err(|message| StoreError::Schema {
-                path: self.final_path.display().to_string(),
-                message,
-            })?;
+        let batch = rows_to_batch(&self.table, &self.pending).map_err(|e| StoreError::Schema {
+            path: self.final_path.display().to_string(),
+            message: e.to_string(),
+        })?;
         self.rows += self.pending.len() as u64;
         self.pending.clear();
         self.writer
@@ -632,7 +638,7 @@ mod tests {
         let t = rejects_table().schema();
         let row = vec![Value::I32(Some(1)); 6];
         let err = rows_to_batch(&t, &[row]).unwrap_err();
-        assert!(err.contains("experiment"), "{err}");
+        assert!(err.to_string().contains("experiment"), "{err}");
     }
 
     #[test]

@@ -1,6 +1,7 @@
-//! The house's directions: no import cycle between the library's top-level modules, and a
-//! thin binary. Read from the source text (`crate::room` paths outside `#[cfg(test)]`), so a
-//! cycle that comes back fails here before anyone has to find it.
+//! The house's directions: every import between the library's top-level modules points down
+//! the chain the README states (so no cycle either), clap stays in the command line, the
+//! binary stays thin. Read from the source text (`crate::room` paths outside `#[cfg(test)]`),
+//! so an import against the direction fails here before anyone has to find it.
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
@@ -186,6 +187,122 @@ fn no_import_cycle_between_top_level_modules() {
     }
 }
 
+/// The README's direction: `a, b ← c ← …` (each room uses only rooms to its left), read from
+/// its `Code layout` section; room → tier.
+fn readme_tiers() -> BTreeMap<String, usize> {
+    let readme =
+        std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("README.md")).unwrap();
+    let line = readme
+        .lines()
+        .find(|l| l.starts_with("util, model ←"))
+        .expect("the README states the direction as `util, model ← …`");
+    let mut tiers = BTreeMap::new();
+    for (k, tier) in line.split('←').enumerate() {
+        for room in tier.split(',').map(str::trim).filter(|r| !r.is_empty()) {
+            if room != "main.rs" {
+                tiers.insert(room.to_string(), k);
+            }
+        }
+    }
+    tiers
+}
+
+/// Imports inside one tier that the README names (`a uses b`), allowed like downward ones.
+const SAME_TIER: &[(&str, &str)] = &[("synth", "sim")];
+
+/// The imports that go against the direction: to a room of the same or a later tier (other
+/// than [`SAME_TIER`]), or from or to a room the direction does not name.
+fn against_direction(
+    g: &BTreeMap<String, BTreeSet<String>>,
+    tiers: &BTreeMap<String, usize>,
+) -> Vec<String> {
+    let mut bad = Vec::new();
+    for (from, deps) in g {
+        let Some(&tf) = tiers.get(from) else {
+            bad.push(format!("{from} is not in the README's direction"));
+            continue;
+        };
+        for to in deps {
+            match tiers.get(to) {
+                None => bad.push(format!("{from} → {to}: {to} is not in the direction")),
+                Some(&tt) if tt < tf => {}
+                Some(_) if SAME_TIER.contains(&(from.as_str(), to.as_str())) => {}
+                Some(&tt) => bad.push(format!(
+                    "{from} (tier {tf}) uses {to} (tier {tt}): against the direction"
+                )),
+            }
+        }
+    }
+    bad
+}
+
+#[test]
+fn every_import_points_down_the_readmes_direction() {
+    let tiers = readme_tiers();
+    assert!(tiers.len() >= 19, "{tiers:?}");
+    let g = graph();
+    let bad = against_direction(&g, &tiers);
+    assert!(bad.is_empty(), "{}", bad.join("\n"));
+    // A planted violation is caught: the store reading the pipeline's parts, a room of its
+    // own tier, and a room the direction does not know.
+    let mut planted = g.clone();
+    planted.get_mut("store").unwrap().insert("pipeline".into());
+    planted.get_mut("som").unwrap().insert("analysis".into());
+    planted.insert("events".into(), ["model".to_string()].into());
+    let found = against_direction(&planted, &tiers);
+    assert_eq!(found.len(), 3, "{found:?}");
+    assert!(
+        found
+            .iter()
+            .any(|b| b.starts_with("store (tier 2) uses pipeline")),
+        "{found:?}"
+    );
+    assert!(
+        found
+            .iter()
+            .any(|b| b.starts_with("som (tier 6) uses analysis")),
+        "{found:?}"
+    );
+    // …and the allowed same-tier import is not.
+    assert!(!found.iter().any(|b| b.starts_with("synth")), "{found:?}");
+}
+
+#[test]
+fn clap_stays_in_the_command_line() {
+    let mut files = Vec::new();
+    rust_files(&src(), &mut files);
+    let bad: Vec<String> = files
+        .iter()
+        .filter(|f| {
+            let r = room_of(f);
+            r.as_deref() != Some("cli") && r.is_some()
+        })
+        .filter(|f| {
+            let t = std::fs::read_to_string(f).unwrap();
+            t.contains("clap::") || t.contains("#[arg(") || t.contains("ValueEnum")
+        })
+        .map(|f| f.display().to_string())
+        .collect();
+    assert!(bad.is_empty(), "clap outside src/cli: {bad:?}");
+}
+
+#[test]
+fn lib_rs_names_every_room() {
+    let lib = std::fs::read_to_string(src().join("lib.rs")).unwrap();
+    let g = graph();
+    for room in g.keys() {
+        assert!(
+            lib.contains(&format!("pub mod {room};")),
+            "{room} is not a module of lib.rs"
+        );
+        assert!(
+            lib.lines()
+                .any(|l| l.starts_with("//!") && l.contains(&format!("[`{room}`]"))),
+            "lib.rs's doc has no line for {room}"
+        );
+    }
+}
+
 #[test]
 fn the_binary_only_parses_and_dispatches() {
     let main = std::fs::read_to_string(src().join("main.rs")).unwrap();
@@ -204,8 +321,11 @@ fn no_string_errors_in_public_functions() {
     for f in files {
         let text = std::fs::read_to_string(&f).unwrap();
         let code = text.split("#[cfg(test)]").next().unwrap_or("");
-        // Signatures may span lines: join each `pub fn` up to its body.
-        for (i, _) in code.match_indices("pub fn ") {
+        // Signatures may span lines: join each `pub fn` (or `pub(crate) fn`) up to its body.
+        let starts = code
+            .match_indices("pub fn ")
+            .chain(code.match_indices("pub(crate) fn "));
+        for (i, _) in starts {
             let sig = &code[i..code[i..].find('{').map_or(code.len(), |e| i + e)];
             let ret = sig.find("-> Result<").map(|k| sig[k..].trim_end());
             if ret.is_some_and(|r| r.ends_with(", String>")) {

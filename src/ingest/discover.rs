@@ -1,0 +1,577 @@
+//! Discovery: find the experiments in files and folders. Walking, telling each file's kind,
+//! grouping files into sources, and naming the sources uniquely are one function each.
+
+use super::{aewin, csvfmt, dta, text, waveexplorer, whole_file_reject, Format, Source};
+use crate::config::FormatChoice;
+use crate::config::IngestConfig;
+use crate::model::{Reject, Stage};
+use std::path::{Path, PathBuf};
+
+/// What [`discover`] found.
+#[derive(Debug, Default)]
+pub struct Discovery {
+    /// Sources sorted by (id, first file).
+    pub sources: Vec<Source>,
+    /// Inputs that cannot be read at all (explicitly named unknown files, missing paths).
+    pub rejects: Vec<Reject>,
+    /// Files inside input folders that are not recordings (READMEs, setups, pick lists…),
+    /// with the reason they were passed over.
+    pub skipped: Vec<(PathBuf, String)>,
+}
+
+/// What one file looks like, from its name and first bytes.
+#[derive(Debug, Clone, PartialEq)]
+enum Kind {
+    Pridb,
+    Tradb,
+    Parquet,
+    Wav,
+    CsvPerHit,
+    CsvLong,
+    MachineLog,
+    AewinHitList,
+    AewinWave,
+    WaveExplorer,
+    Text,
+    Dta,
+    Other(String),
+}
+
+fn ext_lower(p: &Path) -> String {
+    p.extension()
+        .map(|e| e.to_string_lossy().to_lowercase())
+        .unwrap_or_default()
+}
+
+/// Read up to `n` bytes of the head of a file as text (lossy).
+pub(crate) fn head(p: &Path, n: usize) -> std::io::Result<String> {
+    use std::io::Read;
+    let mut f = std::fs::File::open(p)?;
+    let mut buf = vec![0u8; n];
+    let mut got = 0;
+    while got < n {
+        let k = f.read(&mut buf[got..])?;
+        if k == 0 {
+            break;
+        }
+        got += k;
+    }
+    buf.truncate(got);
+    Ok(String::from_utf8_lossy(&buf).into_owned())
+}
+
+fn detect_format(p: &Path, forced: FormatChoice) -> std::io::Result<Kind> {
+    let ext = ext_lower(p);
+    let name = p
+        .file_name()
+        .map(|n| n.to_string_lossy().to_string())
+        .unwrap_or_default();
+    match ext.as_str() {
+        "pridb" => return Ok(Kind::Pridb),
+        "tradb" => return Ok(Kind::Tradb),
+        "parquet" => return Ok(Kind::Parquet),
+        "wav" => return Ok(Kind::Wav),
+        "dta" => {
+            use std::io::Read;
+            let mut b = [0u8; 3];
+            let n = std::fs::File::open(p)?.read(&mut b)?;
+            return Ok(
+                if dta::looks_like_dta(&b[..n]) || forced == FormatChoice::Mistras {
+                    Kind::Dta
+                } else {
+                    Kind::Other(
+                        "a .DTA file that does not start like a MISTRAS message stream".into(),
+                    )
+                },
+            );
+        }
+        "csv" | "txt" | "dat" | "tsv" => {}
+        _ => return Ok(Kind::Other(format!("unknown file type '.{ext}'"))),
+    }
+    let text = head(p, 4096)?;
+    if text.trim().is_empty() {
+        // An AEwin waveform file by its name is a hit that lost its samples: its reader
+        // rejects it. Any other empty file is passed over, saying so.
+        if aewin::parse_wave_name(p).is_some() {
+            return Ok(Kind::AewinWave);
+        }
+        return Ok(Kind::Other("empty file".into()));
+    }
+    if ext == "csv" {
+        if name.starts_with("Specimen_RawData") || aewin::looks_like_machine_log(&text) {
+            return Ok(Kind::MachineLog);
+        }
+        return Ok(match csvfmt::sniff(&text) {
+            csvfmt::Sniff::Long => Kind::CsvLong,
+            csvfmt::Sniff::PerHit => Kind::CsvPerHit,
+            csvfmt::Sniff::NotWaveform(why) => Kind::Other(why),
+        });
+    }
+    if waveexplorer::parse_header(&text).is_some()
+        || waveexplorer::looks_like_header(&text)
+        || forced == FormatChoice::Waveexplorer
+    {
+        return Ok(Kind::WaveExplorer);
+    }
+    if aewin::looks_like_hit_list(&text) {
+        return Ok(Kind::AewinHitList);
+    }
+    if text::looks_like_values(&text) {
+        if aewin::parse_wave_name(p).is_some() || forced == FormatChoice::Aewin {
+            return Ok(Kind::AewinWave);
+        }
+        return Ok(Kind::Text);
+    }
+    if ext == "csv" || ext == "tsv" {
+        return Ok(Kind::CsvPerHit);
+    }
+    Ok(Kind::Other(
+        "text that is neither one value per line nor a known export".into(),
+    ))
+}
+
+/// Natural ordering for file names: digit runs compare as numbers (`hit_2` < `hit_10`).
+pub(crate) fn natural_key(s: &str) -> Vec<(u8, u64, String)> {
+    let mut out = Vec::new();
+    let mut chars = s.chars().peekable();
+    while let Some(&c) = chars.peek() {
+        if c.is_ascii_digit() {
+            let mut n = String::new();
+            while let Some(&d) = chars.peek() {
+                if d.is_ascii_digit() {
+                    n.push(d);
+                    chars.next();
+                } else {
+                    break;
+                }
+            }
+            out.push((0, n.parse::<u64>().unwrap_or(u64::MAX), n));
+        } else {
+            let mut t = String::new();
+            while let Some(&d) = chars.peek() {
+                if d.is_ascii_digit() {
+                    break;
+                }
+                t.push(d);
+                chars.next();
+            }
+            out.push((1, 0, t));
+        }
+    }
+    out
+}
+
+/// A file's identity on disk (device, inode), so that a folder or file reached through
+/// several links is read once.
+fn file_id(p: &Path) -> Option<(u64, u64)> {
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::MetadataExt;
+        std::fs::metadata(p).ok().map(|m| (m.dev(), m.ino()))
+    }
+    #[cfg(not(unix))]
+    {
+        let c = std::fs::canonicalize(p).ok()?;
+        let mut h = std::collections::hash_map::DefaultHasher::new();
+        std::hash::Hash::hash(&c, &mut h);
+        Some((0, std::hash::Hasher::finish(&h)))
+    }
+}
+
+/// Every file below `dir`, each folder visited once (a symlink loop ends at the folder it
+/// leads back to, with a note in `skipped`).
+fn walk(
+    dir: &Path,
+    seen: &mut std::collections::HashSet<(u64, u64)>,
+    out: &mut Vec<PathBuf>,
+    errs: &mut Vec<(PathBuf, String)>,
+    skipped: &mut Vec<(PathBuf, String)>,
+) {
+    if let Some(id) = file_id(dir) {
+        if !seen.insert(id) {
+            skipped.push((
+                dir.to_path_buf(),
+                "folder already read through another path (a link back to it)".into(),
+            ));
+            return;
+        }
+    }
+    let rd = match std::fs::read_dir(dir) {
+        Ok(rd) => rd,
+        Err(e) => {
+            errs.push((dir.to_path_buf(), format!("cannot list folder: {e}")));
+            return;
+        }
+    };
+    let mut entries: Vec<PathBuf> = rd.flatten().map(|e| e.path()).collect();
+    entries.sort();
+    for p in entries {
+        let name = p
+            .file_name()
+            .map(|n| n.to_string_lossy().to_string())
+            .unwrap_or_default();
+        if name.starts_with('.') {
+            continue; // hidden files, our own temporary files, virtualenvs
+        }
+        if p.is_dir() {
+            walk(&p, seen, out, errs, skipped);
+        } else {
+            out.push(p);
+        }
+    }
+}
+
+fn stem(p: &Path) -> String {
+    p.file_stem()
+        .map(|s| s.to_string_lossy().to_string())
+        .unwrap_or_default()
+}
+
+fn dir_name(p: &Path) -> String {
+    p.parent()
+        .and_then(|d| d.file_name())
+        .map(|s| s.to_string_lossy().to_string())
+        .unwrap_or_else(|| "experiment".into())
+}
+
+/// Find the sources in files and folders (folders searched recursively): walk the inputs,
+/// tell each file's kind, group the files into sources, and name the sources uniquely.
+pub fn discover(inputs: &[PathBuf], cfg: &IngestConfig) -> Discovery {
+    let mut d = Discovery::default();
+    let (files, roots) = walk_inputs(inputs, &mut d);
+    let kinds = classify(files, cfg.format, &mut d);
+    group(kinds, &mut d);
+    unique_ids(&mut d.sources, &roots);
+    d.sources
+        .sort_by(|a, b| (&a.id, a.all_files().next()).cmp(&(&b.id, b.all_files().next())));
+    d
+}
+
+/// The input folder each file was found in (its own folder for a file named explicitly):
+/// colliding experiment ids are made unique by their path below it.
+type Roots = std::collections::HashMap<PathBuf, PathBuf>;
+
+/// Every file of the inputs, once (`(path, named explicitly?)`, sorted), and its input
+/// folder; missing inputs and unreadable folders are rejects, links back to a folder and a
+/// file reached twice are passed over.
+fn walk_inputs(inputs: &[PathBuf], d: &mut Discovery) -> (Vec<(PathBuf, bool)>, Roots) {
+    // (path, explicitly named?)
+    let mut files: Vec<(PathBuf, bool)> = Vec::new();
+    let mut roots: Roots = Default::default();
+    let mut seen_dirs = std::collections::HashSet::new();
+    for inp in inputs {
+        if inp.is_dir() {
+            let mut found = Vec::new();
+            let mut errs = Vec::new();
+            walk(inp, &mut seen_dirs, &mut found, &mut errs, &mut d.skipped);
+            for (p, why) in errs {
+                d.rejects.push(whole_file_reject(&p, Stage::Discover, why));
+            }
+            for p in &found {
+                roots.entry(p.clone()).or_insert_with(|| inp.clone());
+            }
+            files.extend(found.into_iter().map(|p| (p, false)));
+        } else if inp.exists() || inp.symlink_metadata().is_ok() {
+            roots
+                .entry(inp.clone())
+                .or_insert_with(|| inp.parent().map(Path::to_path_buf).unwrap_or_default());
+            files.push((inp.clone(), true));
+        } else {
+            d.rejects.push(whole_file_reject(
+                inp,
+                Stage::Discover,
+                "no such file or folder".into(),
+            ));
+        }
+    }
+    files.sort();
+    files.dedup_by(|a, b| a.0 == b.0);
+    // The same file reached through two links is read once (the first path, in order).
+    let mut seen_files = std::collections::HashSet::new();
+    files.retain(|(p, _)| match file_id(p) {
+        Some(id) => {
+            let first = seen_files.insert(id);
+            if !first {
+                d.skipped.push((
+                    p.clone(),
+                    "the same file as one read through another path".into(),
+                ));
+            }
+            first
+        }
+        None => true,
+    });
+
+    (files, roots)
+}
+
+/// Each file's kind from its name and head; what is not a recording is a reject when named
+/// explicitly and passed over (with the reason) when found in a folder.
+fn classify(
+    files: Vec<(PathBuf, bool)>,
+    forced: FormatChoice,
+    d: &mut Discovery,
+) -> Vec<(PathBuf, Kind)> {
+    let mut kinds: Vec<(PathBuf, Kind)> = Vec::new();
+    for (p, explicit) in files {
+        let kind = match detect_format(&p, forced) {
+            Ok(k) => k,
+            Err(e) => {
+                d.rejects.push(whole_file_reject(
+                    &p,
+                    Stage::Discover,
+                    format!("cannot read: {e}"),
+                ));
+                continue;
+            }
+        };
+        match kind {
+            Kind::Other(why) => {
+                if explicit {
+                    d.rejects.push(whole_file_reject(
+                        &p,
+                        Stage::Discover,
+                        format!("not a recording aepipe reads: {why}"),
+                    ));
+                } else {
+                    d.skipped.push((p, why));
+                }
+            }
+            k => kinds.push((p, k)),
+        }
+    }
+
+    kinds
+}
+
+/// The files into sources: Vallen pairs by base path, MISTRAS chains by (folder, base
+/// name), one-hit-per-file folders by (folder, format) with an AEwin folder's hit list and
+/// machine log as companions; multi-hit files are sources of their own.
+fn group(kinds: Vec<(PathBuf, Kind)>, d: &mut Discovery) {
+    // Vallen pairs by (folder, stem).
+    let mut vallen: std::collections::BTreeMap<PathBuf, (Option<PathBuf>, Option<PathBuf>)> =
+        Default::default();
+    // One-hit-per-file groups by (folder, format).
+    let mut groups: std::collections::BTreeMap<(PathBuf, Format), Vec<PathBuf>> =
+        Default::default();
+    let mut logs = Vec::new();
+    let mut hitlists = Vec::new();
+    // MISTRAS chains by (folder, base name).
+    let mut chains: std::collections::BTreeMap<(PathBuf, String), Vec<PathBuf>> =
+        Default::default();
+    for (p, k) in kinds {
+        let parent = p.parent().map(Path::to_path_buf).unwrap_or_default();
+        match k {
+            Kind::Pridb => {
+                let base = p.with_extension("");
+                vallen.entry(base).or_default().0 = Some(p);
+            }
+            Kind::Tradb => {
+                let base = p.with_extension("");
+                vallen.entry(base).or_default().1 = Some(p);
+            }
+            Kind::Parquet => d.sources.push(Source {
+                id: stem(&p),
+                format: Format::Parquet,
+                files: vec![p],
+                companions: vec![],
+            }),
+            Kind::WaveExplorer => d.sources.push(Source {
+                id: stem(&p),
+                format: Format::WaveExplorer,
+                files: vec![p],
+                companions: vec![],
+            }),
+            Kind::CsvLong => d.sources.push(Source {
+                id: stem(&p),
+                format: Format::CsvLong,
+                files: vec![p],
+                companions: vec![],
+            }),
+            Kind::Wav => groups.entry((parent, Format::Wav)).or_default().push(p),
+            Kind::CsvPerHit => groups
+                .entry((parent, Format::CsvPerHit))
+                .or_default()
+                .push(p),
+            Kind::Text => groups.entry((parent, Format::Text)).or_default().push(p),
+            Kind::AewinWave => groups.entry((parent, Format::Aewin)).or_default().push(p),
+            Kind::Dta => chains
+                .entry((parent, dta::chain_key(&p).0))
+                .or_default()
+                .push(p),
+            Kind::MachineLog => logs.push(p),
+            Kind::AewinHitList => hitlists.push(p),
+            Kind::Other(_) => unreachable!("filtered above"),
+        }
+    }
+    for (base, (pri, tra)) in vallen {
+        let id = base
+            .file_name()
+            .map(|s| s.to_string_lossy().to_string())
+            .unwrap_or_default();
+        match (pri, tra) {
+            (pri, Some(tra)) => {
+                // The .pridb first; a VisualAE .trfdb beside it is read too (its features
+                // join the hit rows), so it is a companion, not a passed-over file.
+                let mut companions: Vec<PathBuf> = pri.into_iter().collect();
+                let trf = base.with_extension("trfdb");
+                if !companions.is_empty() && trf.is_file() {
+                    d.skipped.retain(|(p, _)| p != &trf);
+                    companions.push(trf);
+                }
+                d.sources.push(Source {
+                    id,
+                    format: Format::Vallen,
+                    files: vec![tra],
+                    companions,
+                })
+            }
+            // A .pridb alone: its hits' waveforms are missing. The reader turns each hit
+            // that should have a transient record into a reject row.
+            (Some(pri), None) => d.sources.push(Source {
+                id,
+                format: Format::Vallen,
+                files: vec![],
+                companions: vec![pri],
+            }),
+            (None, None) => {}
+        }
+    }
+    for ((_, id), mut files) in chains {
+        files.sort_by_key(|p| dta::chain_key(p).1);
+        d.sources.push(Source {
+            id,
+            format: Format::Mistras,
+            files,
+            companions: vec![],
+        });
+    }
+    let mut used_logs = vec![false; logs.len()];
+    let mut used_lists = vec![false; hitlists.len()];
+    for ((dir, format), mut members) in groups {
+        members.sort_by_key(|p| natural_key(&p.file_name().unwrap_or_default().to_string_lossy()));
+        let id = dir
+            .file_name()
+            .map(|s| s.to_string_lossy().to_string())
+            .unwrap_or_else(|| dir_name(&members[0]));
+        let mut companions = Vec::new();
+        if format == Format::Aewin {
+            // Hit list `<ID>.TXT` beside the folder; machine log `Specimen_RawData_<n>.csv`
+            // whose number appears in the experiment id, in the folder or beside it.
+            for (i, h) in hitlists.iter().enumerate() {
+                if stem(h) == id && (h.parent() == dir.parent() || h.parent() == Some(&dir)) {
+                    companions.push(h.clone());
+                    used_lists[i] = true;
+                }
+            }
+            for (i, l) in logs.iter().enumerate() {
+                let digits: String = stem(l).chars().filter(|c| c.is_ascii_digit()).collect();
+                if !digits.is_empty()
+                    && id.contains(&digits)
+                    && (l.parent() == dir.parent() || l.parent() == Some(&dir))
+                {
+                    companions.push(l.clone());
+                    used_logs[i] = true;
+                }
+            }
+        }
+        d.sources.push(Source {
+            id,
+            format,
+            files: members,
+            companions,
+        });
+    }
+    for (i, l) in logs.into_iter().enumerate() {
+        if !used_logs[i] {
+            d.skipped.push((
+                l,
+                "test-machine log with no AEwin experiment to attach to".into(),
+            ));
+        }
+    }
+    for (i, h) in hitlists.into_iter().enumerate() {
+        if !used_lists[i] {
+            d.skipped
+                .push((h, "AEwin hit list with no waveform folder beside it".into()));
+        }
+    }
+}
+
+/// The path that names a source: its folder for a folder of one-hit files, else its first
+/// file without extension (a MISTRAS chain without its `__N`).
+fn source_base(s: &Source) -> PathBuf {
+    let Some(first) = s.all_files().next() else {
+        return PathBuf::from(&s.id);
+    };
+    let dir = first.parent().map(Path::to_path_buf).unwrap_or_default();
+    if s.format.one_hit_per_file() {
+        dir
+    } else if s.format == Format::Mistras {
+        dir.join(dta::chain_key(first).0)
+    } else {
+        first.with_extension("")
+    }
+}
+
+fn slash_path(p: &Path) -> String {
+    p.components()
+        .map(|c| c.as_os_str().to_string_lossy().to_string())
+        .filter(|c| !c.is_empty() && c != "/")
+        .collect::<Vec<_>>()
+        .join("/")
+}
+
+/// Experiment ids unique in a batch: sources whose names collide (`a/bearing.pridb` and
+/// `b/bearing.pridb`) take their path relative to the input folder they were found in
+/// (`a/bearing`, `b/bearing`); where that still collides (the same path below two input
+/// folders), the shortest tail of the full path that tells them apart.
+fn unique_ids(sources: &mut [Source], roots: &std::collections::HashMap<PathBuf, PathBuf>) {
+    let mut by_id: std::collections::BTreeMap<String, Vec<usize>> = Default::default();
+    for (i, s) in sources.iter().enumerate() {
+        by_id.entry(s.id.clone()).or_default().push(i);
+    }
+    for group in by_id.into_values().filter(|g| g.len() > 1) {
+        let bases: Vec<PathBuf> = group.iter().map(|&i| source_base(&sources[i])).collect();
+        let rel: Vec<String> = group
+            .iter()
+            .zip(&bases)
+            .map(|(&i, b)| {
+                let root = sources[i]
+                    .all_files()
+                    .next()
+                    .and_then(|f| roots.get(f))
+                    .cloned()
+                    .unwrap_or_default();
+                slash_path(b.strip_prefix(&root).unwrap_or(b))
+            })
+            .collect();
+        let distinct: std::collections::HashSet<&String> = rel.iter().collect();
+        let ids = if distinct.len() == rel.len() {
+            rel
+        } else {
+            // Grow the tail of each full path until the group's ids differ.
+            let comps: Vec<Vec<String>> = bases
+                .iter()
+                .map(|b| slash_path(b).split('/').map(str::to_string).collect())
+                .collect();
+            let longest = comps.iter().map(Vec::len).max().unwrap_or(1);
+            (1..=longest)
+                .map(|k| {
+                    comps
+                        .iter()
+                        .map(|c| c[c.len().saturating_sub(k)..].join("/"))
+                        .collect::<Vec<_>>()
+                })
+                .find(|ids| ids.iter().collect::<std::collections::HashSet<_>>().len() == ids.len())
+                .unwrap_or_else(|| comps.iter().map(|c| c.join("/")).collect())
+        };
+        // Two sources of one path (a folder of WAV and of CSV files): numbered.
+        let mut seen: std::collections::HashMap<String, usize> = Default::default();
+        for (&i, id) in group.iter().zip(ids) {
+            let n = seen.entry(id.clone()).or_insert(0);
+            *n += 1;
+            sources[i].id = if *n == 1 { id } else { format!("{id}-{n}") };
+        }
+    }
+}
