@@ -123,6 +123,8 @@ pub struct PipelineConfig {
     pub validate: ValidateConfig,
     pub dsp: DspConfig,
     pub criteria: CriteriaConfig,
+    /// Arrival-time picking (`features.parquet` onset columns and `arrival_s`).
+    pub onset: OnsetConfig,
     /// `aepipe run` stages after the features.
     pub trend: TrendConfig,
     pub som: SomConfig,
@@ -263,6 +265,53 @@ pub mod som_defaults {
     pub const FRACTION: f64 = 0.1;
     /// The seed of `som train`'s training-set draw (a run draws with [`SEED`]).
     pub const TRAINING_SEED: u64 = 5;
+}
+
+/// Which picker gives a hit's arrival time (`arrival_s`, and the events' and location's
+/// times).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Picker {
+    /// None: `arrival_s` is null, and events and location use the hit time (the
+    /// acquisition's own threshold crossing).
+    #[default]
+    None,
+    /// The first sample at or above the record's threshold.
+    Threshold,
+    Aic,
+    Hinkley,
+    Er,
+    Mer,
+}
+
+/// `[onset]`: the four pickers of vallenae run on every record (`onset_*` columns); `picker`
+/// chooses the one that gives `arrival_s`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct OnsetConfig {
+    pub picker: Picker,
+    /// Hinkley's divisor α (vallenae: 5).
+    pub alpha: f64,
+    /// The energy ratios' window, samples (vallenae: 100).
+    pub win: usize,
+    /// Pick inside a window around the trigger instead of the whole record: this long before
+    /// and after it, s (both set, or neither).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub window_before_s: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub window_after_s: Option<f64>,
+}
+
+impl Default for OnsetConfig {
+    fn default() -> Self {
+        OnsetConfig {
+            picker: Picker::None,
+            alpha: 5.0,
+            win: 100,
+            window_before_s: None,
+            window_after_s: None,
+        }
+    }
 }
 
 /// The HTML report of `aepipe run`.
@@ -774,6 +823,21 @@ impl PipelineConfig {
             return Err(ConfigError::Invalid(format!(
                 "dsp.band_max_hz / dsp.bins.band_hz must be a whole number, got {bin_bands}"
             )));
+        }
+        let o = &self.onset;
+        pos(o.alpha, "onset.alpha")?;
+        if o.win == 0 {
+            return Err(ConfigError::Invalid("onset.win must be ≥ 1 sample".into()));
+        }
+        match (o.window_before_s, o.window_after_s) {
+            (None, None) => {}
+            (Some(b), Some(a)) if b.is_finite() && a.is_finite() && b >= 0.0 && a > 0.0 => {}
+            _ => {
+                return Err(ConfigError::Invalid(
+                    "onset.window_before_s and window_after_s: both ≥ 0 (after > 0), or neither"
+                        .into(),
+                ))
+            }
         }
         let m = &self.ingest.mistras;
         for (k, v) in &m.chid_sizes {

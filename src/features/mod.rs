@@ -12,9 +12,10 @@
 
 pub mod criteria;
 
-use crate::config::{PipelineConfig, ValidConfig};
+use crate::config::{Picker, PipelineConfig, ValidConfig};
 use crate::dsp::cwt::{Cwt, WaveletBank};
 use crate::dsp::hit::hit_features;
+use crate::dsp::pick::{self, PickScratch};
 use crate::dsp::spectrum::{band_column, power_ratios};
 use crate::dsp::{condition, hit::HitFeatures};
 use crate::model::{db_ae, AeRecord};
@@ -128,6 +129,8 @@ pub struct FeatureRow {
     pub source_file: String,
     /// First threshold crossing from the trigger, s.
     pub first_crossing_s: Option<f64>,
+    /// The configured picker's arrival on the acquisition's clock, s.
+    pub arrival_s: Option<f64>,
     pub an: Analysis,
 }
 
@@ -197,6 +200,26 @@ pub fn features_table(cfg: &PipelineConfig) -> Table<FeatureRow> {
     })
     .col(f64c("bond_low_duration_s", "s", "half-power duration of the strongest component near criteria.bond_low_hz (≈250 kHz); null if absent").nullable(), move |r| opt(r.an.components.low, |d| d.duration_s))
     .col(f64c("bond_high_duration_s", "s", "half-power duration of the strongest component near criteria.bond_high_hz (≈750 kHz); null if absent").nullable(), move |r| opt(r.an.components.high, |d| d.duration_s))
+    .col(onset_col("onset_hinkley", "Hinkley criterion (α = onset.alpha)"), |r| idx(r.an.onsets.hinkley))
+    .col(onset_col("onset_aic", "Akaike information criterion"), |r| idx(r.an.onsets.aic))
+    .col(onset_col("onset_er", "energy ratio (windows of onset.win samples)"), |r| idx(r.an.onsets.er))
+    .col(onset_col("onset_mer", "modified energy ratio, (ER·|x|)⁴ as vallenae 0.14 computes it"), |r| idx(r.an.onsets.mer))
+    .col(f64c("arrival_s", "s", "arrival time on the acquisition's clock by onset.picker: the record's first sample (time_s − pretrigger/rate) + the pick's index / rate; null without a picker (then events use the hit time)").nullable(), |r| Value::F64(r.arrival_s))
+}
+
+/// An onset column: the pick's 0-based sample index in the record.
+fn onset_col(name: &str, what: &str) -> ColumnSpec {
+    ColumnSpec::new(
+        name,
+        ColType::Int32,
+        "samples",
+        &format!("arrival by the {what} (vallenae 0.14's definition): 0-based sample index in the record, over the whole record or [onset] window; null where the record is too short for it"),
+    )
+    .nullable()
+}
+
+fn idx(i: Option<usize>) -> Value {
+    Value::I32(i.map(|i| i as i32))
 }
 
 /// The class names the criteria give, in words for the column's documentation.
@@ -249,6 +272,7 @@ fn strongest_peak(freqs: &[f64], peaks: &[f32], lo: f64, hi: f64) -> Option<usiz
 /// Per-worker state for computing feature rows.
 pub struct FeatureExtractor {
     cfg: ValidConfig,
+    picks: PickScratch,
     /// The table the rows are made for (its columns depend on the configuration).
     table: Table<FeatureRow>,
     grid: BinGrid,
@@ -277,6 +301,45 @@ pub struct Analysis {
     pub components: Components,
     pub label: crate::model::Mechanism,
     pub reason: String,
+    /// The four pickers' arrivals, 0-based sample index in the record.
+    pub onsets: Onsets,
+}
+
+/// Where each picker puts the arrival (0-based sample index in the record; `None` where the
+/// record, or its window, is too short for the picker).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct Onsets {
+    pub hinkley: Option<usize>,
+    pub aic: Option<usize>,
+    pub er: Option<usize>,
+    pub mer: Option<usize>,
+}
+
+impl Onsets {
+    /// Run the four pickers of `[onset]` on the record's own samples (as recorded, volts:
+    /// the input vallenae's pickers see), over the whole record or the configured window.
+    pub fn pick(r: &AeRecord, cfg: &crate::config::OnsetConfig, s: &mut PickScratch) -> Onsets {
+        let n = r.samples.len();
+        let (a, b) = match (cfg.window_before_s, cfg.window_after_s) {
+            (Some(before), Some(after)) => {
+                let t = r.pretrigger as f64;
+                let fs = r.sample_rate_hz;
+                let a = (t - before * fs).round().max(0.0) as usize;
+                let b = ((t + after * fs).round().max(0.0) as usize).min(n);
+                (a.min(b), b)
+            }
+            _ => (0, n),
+        };
+        let x = &r.samples[a..b];
+        let at = |p: Option<usize>| p.map(|i| i + a);
+        let [hinkley, aic, er, mer] = pick::pick_all(x, cfg.alpha, cfg.win, s);
+        Onsets {
+            hinkley: at(hinkley),
+            aic: at(aic),
+            er: at(er),
+            mer: at(mer),
+        }
+    }
 }
 
 impl FeatureExtractor {
@@ -285,6 +348,7 @@ impl FeatureExtractor {
         FeatureExtractor {
             freqs: bank.freqs_hz.clone(),
             table: features_table(cfg),
+            picks: PickScratch::default(),
             cfg: cfg.clone(),
             grid: BinGrid::from_config(cfg),
             cwt: Cwt::new(bank),
@@ -411,7 +475,9 @@ impl FeatureExtractor {
                 (d.label, d.reason)
             }
         };
+        let onsets = Onsets::pick(r, &self.cfg.onset, &mut self.picks);
         Analysis {
+            onsets,
             hit,
             peak_freq_hz: spec.map(|s| s.peak_freq_hz),
             centroid_freq_hz: spec.map(|s| s.centroid_freq_hz),
@@ -435,10 +501,25 @@ impl FeatureExtractor {
             .hit
             .first_crossing
             .map(|i| (i as f64 - r.pretrigger as f64) / fs);
+        let o = an.onsets;
+        let index = match self.cfg.onset.picker {
+            Picker::None => None,
+            Picker::Threshold => an.hit.first_crossing,
+            Picker::Aic => o.aic,
+            Picker::Hinkley => o.hinkley,
+            Picker::Er => o.er,
+            Picker::Mer => o.mer,
+        };
+        // The record's first sample is `pretrigger` samples before its trigger time.
+        let arrival_s = match (r.time_s, index) {
+            (Some(t), Some(i)) => Some(t + (i as f64 - r.pretrigger as f64) / fs),
+            _ => None,
+        };
         self.table.row(FeatureRow {
             id: Identity::of(r),
             source_file: r.source_file.clone(),
             first_crossing_s,
+            arrival_s,
             an,
         })
     }

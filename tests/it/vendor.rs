@@ -903,3 +903,89 @@ fn the_som_learns_the_plb_angles_from_the_experiment_column_on_held_out_hits() {
     assert!(mine > 2.0 / 6.0, "{v}");
     assert!(mine >= peer - 0.05, "{v}");
 }
+
+/// The four pickers equal vallenae 0.14's `timepicker` index for index on every transient of
+/// the real Vallen sets.
+#[test]
+fn the_pickers_give_vallenaes_index_on_every_real_vallen_record() {
+    let name = "the_pickers_give_vallenaes_index_on_every_real_vallen_record";
+    let Some(real) = crate::real_data(name) else {
+        return;
+    };
+    let tradbs: Vec<PathBuf> = [
+        "vallen/steel_plate/sample.tradb",
+        "vallen/steel_plate/sample_plain.tradb",
+        "vallen/bearing/bearing.tradb",
+        "plb_cfrp_vallen/PLBS4_CP090_PCLO1.tradb",
+        "plb_cfrp_vallen/PLBS8_QI090_T1.tradb",
+        "plb_cfrp_vallen/PLBS8_QI090_ST1.tradb",
+    ]
+    .iter()
+    .map(|p| real.join(p))
+    .collect();
+    let args: Vec<&Path> = tradbs.iter().map(PathBuf::as_path).collect();
+    let Some(js) = python(name, "vallenae_picks.py", &args) else {
+        return;
+    };
+    let theirs: serde_json::Value = serde_json::from_str(js.trim()).unwrap();
+    // Each .tradb with its .pridb (a transient's number is its TRAI in these one-acquisition
+    // files); sample_plain.tradb has none.
+    let mut inputs = tradbs.clone();
+    inputs.extend(
+        tradbs
+            .iter()
+            .map(|p| p.with_extension("pridb"))
+            .filter(|p| p.is_file()),
+    );
+    let t = TempDir::new("vendor-picks");
+    let r = run(
+        StreamJob::Features,
+        &inputs,
+        t.path(),
+        &aepipe::config::ValidConfig::default(),
+        &opts(),
+    )
+    .unwrap();
+    let (names, rows) = table_rows(&r.table_path);
+    let c = |n: &str| names.iter().position(|x| x == n).unwrap();
+    let mine: std::collections::BTreeMap<(String, String, String), [String; 4]> = rows
+        .iter()
+        .map(|r| {
+            (
+                (
+                    r[c("experiment")].clone(),
+                    r[c("channel")].clone(),
+                    r[c("hit")].clone(),
+                ),
+                [
+                    r[c("onset_hinkley")].clone(),
+                    r[c("onset_aic")].clone(),
+                    r[c("onset_er")].clone(),
+                    r[c("onset_mer")].clone(),
+                ],
+            )
+        })
+        .collect();
+    let (mut n, mut differ) = (0, Vec::new());
+    for (stem, recs) in theirs.as_object().unwrap() {
+        for rec in recs.as_array().unwrap() {
+            let v = rec.as_array().unwrap();
+            let key = (stem.clone(), v[1].to_string(), v[0].to_string());
+            let m = mine.get(&key).unwrap_or_else(|| panic!("no row {key:?}"));
+            for (k, picker) in ["hinkley", "aic", "er", "mer"].iter().enumerate() {
+                n += 1;
+                let want = if v[2 + k].is_null() {
+                    String::new()
+                } else {
+                    v[2 + k].to_string()
+                };
+                if m[k] != want {
+                    differ.push(format!("{key:?} {picker}: {} vs vallenae {want}", m[k]));
+                }
+            }
+        }
+    }
+    println!("{n} picks compared with vallenae, {} differ", differ.len());
+    assert!(n >= 4 * 1180, "{n}");
+    assert!(differ.is_empty(), "{}", differ.join("\n"));
+}

@@ -328,7 +328,10 @@ impl Reader {
             Ok(a) => a,
             Err(e) => return reject(e.to_string()),
         };
-        let scale = tr_mv * 1e-3;
+        // Volts as vallenae computes them (`np.multiply(adc, 1e-3 * TR_mV, dtype=float32)`):
+        // the scale rounded to f32 and the product taken in f32, so that every sample, and so
+        // every pick and feature, is the one vallenae's readers give.
+        let scale = (1e-3 * tr_mv) as f32;
         let time_s = time.map(|t| t as f64 / self.time_base);
         let linked =
             !self.has_pridb || time.is_some_and(|t| self.info.link.contains_key(&(trai, chan, t)));
@@ -344,7 +347,7 @@ impl Reader {
             time_s,
             sample_rate_hz: rate,
             pretrigger: pre.unwrap_or(0).max(0) as u32,
-            samples: adc.into_iter().map(|a| (a as f64 * scale) as f32).collect(),
+            samples: adc.into_iter().map(|a| a as f32 * scale).collect(),
             load_n: time_s.and_then(|t| self.info.load.at(t)),
             extension_m: time_s.and_then(|t| self.info.extension.at(t)),
             label: None,

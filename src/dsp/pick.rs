@@ -1,0 +1,478 @@
+//! Arrival-time pickers: where in a record the AE wave arrives. The four of vallenae 0.14
+//! (`vallenae.timepicker`), with its definitions to the bit, so that a pick can be compared
+//! index for index:
+//!
+//! * [`hinkley`] (Hinkley criterion, Molenda 2016; van Rijn 2017): S[i] = Σ_{k≤i} x[k]² −
+//!   i·E/(α·n), E = Σx²; the pick is the first index of the minimum.
+//! * [`aic`] (Akaike information criterion, Bai et al. 2017): AIC[i] = (i+1)·log10 var(x[0..=i])
+//!   + (n−i−2)·log10 var(x[i+1..]), population variances clamped below at
+//!   `f32::MIN_POSITIVE`; the last element is undefined (NaN); the first index of the minimum
+//!   over the rest.
+//! * [`energy_ratio`] (Han, Wong & Bancroft 2009): ER[i] = Σx[i+1..=i+w]² / Σx[i−w+1..=i]² for
+//!   w ≤ i < n−w, 0 elsewhere, stored in float32; the first index of the maximum, a NaN (a
+//!   silent left window) winning as numpy's `argmax` lets it.
+//! * [`modified_energy_ratio`]: (ER[i]·|x[i]|)⁴ in float32. vallenae raises to the fourth
+//!   power (its comment says the third, as the paper does); the pick is the same either way,
+//!   and the values here are vallenae's.
+//!
+//! As in vallenae, squares are taken in the samples' own type (f32 volts) and summed in f64;
+//! otherwise the last bits would decide ties differently. Each picker is O(n) with prefix
+//! sums, [`pick_all`] shares one pair of prefix sums between the four, and the only memory
+//! is the caller's [`PickScratch`], reused from record to record.
+//!
+//! The AIC needs two logarithms per sample, which cost more than the rest of a record's
+//! picking together. [`aic`] therefore first evaluates it with a polynomial logarithm whose
+//! error is bounded (below 1e-11 in log10), keeps every index that could still be the
+//! minimum given that bound, and evaluates those with the library's `log10`, exactly as
+//! before: the pick is the exact one, only the work is less (a few dozen exact logarithms
+//! per record instead of 2n).
+
+/// The buffers the pickers work in (owned by the caller, reused).
+#[derive(Debug, Default, Clone)]
+pub struct PickScratch {
+    /// Prefix sums of x² (f32 squares, f64 sums) and of x.
+    sq: Vec<f64>,
+    sum: Vec<f64>,
+    /// Approximate AIC values (see the module doc).
+    approx: Vec<f64>,
+    /// ER and MER values over the computed range.
+    ratios: Vec<[f32; 2]>,
+}
+
+impl PickScratch {
+    fn load_squares(&mut self, x: &[f32]) {
+        self.sq.clear();
+        let mut acc = 0.0f64;
+        self.sq.extend(x.iter().map(|&v| {
+            acc += (v * v) as f64;
+            acc
+        }));
+    }
+
+    /// Both prefix sums in one pass (two independent chains).
+    fn load_both(&mut self, x: &[f32]) {
+        self.sq.clear();
+        self.sum.clear();
+        let (mut a, mut b) = (0.0f64, 0.0f64);
+        for &v in x {
+            a += (v * v) as f64;
+            b += v as f64;
+            self.sq.push(a);
+            self.sum.push(b);
+        }
+    }
+
+    fn load_sums(&mut self, x: &[f32]) {
+        self.sum.clear();
+        let mut acc = 0.0f64;
+        self.sum.extend(x.iter().map(|&v| {
+            acc += v as f64;
+            acc
+        }));
+    }
+}
+
+/// The four picks of one record: Hinkley, AIC, energy ratio, modified energy ratio.
+pub fn pick_all(x: &[f32], alpha: f64, win: usize, s: &mut PickScratch) -> [Option<usize>; 4] {
+    s.load_both(x);
+    let (er, mer) = ratios_loaded(x, win, &s.sq, &mut s.ratios);
+    [
+        hinkley_loaded(x.len(), alpha, &s.sq),
+        aic_loaded(x, s),
+        er,
+        mer,
+    ]
+}
+
+/// Hinkley criterion with divisor `alpha` (vallenae's default 5). `None` for an empty record.
+pub fn hinkley(x: &[f32], alpha: f64, s: &mut PickScratch) -> Option<usize> {
+    s.load_squares(x);
+    hinkley_loaded(x.len(), alpha, &s.sq)
+}
+
+fn hinkley_loaded(n: usize, alpha: f64, sq: &[f64]) -> Option<usize> {
+    if n == 0 {
+        return None;
+    }
+    let trend = sq[n - 1] / (alpha * n as f64);
+    // The first index of the minimum (numpy's argmin; no NaN can occur in finite input).
+    let (mut best, mut best_v) = (0, f64::INFINITY);
+    for (i, &e) in sq.iter().enumerate() {
+        let v = e - (i as f32) as f64 * trend;
+        if v < best_v {
+            (best, best_v) = (i, v);
+        }
+    }
+    Some(best)
+}
+
+/// Akaike information criterion. `None` for fewer than 2 samples (vallenae raises).
+pub fn aic(x: &[f32], s: &mut PickScratch) -> Option<usize> {
+    s.load_squares(x);
+    s.load_sums(x);
+    aic_loaded(x, s)
+}
+
+/// One AIC value, vallenae's arithmetic, with the logarithm `log10` given.
+#[inline(always)]
+fn aic_value(i: usize, n: usize, sum: &[f64], sq: &[f64], log10: impl Fn(f64) -> f64) -> f64 {
+    let (total, total_sq) = (sum[n - 1], sq[n - 1]);
+    let eps = f32::MIN_POSITIVE as f64;
+    // numpy's maximum propagates NaN.
+    let clamp = |v: f64| if v.is_nan() { v } else { v.max(eps) };
+    let (l_len, r_len) = ((i + 1) as f64, (n - i - 1) as f64);
+    let (l_sum, l_sq) = (sum[i], sq[i]);
+    let (r_sum, r_sq) = (total - l_sum, total_sq - l_sq);
+    let (l_mean, r_mean) = ((1.0 / l_len) * l_sum, (1.0 / r_len) * r_sum);
+    let l_var = (1.0 / l_len) * l_sq - l_mean * l_mean;
+    let r_var = (1.0 / r_len) * r_sq - r_mean * r_mean;
+    (i as f64 + 1.0) * log10(clamp(l_var)) + (n as f64 - i as f64 - 2.0) * log10(clamp(r_var))
+}
+
+/// Bound on |fast_log10(v) − log10(v)| for every positive normal v (the tests check it).
+const FAST_LOG10_ERR: f64 = 1e-11;
+
+/// ln(1+t) on t ∈ [√½−1, √2−1]: a degree-13 polynomial (a Chebyshev fit, in powers of t,
+/// highest last), within 3.3e-12 of ln on that interval.
+const LN1P: [f64; 14] = [
+    1.7513768213461844e-12,
+    0.9999999999125194,
+    -0.500000001351091,
+    0.3333333579172925,
+    -0.2499998439627748,
+    0.1999979573177879,
+    -0.16667240843752137,
+    0.14293147492363625,
+    -0.12493996688317335,
+    0.10979485614527834,
+    -0.09933512305143935,
+    0.10160685591651983,
+    -0.09936024217173273,
+    0.0521638368123642,
+];
+
+/// a·b + c, fused where the caller's target has FMA (`F`), else two roundings.
+#[inline(always)]
+fn madd<const F: bool>(a: f64, b: f64, c: f64) -> f64 {
+    if F {
+        a.mul_add(b, c)
+    } else {
+        a * b + c
+    }
+}
+
+/// log10 of a positive normal `v`: exponent, and the mantissa m ∈ [√½, √2) by [`LN1P`]
+/// (Estrin's scheme: a short dependency chain). Branch- and division-free so that the loop
+/// around it vectorises; only for inputs known to be positive and normal.
+#[inline(always)]
+fn fast_log10<const F: bool>(v: f64) -> f64 {
+    let bits = v.to_bits();
+    let e = ((bits >> 52) & 0x7ff) as i64 - 1023;
+    let m = f64::from_bits((bits & 0x000f_ffff_ffff_ffff) | 0x3ff0_0000_0000_0000);
+    let high = m > std::f64::consts::SQRT_2;
+    let m = if high { m * 0.5 } else { m };
+    let e = if high { e + 1 } else { e };
+    let t = m - 1.0;
+    let c = &LN1P;
+    let t2 = t * t;
+    let t4 = t2 * t2;
+    let t8 = t4 * t4;
+    let p = |k: usize| madd::<F>(c[k + 1], t, c[k]);
+    let q0 = madd::<F>(p(2), t2, p(0));
+    let q1 = madd::<F>(p(6), t2, p(4));
+    let q2 = madd::<F>(p(10), t2, p(8));
+    let q3 = madd::<F>(c[13], t, c[12]);
+    let lo = madd::<F>(q1, t4, q0);
+    let hi = madd::<F>(q3, t4, q2);
+    let ln = madd::<F>(hi, t8, lo);
+    madd::<F>(e as f64, std::f64::consts::LN_2, ln) * std::f64::consts::LOG10_E
+}
+
+/// Pass 1 of the AIC: `out[i]` within the bound of the exact value for i < n−1. The
+/// variances are computed exactly as [`aic_value`] does (they may cancel, so only the
+/// logarithm may differ); after the clamp they lie in [f32::MIN_POSITIVE, n·f32::MAX²],
+/// positive and normal, as [`fast_log10`] needs (the samples are finite, checked).
+#[inline(always)]
+fn aic_approx_generic<const F: bool>(sum: &[f64], sq: &[f64], out: &mut [f64]) {
+    let n = sq.len();
+    let (total, total_sq) = (sum[n - 1], sq[n - 1]);
+    let eps = f32::MIN_POSITIVE as f64;
+    for (i, o) in out.iter_mut().enumerate().take(n - 1) {
+        let (l_len, r_len) = ((i + 1) as f64, (n - i - 1) as f64);
+        let (l_sum, l_sq) = (sum[i], sq[i]);
+        let (r_sum, r_sq) = (total - l_sum, total_sq - l_sq);
+        let (l_mean, r_mean) = ((1.0 / l_len) * l_sum, (1.0 / r_len) * r_sum);
+        let l_var = (1.0 / l_len) * l_sq - l_mean * l_mean;
+        let r_var = (1.0 / r_len) * r_sq - r_mean * r_mean;
+        let l_var = if l_var > eps { l_var } else { eps };
+        let r_var = if r_var > eps { r_var } else { eps };
+        *o = l_len * fast_log10::<F>(l_var) + (r_len - 1.0) * fast_log10::<F>(r_var);
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma")]
+unsafe fn aic_approx_avx2(sum: &[f64], sq: &[f64], out: &mut [f64]) {
+    aic_approx_generic::<true>(sum, sq, out)
+}
+
+/// Pass 1, four lanes at a time where the CPU has AVX2.
+fn aic_approx(sum: &[f64], sq: &[f64], out: &mut [f64]) {
+    #[cfg(target_arch = "x86_64")]
+    if std::is_x86_feature_detected!("avx2") && std::is_x86_feature_detected!("fma") {
+        // SAFETY: the CPU supports AVX2 and FMA (checked just above).
+        return unsafe { aic_approx_avx2(sum, sq, out) };
+    }
+    aic_approx_generic::<false>(sum, sq, out)
+}
+
+fn aic_loaded(x: &[f32], s: &mut PickScratch) -> Option<usize> {
+    let n = s.sq.len();
+    if n < 2 {
+        return None;
+    }
+    let (sum, sq) = (&s.sum, &s.sq);
+    if !x.iter().all(|v| v.is_finite()) {
+        // Not a record the feature path lets through; the direct way, as numpy would.
+        let mut best: Option<(usize, f64)> = None;
+        for i in 0..n {
+            let v = aic_value(i, n, sum, sq, f64::log10);
+            if !v.is_nan() && best.is_none_or(|(_, b)| v < b) {
+                best = Some((i, v));
+            }
+        }
+        return best.map(|b| b.0);
+    }
+    // Pass 1: every defined value to within `bound` of the exact one.
+    s.approx.clear();
+    s.approx.resize(n - 1, 0.0);
+    aic_approx(sum, sq, &mut s.approx);
+    let lowest = s.approx.iter().copied().fold(f64::INFINITY, f64::min);
+    // |approx − exact| ≤ (i+1)·δ + |n−i−2|·δ + the rounding of products and sum, whose
+    // terms are at most n·|log10 v| ≤ n·80 (v between f32::MIN_POSITIVE and n·f32::MAX²);
+    // twice that separates the indices that can hold the exact minimum from those that
+    // cannot.
+    let nf = n as f64 + 2.0;
+    let bound = 2.0 * (nf * FAST_LOG10_ERR + 8.0 * nf * 80.0 * f64::EPSILON);
+    // Pass 2: the exact values of the candidates, in index order (the first minimum wins).
+    // The last element is undefined (NaN) and never a candidate.
+    let mut best: Option<(usize, f64)> = None;
+    for (i, &a) in s.approx.iter().enumerate() {
+        if a > lowest + bound {
+            continue;
+        }
+        let v = aic_value(i, n, sum, sq, f64::log10);
+        if !v.is_nan() && best.is_none_or(|(_, b)| v < b) {
+            best = Some((i, v));
+        }
+    }
+    best.map(|b| b.0)
+}
+
+/// Energy ratio with windows of `win` samples (vallenae's default 100). `None` when the
+/// record holds no full pair of windows (n ≤ 2·win; vallenae returns 0 there) or `win` is 0.
+pub fn energy_ratio(x: &[f32], win: usize, s: &mut PickScratch) -> Option<usize> {
+    s.load_squares(x);
+    ratios_loaded(x, win, &s.sq, &mut s.ratios).0
+}
+
+/// Modified energy ratio, (ER·|x|)⁴ in float32 as vallenae computes it.
+pub fn modified_energy_ratio(x: &[f32], win: usize, s: &mut PickScratch) -> Option<usize> {
+    s.load_squares(x);
+    ratios_loaded(x, win, &s.sq, &mut s.ratios).1
+}
+
+/// numpy's `argmax` over a stream: the first NaN wins, else the first maximum.
+struct ArgMax {
+    best: usize,
+    value: f32,
+    nan: Option<usize>,
+}
+
+impl ArgMax {
+    /// Values outside the computed range are 0, so index 0 holds a 0 to start from.
+    fn new() -> Self {
+        ArgMax {
+            best: 0,
+            value: 0.0,
+            nan: None,
+        }
+    }
+
+    #[inline(always)]
+    fn push(&mut self, i: usize, v: f32) {
+        if v.is_nan() {
+            self.nan.get_or_insert(i);
+        } else if v > self.value {
+            (self.best, self.value) = (i, v);
+        }
+    }
+
+    fn index(&self) -> usize {
+        self.nan.unwrap_or(self.best)
+    }
+}
+
+/// ER and MER values for i in win..n−win (vallenae's arithmetic), branch-free.
+#[inline(always)]
+fn ratios_generic(x: &[f32], win: usize, sq: &[f64], out: &mut [[f32; 2]]) {
+    for (k, o) in out.iter_mut().enumerate() {
+        let i = k + win;
+        let l = sq[i] - sq[i - win];
+        let r = sq[i + win] - sq[i];
+        let v = (r / l) as f32;
+        let mut m = v * x[i].abs();
+        m *= m;
+        m *= m;
+        *o = [v, m];
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn ratios_avx2(x: &[f32], win: usize, sq: &[f64], out: &mut [[f32; 2]]) {
+    ratios_generic(x, win, sq, out)
+}
+
+/// ER and MER picks: the values in a vectorised pass, then numpy's argmax of each.
+fn ratios_loaded(
+    x: &[f32],
+    win: usize,
+    sq: &[f64],
+    buf: &mut Vec<[f32; 2]>,
+) -> (Option<usize>, Option<usize>) {
+    let n = x.len();
+    if win == 0 || n <= 2 * win {
+        return (None, None);
+    }
+    buf.clear();
+    buf.resize(n - 2 * win, [0.0; 2]);
+    #[cfg(target_arch = "x86_64")]
+    if std::is_x86_feature_detected!("avx2") {
+        // SAFETY: the CPU supports AVX2 (checked just above).
+        unsafe { ratios_avx2(x, win, sq, buf) };
+    } else {
+        ratios_generic(x, win, sq, buf);
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    ratios_generic(x, win, sq, buf);
+    let (mut er, mut mer) = (ArgMax::new(), ArgMax::new());
+    for (k, &[v, m]) in buf.iter().enumerate() {
+        er.push(k + win, v);
+        mer.push(k + win, m);
+    }
+    (Some(er.index()), Some(mer.index()))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Noise, then a burst from sample `at`.
+    fn burst(n: usize, at: usize, seed: u64) -> Vec<f32> {
+        let mut r = seed;
+        (0..n)
+            .map(|i| {
+                r = r
+                    .wrapping_mul(6364136223846793005)
+                    .wrapping_add(1442695040888963407);
+                let noise = ((r >> 40) as f32 / (1u64 << 24) as f32 - 0.5) * 1e-3;
+                let s = if i >= at {
+                    let t = (i - at) as f32;
+                    (t * 0.3).sin() * (-t / 400.0).exp()
+                } else {
+                    0.0
+                };
+                noise + s
+            })
+            .collect()
+    }
+
+    /// vallenae's AIC computed the direct way: every value with the library's log10.
+    fn aic_reference(x: &[f32]) -> Option<usize> {
+        let mut s = PickScratch::default();
+        s.load_squares(x);
+        s.load_sums(x);
+        let n = x.len();
+        let mut best: Option<(usize, f64)> = None;
+        for i in 0..n {
+            let v = aic_value(i, n, &s.sum, &s.sq, f64::log10);
+            if !v.is_nan() && best.is_none_or(|(_, b)| v < b) {
+                best = Some((i, v));
+            }
+        }
+        best.map(|b| b.0)
+    }
+
+    #[test]
+    fn every_picker_finds_a_clear_onset() {
+        let x = burst(4000, 1500, 12345);
+        let mut s = PickScratch::default();
+        let all = pick_all(&x, 5.0, 100, &mut s);
+        for (k, (name, p)) in [
+            ("hinkley", hinkley(&x, 5.0, &mut s)),
+            ("aic", aic(&x, &mut s)),
+            ("er", energy_ratio(&x, 100, &mut s)),
+            ("mer", modified_energy_ratio(&x, 100, &mut s)),
+        ]
+        .into_iter()
+        .enumerate()
+        {
+            let p = p.unwrap();
+            assert!((1440..=1560).contains(&p), "{name}: {p}");
+            assert_eq!(all[k], Some(p), "{name}: pick_all differs");
+        }
+    }
+
+    #[test]
+    fn the_fast_logarithm_keeps_its_bound() {
+        // Across many octaves and both halves of the mantissa range, and at the edges.
+        let mut worst = 0.0f64;
+        let mut v = f32::MIN_POSITIVE as f64;
+        while v < 1e80 {
+            for k in 0..64 {
+                let x = v * (1.0 + k as f64 / 64.0);
+                worst = worst.max((fast_log10::<false>(x) - x.log10()).abs());
+                worst = worst.max((fast_log10::<true>(x) - x.log10()).abs());
+            }
+            v *= 1.37;
+        }
+        assert!(worst < FAST_LOG10_ERR, "worst error {worst:e}");
+    }
+
+    #[test]
+    fn the_pruned_aic_is_the_exact_aic() {
+        let mut s = PickScratch::default();
+        // Bursts of many lengths and onsets, flat and near-flat records (ties everywhere),
+        // a step, and records of two and three samples.
+        let mut cases: Vec<Vec<f32>> = (0..40)
+            .map(|k| burst(200 + 97 * k, 50 + 31 * k, 7 + k as u64))
+            .collect();
+        cases.push(vec![0.0; 500]);
+        cases.push(vec![1e-3; 500]);
+        cases.push((0..500).map(|i| if i < 250 { 0.0 } else { 1.0 }).collect());
+        cases.push(vec![1.0, 2.0]);
+        cases.push(vec![1.0, 2.0, 1.0]);
+        cases.push(burst(220_000, 100_000, 99));
+        for x in &cases {
+            assert_eq!(aic(x, &mut s), aic_reference(x), "n = {}", x.len());
+        }
+    }
+
+    #[test]
+    fn edges_as_vallenae_defines_them() {
+        let mut s = PickScratch::default();
+        assert_eq!(hinkley(&[], 5.0, &mut s), None);
+        assert_eq!(aic(&[1.0], &mut s), None);
+        // Two samples: the last AIC element is undefined, the pick is 0.
+        assert_eq!(aic(&[1.0, 2.0], &mut s), Some(0));
+        assert_eq!(energy_ratio(&[1.0; 200], 100, &mut s), None);
+        // A silent left window: inf or NaN, the first NaN (0/0 at sample 100) wins, as
+        // numpy's argmax lets it, over the inf that the burst gives later.
+        let mut x = vec![0.0f32; 400];
+        x[250] = 1.0;
+        assert_eq!(energy_ratio(&x, 100, &mut s), Some(100));
+        // MER: inf·|0| is NaN too, so it also picks the first NaN.
+        assert_eq!(modified_energy_ratio(&x, 100, &mut s), Some(100));
+    }
+}
