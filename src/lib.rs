@@ -13,6 +13,7 @@
 //! - [`dsp`]: spectrum, power ratios, CWT, hit features, FFT filters.
 //! - [`features`]: the per-record transform into a feature row and its criteria label.
 //! - [`inspect`]: human summaries of what the inputs hold.
+//! - [`events`]: hits → events (VisualAE's event builder), source location, zones.
 //! - [`pipeline`]: the staged streaming runner, parts, manifest, shards.
 //! - [`analysis`]: trend statistics of the features (ch. 4.5.5).
 //! - [`som`]: the self-organising map, its tables and the damage profile (ch. 5).
@@ -32,6 +33,7 @@ pub mod cli;
 pub mod config;
 pub mod demo;
 pub mod dsp;
+pub mod events;
 pub mod features;
 pub mod ingest;
 pub mod inspect;

@@ -252,6 +252,8 @@ pub struct HitRow {
     pub vendor_features: Option<String>,
     pub source: HitSource,
     pub source_file: String,
+    /// The system's hit flags as stored (Vallen `Status`).
+    pub status: Option<i64>,
 }
 
 impl HitRow {

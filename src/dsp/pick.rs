@@ -4,10 +4,10 @@
 //!
 //! * [`hinkley`] (Hinkley criterion, Molenda 2016; van Rijn 2017): S[i] = Σ_{k≤i} x[k]² −
 //!   i·E/(α·n), E = Σx²; the pick is the first index of the minimum.
-//! * [`aic`] (Akaike information criterion, Bai et al. 2017): AIC[i] = (i+1)·log10 var(x[0..=i])
-//!   + (n−i−2)·log10 var(x[i+1..]), population variances clamped below at
-//!   `f32::MIN_POSITIVE`; the last element is undefined (NaN); the first index of the minimum
-//!   over the rest.
+//! * [`aic`] (Akaike information criterion, Bai et al. 2017): AIC[i] = (i+1)·log10
+//!   var(x[0..=i]) plus (n−i−2)·log10 var(x[i+1..]), population variances clamped below at
+//!   `f32::MIN_POSITIVE`; the last element is undefined (NaN); the first index of the
+//!   minimum over the rest.
 //! * [`energy_ratio`] (Han, Wong & Bancroft 2009): ER[i] = Σx[i+1..=i+w]² / Σx[i−w+1..=i]² for
 //!   w ≤ i < n−w, 0 elsewhere, stored in float32; the first index of the maximum, a NaN (a
 //!   silent left window) winning as numpy's `argmax` lets it.

@@ -205,6 +205,7 @@ pub fn features_table(cfg: &PipelineConfig) -> Table<FeatureRow> {
     .col(onset_col("onset_er", "energy ratio (windows of onset.win samples)"), |r| idx(r.an.onsets.er))
     .col(onset_col("onset_mer", "modified energy ratio, (ER·|x|)⁴ as vallenae 0.14 computes it"), |r| idx(r.an.onsets.mer))
     .col(f64c("arrival_s", "s", "arrival time on the acquisition's clock by onset.picker: the record's first sample (time_s − pretrigger/rate) + the pick's index / rate; null without a picker (then events use the hit time)").nullable(), |r| Value::F64(r.arrival_s))
+    .pipe(crate::store::table::with_event_columns)
 }
 
 /// An onset column: the pick's 0-based sample index in the record.

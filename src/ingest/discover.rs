@@ -419,6 +419,12 @@ fn group(kinds: Vec<(PathBuf, Kind)>, d: &mut Discovery) {
                     d.skipped.retain(|(p, _)| p != &trf);
                     companions.push(trf);
                 }
+                // The VisualAE setup beside it gives the event builder and location.
+                let vaex = base.with_extension("vaex");
+                if vaex.is_file() {
+                    d.skipped.retain(|(p, _)| p != &vaex);
+                    companions.push(vaex);
+                }
                 d.sources.push(Source {
                     id,
                     format: Format::Vallen,
@@ -428,12 +434,20 @@ fn group(kinds: Vec<(PathBuf, Kind)>, d: &mut Discovery) {
             }
             // A .pridb alone: its hits' waveforms are missing. The reader turns each hit
             // that should have a transient record into a reject row.
-            (Some(pri), None) => d.sources.push(Source {
-                id,
-                format: Format::Vallen,
-                files: vec![],
-                companions: vec![pri],
-            }),
+            (Some(pri), None) => {
+                let mut companions = vec![pri];
+                let vaex = base.with_extension("vaex");
+                if vaex.is_file() {
+                    d.skipped.retain(|(p, _)| p != &vaex);
+                    companions.push(vaex);
+                }
+                d.sources.push(Source {
+                    id,
+                    format: Format::Vallen,
+                    files: vec![],
+                    companions,
+                })
+            }
             (None, None) => {}
         }
     }

@@ -113,6 +113,17 @@ pub struct Source {
 }
 
 impl Source {
+    /// The Vallen VisualAE setup (`.vaex`) beside the source, if discovery found one.
+    pub fn vaex(&self) -> Option<&Path> {
+        self.companions
+            .iter()
+            .find(|p| {
+                p.extension()
+                    .is_some_and(|e| e.eq_ignore_ascii_case("vaex"))
+            })
+            .map(PathBuf::as_path)
+    }
+
     /// Whether the source stores its hits apart from its transients (a Vallen `.pridb`);
     /// then its reader yields the hit rows, otherwise every transient is also its hit.
     pub fn has_hit_list(&self) -> bool {

@@ -94,6 +94,8 @@ pub struct StreamStats {
     /// What the recordings say of their acquisition settings, one per source file that says
     /// something.
     pub setups: Vec<AcquisitionSetup>,
+    /// What the events step did, per experiment.
+    pub events: Vec<crate::events::EventsSummary>,
     pub seconds: f64,
 }
 
@@ -196,6 +198,8 @@ pub(crate) struct PartStats {
     notes: Vec<(String, String, String)>,
     #[serde(default)]
     setups: Vec<AcquisitionSetup>,
+    #[serde(default)]
+    pub(crate) events: Option<crate::events::EventsSummary>,
 }
 
 impl PartStats {
@@ -222,6 +226,7 @@ impl PartStats {
                 })
                 .collect(),
             setups: s.setups.clone(),
+            events: None,
         }
     }
 
@@ -252,6 +257,7 @@ impl PartStats {
             });
         }
         st.setups.extend(self.setups.iter().cloned());
+        st.events.extend(self.events.iter().cloned());
     }
 }
 

@@ -1,4 +1,4 @@
-//! What a streaming job's folder holds, by name: the five tables ([`PartTable`]), the
+//! What a streaming job's folder holds, by name: the six tables ([`PartTable`]), the
 //! manifest, the per-experiment parts ([`PartDir`]) and, for a sharded run, the Hive
 //! dataset. Every path of such a folder is spelled here and nowhere else.
 
@@ -18,15 +18,18 @@ pub enum PartTable {
     Rejects,
     Parametric,
     Markers,
+    /// `events.parquet`, written by the events step after the stream.
+    Events,
 }
 
 impl PartTable {
-    pub const ALL: [PartTable; 5] = [
+    pub const ALL: [PartTable; 6] = [
         PartTable::Main,
         PartTable::Hits,
         PartTable::Rejects,
         PartTable::Parametric,
         PartTable::Markers,
+        PartTable::Events,
     ];
 
     /// The table's name: its file stem and its Hive folder.
@@ -37,6 +40,7 @@ impl PartTable {
             PartTable::Rejects => "rejects",
             PartTable::Parametric => "parametric",
             PartTable::Markers => "markers",
+            PartTable::Events => "events",
         }
     }
 
@@ -47,6 +51,7 @@ impl PartTable {
             PartTable::Rejects => "rejects.parquet",
             PartTable::Parametric => "parametric.parquet",
             PartTable::Markers => "markers.parquet",
+            PartTable::Events => "events.parquet",
         }
     }
 
@@ -58,6 +63,7 @@ impl PartTable {
             (PartTable::Rejects, _) => store::rejects_table().schema(),
             (PartTable::Parametric, _) => store::parametric_table().schema(),
             (PartTable::Markers, _) => store::markers_table().schema(),
+            (PartTable::Events, _) => crate::events::events_table().schema(),
         }
     }
 }
@@ -112,7 +118,7 @@ impl StreamDir {
     }
 }
 
-/// One experiment's part folder: its five tables and `part.json`, written last.
+/// One experiment's part folder: its six tables and `part.json`, written last.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct PartDir(PathBuf);
 

@@ -72,7 +72,7 @@ pub struct ExperimentEntry {
     pub acquisition: Vec<AcquisitionSetup>,
 }
 
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
 pub struct TableOut {
     pub path: String,
     pub rows: u64,
@@ -85,6 +85,8 @@ pub struct Outputs {
     pub hits: TableOut,
     pub parametric: TableOut,
     pub markers: TableOut,
+    #[serde(default)]
+    pub events: TableOut,
 }
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -142,6 +144,9 @@ pub struct Manifest {
     pub skipped: Vec<Skipped>,
     pub experiments: Vec<ExperimentEntry>,
     pub outputs: Outputs,
+    /// What the events step did per experiment: setup, its sources, counts.
+    #[serde(default)]
+    pub events: Vec<crate::events::EventsSummary>,
     pub notes: Vec<NoteEntry>,
     pub counts: ManifestCounts,
     pub timings_s: Timings,
@@ -166,6 +171,7 @@ impl Manifest {
             markers: c.markers_written,
             by_experiment: c.by_experiment.clone(),
             by_stage: c.rejects_by_stage.clone(),
+            events: self.events.clone(),
             ..Default::default()
         }
     }
@@ -301,7 +307,12 @@ pub(crate) fn assemble(
             rejects: out(PartTable::Rejects, stats.rejects),
             parametric: out(PartTable::Parametric, stats.parametric),
             markers: out(PartTable::Markers, stats.markers),
+            events: out(
+                PartTable::Events,
+                stats.events.iter().map(|e| e.events).sum(),
+            ),
         },
+        events: stats.events.clone(),
         notes: stats
             .notes
             .iter()
@@ -328,6 +339,7 @@ pub(crate) fn assemble(
         rejects_path: out_dir.table(PartTable::Rejects, job),
         parametric_path: out_dir.table(PartTable::Parametric, job),
         markers_path: out_dir.table(PartTable::Markers, job),
+        events_path: out_dir.table(PartTable::Events, job),
         manifest_path,
         sources: p.sources,
         skipped: p.skipped,

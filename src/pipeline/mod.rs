@@ -28,6 +28,8 @@ pub enum PipelineError {
     Pool(String),
     #[error("no input given")]
     NoInput,
+    #[error(transparent)]
+    Events(#[from] crate::events::EventsError),
 }
 
 impl crate::util::HasKind for PipelineError {
@@ -37,6 +39,7 @@ impl crate::util::HasKind for PipelineError {
             PipelineError::Store(s) => s.kind(),
             PipelineError::Io(_) | PipelineError::Pool(_) => ErrorKind::Failed,
             PipelineError::NoInput => ErrorKind::Usage,
+            PipelineError::Events(e) => e.kind(),
         }
     }
 }
@@ -97,6 +100,7 @@ pub struct RunReport {
     pub rejects_path: PathBuf,
     pub parametric_path: PathBuf,
     pub markers_path: PathBuf,
+    pub events_path: PathBuf,
     pub manifest_path: PathBuf,
     pub sources: Vec<Source>,
     pub skipped: Vec<(PathBuf, String)>,

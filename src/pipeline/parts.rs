@@ -64,7 +64,7 @@ fn reusable_part(dir: &PartDir, want: &PartRecord) -> Option<PartRecord> {
 pub(crate) struct Part {
     pub(crate) id: String,
     /// The tables, in [`PartTable::ALL`] order.
-    pub(crate) tables: [PathBuf; 5],
+    pub(crate) tables: [PathBuf; 6],
     pub(crate) stats: PartStats,
     pub(crate) reused: bool,
     /// `(path, sha256)` of the files it read.
@@ -186,6 +186,22 @@ pub(crate) fn produce(
                 std::fs::create_dir_all(dir.path()).map_err(|e| IoAt::new(dir.path(), e))?;
                 let items = g.iter().flat_map(|s| ingest::open(s, cfg));
                 let st = stream(items, job, dir.path(), cfg, opts)?;
+                // Events need every hit of the experiment: a step after the stream, which
+                // writes events.parquet and fills the hit tables' event columns.
+                let features_schema = PartTable::Main.schema(job, cfg);
+                let ev = crate::events::run_part(
+                    &crate::events::PartTables {
+                        experiment: &id,
+                        hits: &dir.table(PartTable::Hits, job),
+                        features: (job == StreamJob::Features)
+                            .then(|| (dir.table(PartTable::Main, job), features_schema))
+                            .as_ref()
+                            .map(|(p, s)| (p.as_path(), s.clone())),
+                        events: &dir.table(PartTable::Events, job),
+                        vaex: g.iter().find_map(|s| s.vaex()),
+                    },
+                    cfg,
+                )?;
                 let mut rec = want;
                 for t in PartTable::ALL {
                     let p = dir.table(t, job);
@@ -193,6 +209,7 @@ pub(crate) fn produce(
                     rec.outputs.push((t.file_name(job).to_string(), h));
                 }
                 rec.stats = PartStats::of(&st);
+                rec.stats.events = Some(ev);
                 let text = serde_json::to_string_pretty(&rec).expect("part record serialises");
                 write_atomic(&dir.record(), text.as_bytes())?;
                 rec

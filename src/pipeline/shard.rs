@@ -122,6 +122,7 @@ pub(super) fn publish(
         rejects_path: out.hive_dir(PartTable::Rejects, job),
         parametric_path: out.hive_dir(PartTable::Parametric, job),
         markers_path: out.hive_dir(PartTable::Markers, job),
+        events_path: out.hive_dir(PartTable::Events, job),
         manifest_path,
         sources: p.sources,
         skipped: p.skipped,

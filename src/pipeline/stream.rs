@@ -167,7 +167,7 @@ pub(crate) fn table_metadata(
     (table_meta, meta)
 }
 
-/// The writers of a job's five tables ([`PartTable`]), with the typed tables that make
+/// The writers of the five tables a job streams ([`PartTable`] but `Events`, which the events step writes after), with the typed tables that make
 /// their rows.
 pub(crate) struct JobWriters {
     pub(crate) table: TableWriter,
@@ -182,7 +182,7 @@ pub(crate) struct JobWriters {
 }
 
 impl JobWriters {
-    /// Create the five tables of `job` in `dir`, under their [`PartTable`] names.
+    /// Create the five streamed tables of `job` in `dir`, under their [`PartTable`] names.
     pub(crate) fn create(
         job: StreamJob,
         dir: &Path,
@@ -253,7 +253,7 @@ fn sink_item(w: &mut JobWriters, st: &mut StreamStats, it: Item) -> Result<(), P
 }
 
 /// Stream items through validation and the per-record transform into `out_dir`.
-/// Writes the job's five tables atomically; returns the counts.
+/// Writes the job's five streamed tables atomically; returns the counts.
 pub fn stream<I>(
     items: I,
     job: StreamJob,

@@ -71,6 +71,10 @@ pub enum ColType {
     Bool,
     /// Variable-length list of float32 (waveform samples).
     ListF32,
+    /// Variable-length lists of int32, int64 and float64 (an event's channels, hits, delays).
+    ListI32,
+    ListI64,
+    ListF64,
     /// Fixed-size list of float32 (e.g. the 200 time/frequency bins).
     FixedListF32(i32),
 }
@@ -86,6 +90,11 @@ impl ColType {
             ColType::Bool => DataType::Boolean,
             ColType::ListF32 => {
                 DataType::List(Arc::new(Field::new("item", DataType::Float32, true)))
+            }
+            ColType::ListI32 => DataType::List(Arc::new(Field::new("item", DataType::Int32, true))),
+            ColType::ListI64 => DataType::List(Arc::new(Field::new("item", DataType::Int64, true))),
+            ColType::ListF64 => {
+                DataType::List(Arc::new(Field::new("item", DataType::Float64, true)))
             }
             ColType::FixedListF32(n) => {
                 DataType::FixedSizeList(Arc::new(Field::new("item", DataType::Float32, true)), n)
@@ -103,6 +112,9 @@ impl ColType {
             ColType::Float64 => "float64".into(),
             ColType::Bool => "bool".into(),
             ColType::ListF32 => "list<float32>".into(),
+            ColType::ListI32 => "list<int32>".into(),
+            ColType::ListI64 => "list<int64>".into(),
+            ColType::ListF64 => "list<float64>".into(),
             ColType::FixedListF32(n) => format!("fixed_size_list<float32, {n}>"),
         }
     }
@@ -205,6 +217,9 @@ pub enum Value {
     F64(Option<f64>),
     Bool(Option<bool>),
     F32s(Option<Vec<f32>>),
+    I32s(Option<Vec<i32>>),
+    I64s(Option<Vec<i64>>),
+    F64s(Option<Vec<f64>>),
 }
 
 pub type Row = Vec<Value>;
@@ -218,6 +233,22 @@ fn build_column(spec: &ColumnSpec, col: usize, rows: &[Row]) -> Result<ArrayRef,
             for r in rows {
                 match &r[col] {
                     Value::$variant(v) => b.append_option(v.clone()),
+                    other => return Err(bad(other)),
+                }
+            }
+            Arc::new(b.finish()) as ArrayRef
+        }};
+    }
+    macro_rules! list {
+        ($builder:ty, $variant:ident) => {{
+            let mut b = ListBuilder::new(<$builder>::new());
+            for r in rows {
+                match &r[col] {
+                    Value::$variant(Some(v)) => {
+                        b.values().append_slice(v);
+                        b.append(true);
+                    }
+                    Value::$variant(None) => b.append(false),
                     other => return Err(bad(other)),
                 }
             }
@@ -262,6 +293,9 @@ fn build_column(spec: &ColumnSpec, col: usize, rows: &[Row]) -> Result<ArrayRef,
             }
             Arc::new(b.finish())
         }
+        ColType::ListI32 => list!(Int32Builder, I32s),
+        ColType::ListI64 => list!(Int64Builder, I64s),
+        ColType::ListF64 => list!(Float64Builder, F64s),
         ColType::FixedListF32(n) => {
             let n = n as usize;
             let mut b = FixedSizeListBuilder::with_capacity(
@@ -329,6 +363,7 @@ pub struct TableWriter {
 pub use crate::util::tmp_path_for;
 
 pub mod read;
+pub mod rewrite;
 pub mod shard;
 pub mod table;
 pub use read::{HitKey, TableScan};

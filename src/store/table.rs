@@ -81,6 +81,11 @@ impl<T: 'static> Table<T> {
         self
     }
 
+    /// Apply a function that adds columns (e.g. [`with_event_columns`]).
+    pub fn pipe(self, f: impl FnOnce(Self) -> Self) -> Self {
+        f(self)
+    }
+
     /// The columns as a [`TableSchema`] (Arrow schema, documentation).
     pub fn schema(&self) -> TableSchema {
         TableSchema {
@@ -242,6 +247,19 @@ pub fn hits_table() -> Table<HitRow> {
         .col(ColumnSpec::new("vendor_features", ColType::Utf8, "", "further features the system recorded, a JSON object under the vendor's names and units (Vallen .trfdb, other MISTRAS CHIDs)").nullable(), |h| Value::Str(h.vendor_features.clone()))
         .col(ColumnSpec::new("source", ColType::Utf8, "", "who recorded the features: vallen, mistras, aewin, or record (a format without a hit list)"), |h| s(h.source.as_str()))
         .col(ColumnSpec::new("source_file", ColType::Utf8, "", "the file the hit came from"), |h| s(&h.source_file))
+        .col(ColumnSpec::new("status", ColType::Int64, "", "the system's hit flags as stored (Vallen `Status`: bit 8 = started after a hit timeout, which never opens an event; bit 4 = saturation); null: not recorded").nullable(), |h| Value::I64(h.status))
+        .pipe(with_event_columns)
+}
+
+/// The columns the events step fills on `hits.parquet` and `features.parquet`, null until
+/// it runs (and for an experiment without events).
+pub const EVENT_COLUMNS: [&str; 3] = ["event", "event_first", "zone"];
+
+/// Append [`EVENT_COLUMNS`] to a hit-keyed table.
+pub fn with_event_columns<T: 'static>(t: Table<T>) -> Table<T> {
+    t.col(ColumnSpec::new("event", ColType::Int64, "", "1-based event of the experiment this hit belongs to (events.parquet); null: in no event, or events not built").nullable(), |_| Value::I64(None))
+        .col(ColumnSpec::new("event_first", ColType::Bool, "", "true for the hit that opened its event (the first-hit channel's): the one hit per source that trend, SOM and class counts use when events are built; false for the event's other hits and for hits in no event; null: events not built").nullable(), |_| Value::Bool(None))
+        .col(ColumnSpec::new("zone", ColType::Utf8, "", "`inside` / `outside` [location] zone (the event's), `guard` (a guard channel's hit in no event, or a hit a guard sensor kept from opening one); null: no zone, not located, or events not built").nullable(), |_| Value::Str(None))
 }
 
 /// `parametric.parquet`: the parametric / time-driven rows of every source, as recorded, with

@@ -56,6 +56,7 @@ pub fn rebuild_report(dir: &Path) -> Result<PathBuf, WorkflowError> {
         rejects_path: fdir.table(PartTable::Rejects, job),
         parametric_path: fdir.table(PartTable::Parametric, job),
         markers_path: fdir.table(PartTable::Markers, job),
+        events_path: fdir.table(PartTable::Events, job),
         manifest_path: mp,
         sources: vec![],
         skipped: vec![],

@@ -9,6 +9,7 @@ mod cli;
 mod corpus;
 mod dta;
 mod e2e;
+mod events;
 mod exit_codes;
 mod fidelity;
 mod formats;

@@ -155,6 +155,7 @@ fn schema_files_match_written_tables() {
     check_against_schema_file(&f.hits_path, "hits.md");
     check_against_schema_file(&w.table_path, "waveforms.md");
     check_against_schema_file(&w.hits_path, "hits.md");
+    check_against_schema_file(&f.events_path, "events.md");
     // The manifest records the same config hash as the Parquet metadata.
     let m: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&f.manifest_path).unwrap()).unwrap();
@@ -387,11 +388,11 @@ fn python_readers_open_every_table() {
         "{so}{}",
         String::from_utf8_lossy(&o.stderr)
     );
-    // features, waveforms, and the hits, rejects, parametric and marker rows of each run;
-    // each again in the run's one per-experiment part (`parts/`).
+    // features, waveforms, and the hits, rejects, parametric, marker and event rows of each
+    // run; each again in the run's one per-experiment part (`parts/`).
     assert_eq!(
         so.lines().filter(|l| l.starts_with("ok ")).count(),
-        20,
+        24,
         "{so}"
     );
 }

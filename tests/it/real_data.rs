@@ -218,7 +218,6 @@ fn folders_of_companion_files_are_passed_over_not_rejected() {
     for name in [
         "README.md",
         "SHA256SUMS",
-        "sample.vaex",
         "220426_20deg_4mm_filter.csv",
         "220426_20deg_4mm_energy.txt",
     ] {
@@ -227,12 +226,15 @@ fn folders_of_companion_files_are_passed_over_not_rejected() {
             "{name} not passed over: {skipped:?}"
         );
     }
-    // A .trfdb beside its .pridb is read (its features join the hit rows): a companion.
-    assert!(!skipped.iter().any(|s| s == "sample.trfdb"), "{skipped:?}");
-    assert!(d
-        .sources
-        .iter()
-        .any(|s| s.companions.iter().any(|p| p.ends_with("sample.trfdb"))));
+    // A .trfdb beside its .pridb is read (its features join the hit rows), and a .vaex gives
+    // the event builder and location: companions.
+    for name in ["sample.trfdb", "sample.vaex"] {
+        assert!(!skipped.iter().any(|s| s == name), "{skipped:?}");
+        assert!(d
+            .sources
+            .iter()
+            .any(|s| s.companions.iter().any(|p| p.ends_with(name))));
+    }
     // But a file named explicitly that is not a recording is a reject with a reason.
     let d = discover(&[real.join("vallen/steel_plate/sample.vaex")], &cfg.ingest);
     assert_eq!(d.rejects.len(), 1);

@@ -808,7 +808,7 @@ fn the_som_takes_any_column_as_its_label() {
 
 /// Run a script of `tests/python/` (skipping, or failing under AEPIPE_REQUIRE_ALL, when
 /// python3 or its packages are absent); its stdout.
-fn python(test: &str, script: &str, args: &[&Path]) -> Option<String> {
+pub(crate) fn python(test: &str, script: &str, args: &[&Path]) -> Option<String> {
     let p = Path::new(env!("CARGO_MANIFEST_DIR"))
         .join("tests/python")
         .join(script);

@@ -3,7 +3,8 @@
 //!
 //! * Waveforms: `tr_data` rows; `DataFormat` 0 = raw little-endian int16, 2 = FLAC;
 //!   volts = ADC × `TR_mV` · 1e-3 (`TR_mV` from `tr_params` by `ParamID`); time =
-//!   `Time / TimeBase` (`tr_globalinfo`, 10 MHz by default).
+//!   `Time × (1 / TimeBase)` (`tr_globalinfo`, 10 MHz by default), as the files' own views
+//!   (`Time*1E-7`) scale it.
 //! * Hits: `ae_data` rows with `SetType = 2`; their `TRAI` links to the waveform. A hit whose
 //!   TRAI has no waveform becomes a reject row, never a silent gap.
 //! * Parametric rows (`SetType = 1`) carry `PA0`, `PA1`, … (ADC × `PAn_mV`); the config maps
@@ -332,7 +333,9 @@ impl Reader {
         // the scale rounded to f32 and the product taken in f32, so that every sample, and so
         // every pick and feature, is the one vallenae's readers give.
         let scale = (1e-3 * tr_mv) as f32;
-        let time_s = time.map(|t| t as f64 / self.time_base);
+        // As the file's own view scales it (`Time*1E-7`): times a reciprocal, so that hit times
+        // are those of VisualAE and vallenae to the last bit (event windows compare them).
+        let time_s = time.map(|t| t as f64 * (1.0 / self.time_base));
         let linked =
             !self.has_pridb || time.is_some_and(|t| self.info.link.contains_key(&(trai, chan, t)));
         Item::Record(AeRecord {
@@ -667,6 +670,7 @@ fn transient_keys(
 
 mod pridb;
 mod sets;
+pub mod vaex;
 mod write;
 use pridb::HitRows;
 pub use pridb::{read_pridb, PriInfo, TraiOffsets};

@@ -84,7 +84,10 @@ fn parametric_series(
     };
     let pairs: Vec<(f64, f64)> = st
         .query_map([], |r| {
-            Ok((r.get::<_, f64>(0)? / time_base, r.get::<_, Option<f64>>(1)?))
+            Ok((
+                r.get::<_, f64>(0)? * (1.0 / time_base),
+                r.get::<_, Option<f64>>(1)?,
+            ))
         })
         .map(|it| {
             it.flatten()
@@ -184,13 +187,21 @@ impl HitRows {
                 "NULL".to_string()
             }
         };
+        // The hit flags (bit 8: started after a hit timeout) decide which hit may open an
+        // event; a database without the column gives null.
+        let status = if columns(&conn, "ae_data").iter().any(|c| c == "Status") {
+            "d.Status"
+        } else {
+            "NULL"
+        };
         let sql = if view.is_empty() {
-            "SELECT d.SetID, d.Time, d.Chan, NULL, NULL, NULL, NULL, NULL, NULL, NULL, NULL, d.TRAI \
-             FROM ae_data d WHERE d.SetType = 2 AND d.SetID > ?1 ORDER BY d.SetID LIMIT 1024"
-                .to_string()
+            format!(
+                "SELECT d.SetID, d.Time, d.Chan, NULL, NULL, NULL, NULL, NULL, NULL, NULL, NULL, d.TRAI, {status} \
+                 FROM ae_data d WHERE d.SetType = 2 AND d.SetID > ?1 ORDER BY d.SetID LIMIT 1024"
+            )
         } else {
             format!(
-                "SELECT d.SetID, d.Time, d.Chan, {}, {}, {}, {}, {}, {}, {}, {}, d.TRAI \
+                "SELECT d.SetID, d.Time, d.Chan, {}, {}, {}, {}, {}, {}, {}, {}, d.TRAI, {status} \
                  FROM ae_data d JOIN view_ae_data v ON v.SetID = d.SetID \
                  WHERE d.SetType = 2 AND d.SetID > ?1 ORDER BY d.SetID LIMIT 1024",
                 pick("Thr"),
@@ -239,6 +250,7 @@ impl HitRows {
                     r.get::<_, Option<f64>>(9)?,
                     r.get::<_, Option<i64>>(10)?,
                     r.get::<_, Option<i64>>(11)?,
+                    r.get::<_, Option<i64>>(12)?,
                 ))
             })
             .and_then(|it| it.collect::<Result<Vec<_>, _>>())
@@ -247,7 +259,7 @@ impl HitRows {
             self.done = true;
         }
         let mut out = Vec::with_capacity(rows.len());
-        for (setid, time, chan, thr, amp, rise, dur, eny, ss, rms, counts, trai) in rows {
+        for (setid, time, chan, thr, amp, rise, dur, eny, ss, rms, counts, trai, status) in rows {
             self.last_setid = setid;
             self.number += 1;
             out.push((
@@ -256,7 +268,7 @@ impl HitRows {
                 HitRow {
                     channel: chan.max(0) as u32,
                     hit: self.number,
-                    time_s: Some(time as f64 / self.time_base),
+                    time_s: Some(time as f64 * (1.0 / self.time_base)),
                     amplitude_db: db(amp),
                     threshold_db: db(thr),
                     rise_time_s: rise.map(|v| v * 1e-6),
@@ -266,6 +278,7 @@ impl HitRows {
                     signal_strength_vs: ss.map(|v| v * 1e-9),
                     rms_v: rms.map(|v| v * 1e-6),
                     trai: trai.filter(|t| *t > 0),
+                    status,
                     source: HitSource::Vallen,
                     source_file: self.path.clone(),
                     ..Default::default()

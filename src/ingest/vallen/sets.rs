@@ -190,7 +190,7 @@ impl SetRows {
     }
 
     fn seconds(&self, ticks: Option<i64>) -> Option<f64> {
-        ticks.map(|t| t as f64 / self.time_base)
+        ticks.map(|t| t as f64 * (1.0 / self.time_base))
     }
 
     fn markers(&mut self) -> Result<Vec<Item>, String> {

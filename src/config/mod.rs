@@ -6,6 +6,11 @@
 use serde::{Deserialize, Serialize};
 use std::path::Path;
 
+mod sources;
+pub use sources::{
+    ChannelRole, EventsConfig, LocationConfig, LocationKind, OnsetConfig, Picker, ZoneSpec,
+};
+
 #[derive(Debug, thiserror::Error)]
 pub enum ConfigError {
     #[error("{path}: cannot read config: {source}")]
@@ -125,6 +130,9 @@ pub struct PipelineConfig {
     pub criteria: CriteriaConfig,
     /// Arrival-time picking (`features.parquet` onset columns and `arrival_s`).
     pub onset: OnsetConfig,
+    /// Hits → events (the event builder) and where their sources are.
+    pub events: EventsConfig,
+    pub location: LocationConfig,
     /// `aepipe run` stages after the features.
     pub trend: TrendConfig,
     pub som: SomConfig,
@@ -265,53 +273,6 @@ pub mod som_defaults {
     pub const FRACTION: f64 = 0.1;
     /// The seed of `som train`'s training-set draw (a run draws with [`SEED`]).
     pub const TRAINING_SEED: u64 = 5;
-}
-
-/// Which picker gives a hit's arrival time (`arrival_s`, and the events' and location's
-/// times).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum Picker {
-    /// None: `arrival_s` is null, and events and location use the hit time (the
-    /// acquisition's own threshold crossing).
-    #[default]
-    None,
-    /// The first sample at or above the record's threshold.
-    Threshold,
-    Aic,
-    Hinkley,
-    Er,
-    Mer,
-}
-
-/// `[onset]`: the four pickers of vallenae run on every record (`onset_*` columns); `picker`
-/// chooses the one that gives `arrival_s`.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(default, deny_unknown_fields)]
-pub struct OnsetConfig {
-    pub picker: Picker,
-    /// Hinkley's divisor α (vallenae: 5).
-    pub alpha: f64,
-    /// The energy ratios' window, samples (vallenae: 100).
-    pub win: usize,
-    /// Pick inside a window around the trigger instead of the whole record: this long before
-    /// and after it, s (both set, or neither).
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub window_before_s: Option<f64>,
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub window_after_s: Option<f64>,
-}
-
-impl Default for OnsetConfig {
-    fn default() -> Self {
-        OnsetConfig {
-            picker: Picker::None,
-            alpha: 5.0,
-            win: 100,
-            window_before_s: None,
-            window_after_s: None,
-        }
-    }
 }
 
 /// The HTML report of `aepipe run`.
@@ -824,21 +785,7 @@ impl PipelineConfig {
                 "dsp.band_max_hz / dsp.bins.band_hz must be a whole number, got {bin_bands}"
             )));
         }
-        let o = &self.onset;
-        pos(o.alpha, "onset.alpha")?;
-        if o.win == 0 {
-            return Err(ConfigError::Invalid("onset.win must be ≥ 1 sample".into()));
-        }
-        match (o.window_before_s, o.window_after_s) {
-            (None, None) => {}
-            (Some(b), Some(a)) if b.is_finite() && a.is_finite() && b >= 0.0 && a > 0.0 => {}
-            _ => {
-                return Err(ConfigError::Invalid(
-                    "onset.window_before_s and window_after_s: both ≥ 0 (after > 0), or neither"
-                        .into(),
-                ))
-            }
-        }
+        sources::check(&self.onset, &self.events, &self.location)?;
         let m = &self.ingest.mistras;
         for (k, v) in &m.chid_sizes {
             if k.trim().parse::<u8>().map_or(true, |c| c == 0) || *v > 4096 {

@@ -1,0 +1,291 @@
+//! The events step of one experiment's part: read its hits (and the features' arrival
+//! times), build the events, locate them, write `events.parquet`, and fill `event`,
+//! `event_first` and `zone` of `hits.parquet` and `features.parquet`.
+
+use super::builder::{self, Fate, HitIn};
+use super::locate::{self, Arrival, Status};
+use super::setup::{self, Setup};
+use super::table::{events_table, EventRow};
+use super::{EventsError, EventsSummary};
+use crate::config::{ChannelRole, Picker, ValidConfig};
+use crate::store::{TableScan, TableSchema, TableWriter};
+use arrow::array::{ArrayRef, BooleanArray, Int64Array, StringArray};
+use polars::prelude::col;
+use std::collections::{BTreeSet, HashMap};
+use std::path::Path;
+use std::sync::Arc;
+
+/// Where one part's tables are.
+pub struct PartTables<'a> {
+    pub experiment: &'a str,
+    pub hits: &'a Path,
+    /// With its schema (the features table's depends on the configuration); None for a
+    /// waveforms job.
+    pub features: Option<(&'a Path, TableSchema)>,
+    pub events: &'a Path,
+    /// The Vallen setup file beside the recording, if any.
+    pub vaex: Option<&'a Path>,
+}
+
+fn opt_i64(v: Option<f64>) -> Option<i64> {
+    v.map(|x| x as i64)
+}
+
+/// Run the events step on one part.
+pub fn run_part(p: &PartTables, cfg: &ValidConfig) -> Result<EventsSummary, EventsError> {
+    let store = |e| EventsError::Store(Box::new(e));
+    // The hits: key, time, status and the link to their transient.
+    let h = TableScan::open(p.hits).map_err(store)?;
+    let df = h
+        .select(vec![
+            col("channel"),
+            col("hit"),
+            col("time_s"),
+            col("status"),
+            col("transient"),
+        ])
+        .map_err(store)?;
+    let ch: Vec<u32> = h
+        .f64s(&df, "channel")
+        .map_err(store)?
+        .into_iter()
+        .map(|v| v.unwrap_or(0.0) as u32)
+        .collect();
+    let hit_no: Vec<i64> = h
+        .f64s(&df, "hit")
+        .map_err(store)?
+        .into_iter()
+        .map(|v| v.unwrap_or(0.0) as i64)
+        .collect();
+    let time = h.f64s(&df, "time_s").map_err(store)?;
+    let status: Vec<i64> = h
+        .f64s(&df, "status")
+        .map_err(store)?
+        .into_iter()
+        .map(|v| opt_i64(v).unwrap_or(0))
+        .collect();
+    let transient: Vec<Option<i64>> = h
+        .f64s(&df, "transient")
+        .map_err(store)?
+        .into_iter()
+        .map(opt_i64)
+        .collect();
+    let n = ch.len();
+
+    // The features: their key and arrival time (null without a picker).
+    let feats = match &p.features {
+        Some((path, _)) => {
+            let f = TableScan::open(path).map_err(store)?;
+            let df = f
+                .select(vec![col("channel"), col("hit"), col("arrival_s")])
+                .map_err(store)?;
+            let fch = f.f64s(&df, "channel").map_err(store)?;
+            let fhit = f.f64s(&df, "hit").map_err(store)?;
+            let arr = f.f64s(&df, "arrival_s").map_err(store)?;
+            Some((fch, fhit, arr))
+        }
+        None => None,
+    };
+    // (channel, transient) → features row.
+    let feat_row: HashMap<(u32, i64), usize> = feats
+        .as_ref()
+        .map(|(c, hh, _)| {
+            c.iter()
+                .zip(hh)
+                .enumerate()
+                .filter_map(|(i, (c, hh))| Some(((c.map(|v| v as u32)?, hh.map(|v| v as i64)?), i)))
+                .collect()
+        })
+        .unwrap_or_default();
+
+    let vaex = match p.vaex {
+        Some(path) => match crate::ingest::vallen::vaex::read(path) {
+            Ok(v) => Some((path.display().to_string(), v)),
+            Err(e) => return Err(EventsError::Vaex(path.display().to_string(), e.0)),
+        },
+        None => None,
+    };
+    let channels: BTreeSet<u32> = ch.iter().copied().collect();
+    let s: Setup = setup::resolve(
+        &cfg.events,
+        &cfg.location,
+        vaex.as_ref().map(|(p, v)| (p.as_str(), v)),
+        &channels,
+    );
+    let use_picker = cfg.onset.picker != Picker::None && feats.is_some();
+    let mut summary = EventsSummary::new(p.experiment, &s, use_picker, n as u64);
+
+    let table = events_table();
+    let mut w = TableWriter::create(p.events, table.schema(), &[], cfg.pipeline.row_group_rows)
+        .map_err(store)?;
+    if !s.enabled {
+        w.finish().map_err(store)?;
+        return Ok(summary);
+    }
+
+    // Hits in time order (stable: equal times keep the table's order); no time, no event.
+    let mut order: Vec<usize> = (0..n)
+        .filter(|&i| time[i].is_some_and(f64::is_finite))
+        .collect();
+    summary.no_time = (n - order.len()) as u64;
+    order.sort_by(|&a, &b| {
+        time[a]
+            .unwrap()
+            .total_cmp(&time[b].unwrap())
+            .then(a.cmp(&b))
+    });
+    let input: Vec<HitIn> = order
+        .iter()
+        .map(|&i| HitIn {
+            index: i,
+            time_s: time[i].unwrap(),
+            channel: ch[i],
+            status: status[i],
+        })
+        .collect();
+    let (events, fates) = builder::build(&input, &s.params).expect("sorted by time above");
+
+    // Per hit row: event (1-based), whether it opened it, and the zone.
+    let mut ev_of: Vec<Option<i64>> = vec![None; n];
+    let mut first: Vec<Option<bool>> = vec![Some(false); n];
+    let mut zone: Vec<Option<&'static str>> = vec![None; n];
+    for (h, f) in input.iter().zip(&fates) {
+        match f {
+            Fate::InEvent(_) => summary.hits_in_events += 1,
+            Fate::Unused => summary.unused += 1,
+            Fate::Duplicate => summary.duplicates += 1,
+            Fate::NotStarted { by_guard: false } => summary.not_started += 1,
+            Fate::Guard | Fate::NotStarted { by_guard: true } => {
+                summary.guard_suppressed += 1;
+                zone[h.index] = Some("guard");
+            }
+        }
+    }
+    let arrival_of = |i: usize| -> f64 {
+        if use_picker {
+            if let (Some(t), Some((_, _, arr))) = (transient[i], feats.as_ref()) {
+                if let Some(&r) = feat_row.get(&(ch[i], t)) {
+                    if let Some(a) = arr[r].filter(|a| a.is_finite()) {
+                        return a;
+                    }
+                }
+            }
+        }
+        time[i].unwrap_or(f64::NAN)
+    };
+    for (k, e) in events.iter().enumerate() {
+        let number = k as i64 + 1;
+        let t0 = e.time_s();
+        for (j, hh) in e.hits.iter().enumerate() {
+            ev_of[hh.index] = Some(number);
+            first[hh.index] = Some(j == 0);
+        }
+        let mut row = EventRow {
+            experiment: p.experiment.to_string(),
+            event: number as u64,
+            time_s: t0,
+            first_hit_channel: e.first_hit_channel(),
+            channels: e.hits.iter().map(|h| h.channel as i32).collect(),
+            hits: e.hits.iter().map(|h| hit_no[h.index]).collect(),
+            dt_to_first_s: e.hits[1..].iter().map(|h| h.time_s - t0).collect(),
+            close_reason: e.close.as_str(),
+            arrival: if use_picker { "arrival_s" } else { "hit_time" },
+            ..Default::default()
+        };
+        if e.hits.len() == 1 {
+            summary.single_hit_events += 1;
+        }
+        if let Some(l) = &s.locator {
+            // Guard hits are left out of location; a combined channel joined as normal.
+            let mut a: Vec<Arrival> = e
+                .hits
+                .iter()
+                .filter(|h| s.params.role(h.channel) != ChannelRole::Guard)
+                .filter_map(|h| {
+                    let &(x, y) = l.sensors.get(&h.channel)?;
+                    let t = arrival_of(h.index);
+                    t.is_finite().then_some(Arrival { x, y, t })
+                })
+                .collect();
+            a.sort_by(|p, q| p.t.total_cmp(&q.t));
+            match locate::locate(l.kind, &a, l.velocity_m_s, l.max_iterations) {
+                Some(loc) => {
+                    let located = loc.status != Status::TooFewHits;
+                    row.location_status = Some(loc.status.as_str());
+                    row.location_iterations = Some(loc.iterations as i32);
+                    if located {
+                        row.x_m = Some(loc.x);
+                        row.y_m = loc.y;
+                        row.lucy_m = Some(loc.lucy);
+                        summary.located += 1;
+                        if loc.status == Status::BeyondSensor {
+                            summary.beyond_sensor += 1;
+                        }
+                        if let Some(z) = &l.zone {
+                            let inside = locate::in_zone(z, loc.x, loc.y.unwrap_or(0.0));
+                            row.zone = Some(if inside { "inside" } else { "outside" });
+                            if inside {
+                                summary.inside += 1;
+                            } else {
+                                summary.outside += 1;
+                            }
+                        }
+                    } else {
+                        summary.not_located += 1;
+                    }
+                }
+                None => {
+                    row.location_status = Some(Status::TooFewHits.as_str());
+                    summary.not_located += 1;
+                }
+            }
+            for hh in &e.hits {
+                if row.zone.is_some() {
+                    zone[hh.index] = row.zone;
+                }
+            }
+        }
+        w.push(table.row(row)).map_err(store)?;
+    }
+    summary.events = events.len() as u64;
+    w.finish().map_err(store)?;
+
+    // Fill the hit tables.
+    let rg = cfg.pipeline.row_group_rows;
+    let columns = |ev: Vec<Option<i64>>,
+                   fi: Vec<Option<bool>>,
+                   zo: Vec<Option<&str>>|
+     -> [(&'static str, ArrayRef); 3] {
+        [
+            ("event", Arc::new(Int64Array::from(ev)) as ArrayRef),
+            ("event_first", Arc::new(BooleanArray::from(fi)) as ArrayRef),
+            ("zone", Arc::new(StringArray::from(zo)) as ArrayRef),
+        ]
+    };
+    crate::store::rewrite::replace_columns(
+        p.hits,
+        &crate::store::hits_table().schema(),
+        &columns(ev_of.clone(), first.clone(), zone.clone()),
+        rg,
+    )
+    .map_err(store)?;
+    if let (Some((path, schema)), Some((fch, fhit, _))) = (&p.features, &feats) {
+        // Each features row takes its hit's values (through hits.transient).
+        let hit_row: HashMap<(u32, i64), usize> = (0..n)
+            .filter_map(|i| Some(((ch[i], transient[i]?), i)))
+            .collect();
+        let m = fch.len();
+        let (mut fe, mut ff, mut fz) = (vec![None; m], vec![Some(false); m], vec![None; m]);
+        for r in 0..m {
+            let key = fch[r].zip(fhit[r]).map(|(c, hh)| (c as u32, hh as i64));
+            if let Some(&i) = key.and_then(|k| hit_row.get(&k)) {
+                fe[r] = ev_of[i];
+                ff[r] = first[i];
+                fz[r] = zone[i];
+            }
+        }
+        crate::store::rewrite::replace_columns(path, schema, &columns(fe, ff, fz), rg)
+            .map_err(store)?;
+    }
+    Ok(summary)
+}
