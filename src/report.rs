@@ -41,6 +41,8 @@ pub struct RunSummary {
     pub trend_plots: Vec<(String, PathBuf)>,
     pub som: Option<SomStage>,
     pub truth: Option<TruthScore>,
+    /// Events and location against the truth's sources (a synthetic test with sensors).
+    pub sources: Option<SourceScore>,
     pub config: crate::config::ValidConfig,
     pub seconds: Vec<(String, f64)>,
 }
@@ -62,6 +64,57 @@ pub struct SomStage {
     pub profile_table: PathBuf,
     pub profile: Vec<crate::som::profile::ProfileSummary>,
     pub profile_plots: Vec<(String, PathBuf)>,
+}
+
+/// Events and location against the ground truth's sources (`truth.parquet` `event`,
+/// `source_x_m`, `source_kind`).
+#[derive(Debug, Clone, PartialEq, Default, serde::Serialize)]
+pub struct SourceScore {
+    /// Sources in the truth, and how many are specimen / grip.
+    pub sources: usize,
+    pub specimen: usize,
+    pub grip: usize,
+    /// Events aepipe built.
+    pub events: usize,
+    /// Sources whose hits form exactly one event holding nothing else.
+    pub found: usize,
+    /// Found specimen sources with a location, and the median and 90th-percentile
+    /// |x − source_x|, m.
+    pub located: usize,
+    pub median_error_m: Option<f64>,
+    pub p90_error_m: Option<f64>,
+    /// Grip sources none of whose hits counts (outside the zone, or guard-suppressed).
+    pub grip_removed: usize,
+    /// Specimen sources none of whose hits counts.
+    pub specimen_lost: usize,
+}
+
+impl SourceScore {
+    pub fn lines(&self) -> Vec<String> {
+        let pct = |a: usize, b: usize| 100.0 * a as f64 / b.max(1) as f64;
+        let mut l = vec![format!(
+            "events: {} built for {} sources ({} specimen, {} grip); {} sources are exactly one event",
+            self.events, self.sources, self.specimen, self.grip, self.found
+        )];
+        if let (Some(m), Some(p)) = (self.median_error_m, self.p90_error_m) {
+            l.push(format!(
+                "location: {} specimen events, error median {:.2} mm, 90 % within {:.2} mm",
+                self.located,
+                m * 1e3,
+                p * 1e3
+            ));
+        }
+        l.push(format!(
+            "zone: {}/{} grip sources removed ({:.1} %), {}/{} specimen sources lost ({:.1} %)",
+            self.grip_removed,
+            self.grip,
+            pct(self.grip_removed, self.grip),
+            self.specimen_lost,
+            self.specimen,
+            pct(self.specimen_lost, self.specimen)
+        ));
+        l
+    }
 }
 
 /// Classification against the ground truth (`truth.parquet`).

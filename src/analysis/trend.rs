@@ -8,7 +8,7 @@
 
 use super::stats::{linear_trend, LinearTrend};
 use crate::store::{ColType, ColumnSpec, Table, TableWriter, Value};
-use crate::store::{StoreError, TableScan};
+use crate::store::{SourceRows, StoreError, TableScan};
 use polars::prelude::col;
 use std::path::{Path, PathBuf};
 
@@ -41,6 +41,9 @@ pub struct TrendOptions {
     pub alpha: f64,
     /// Columns to test; empty = every `pr_*` column.
     pub columns: Vec<String>,
+    /// Which rows count: with events built, one hit per event (the series of the
+    /// experiment's events, channel 0), zone-filtered with `exclude_outside`.
+    pub sources: SourceRows,
 }
 
 impl Default for TrendOptions {
@@ -49,6 +52,7 @@ impl Default for TrendOptions {
             cutoff: Cutoff::PeakLoad,
             alpha: 0.01,
             columns: Vec::new(),
+            sources: SourceRows::default(),
         }
     }
 }
@@ -87,7 +91,7 @@ pub fn trend_table() -> Table<TrendRow> {
     let f = |n: &str, u: &str, d: &str| ColumnSpec::new(n, ColType::Float64, u, d).nullable();
     Table::new("trend")
         .col(ColumnSpec::new("experiment", ColType::Utf8, "", "experiment id"), |t: &TrendRow| Value::Str(Some(t.experiment.clone())))
-        .col(ColumnSpec::new("channel", ColType::Int32, "", "sensor channel"), |t| Value::I32(Some(t.channel)))
+        .col(ColumnSpec::new("channel", ColType::Int32, "", "sensor channel; 0: the experiment's events (one hit per event, whichever sensor heard it first)"), |t| Value::I32(Some(t.channel)))
         .col(ColumnSpec::new("column", ColType::Utf8, "", "the per-hit feature tested (y), e.g. pr_200_300khz"), |t| Value::Str(Some(t.column.clone())))
         .col(ColumnSpec::new("n", ColType::Int64, "", "hits used (after the cut-off)"), |t| Value::I64(Some(t.n as i64)))
         .col(ColumnSpec::new("cutoff", ColType::Utf8, "", "which hits were used: none, peak-load (up to hit N at L newtons), time ≤ S, first N hits"), |t| Value::Str(Some(t.cutoff.clone())))
@@ -145,6 +149,7 @@ pub struct TrendSeries {
 pub fn read_series(
     paths: &[PathBuf],
     wanted: &[String],
+    rows: SourceRows,
 ) -> Result<(Vec<String>, Vec<TrendSeries>), TrendError> {
     let read = |e: StoreError| match e {
         StoreError::Read { path, message } => TrendError::Read { path, message },
@@ -153,7 +158,7 @@ pub fn read_series(
     let mut columns: Vec<String> = wanted.to_vec();
     let mut groups: std::collections::BTreeMap<(String, i32), TrendSeries> = Default::default();
     for p in paths {
-        let t = TableScan::open(p).map_err(read)?;
+        let t = TableScan::open(p).map_err(read)?.sources(rows);
         t.require(
             &["experiment", "channel", "hit", "time_s", "load_n"],
             ": not an aepipe features table",
@@ -198,8 +203,10 @@ pub fn read_series(
             col("load_n"),
         ];
         sel.extend(columns.iter().map(|c| col(c.as_str())));
+        sel.extend(t.event_first_col());
         let df = t.select(sel).map_err(read)?;
         let keys = t.hit_keys(&df).map_err(read)?;
+        let first = t.event_first(&df).map_err(read)?;
         let time = t.f64s(&df, "time_s").map_err(read)?;
         let load = t.f64s(&df, "load_n").map_err(read)?;
         let vals: Vec<Vec<Option<f64>>> = columns
@@ -208,6 +215,7 @@ pub fn read_series(
             .collect::<Result<_, _>>()
             .map_err(read)?;
         for (i, (exp, ch, hit)) in keys.into_iter().enumerate() {
+            let ch = crate::store::group_channel(ch, first[i]);
             let s = groups
                 .entry((exp.clone(), ch))
                 .or_insert_with(|| TrendSeries {
@@ -356,7 +364,7 @@ pub fn run_trend(
             opts.alpha
         )));
     }
-    let (columns, series) = read_series(inputs, &opts.columns)?;
+    let (columns, series) = read_series(inputs, &opts.columns, opts.sources)?;
     std::fs::create_dir_all(out_dir).map_err(|source| crate::store::StoreError::Io {
         path: out_dir.display().to_string(),
         source,

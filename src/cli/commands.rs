@@ -386,6 +386,7 @@ fn trend(
         cutoff,
         alpha,
         columns,
+        sources: crate::store::SourceRows::default(),
     };
     let rep = trend::run_trend(features, out, &opts)?;
     print!("{}", trend::format_table(&rep));
@@ -436,6 +437,7 @@ fn som(which: SomCmd) -> Result<Outcome> {
                     fraction,
                     ..Default::default()
                 },
+                sources: crate::store::SourceRows::default(),
             };
             let m = train(&features, &out, &o)?;
             print::som_trained(&m);
@@ -453,7 +455,13 @@ fn som(which: SomCmd) -> Result<Outcome> {
         } => {
             let m = load_model(&model)?;
             let reference = reference.unwrap_or_else(|| m.label_column.clone());
-            let conf = classify_tables(&m, &features, Some(&reference), &out)?;
+            let conf = classify_tables(
+                &m,
+                &features,
+                Some(&reference),
+                &out,
+                crate::store::SourceRows::default(),
+            )?;
             println!(
                 "SOM class (rows) against {reference} (columns), share of the SOM class's hits:"
             );

@@ -82,8 +82,9 @@ pub struct EventsConfig {
     /// an event. Default: `dt1x_max_s`.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub fhcdt_s: Option<f64>,
-    /// Longest time from an event's first hit to any of its hits, s. Default: 1.2 × the
-    /// largest sensor distance / velocity with `[location]`, else 100 µs.
+    /// Longest time from an event's first hit to any of its hits, s. Default: 2 × the
+    /// largest sensor distance / velocity with `[location]` (the travel time, and room for
+    /// the later threshold crossing of the weaker sensor), else 100 µs.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub dt1x_max_s: Option<f64>,
     /// Longest time between consecutive hits of an event, s. Default: `dt1x_max_s`.

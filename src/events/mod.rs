@@ -8,9 +8,9 @@
 //! on the part's tables ([`part::run_part`]), with the setup of the pipeline TOML or of a
 //! Vallen `.vaex` ([`setup`]), and writes `events.parquet` ([`table`]).
 //!
-//! Analysis downstream counts sources, not hits, through [`Selection`]: with events built,
-//! one hit per event (the one that opened it), and with `[location] exclude_outside`, only
-//! the events inside the zone.
+//! Analysis downstream counts sources, not hits, through `store::SourceRows`: with events
+//! built, one hit per event (the one that opened it), and with `[location] exclude_outside`,
+//! only the events inside the zone.
 
 pub mod builder;
 pub mod locate;
@@ -113,32 +113,6 @@ impl EventsSummary {
             arrival: if picker { "arrival_s" } else { "hit_time" }.into(),
             hits,
             ..Default::default()
-        }
-    }
-}
-
-/// Which rows of a hit-keyed table analysis counts (trend, SOM training, class counts).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct Selection {
-    /// `[location] exclude_outside`: leave out events outside the zone and guard-suppressed
-    /// hits.
-    pub exclude_outside: bool,
-}
-
-impl Selection {
-    pub fn of(cfg: &crate::config::PipelineConfig) -> Selection {
-        Selection {
-            exclude_outside: cfg.location.exclude_outside,
-        }
-    }
-
-    /// Whether a row counts, from its `event_first` and `zone` (null `event_first`: events
-    /// were not built for its experiment, so every hit is its own source).
-    pub fn counts(&self, event_first: Option<bool>, zone: Option<&str>) -> bool {
-        match event_first {
-            None => !(self.exclude_outside && zone == Some("guard")),
-            Some(false) => false,
-            Some(true) => !(self.exclude_outside && zone == Some("outside")),
         }
     }
 }

@@ -106,8 +106,8 @@ pub fn resolve(
     };
     let dt1x_default = match span {
         Some((d, v)) if d > 0.0 => (
-            1.2 * d / v,
-            "default: 1.2 × largest sensor distance / velocity".to_string(),
+            2.0 * d / v,
+            "default: 2 × largest sensor distance / velocity".to_string(),
         ),
         _ => (
             DEFAULT_DT1X_S,

@@ -25,7 +25,7 @@ pub fn profile_table() -> Table<ProfileRow> {
             |r: &ProfileRow| Value::Str(Some(r.key.0.clone())),
         )
         .col(
-            ColumnSpec::new("channel", ColType::Int32, "", "sensor channel"),
+            ColumnSpec::new("channel", ColType::Int32, "", "sensor channel; 0: the experiment's events (one hit per event, whichever sensor heard it first)"),
             |r| Value::I32(Some(r.key.1)),
         )
         .col(
@@ -186,25 +186,29 @@ pub fn build(
         "for the damage profile",
     )
     .map_err(serr)?;
-    let df = t
-        .select(vec![
-            col("experiment"),
-            col("channel"),
-            col("hit"),
-            col("time_s"),
-            col("load_n"),
-            col("extension_m"),
-        ])
-        .map_err(serr)?;
+    let mut sel = vec![
+        col("experiment"),
+        col("channel"),
+        col("hit"),
+        col("time_s"),
+        col("load_n"),
+        col("extension_m"),
+    ];
+    sel.extend(t.event_first_col());
+    let df = t.select(sel).map_err(serr)?;
     let keys = t.hit_keys(&df).map_err(serr)?;
+    let first = t.event_first(&df).map_err(serr)?;
     let time = t.f64s(&df, "time_s").map_err(serr)?;
     let load = t.f64s(&df, "load_n").map_err(serr)?;
     let ext = t.f64s(&df, "extension_m").map_err(serr)?;
     // Per experiment × channel, in time order (hit order where there is no time).
     let mut groups: BTreeMap<(String, i32), Vec<usize>> = BTreeMap::new();
+    // With events built, an experiment's events form one series (channel 0), whichever
+    // sensor heard each first.
+    let group = |i: usize| crate::store::group_channel(keys[i].1, first[i]);
     for (i, k) in keys.iter().enumerate() {
         if classes.contains_key(k) {
-            groups.entry((k.0.clone(), k.1)).or_default().push(i);
+            groups.entry((k.0.clone(), group(i))).or_default().push(i);
         }
     }
     let mut rows = Vec::new();
@@ -247,7 +251,7 @@ pub fn build(
             }
             summary.last_hit_s = time[i].or(summary.last_hit_s);
             rows.push(ProfileRow {
-                key: keys[i].clone(),
+                key: (keys[i].0.clone(), group(i), keys[i].2),
                 time_s: time[i],
                 load_n: load[i],
                 extension_m: ext[i],

@@ -4,7 +4,7 @@
 use super::layout::{ClassifyDir, ModelDir};
 use super::{Init, Som, SomError, SomParams};
 use crate::model::Mechanism;
-use crate::store::{ColType, ColumnSpec, HitKey, Table, TableScan, TableWriter, Value};
+use crate::store::{ColType, ColumnSpec, HitKey, SourceRows, Table, TableScan, TableWriter, Value};
 use ndarray::{Array2, ArrayView2, Axis};
 use polars::prelude::{col, DataType};
 use std::collections::BTreeMap;
@@ -59,10 +59,11 @@ pub fn read_inputs(
     paths: &[PathBuf],
     columns: &[String],
     label: Option<&str>,
+    sources: SourceRows,
 ) -> Result<SomInput, SomError> {
     let (mut keys, mut labels, mut blocks, mut skipped) = (Vec::new(), Vec::new(), Vec::new(), 0);
     for p in paths {
-        let t = TableScan::open(p).map_err(serr)?;
+        let t = TableScan::open(p).map_err(serr)?.sources(sources);
         let mut need = vec!["experiment", "channel", "hit"];
         need.extend(label);
         t.require(&need, "").map_err(serr)?;
@@ -278,6 +279,9 @@ pub struct TrainOptions {
     pub seed: u64,
     pub init: Init,
     pub training: TrainingSet,
+    /// Which rows count: with events built, one hit per event (`[location] exclude_outside`
+    /// also leaves out the zone's outside).
+    pub sources: SourceRows,
 }
 
 impl Default for TrainOptions {
@@ -291,13 +295,14 @@ impl Default for TrainOptions {
             seed: super::defaults::SEED,
             init: Init::Samples,
             training: TrainingSet::default(),
+            sources: SourceRows::default(),
         }
     }
 }
 
 /// Train a model on feature tables and write `model.json`, `model.cod` and `train.dat`.
 pub fn train(paths: &[PathBuf], out: &Path, o: &TrainOptions) -> Result<Model, SomError> {
-    let inp = read_inputs(paths, &o.columns, Some(&o.label))?;
+    let inp = read_inputs(paths, &o.columns, Some(&o.label), o.sources)?;
     let (rows, comp) = draw_training(&inp, &o.training)?;
     let dim = inp.dim();
     let mut data = inp.data.select(Axis(0), &rows);
@@ -528,8 +533,9 @@ pub fn classify_tables(
     paths: &[PathBuf],
     reference: Option<&str>,
     out: &Path,
+    sources: SourceRows,
 ) -> Result<Confusion, SomError> {
-    let inp = read_inputs(paths, &model.columns, reference)?;
+    let inp = read_inputs(paths, &model.columns, reference, sources)?;
     if inp.dim() != model.som.dim {
         return Err(SomError::Data(format!(
             "feature dimension {} differs from the model's {}",

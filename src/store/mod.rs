@@ -366,7 +366,7 @@ pub mod read;
 pub mod rewrite;
 pub mod shard;
 pub mod table;
-pub use read::{HitKey, TableScan};
+pub use read::{group_channel, HitKey, SourceRows, TableScan};
 pub use table::{
     hits_table, identity_table, markers_table, parametric_table, rejects_table, waveforms_table,
     Identity, Table, WaveformRow,

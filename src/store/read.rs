@@ -13,6 +13,45 @@ use std::path::{Path, PathBuf};
 /// A hit's key in every table: (experiment, channel, hit).
 pub type HitKey = (String, i32, i64);
 
+/// Which rows of a hit-keyed table analysis counts (trend, SOM, class counts): sources, not
+/// hits. Where the events step built events (`event_first` not null), one row per event —
+/// the hit that opened it — and, with `exclude_outside`, only events not `outside` the
+/// `[location] zone`; where it did not, every hit, less guard-suppressed ones with
+/// `exclude_outside`. The tables themselves keep every row.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct SourceRows {
+    pub exclude_outside: bool,
+}
+
+impl SourceRows {
+    /// As `[location] exclude_outside` of a pipeline says.
+    pub fn of(cfg: &crate::config::PipelineConfig) -> SourceRows {
+        SourceRows {
+            exclude_outside: cfg.location.exclude_outside,
+        }
+    }
+
+    /// The same rule on one row's values (for callers that hold them already).
+    pub fn counts(&self, event_first: Option<bool>, zone: Option<&str>) -> bool {
+        match event_first {
+            None => !(self.exclude_outside && zone == Some("guard")),
+            Some(false) => false,
+            Some(true) => !(self.exclude_outside && zone == Some("outside")),
+        }
+    }
+}
+
+/// The channel a row is grouped under in per-sensor series (trend, damage profile): its
+/// own, or 0 for an event's first hit (the series of an experiment's events, whichever
+/// sensor heard each first).
+pub fn group_channel(channel: i32, event_first: Option<bool>) -> i32 {
+    if event_first.is_some() {
+        0
+    } else {
+        channel
+    }
+}
+
 /// A lazily scanned table and its schema.
 pub struct TableScan {
     path: PathBuf,
@@ -48,6 +87,43 @@ impl TableScan {
 
     pub fn path(&self) -> &Path {
         &self.path
+    }
+
+    /// Only the rows that count as sources ([`SourceRows`]); a table without the event
+    /// columns is left whole.
+    pub fn sources(mut self, rows: SourceRows) -> TableScan {
+        if self.schema.get("event_first").is_none() || self.schema.get("zone").is_none() {
+            return self;
+        }
+        let zone = |z: &str| col("zone").eq(lit(z.to_string())).fill_null(lit(false));
+        let first = || col("event_first");
+        let keep = if rows.exclude_outside {
+            first()
+                .is_null()
+                .and(zone("guard").not())
+                .or(first().fill_null(lit(false)).and(zone("outside").not()))
+        } else {
+            first().is_null().or(first().fill_null(lit(false)))
+        };
+        self.lf = self.lf.filter(keep);
+        self
+    }
+
+    /// `event_first` of every row of a frame that selected it (all null when the table has
+    /// no such column).
+    pub fn event_first(&self, df: &DataFrame) -> Result<Vec<Option<bool>>, StoreError> {
+        match df.column("event_first") {
+            Ok(c) => {
+                let b = c.bool().map_err(|e| self.err(e))?;
+                Ok((0..b.len()).map(|i| b.get(i)).collect())
+            }
+            Err(_) => Ok(vec![None; df.height()]),
+        }
+    }
+
+    /// `col("event_first")` when the table has it (for a selection list).
+    pub fn event_first_col(&self) -> Option<Expr> {
+        self.schema.get("event_first").map(|_| col("event_first"))
     }
 
     /// Column names in table order.

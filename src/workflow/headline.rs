@@ -52,6 +52,9 @@ pub fn headline(s: &RunSummary) -> Vec<String> {
             ));
         }
     }
+    if let Some(sc) = &s.sources {
+        l.extend(sc.lines());
+    }
     if let Some(t) = &s.truth {
         if let Some(a) = t.accuracy() {
             l.push(format!(

@@ -211,6 +211,15 @@ fn stages(
         (Some(p), Some(s)) => Some(score_truth(p, &s.classification)?),
         _ => None,
     };
+    let sources = match job.truth {
+        Some(p) if features.events_path.is_file() => score_sources(
+            p,
+            &features.table_path,
+            &features.events_path,
+            crate::store::SourceRows::of(cfg),
+        )?,
+        _ => None,
+    };
     let mut summary = RunSummary {
         out: job.out.to_path_buf(),
         inputs: job.inputs.to_vec(),
@@ -219,6 +228,7 @@ fn stages(
         trend_plots,
         som,
         truth,
+        sources,
         config: cfg.clone(),
         seconds,
     };
@@ -256,4 +266,4 @@ pub use runfile::rebuild_report;
 use runfile::write_run_json;
 pub use schema::{table_schema, TABLES};
 use stages::{som_stage, trend_stage};
-pub use truth::score_truth;
+pub use truth::{score_sources, score_truth};

@@ -77,6 +77,7 @@ pub fn rebuild_report(dir: &Path) -> Result<PathBuf, WorkflowError> {
             &feats,
             Some(&config.som.label),
             sdir.path(),
+            crate::store::SourceRows::of(&config),
         )?;
         let classes = classes_of(&confusion);
         let existing = |p: PathBuf| p.is_file().then_some(p);
@@ -99,6 +100,15 @@ pub fn rebuild_report(dir: &Path) -> Result<PathBuf, WorkflowError> {
         (Some(p), Some(s)) => Some(score_truth(p, &s.classification)?),
         _ => None,
     };
+    let sources = match &f.truth {
+        Some(p) if features.events_path.is_file() => super::score_sources(
+            p,
+            &features.table_path,
+            &features.events_path,
+            crate::store::SourceRows::of(&config),
+        )?,
+        _ => None,
+    };
     let summary = RunSummary {
         out: dir.to_path_buf(),
         inputs: f.inputs,
@@ -107,6 +117,7 @@ pub fn rebuild_report(dir: &Path) -> Result<PathBuf, WorkflowError> {
         trend_plots,
         som,
         truth,
+        sources,
         config,
         seconds: f.seconds,
     };

@@ -17,6 +17,7 @@ pub(super) fn trend_stage(
         cutoff: cfg.trend.cutoff,
         alpha: cfg.trend.alpha,
         columns: vec![],
+        sources: crate::store::SourceRows::of(cfg),
     };
     let rep = crate::analysis::trend::run_trend(feats, dir.path(), &opts)?;
     let mut plots = Vec::new();
@@ -53,12 +54,14 @@ pub(super) fn som_stage(job: &RunJob, feats: &[PathBuf]) -> Result<SomStage, Wor
         } else {
             PathBuf::from(&cfg.som.reference_library)
         };
-        // The library's features, with the run's own settings.
+        // The library's features, with the run's own settings; its sensors record one
+        // simulated source each, not a test, so no events.
+        let lib_cfg = cfg.clone().with(|c| c.events.enabled = Some(false))?;
         let rep = crate::pipeline::run(
             crate::pipeline::StreamJob::Features,
             std::slice::from_ref(&lib),
             run.reference_features().path(),
-            cfg,
+            &lib_cfg,
             &StreamOptions {
                 threads: job.threads,
                 progress: false,
@@ -101,11 +104,18 @@ pub(super) fn som_stage(job: &RunJob, feats: &[PathBuf]) -> Result<SomStage, Wor
             seed: cfg.som.seed,
             ..Default::default()
         },
+        sources: crate::store::SourceRows::of(cfg),
         ..Default::default()
     };
     let model_dir = run.som_model();
     let model = train(&train_paths, model_dir.path(), &o)?;
-    let confusion = classify_tables(&model, feats, Some(&cfg.som.label), som_dir.path())?;
+    let confusion = classify_tables(
+        &model,
+        feats,
+        Some(&cfg.som.label),
+        som_dir.path(),
+        crate::store::SourceRows::of(cfg),
+    )?;
     let u = som_dir.u_matrix();
     crate::plot::u_matrix_png(&u, &model.som)?;
     let hm = som_dir.hit_maps();

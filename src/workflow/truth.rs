@@ -29,3 +29,128 @@ pub fn score_truth(truth: &Path, classification: &Path) -> Result<TruthScore, Wo
     }
     Ok(s)
 }
+
+/// Score the events and their locations against the truth's sources: which aepipe events
+/// hold which sources' hits (through `features.parquet`'s `event`), how far each located
+/// specimen event lies from its source, and which sources the zone and guards keep out of
+/// the counts.
+pub fn score_sources(
+    truth: &Path,
+    features: &Path,
+    events: &Path,
+    rows: crate::store::SourceRows,
+) -> Result<Option<crate::report::SourceScore>, WorkflowError> {
+    use polars::prelude::col;
+    let t = TableScan::open(truth)?;
+    if t.require(&["event", "source_x_m", "source_kind"], "")
+        .is_err()
+    {
+        return Ok(None);
+    }
+    let df = t.select(vec![
+        col("experiment"),
+        col("channel"),
+        col("hit"),
+        col("event"),
+        col("source_x_m"),
+        col("source_kind"),
+    ])?;
+    let keys = t.hit_keys(&df)?;
+    let src = t.f64s(&df, "event")?;
+    let sx = t.f64s(&df, "source_x_m")?;
+    let kind = t.strings(&df, "source_kind")?;
+    // Source → (x, kind, its hits).
+    let mut sources: BTreeMap<(String, i64), (Option<f64>, String, Vec<HitKey>)> = BTreeMap::new();
+    for (i, k) in keys.into_iter().enumerate() {
+        let id = (k.0.clone(), src[i].unwrap_or(0.0) as i64);
+        let e = sources
+            .entry(id)
+            .or_insert_with(|| (sx[i], kind[i].clone().unwrap_or_default(), Vec::new()));
+        e.2.push(k);
+    }
+    let f = TableScan::open(features)?;
+    f.require(&["event", "event_first", "zone"], "")?;
+    let df = f.select(vec![
+        col("experiment"),
+        col("channel"),
+        col("hit"),
+        col("event"),
+        col("event_first"),
+        col("zone"),
+    ])?;
+    let fk = f.hit_keys(&df)?;
+    let fev = f.f64s(&df, "event")?;
+    let ffirst = f.event_first(&df)?;
+    let fzone = f.strings(&df, "zone")?;
+    let hit: BTreeMap<HitKey, (Option<i64>, bool)> = fk
+        .into_iter()
+        .enumerate()
+        .map(|(i, k)| {
+            let counts = rows.counts(ffirst[i], fzone[i].as_deref());
+            (k, (fev[i].map(|v| v as i64), counts))
+        })
+        .collect();
+    let e = TableScan::open(events)?;
+    let df = e.select(vec![
+        col("experiment"),
+        col("event"),
+        col("x_m"),
+        col("n_hits"),
+    ])?;
+    let eexp = e.strings(&df, "experiment")?;
+    let eev = e.f64s(&df, "event")?;
+    let ex = e.f64s(&df, "x_m")?;
+    let en = e.f64s(&df, "n_hits")?;
+    let event: BTreeMap<(String, i64), (Option<f64>, usize)> = (0..df.height())
+        .map(|i| {
+            (
+                (
+                    eexp[i].clone().unwrap_or_default(),
+                    eev[i].unwrap_or(0.0) as i64,
+                ),
+                (ex[i], en[i].unwrap_or(0.0) as usize),
+            )
+        })
+        .collect();
+    let mut s = crate::report::SourceScore {
+        sources: sources.len(),
+        events: event.len(),
+        ..Default::default()
+    };
+    let mut errors = Vec::new();
+    for ((exp, _), (x_true, kind, hits)) in &sources {
+        let specimen = kind == "specimen";
+        if specimen {
+            s.specimen += 1;
+        } else {
+            s.grip += 1;
+        }
+        let of: Vec<(Option<i64>, bool)> =
+            hits.iter().filter_map(|k| hit.get(k).copied()).collect();
+        let counted = of.iter().any(|(_, c)| *c);
+        match (specimen, counted) {
+            (true, false) => s.specimen_lost += 1,
+            (false, false) => s.grip_removed += 1,
+            _ => {}
+        }
+        let evs: std::collections::BTreeSet<Option<i64>> = of.iter().map(|(e, _)| *e).collect();
+        if let [Some(ev)] = evs.into_iter().collect::<Vec<_>>()[..] {
+            if let Some((x, n)) = event.get(&(exp.clone(), ev)) {
+                if *n == hits.len() {
+                    s.found += 1;
+                    if let (true, Some(x), Some(xt)) = (specimen, x, x_true) {
+                        errors.push((x - xt).abs());
+                    }
+                }
+            }
+        }
+    }
+    errors.sort_by(f64::total_cmp);
+    s.located = errors.len();
+    let q = |p: f64| {
+        (!errors.is_empty()).then(|| errors[((errors.len() - 1) as f64 * p).round() as usize])
+    };
+    s.median_error_m = q(0.5);
+    s.p90_error_m = q(0.9);
+    Ok(Some(s))
+}

@@ -245,3 +245,132 @@ fn the_steel_plate_event_is_located_with_its_vaex_setup() {
     assert!(s.sources["location"].starts_with("vaex"), "{:?}", s.sources);
     assert_eq!(s.location.as_deref(), Some("planar, 5000 m/s, 4 sensors"));
 }
+
+/// `pipelines/demo.toml` locates with the geometry the demo's strip is made with: the same
+/// sensors at the same positions and the same velocity (else the demo's location error
+/// would measure a typo).
+#[test]
+fn the_demo_pipeline_states_the_synthetic_strips_geometry() {
+    let cfg = aepipe::demo::demo_config();
+    let strip = aepipe::synth::Strip::demo();
+    let loc = &cfg.location;
+    assert_eq!(loc.velocity_m_s, Some(strip.velocity_m_s));
+    let stated: Vec<(u32, Vec<f64>)> = loc
+        .sensors
+        .iter()
+        .map(|(k, v)| (k.parse().unwrap(), v.clone()))
+        .collect();
+    let made: Vec<(u32, Vec<f64>)> = strip.sensors.iter().map(|&(c, x)| (c, vec![x])).collect();
+    assert_eq!(stated, made);
+    // The zone lies between the sensors and holds the notch's damage (±notch_limit_m).
+    let Some(aepipe::config::ZoneSpec::Interval([lo, hi])) = loc.zone else {
+        panic!("{:?}", loc.zone)
+    };
+    assert!(
+        lo <= -strip.notch_limit_m && hi >= strip.notch_limit_m,
+        "{lo} {hi}"
+    );
+    assert!(loc.exclude_outside);
+}
+
+/// Guard sensors, as VisualAE uses them: two more sensors between the strip's sensors and
+/// the grips. Grip noise reaches a guard first; its hit opens no event and keeps the later
+/// hits of the same source at the two location sensors from opening one, so they are
+/// counted as guard-suppressed and never reach the trend. Damage at the notch reaches the
+/// location sensors first; the guard hits join its event but stay out of location.
+#[test]
+fn guard_sensors_suppress_grip_noise_and_leave_the_notchs_damage() {
+    let t = TempDir::new("events-guard");
+    let mut strip = aepipe::synth::Strip::demo();
+    strip.sensors.extend([(3, -0.026), (4, 0.026)]);
+    strip.grip_share = 0.3;
+    let mut e = aepipe::synth::Experiment::new("guarded", 200, 77);
+    e.strip = Some(strip.clone());
+    let truth = t.path().join("truth.parquet");
+    let n_hits = e.write_with_truth(&t.path().join("data"), &truth).unwrap();
+    let cfg = PipelineConfig::from_toml(
+        "[events]\nguard_channels = [3, 4]\n\
+         [location]\nkind = \"linear\"\nvelocity_m_s = 2700\nsensors = { 1 = [-0.020], 2 = [0.020] }\n\
+         zone = [-0.015, 0.015]\nexclude_outside = true\n",
+    )
+    .unwrap();
+    let r = run(
+        StreamJob::Features,
+        &[t.path().join("data")],
+        &t.path().join("o"),
+        &cfg,
+        &opts(),
+    )
+    .unwrap();
+    let (tn, trows) = crate::table_rows(&truth);
+    assert_eq!(trows.len(), n_hits);
+    let tc = |n: &str| tn.iter().position(|x| x == n).unwrap();
+    // (channel, hit) → (source, kind)
+    let truth_of: std::collections::BTreeMap<(String, String), (String, String)> = trows
+        .iter()
+        .map(|r| {
+            (
+                (r[tc("channel")].clone(), r[tc("hit")].clone()),
+                (r[tc("event")].clone(), r[tc("source_kind")].clone()),
+            )
+        })
+        .collect();
+    let (hn, hrows) = crate::table_rows(&r.hits_path);
+    assert_eq!(hrows.len(), n_hits);
+    let hc = |n: &str| hn.iter().position(|x| x == n).unwrap();
+    let mut grip_events = std::collections::BTreeSet::new();
+    let mut specimen_events = std::collections::BTreeMap::<String, String>::new();
+    let mut suppressed = 0u64;
+    let mut grip_sources = std::collections::BTreeSet::new();
+    let mut specimen_sources = std::collections::BTreeSet::new();
+    for h in &hrows {
+        let (src, kind) = &truth_of[&(h[hc("channel")].clone(), h[hc("hit")].clone())];
+        let (ev, zone) = (&h[hc("event")], &h[hc("zone")]);
+        if zone == "guard" {
+            suppressed += 1;
+        }
+        match kind.as_str() {
+            "grip" => {
+                grip_sources.insert(src.clone());
+                if !ev.is_empty() {
+                    grip_events.insert(ev.clone());
+                }
+            }
+            _ => {
+                specimen_sources.insert(src.clone());
+                if !ev.is_empty() {
+                    // All hits of one source in one event.
+                    let prev = specimen_events.insert(src.clone(), ev.clone());
+                    assert!(prev.is_none() || prev.as_ref() == Some(ev), "source {src}");
+                }
+            }
+        }
+    }
+    assert!(
+        grip_sources.len() > 30,
+        "{} grip sources",
+        grip_sources.len()
+    );
+    // No grip source opens an event: every one of its hits is guard-suppressed.
+    assert!(grip_events.is_empty(), "grip events {grip_events:?}");
+    // Every specimen source is an event.
+    assert_eq!(specimen_events.len(), specimen_sources.len());
+    let m = Manifest::read(&r.manifest_path).unwrap();
+    let s = m.events.iter().find(|s| s.experiment == "guarded").unwrap();
+    assert_eq!(s.guard_suppressed, suppressed);
+    assert_eq!(s.events as usize, specimen_sources.len());
+    // The events are inside the zone, and the trend's series counts them, not the hits.
+    let ev = read_events(&r.events_path);
+    assert!(
+        ev.iter().all(|e| e.zone.as_deref() == Some("inside")),
+        "{ev:?}"
+    );
+    let (_, series) = aepipe::analysis::trend::read_series(
+        std::slice::from_ref(&r.table_path),
+        &[],
+        aepipe::store::SourceRows::of(&cfg),
+    )
+    .unwrap();
+    assert_eq!(series.len(), 1);
+    assert_eq!(series[0].hit.len(), specimen_sources.len());
+}

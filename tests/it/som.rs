@@ -44,6 +44,7 @@ fn som_trained_on_criteria_labels_classifies_the_experiment() {
         std::slice::from_ref(&features),
         Some("criteria_label"),
         &out,
+        Default::default(),
     )
     .unwrap();
     let acc = conf.accuracy().unwrap();
@@ -113,7 +114,14 @@ fn som_pak_codebook_classifies_like_the_model_and_carries_its_labels() {
     assert_eq!(from_cod.som.labels, m.som.labels);
     let classes = |model: &aepipe::som::tables::Model, out: &str| -> Vec<String> {
         let o = t.path().join(out);
-        classify(model, std::slice::from_ref(&features), None, &o).unwrap();
+        classify(
+            model,
+            std::slice::from_ref(&features),
+            None,
+            &o,
+            Default::default(),
+        )
+        .unwrap();
         let (names, rows) = table_rows(&o.join("classification.parquet"));
         let k = names.iter().position(|n| n == "som_label").unwrap();
         rows.into_iter().map(|r| r[k].clone()).collect()

@@ -652,10 +652,16 @@ fn the_test_machines_load_file_gives_each_hit_its_load_and_moves_the_peak_load_c
         .parse()
         .unwrap();
     assert_eq!(pt, 2.0);
-    // The peak-load cut keeps each channel's hits up to the peak (AE 17 s): 17 of 24.
-    let (_, series) =
-        aepipe::analysis::trend::read_series(std::slice::from_ref(&r.table_path), &[]).unwrap();
-    assert_eq!(series.len(), 2);
+    // The two sensors heard each source: the trend's series is the experiment's events
+    // (channel 0), and the peak-load cut keeps those up to the peak (AE 17 s): 17 of 24.
+    let (_, series) = aepipe::analysis::trend::read_series(
+        std::slice::from_ref(&r.table_path),
+        &[],
+        Default::default(),
+    )
+    .unwrap();
+    assert_eq!(series.len(), 1);
+    assert_eq!(series[0].channel, 0);
     for s in &series {
         let sel = aepipe::analysis::trend::select(s, aepipe::config::Cutoff::PeakLoad);
         assert_eq!(sel.hits_used, 17, "{}", sel.cutoff);

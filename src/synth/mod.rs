@@ -7,7 +7,10 @@
 //! This is a signal model, not the physical simulator (that is the `sim` room's job).
 
 use crate::model::{AeRecord, Mechanism};
+
+pub mod strip;
 pub use crate::util::Rng;
+pub use strip::{SourceKind, Strip, SynthHit};
 
 /// Why a synthetic experiment could not be made.
 #[derive(Debug, thiserror::Error)]
@@ -253,6 +256,9 @@ pub struct Experiment {
     pub n_samples: usize,
     /// Simulated reference signals to build the hits from (else analytic waveforms).
     pub library: Option<Library>,
+    /// Sensors on a strip: every source is heard at each, with its delay and attenuation
+    /// ([`strip`]); `n_hits` then counts sources. None: one sensor, one hit per source.
+    pub strip: Option<Strip>,
 }
 
 /// Reference-library signals by mechanism, each cut to start a little before its trigger.
@@ -363,6 +369,7 @@ impl Experiment {
             seed,
             n_samples: 4096,
             library: None,
+            strip: None,
         }
     }
 
@@ -389,6 +396,25 @@ impl Experiment {
     /// The hits with, for each, the reference signal(s) it was built from ("" for analytic
     /// waveforms).
     pub fn hits(&self) -> impl Iterator<Item = (AeRecord, String)> + Send + '_ {
+        self.synth_hits().map(|h| (h.rec, h.reference))
+    }
+
+    /// The hits with what made each (source, position, kind): one per source and sensor
+    /// on a [`Strip`], else one per source.
+    pub fn synth_hits(&self) -> Box<dyn Iterator<Item = SynthHit> + Send + '_> {
+        match &self.strip {
+            Some(s) => Box::new(strip::strip_hits(self, s).into_iter()),
+            None => Box::new(self.one_sensor_hits().map(|(rec, reference)| SynthHit {
+                source: rec.hit,
+                source_x_m: None,
+                kind: SourceKind::Specimen,
+                rec,
+                reference,
+            })),
+        }
+    }
+
+    fn one_sensor_hits(&self) -> impl Iterator<Item = (AeRecord, String)> + Send + '_ {
         let mut rng = Rng::new(self.seed);
         let t_peak = 0.8 * self.duration_s;
         // AE activity grows towards the peak load: times ~ duration · u^(1/2.5).
@@ -495,10 +521,12 @@ pub fn synth_experiment(
     let lib = Library::read(&lib_path, 10e6)?;
     let mut e = Experiment::new(id, hits, seed);
     e.library = Some(lib);
+    e.strip = Some(Strip::demo());
     let data = dir.join("data");
-    let truth = e.write_with_truth(&data, &dir.join("truth.parquet"))?;
+    let truth = dir.join("truth.parquet");
+    let n_hits = e.write_with_truth(&data, &truth)?;
     Ok(format!(
-        "{hits} hits (seed {seed}) from {} → {} (.pridb/.tradb) and {} in {:.1} s",
+        "{hits} sources, {n_hits} hits (seed {seed}) from {} → {} (.pridb/.tradb) and {} in {:.1} s",
         lib_path.display(),
         data.join(id).display(),
         truth.display(),
@@ -515,6 +543,10 @@ pub struct TruthRow {
     pub time_s: Option<f64>,
     pub mechanism: Mechanism,
     pub reference_signals: String,
+    /// The source the hit belongs to (1-based; one per hit without a strip).
+    pub event: u64,
+    pub source_x_m: Option<f64>,
+    pub source_kind: SourceKind,
 }
 
 /// `truth.parquet`: the ground truth of a synthetic experiment.
@@ -565,24 +597,55 @@ pub fn truth_table() -> crate::store::Table<TruthRow> {
             ),
             |t| Value::Str(Some(t.reference_signals.clone())),
         )
+        .col(
+            ColumnSpec::new(
+                "event",
+                ColType::Int64,
+                "",
+                "the source the hit belongs to, 1-based in time order: the hits of one source at the test's sensors share it (the truth behind events.parquet)",
+            ),
+            |t| Value::I64(Some(t.event as i64)),
+        )
+        .col(
+            ColumnSpec::new(
+                "source_x_m",
+                ColType::Float64,
+                "m",
+                "where the source is along the strip (the notch at 0; the sensors' coordinates of the pipeline's [location]); null: a one-sensor test",
+            )
+            .nullable(),
+            |t| Value::F64(t.source_x_m),
+        )
+        .col(
+            ColumnSpec::new(
+                "source_kind",
+                ColType::Utf8,
+                "",
+                "specimen (paper damage in the gauge section) or grip (grip and machine noise beyond the sensors)",
+            ),
+            |t| Value::Str(Some(t.source_kind.as_str().to_string())),
+        )
 }
 
 impl Experiment {
     /// Write the experiment as a Vallen pair in `dir` and its ground truth to `truth` (kept
-    /// out of `dir`, which an ingest run reads whole).
+    /// out of `dir`, which an ingest run reads whole). Returns the number of hits written
+    /// (one per sensor that heard a source).
     pub fn write_with_truth(
         &self,
         dir: &std::path::Path,
         truth: &std::path::Path,
-    ) -> Result<std::path::PathBuf, SynthError> {
+    ) -> Result<usize, SynthError> {
         use crate::store::TableWriter;
-        let (recs, sources): (Vec<AeRecord>, Vec<String>) = self.hits().unzip();
+        let hits: Vec<SynthHit> = self.synth_hits().collect();
+        let recs: Vec<AeRecord> = hits.iter().map(|h| h.rec.clone()).collect();
         self.write_vallen_records(dir, &recs)
             .map_err(|e| SynthError::Vallen {
                 path: dir.display().to_string(),
                 message: e.to_string(),
             })?;
         let path = truth.to_path_buf();
+        let n_hits = hits.len();
         let table = truth_table();
         let mut w = TableWriter::create(
             &path,
@@ -590,7 +653,7 @@ impl Experiment {
             &[("aepipe.config_sha256".into(), format!("{:064x}", self.seed))],
             65_536,
         )?;
-        for (r, src) in recs.iter().zip(sources) {
+        for (r, h) in recs.iter().zip(hits) {
             let mechanism = r
                 .label
                 .as_deref()
@@ -602,11 +665,14 @@ impl Experiment {
                 hit: r.hit,
                 time_s: r.time_s,
                 mechanism,
-                reference_signals: src,
+                reference_signals: h.reference,
+                event: h.source,
+                source_x_m: h.source_x_m,
+                source_kind: h.kind,
             }))?;
         }
         w.finish()?;
-        Ok(path)
+        Ok(n_hits)
     }
 }
 
