@@ -1,7 +1,9 @@
-//! Analysis of written feature tables: trend statistics over an experiment (ch. 4.5.5).
+//! Analysis of written feature tables: trend statistics over an experiment (ch. 4.5.5) and
+//! the damage evolution (cumulative sources, b- and Ib-value).
 //!
 //! The tables are read with Polars (lazy scan, column selection); the statistics themselves
 //! are plain, tested Rust in [`stats`].
 
+pub mod evolution;
 pub mod stats;
 pub mod trend;

@@ -8,7 +8,8 @@ use std::path::Path;
 
 mod sources;
 pub use sources::{
-    ChannelRole, EventsConfig, LocationConfig, LocationKind, OnsetConfig, Picker, ZoneSpec,
+    ChannelRole, EventsConfig, EvolutionConfig, LocationConfig, LocationKind, OnsetConfig, Picker,
+    ZoneSpec,
 };
 
 #[derive(Debug, thiserror::Error)]
@@ -133,6 +134,8 @@ pub struct PipelineConfig {
     /// Hits → events (the event builder) and where their sources are.
     pub events: EventsConfig,
     pub location: LocationConfig,
+    /// Cumulative counts, b- and Ib-value over the test (`evolution.parquet`).
+    pub evolution: EvolutionConfig,
     /// `aepipe run` stages after the features.
     pub trend: TrendConfig,
     pub som: SomConfig,
@@ -786,6 +789,7 @@ impl PipelineConfig {
             )));
         }
         sources::check(&self.onset, &self.events, &self.location)?;
+        sources::check_evolution(&self.evolution)?;
         let m = &self.ingest.mistras;
         for (k, v) in &m.chid_sizes {
             if k.trim().parse::<u8>().map_or(true, |c| c == 0) || *v > 4096 {

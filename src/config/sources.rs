@@ -1,5 +1,6 @@
-//! `[onset]`, `[events]` and `[location]`: from hits to sources — arrival picking, the event
-//! builder and source location (the `events` room uses them; `features` uses `[onset]`).
+//! `[onset]`, `[events]`, `[location]` and `[evolution]`: from hits to sources — arrival
+//! picking, the event builder, source location (the `events` room uses them; `features` uses
+//! `[onset]`) and the sources' course over a test (`analysis::evolution`).
 
 use super::ConfigError;
 use serde::{Deserialize, Serialize};
@@ -173,6 +174,52 @@ fn invalid(m: String) -> ConfigError {
 }
 
 /// The checks of `[onset]`, `[events]` and `[location]`.
+/// `[evolution]`: the damage evolution's sliding windows (`evolution.parquet`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct EvolutionConfig {
+    /// Sources per window of the b- and Ib-value (the last `window` of a series).
+    pub window: usize,
+    /// The b-value's completeness threshold, dB_AE: amplitudes below it are left out of the
+    /// b-value (M_c = completeness_db / 20).
+    pub completeness_db: f64,
+    /// Shiotani's α₁ and α₂ of the Ib-value (1 and 1 in his papers).
+    pub ib_alpha1: f64,
+    pub ib_alpha2: f64,
+}
+
+impl Default for EvolutionConfig {
+    fn default() -> Self {
+        EvolutionConfig {
+            window: 50,
+            completeness_db: 40.0,
+            ib_alpha1: 1.0,
+            ib_alpha2: 1.0,
+        }
+    }
+}
+
+pub(super) fn check_evolution(v: &EvolutionConfig) -> Result<(), ConfigError> {
+    if v.window < 10 {
+        return Err(invalid(format!(
+            "evolution.window must be at least 10 sources, got {}",
+            v.window
+        )));
+    }
+    if !v.completeness_db.is_finite() {
+        return Err(invalid(format!(
+            "evolution.completeness_db must be finite, got {}",
+            v.completeness_db
+        )));
+    }
+    for (k, a) in [("ib_alpha1", v.ib_alpha1), ("ib_alpha2", v.ib_alpha2)] {
+        if !(a.is_finite() && a > 0.0) {
+            return Err(invalid(format!("evolution.{k} must be > 0, got {a}")));
+        }
+    }
+    Ok(())
+}
+
 pub(super) fn check(
     o: &OnsetConfig,
     e: &EventsConfig,

@@ -61,4 +61,21 @@ impl ClassifyDir {
             crate::util::file_safe(experiment)
         ))
     }
+    /// The damage evolution (`analysis::evolution`).
+    pub fn evolution(&self) -> PathBuf {
+        self.0.join("evolution.parquet")
+    }
+    pub fn evolution_png(&self, experiment: &str) -> PathBuf {
+        self.0.join(format!(
+            "evolution_{}.png",
+            crate::util::file_safe(experiment)
+        ))
+    }
+    /// Where one experiment's events are (histogram along the strip, or x/y map).
+    pub fn location_png(&self, experiment: &str) -> PathBuf {
+        self.0.join(format!(
+            "location_{}.png",
+            crate::util::file_safe(experiment)
+        ))
+    }
 }

@@ -112,6 +112,12 @@ pub struct ProfileRow {
     pub before_peak_load: Option<bool>,
     /// Running counts of [`CLASSES`], then "other" (at [`OTHER`]).
     pub counts: [u64; OTHER + 1],
+    /// Not columns of the profile; what the damage evolution adds up: the row's peak
+    /// amplitude (dB_AE) and energy (eu), and the hits of its source (an event's; 1 for a
+    /// hit outside events).
+    pub amplitude_db: Option<f64>,
+    pub energy_eu: Option<f64>,
+    pub source_hits: u64,
 }
 
 /// Per experiment × channel: the class totals and how many came before the peak load.
@@ -195,9 +201,31 @@ pub fn build(
         col("extension_m"),
     ];
     sel.extend(t.event_first_col());
+    let has = |c: &str| t.column_names().iter().any(|n| n == c);
+    let optional = ["peak_amplitude_db", "energy_eu", "event"];
+    for c in optional {
+        if has(c) {
+            sel.push(col(c));
+        }
+    }
     let df = t.select(sel).map_err(serr)?;
     let keys = t.hit_keys(&df).map_err(serr)?;
     let first = t.event_first(&df).map_err(serr)?;
+    let opt = |c: &str| -> Result<Vec<Option<f64>>, SomError> {
+        if has(c) {
+            t.f64s(&df, c).map_err(serr)
+        } else {
+            Ok(vec![None; df.height()])
+        }
+    };
+    let (amp, energy, event) = (opt("peak_amplitude_db")?, opt("energy_eu")?, opt("event")?);
+    // Hits per event, over every row (all sensors, classified or not).
+    let mut event_hits: BTreeMap<(&str, i64), u64> = BTreeMap::new();
+    for (k, e) in keys.iter().zip(&event) {
+        if let Some(e) = e {
+            *event_hits.entry((k.0.as_str(), *e as i64)).or_default() += 1;
+        }
+    }
     let time = t.f64s(&df, "time_s").map_err(serr)?;
     let load = t.f64s(&df, "load_n").map_err(serr)?;
     let ext = t.f64s(&df, "extension_m").map_err(serr)?;
@@ -258,6 +286,12 @@ pub fn build(
                 class,
                 before_peak_load: before,
                 counts,
+                amplitude_db: amp[i],
+                energy_eu: energy[i],
+                source_hits: match (first[i], event[i]) {
+                    (Some(true), Some(e)) => event_hits[&(keys[i].0.as_str(), e as i64)],
+                    _ => 1,
+                },
             });
         }
         summaries.push(summary);

@@ -65,6 +65,15 @@ impl RunDir {
             key.2
         ))
     }
+    /// The whole record's picture behind a gallery thumbnail.
+    pub fn gallery_full_png(&self, key: &HitKey) -> PathBuf {
+        self.gallery().join(format!(
+            "{}_ch{}_hit{}_full.png",
+            crate::util::file_safe(&key.0),
+            key.1,
+            key.2
+        ))
+    }
 
     pub fn report_html(&self) -> PathBuf {
         self.0.join("report.html")

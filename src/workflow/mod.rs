@@ -220,6 +220,10 @@ fn stages(
         )?,
         _ => None,
     };
+    // The manifest was written by this run's feature stage a moment ago.
+    let events = crate::pipeline::Manifest::read(&features.manifest_path)
+        .map(|m| m.events)
+        .unwrap_or_default();
     let mut summary = RunSummary {
         out: job.out.to_path_buf(),
         inputs: job.inputs.to_vec(),
@@ -229,6 +233,7 @@ fn stages(
         som,
         truth,
         sources,
+        events,
         config: cfg.clone(),
         seconds,
     };
@@ -256,6 +261,7 @@ pub mod layout;
 mod pictures;
 mod runfile;
 mod schema;
+mod sources;
 mod stages;
 mod truth;
 pub use headline::headline;

@@ -50,6 +50,10 @@ pub(super) fn gather(s: &RunSummary) -> Result<Gathered, WorkflowError> {
     })
 }
 
+/// The gallery thumbnails' window about the first threshold crossing, s.
+const GALLERY_BEFORE_S: f64 = 10e-6;
+const GALLERY_AFTER_S: f64 = 90e-6;
+
 /// Draw the CWT of the chosen hits (one pass over the inputs) into `dir`; returns the PNG
 /// of each hit drawn (a hit that cannot be read or drawn is left out, and the report says
 /// "not drawn").
@@ -58,7 +62,7 @@ fn draw_gallery(
     cfg: &ValidConfig,
     chosen: &BTreeMap<String, Vec<HitKey>>,
     run: &RunDir,
-) -> BTreeMap<HitKey, PathBuf> {
+) -> BTreeMap<HitKey, (PathBuf, PathBuf)> {
     let dir = run.gallery();
     let want: std::collections::BTreeSet<&HitKey> = chosen.values().flatten().collect();
     let mut out = BTreeMap::new();
@@ -79,16 +83,20 @@ fn draw_gallery(
             let a = ex.analyse(&r);
             let (freqs, power) = ex.full_cwt(&r);
             let png = run.gallery_png(&key);
-            if crate::plot::cwt_png(
-                &png,
-                &r,
-                &freqs,
-                power.view(),
-                &format!("{} — {}", r.id(), a.label),
-            )
-            .is_ok()
-            {
-                out.insert(key, png);
+            let full = run.gallery_full_png(&key);
+            let title = format!("{} — {}", r.id(), a.label);
+            // The thumbnail shows the burst as the thesis's Appendix B figures do: from
+            // 10 µs before the first threshold crossing (the trigger without one) to 90 µs
+            // after it; the whole record is a click away.
+            let fs = r.sample_rate_hz;
+            let at = a.hit.first_crossing.unwrap_or(r.pretrigger as usize);
+            let from = at.saturating_sub((GALLERY_BEFORE_S * fs).round() as usize);
+            let to = at + (GALLERY_AFTER_S * fs).round() as usize;
+            let drawn =
+                crate::plot::cwt_window_png(&png, &r, &freqs, power.view(), &title, from..to)
+                    .and_then(|_| crate::plot::cwt_png(&full, &r, &freqs, power.view(), &title));
+            if drawn.is_ok() {
+                out.insert(key, (png, full));
             }
         }
     }

@@ -48,6 +48,7 @@ pub fn rebuild_report(dir: &Path) -> Result<PathBuf, WorkflowError> {
     let fdir = run.features();
     let mp = fdir.manifest();
     let m = crate::pipeline::Manifest::read(&mp).map_err(|e| input_err(&mp, e))?;
+    let events = m.events.clone();
     let job = crate::pipeline::StreamJob::Features;
     let features = RunReport {
         stats: m.stats(),
@@ -81,11 +82,14 @@ pub fn rebuild_report(dir: &Path) -> Result<PathBuf, WorkflowError> {
         )?;
         let classes = classes_of(&confusion);
         let existing = |p: PathBuf| p.is_file().then_some(p);
-        let (profile, profile_plots) = profile_stage(&config, &feats[0], &sdir)?;
+        let pr = profile_stage(&config, &feats[0], &features.events_path, &sdir)?;
         som = Some(SomStage {
             profile_table: sdir.damage_profile(),
-            profile,
-            profile_plots,
+            profile: pr.summaries,
+            profile_plots: pr.plots,
+            evolution_table: pr.evolution_table,
+            evolution_plots: pr.evolution_plots,
+            location_plots: pr.location_plots,
             model_dir: run.som_model().path().to_path_buf(),
             trained_on: f.som_trained_on.clone().unwrap_or_default(),
             training_rows: f.som_training_rows.unwrap_or(0),
@@ -118,6 +122,7 @@ pub fn rebuild_report(dir: &Path) -> Result<PathBuf, WorkflowError> {
         som,
         truth,
         sources,
+        events,
         config,
         seconds: f.seconds,
     };

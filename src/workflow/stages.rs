@@ -122,11 +122,18 @@ pub(super) fn som_stage(job: &RunJob, feats: &[PathBuf]) -> Result<SomStage, Wor
     crate::plot::hit_maps_png(&hm, &model.som, &confusion.hits)?;
     let (u_matrix, hit_maps) = (Some(u), Some(hm));
     let classes = classes_of(&confusion);
-    let (profile, profile_plots) = profile_stage(cfg, &feats[0], &som_dir)?;
+    let events = run.features().table(
+        crate::pipeline::PartTable::Events,
+        crate::pipeline::StreamJob::Features,
+    );
+    let pr = profile_stage(cfg, &feats[0], &events, &som_dir)?;
     Ok(SomStage {
         profile_table: som_dir.damage_profile(),
-        profile,
-        profile_plots,
+        profile: pr.summaries,
+        profile_plots: pr.plots,
+        evolution_table: pr.evolution_table,
+        evolution_plots: pr.evolution_plots,
+        location_plots: pr.location_plots,
         model_dir: model_dir.path().to_path_buf(),
         trained_on,
         training_rows: model.composition.values().map(|(_, r)| r).sum(),
@@ -139,15 +146,20 @@ pub(super) fn som_stage(job: &RunJob, feats: &[PathBuf]) -> Result<SomStage, Wor
 }
 
 /// The damage profile of a classified run into `som_dir`: `damage_profile.parquet` and a
-/// Fig. 6.1 picture per experiment × channel.
-type Profile = (
-    Vec<crate::som::profile::ProfileSummary>,
-    Vec<(String, PathBuf)>,
-);
+/// Fig. 6.1 picture per experiment × channel; then the damage evolution and the location
+/// pictures (`super::sources`).
+pub(super) struct Profile {
+    pub summaries: Vec<crate::som::profile::ProfileSummary>,
+    pub plots: Vec<(String, PathBuf)>,
+    pub evolution_table: PathBuf,
+    pub evolution_plots: Vec<(String, PathBuf)>,
+    pub location_plots: Vec<(String, PathBuf)>,
+}
 
 pub(super) fn profile_stage(
     cfg: &ValidConfig,
     features: &Path,
+    events: &Path,
     som_dir: &ClassifyDir,
 ) -> Result<Profile, WorkflowError> {
     let (rows, summaries) = crate::som::profile::build(features, &som_dir.classification())?;
@@ -162,5 +174,14 @@ pub(super) fn profile_stage(
         crate::plot::damage_profile_png(&png, &group, s)?;
         plots.push((format!("{} ch{}", s.experiment, s.channel), png));
     }
-    Ok((summaries, plots))
+    let (evolution_table, evolution_plots) =
+        super::sources::evolution_stage(cfg, &rows, &summaries, som_dir)?;
+    let location_plots = super::sources::location_stage(cfg, features, events, som_dir)?;
+    Ok(Profile {
+        summaries,
+        plots,
+        evolution_table,
+        evolution_plots,
+        location_plots,
+    })
 }

@@ -90,9 +90,12 @@ fn synthetic_experiment_from_the_library_is_a_readable_vallen_pair_with_truth() 
     let (recs, rejs) = crate::read_all(&[d.path().join("data")], &cfg);
     assert!(rejs.is_empty(), "{rejs:?}");
     assert_eq!(recs.len(), n_hits);
-    assert!(recs.iter().zip(1..).all(|(r, k)| r.hit == k));
-    assert!(recs.windows(2).all(|w| w[0].time_s <= w[1].time_s));
-    assert!(recs[0].load_n.unwrap() < recs[60].load_n.unwrap());
+    // Hits are numbered 1… in time order over both sensors (as a Vallen system numbers them).
+    let mut by_hit: Vec<&aepipe::model::AeRecord> = recs.iter().collect();
+    by_hit.sort_by_key(|r| r.hit);
+    assert!(by_hit.iter().zip(1..).all(|(r, k)| r.hit == k));
+    assert!(by_hit.windows(2).all(|w| w[0].time_s <= w[1].time_s));
+    assert!(by_hit[0].load_n.unwrap() < by_hit[60].load_n.unwrap());
 
     // vallenae (if installed) sees the same hits and samples.
     let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/python/vallenae_read.py");
@@ -121,7 +124,7 @@ fn synthetic_experiment_from_the_library_is_a_readable_vallen_pair_with_truth() 
     assert_eq!(v["hits"].as_u64(), Some(n_hits as u64));
     let tr = v["transients"].as_array().unwrap();
     assert_eq!(tr.len(), n_hits);
-    for (t, r) in tr.iter().zip(&recs) {
+    for (t, r) in tr.iter().zip(&by_hit) {
         assert_eq!(t["trai"].as_u64(), Some(r.hit));
         assert_eq!(t["n"].as_u64(), Some(r.samples.len() as u64));
         assert_eq!(t["pretrigger"].as_u64(), Some(r.pretrigger as u64));
@@ -401,6 +404,7 @@ fn the_readme_states_the_numbers_the_demo_prints() {
     assert!(pct(grip) >= 95.0, "{zone}");
     assert!(pct(lost) <= 2.0, "{zone}");
     damage_profile_matches_the_truth(t.path());
+    evolution_matches_the_profile(t.path());
     // "200 - 300 kHz    r = +0.22  p = 2.4e-5  slope …" → README "200–300 kHz r = +0.22, p = 2.4e-5"
     for band in ["200 - 300 kHz", "700 - 800 kHz"] {
         let l = so
@@ -507,4 +511,61 @@ fn damage_profile_matches_the_truth(dir: &Path) {
         (som - tru).abs() < 0.15,
         "before the peak: SOM {som:.2}, truth {tru:.2}"
     );
+}
+
+/// The demo's damage evolution against its damage profile and feature table: the running
+/// counts are the profile's, the hits are the events' hits, and the last window's b- and
+/// Ib-value recomputed here from the features' amplitudes (Aki; Shiotani) are the table's.
+fn evolution_matches_the_profile(dir: &Path) {
+    let table = dir.join("run/som/evolution.parquet");
+    crate::pipeline::check_against_schema_file(&table, "evolution.md");
+    let (names, rows) = crate::table_rows(&table);
+    let col = |n: &str| names.iter().position(|x| x == n).unwrap();
+    let (pn, prof) = crate::table_rows(&dir.join("run/som/damage_profile.parquet"));
+    let pcol = |n: &str| pn.iter().position(|x| x == n).unwrap();
+    let all: Vec<&Vec<String>> = rows.iter().filter(|r| r[col("class")] == "all").collect();
+    assert_eq!(all.len(), prof.len());
+    for (k, (e, p)) in all.iter().zip(&prof).enumerate() {
+        assert_eq!(e[col("hit")], p[pcol("hit")]);
+        assert_eq!(e[col("cum_sources")], (k + 1).to_string());
+    }
+    for class in ["bond_failure", "fibre_failure", "erroneous"] {
+        let n = rows.iter().filter(|r| r[col("class")] == class).count();
+        let last = prof.last().unwrap()[pcol(&format!("n_{class}"))].clone();
+        assert_eq!(n.to_string(), last, "{class}");
+    }
+    // Two sensors: nearly every event has both hits.
+    let hits: f64 = all.last().unwrap()[col("cum_hits")].parse().unwrap();
+    assert!(
+        hits > 1.9 * all.len() as f64 && hits <= 2.0 * all.len() as f64,
+        "{hits}"
+    );
+    // The last window (50 sources) from the features' amplitudes.
+    let (fnm, feats) = crate::table_rows(&dir.join("run/features/features.parquet"));
+    let fc = |n: &str| fnm.iter().position(|x| x == n).unwrap();
+    let amp: std::collections::BTreeMap<&str, f64> = feats
+        .iter()
+        .map(|r| {
+            (
+                r[fc("hit")].as_str(),
+                r[fc("peak_amplitude_db")].parse().unwrap(),
+            )
+        })
+        .collect();
+    let m: Vec<f64> = prof[prof.len() - 50..]
+        .iter()
+        .map(|p| amp[p[pcol("hit")].as_str()] / 20.0)
+        .collect();
+    let above: Vec<f64> = m.iter().copied().filter(|&x| x >= 2.0).collect();
+    let b = std::f64::consts::LOG10_E / (above.iter().sum::<f64>() / above.len() as f64 - 2.0);
+    let mu = m.iter().sum::<f64>() / 50.0;
+    let sd = (m.iter().map(|x| (x - mu).powi(2)).sum::<f64>() / 49.0).sqrt();
+    let n_ge = |x: f64| m.iter().filter(|&&v| v >= x).count() as f64;
+    let ib = (n_ge(mu - sd).log10() - n_ge(mu + sd).log10()) / (2.0 * sd);
+    let last = all.last().unwrap();
+    let got_b: f64 = last[col("b_value")].parse().unwrap();
+    let got_ib: f64 = last[col("ib_value")].parse().unwrap();
+    assert!((got_b - b).abs() < 1e-9 * b, "b {got_b} vs {b}");
+    assert!((got_ib - ib).abs() < 1e-9 * ib.abs(), "Ib {got_ib} vs {ib}");
+    assert!(all[48][col("b_value")].is_empty() && !all[49][col("b_value")].is_empty());
 }

@@ -652,8 +652,8 @@ fn the_test_machines_load_file_gives_each_hit_its_load_and_moves_the_peak_load_c
         .parse()
         .unwrap();
     assert_eq!(pt, 2.0);
-    // The two sensors heard each source: the trend's series is the experiment's events
-    // (channel 0), and the peak-load cut keeps those up to the peak (AE 17 s): 17 of 24.
+    // Two channels: the trend's series is the experiment's events (channel 0), and the
+    // peak-load cut keeps those up to the peak (AE 17 s).
     let (_, series) = aepipe::analysis::trend::read_series(
         std::slice::from_ref(&r.table_path),
         &[],
@@ -664,7 +664,20 @@ fn the_test_machines_load_file_gives_each_hit_its_load_and_moves_the_peak_load_c
     assert_eq!(series[0].channel, 0);
     for s in &series {
         let sel = aepipe::analysis::trend::select(s, aepipe::config::Cutoff::PeakLoad);
-        assert_eq!(sel.hits_used, 17, "{}", sel.cutoff);
+        // Up to and including the row of the largest load (the file's peak, AE 17 s).
+        let loads: Vec<f64> = s.load_n.iter().map(|l| l.unwrap_or(f64::MIN)).collect();
+        let peak = (0..loads.len()).fold(0, |m, i| if loads[i] > loads[m] { i } else { m });
+        let up_to_peak = peak + 1;
+        assert!(
+            (s.time_s[peak].unwrap() - 17.0).abs() < 0.5,
+            "{:?}",
+            s.time_s[peak]
+        );
+        assert!(
+            up_to_peak >= 17 && up_to_peak < s.time_s.len(),
+            "{up_to_peak}"
+        );
+        assert_eq!(sel.hits_used, up_to_peak, "{}", sel.cutoff);
         assert!(
             (sel.peak_load_n.unwrap() - 1500.0).abs() < 0.5,
             "{:?}",

@@ -7,6 +7,8 @@
 //! columns and gallery pictures the workflow read and drew. It reads no input recording and
 //! no table; it only embeds the PNG files it is pointed at.
 
+mod sources;
+
 use crate::analysis::trend::TrendReport;
 use crate::model::Mechanism;
 use crate::pipeline::RunReport;
@@ -43,6 +45,8 @@ pub struct RunSummary {
     pub truth: Option<TruthScore>,
     /// Events and location against the truth's sources (a synthetic test with sensors).
     pub sources: Option<SourceScore>,
+    /// The events step's account per experiment (the manifest's `events`).
+    pub events: Vec<crate::events::EventsSummary>,
     pub config: crate::config::ValidConfig,
     pub seconds: Vec<(String, f64)>,
 }
@@ -64,6 +68,11 @@ pub struct SomStage {
     pub profile_table: PathBuf,
     pub profile: Vec<crate::som::profile::ProfileSummary>,
     pub profile_plots: Vec<(String, PathBuf)>,
+    /// The damage evolution (`evolution.parquet`) and its picture per experiment.
+    pub evolution_table: PathBuf,
+    pub evolution_plots: Vec<(String, PathBuf)>,
+    /// Where the classified events are, per experiment with located events.
+    pub location_plots: Vec<(String, PathBuf)>,
 }
 
 /// Events and location against the ground truth's sources (`truth.parquet` `event`,
@@ -217,7 +226,9 @@ impl TruthScore {
 pub struct Gallery {
     /// "SOM" or "criteria": which labels chose the hits.
     pub by: &'static str,
-    pub classes: BTreeMap<String, Vec<(HitKey, Option<PathBuf>)>>,
+    /// Per class: each hit with its thumbnail (the window about the burst) and its whole
+    /// record's picture, or None where it could not be drawn.
+    pub classes: BTreeMap<String, Vec<(HitKey, Option<(PathBuf, PathBuf)>)>>,
 }
 
 /// What the report shows besides the summary, gathered by the workflow from the run folder.
@@ -270,6 +281,25 @@ fn img(path: &Path, alt: &str, width: Option<u32>) -> String {
     }
 }
 
+/// A thumbnail that a click swaps for the whole picture (and back): the full PNG rides in a
+/// data attribute, so the report stays one file and no data: URL is navigated to (browsers
+/// refuse that).
+fn img_swap(thumb: &Path, full: &Path, alt: &str, width: u32) -> String {
+    match std::fs::read(full) {
+        Ok(bytes) => img(thumb, alt, Some(width)).replacen(
+            "<img ",
+            &format!(
+                "<img class=swap title=\"click: the whole record\" data-alt=\"data:image/png;base64,{}\" \
+                 onclick=\"[this.src,this.dataset.alt]=[this.dataset.alt,this.src];\
+                 this.closest('figure').classList.toggle('big');this.removeAttribute('width')\" ",
+                base64(&bytes)
+            ),
+            1,
+        ),
+        Err(_) => img(thumb, alt, Some(width)),
+    }
+}
+
 /// Write the report to `path` (atomically).
 pub fn write(s: &RunSummary, g: &Gathered, path: &Path) -> Result<(), ReportError> {
     Ok(write_atomic(path, render(s, g).as_bytes())?)
@@ -284,7 +314,8 @@ pub fn render(s: &RunSummary, g: &Gathered) -> String {
         "<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\"><title>{}</title><style>\
 body{{font-family:sans-serif;margin:2em;max-width:1200px}}table{{border-collapse:collapse;margin:1em 0}}\
 td,th{{border:1px solid #bbb;padding:3px 8px;text-align:right}}th{{background:#eee}}td.l,th.l{{text-align:left}}\
-.gallery{{display:flex;flex-wrap:wrap;gap:6px}}.gallery figure{{margin:0;width:270px}}figcaption{{font-size:11px}}\
+.gallery{{display:flex;flex-wrap:wrap;gap:6px}}.gallery figure{{margin:0;width:270px}}\
+.gallery figure.big{{width:100%}}.gallery figure.big img{{width:100%}}img.swap{{cursor:zoom-in}}figcaption{{font-size:11px}}\
 pre{{background:#f6f6f6;padding:8px;overflow-x:auto}}.missing{{color:#b00}}</style></head><body>\n<h1>{}</h1>\n",
         esc(&title),
         esc(&title)
@@ -294,6 +325,8 @@ pre{{background:#f6f6f6;padding:8px;overflow-x:auto}}.missing{{color:#b00}}</sty
     trend_section(&mut h, s);
     som_section(&mut h, s);
     profile_section(&mut h, s);
+    sources::sources_section(&mut h, s);
+    sources::evolution_section(&mut h, s);
     truth_section(&mut h, s);
     gallery_section(&mut h, &g.gallery);
     footer(&mut h, s, g);
@@ -529,11 +562,11 @@ fn gallery_section(h: &mut String, g: &Gallery) {
         for (k, png) in pics {
             let cap = format!("{} ch{} hit {}", k.0, k.1, k.2);
             match png {
-                Some(p) => {
+                Some((thumb, full)) => {
                     let _ = write!(
                         h,
                         "<figure>{}<figcaption>{}</figcaption></figure>",
-                        img(p, &cap, Some(270)),
+                        img_swap(thumb, full, &cap, 270),
                         esc(&cap)
                     );
                 }

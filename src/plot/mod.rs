@@ -5,6 +5,8 @@
 //! machine (DejaVu Sans or Liberation Sans; `AEPIPE_FONT` names another), so no system font
 //! library is linked. The font is loaded once per process.
 
+pub mod sources;
+
 use crate::model::AeRecord;
 use ndarray::ArrayView2;
 use plotters::prelude::*;
@@ -66,14 +68,33 @@ pub fn cwt_png(
     power: ArrayView2<f32>,
     title: &str,
 ) -> Result<(), PlotError> {
+    cwt_window_png(path, rec, freqs, power, title, 0..rec.samples.len())
+}
+
+/// [`cwt_png`] of the samples `window` only (clamped to the record; the CWT is the whole
+/// record's, so the window's edges are the transform's, not a cut signal's), the colour scale
+/// relative to the window's largest |W|. Times stay on the record's axis (trigger at 0).
+pub fn cwt_window_png(
+    path: &Path,
+    rec: &AeRecord,
+    freqs: &[f64],
+    power: ArrayView2<f32>,
+    title: &str,
+    window: std::ops::Range<usize>,
+) -> Result<(), PlotError> {
     ensure_font()?;
-    let n = rec.samples.len();
+    let n_all = rec.samples.len();
     let nf = freqs.len();
-    assert_eq!(power.dim(), (nf, n), "power is freqs × samples");
+    assert_eq!(power.dim(), (nf, n_all), "power is freqs × samples");
+    let (a, b) = (window.start.min(n_all), window.end.min(n_all));
+    let (a, b) = if b > a + 1 { (a, b) } else { (0, n_all) };
+    let power = power.slice(ndarray::s![.., a..b]);
     let power = power.as_standard_layout();
     let power = power.as_slice().expect("standard layout");
+    let samples = &rec.samples[a..b];
+    let n = b - a;
     let fs = rec.sample_rate_hz;
-    let t0 = -(rec.pretrigger as f64) / fs * 1e6; // µs, trigger at 0
+    let t0 = (a as f64 - rec.pretrigger as f64) / fs * 1e6; // µs, trigger at 0
     let t1 = t0 + n as f64 / fs * 1e6;
     let (w, h) = (1100u32, 760u32);
     let root = BitMapBackend::new(path, (w, h)).into_drawing_area();
@@ -83,13 +104,7 @@ pub fn cwt_png(
     let (top, bottom) = root.split_vertically(230);
 
     // Waveform, mV.
-    let vmax = rec
-        .samples
-        .iter()
-        .fold(0f32, |m, v| m.max(v.abs()))
-        .max(1e-12) as f64
-        * 1e3
-        * 1.05;
+    let vmax = samples.iter().fold(0f32, |m, v| m.max(v.abs())).max(1e-12) as f64 * 1e3 * 1.05;
     let mut c = ChartBuilder::on(&top)
         .margin(10)
         .x_label_area_size(30)
@@ -103,7 +118,7 @@ pub fn cwt_png(
         .draw()
         .map_err(&e)?;
     c.draw_series(LineSeries::new(
-        rec.samples
+        samples
             .iter()
             .enumerate()
             .map(|(i, &v)| (t0 + i as f64 / fs * 1e6, v as f64 * 1e3)),
