@@ -102,7 +102,7 @@ pub fn ib_value(m: &[f64], alpha1: f64, alpha2: f64) -> Option<f64> {
     let mu = m.iter().sum::<f64>() / n as f64;
     let var = m.iter().map(|x| (x - mu) * (x - mu)).sum::<f64>() / (n - 1) as f64;
     let sigma = var.sqrt();
-    if !(sigma > 0.0) {
+    if sigma.is_nan() || sigma <= 0.0 {
         return None;
     }
     let count = |x: f64| m.iter().filter(|&&v| v >= x).count();

@@ -221,6 +221,9 @@ impl TruthScore {
     }
 }
 
+/// A gallery hit's thumbnail (the window about the burst) and its whole record's picture.
+pub type GalleryPicture = (PathBuf, PathBuf);
+
 /// A CWT picture per chosen hit of each class (`None`: it could not be drawn).
 #[derive(Default)]
 pub struct Gallery {
@@ -228,7 +231,7 @@ pub struct Gallery {
     pub by: &'static str,
     /// Per class: each hit with its thumbnail (the window about the burst) and its whole
     /// record's picture, or None where it could not be drawn.
-    pub classes: BTreeMap<String, Vec<(HitKey, Option<(PathBuf, PathBuf)>)>>,
+    pub classes: BTreeMap<String, Vec<(HitKey, Option<GalleryPicture>)>>,
 }
 
 /// What the report shows besides the summary, gathered by the workflow from the run folder.

@@ -60,7 +60,9 @@ pub fn score_sources(
     let sx = t.f64s(&df, "source_x_m")?;
     let kind = t.strings(&df, "source_kind")?;
     // Source → (x, kind, its hits).
-    let mut sources: BTreeMap<(String, i64), (Option<f64>, String, Vec<HitKey>)> = BTreeMap::new();
+    // (experiment, source) → (source_x_m, source_kind, its hits)
+    type Truths = BTreeMap<(String, i64), (Option<f64>, String, Vec<HitKey>)>;
+    let mut sources: Truths = BTreeMap::new();
     for (i, k) in keys.into_iter().enumerate() {
         let id = (k.0.clone(), src[i].unwrap_or(0.0) as i64);
         let e = sources
