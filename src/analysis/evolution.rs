@@ -122,7 +122,6 @@ pub fn evolve(experiment: &str, sources: &[Source], p: &EvolutionParams) -> Vec<
     classes.dedup();
     let mut out = Vec::new();
     let mut mags = std::collections::VecDeque::with_capacity(p.window);
-    let mut window = Vec::with_capacity(p.window);
     for class in std::iter::once("all").chain(classes) {
         let (mut n, mut hits, mut energy) = (0u64, 0u64, 0.0f64);
         mags.clear();
@@ -140,12 +139,8 @@ pub fn evolve(experiment: &str, sources: &[Source], p: &EvolutionParams) -> Vec<
                 mags.push_back(a / 20.0);
             }
             let (b, ib) = if mags.len() == p.window {
-                window.clear();
-                window.extend(mags.iter().copied());
-                (
-                    b_value(&window, p.m_c),
-                    ib_value(&window, p.alpha1, p.alpha2),
-                )
+                let window = mags.make_contiguous();
+                (b_value(window, p.m_c), ib_value(window, p.alpha1, p.alpha2))
             } else {
                 (None, None)
             };

@@ -281,7 +281,7 @@ fn merge(
             );
         }
         ShardKind::Waveforms | ShardKind::Features if tables_only => {
-            let (r, _) = crate::pipeline::merge(dir, &out, threads, None)?;
+            let (r, _, _) = crate::pipeline::merge(dir, &out, threads, None)?;
             print::stream_run(&r, "merged");
         }
         ShardKind::Waveforms | ShardKind::Features => {

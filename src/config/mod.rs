@@ -662,6 +662,15 @@ impl Default for ValidConfig {
     }
 }
 
+/// A finite, positive number, or the error naming the key.
+fn positive(v: f64, what: &str) -> Result<(), ConfigError> {
+    if v.is_finite() && v > 0.0 {
+        Ok(())
+    } else {
+        Err(ConfigError::Invalid(format!("{what} must be > 0, got {v}")))
+    }
+}
+
 impl ValidConfig {
     pub fn into_inner(self) -> PipelineConfig {
         self.0
@@ -718,15 +727,8 @@ impl PipelineConfig {
                 "ingest.max_samples_per_record must be ≥ 1".into(),
             ));
         }
-        let pos = |v: f64, what: &str| {
-            if v.is_finite() && v > 0.0 {
-                Ok(())
-            } else {
-                Err(ConfigError::Invalid(format!("{what} must be > 0, got {v}")))
-            }
-        };
-        pos(self.ingest.sample_rate_hz, "ingest.sample_rate_hz")?;
-        pos(
+        positive(self.ingest.sample_rate_hz, "ingest.sample_rate_hz")?;
+        positive(
             self.ingest.aewin.sample_rate_hz,
             "ingest.aewin.sample_rate_hz",
         )?;
@@ -757,12 +759,12 @@ impl PipelineConfig {
             ));
         }
         let d = &self.dsp;
-        pos(d.band_hz, "dsp.band_hz")?;
-        pos(d.band_max_hz, "dsp.band_max_hz")?;
-        pos(d.cwt.f_min_hz, "dsp.cwt.f_min_hz")?;
-        pos(d.cwt.fwhm_periods, "dsp.cwt.fwhm_periods")?;
-        pos(d.bins.window_s, "dsp.bins.window_s")?;
-        pos(d.bins.band_hz, "dsp.bins.band_hz")?;
+        positive(d.band_hz, "dsp.band_hz")?;
+        positive(d.band_max_hz, "dsp.band_max_hz")?;
+        positive(d.cwt.f_min_hz, "dsp.cwt.f_min_hz")?;
+        positive(d.cwt.fwhm_periods, "dsp.cwt.fwhm_periods")?;
+        positive(d.bins.window_s, "dsp.bins.window_s")?;
+        positive(d.bins.band_hz, "dsp.bins.band_hz")?;
         if d.cwt.f_max_hz < d.cwt.f_min_hz || d.cwt.n_freqs == 0 {
             return Err(ConfigError::Invalid(
                 "dsp.cwt: need f_max_hz ≥ f_min_hz and n_freqs ≥ 1".into(),
@@ -810,9 +812,9 @@ impl PipelineConfig {
             ));
         }
         let l = &self.load;
-        pos(l.time_scale_s, "load.time_scale_s")?;
-        pos(l.load_scale_n, "load.load_scale_n")?;
-        pos(l.extension_scale_m, "load.extension_scale_m")?;
+        positive(l.time_scale_s, "load.time_scale_s")?;
+        positive(l.load_scale_n, "load.load_scale_n")?;
+        positive(l.extension_scale_m, "load.extension_scale_m")?;
         for c in [
             Some(&l.time_column),
             Some(&l.load_column),

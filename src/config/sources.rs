@@ -2,7 +2,7 @@
 //! picking, the event builder, source location (the `events` room uses them; `features` uses
 //! `[onset]`) and the sources' course over a test (`analysis::evolution`).
 
-use super::ConfigError;
+use super::{positive, ConfigError};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 
@@ -212,12 +212,8 @@ pub(super) fn check_evolution(v: &EvolutionConfig) -> Result<(), ConfigError> {
             v.completeness_db
         )));
     }
-    for (k, a) in [("ib_alpha1", v.ib_alpha1), ("ib_alpha2", v.ib_alpha2)] {
-        if !(a.is_finite() && a > 0.0) {
-            return Err(invalid(format!("evolution.{k} must be > 0, got {a}")));
-        }
-    }
-    Ok(())
+    positive(v.ib_alpha1, "evolution.ib_alpha1")?;
+    positive(v.ib_alpha2, "evolution.ib_alpha2")
 }
 
 pub(super) fn check(
@@ -225,9 +221,7 @@ pub(super) fn check(
     e: &EventsConfig,
     l: &LocationConfig,
 ) -> Result<(), ConfigError> {
-    if !(o.alpha.is_finite() && o.alpha > 0.0) {
-        return Err(invalid(format!("onset.alpha must be > 0, got {}", o.alpha)));
-    }
+    positive(o.alpha, "onset.alpha")?;
     if o.win == 0 {
         return Err(invalid("onset.win must be ≥ 1 sample".into()));
     }
@@ -266,11 +260,7 @@ pub(super) fn check(
         }
     }
     if let Some(v) = l.velocity_m_s {
-        if !(v.is_finite() && v > 0.0) {
-            return Err(invalid(format!(
-                "location.velocity_m_s must be > 0, got {v}"
-            )));
-        }
+        positive(v, "location.velocity_m_s")?;
     }
     for (k, v) in &l.sensors {
         let ok_key = k.trim().parse::<u32>().is_ok();

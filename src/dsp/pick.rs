@@ -61,15 +61,6 @@ impl PickScratch {
             self.sum.push(b);
         }
     }
-
-    fn load_sums(&mut self, x: &[f32]) {
-        self.sum.clear();
-        let mut acc = 0.0f64;
-        self.sum.extend(x.iter().map(|&v| {
-            acc += v as f64;
-            acc
-        }));
-    }
 }
 
 /// The four picks of one record: Hinkley, AIC, energy ratio, modified energy ratio.
@@ -78,7 +69,7 @@ pub fn pick_all(x: &[f32], alpha: f64, win: usize, s: &mut PickScratch) -> [Opti
     let (er, mer) = ratios_loaded(x, win, &s.sq, &mut s.ratios);
     [
         hinkley_loaded(x.len(), alpha, &s.sq),
-        aic_loaded(x, s),
+        aic_loaded(s),
         er,
         mer,
     ]
@@ -108,25 +99,49 @@ fn hinkley_loaded(n: usize, alpha: f64, sq: &[f64]) -> Option<usize> {
 
 /// Akaike information criterion. `None` for fewer than 2 samples (vallenae raises).
 pub fn aic(x: &[f32], s: &mut PickScratch) -> Option<usize> {
-    s.load_squares(x);
-    s.load_sums(x);
-    aic_loaded(x, s)
+    s.load_both(x);
+    aic_loaded(s)
 }
 
 /// One AIC value, vallenae's arithmetic, with the logarithm `log10` given.
 #[inline(always)]
 fn aic_value(i: usize, n: usize, sum: &[f64], sq: &[f64], log10: impl Fn(f64) -> f64) -> f64 {
-    let (total, total_sq) = (sum[n - 1], sq[n - 1]);
     let eps = f32::MIN_POSITIVE as f64;
     // numpy's maximum propagates NaN.
     let clamp = |v: f64| if v.is_nan() { v } else { v.max(eps) };
+    let (l_var, r_var) = variances(i, n, sum, sq);
+    (i as f64 + 1.0) * log10(clamp(l_var)) + (n as f64 - i as f64 - 2.0) * log10(clamp(r_var))
+}
+
+/// The population variances of x[..=i] and x[i+1..] from the prefix sums, in vallenae's
+/// arithmetic (unclamped; they may cancel below zero).
+#[inline(always)]
+fn variances(i: usize, n: usize, sum: &[f64], sq: &[f64]) -> (f64, f64) {
+    let (total, total_sq) = (sum[n - 1], sq[n - 1]);
     let (l_len, r_len) = ((i + 1) as f64, (n - i - 1) as f64);
     let (l_sum, l_sq) = (sum[i], sq[i]);
     let (r_sum, r_sq) = (total - l_sum, total_sq - l_sq);
     let (l_mean, r_mean) = ((1.0 / l_len) * l_sum, (1.0 / r_len) * r_sum);
     let l_var = (1.0 / l_len) * l_sq - l_mean * l_mean;
     let r_var = (1.0 / r_len) * r_sq - r_mean * r_mean;
-    (i as f64 + 1.0) * log10(clamp(l_var)) + (n as f64 - i as f64 - 2.0) * log10(clamp(r_var))
+    (l_var, r_var)
+}
+
+/// The first index of the smallest exact AIC value among `candidates` (NaN never wins).
+fn exact_first_min(
+    candidates: impl Iterator<Item = usize>,
+    n: usize,
+    sum: &[f64],
+    sq: &[f64],
+) -> Option<usize> {
+    let mut best: Option<(usize, f64)> = None;
+    for i in candidates {
+        let v = aic_value(i, n, sum, sq, f64::log10);
+        if !v.is_nan() && best.is_none_or(|(_, b)| v < b) {
+            best = Some((i, v));
+        }
+    }
+    best.map(|b| b.0)
 }
 
 /// Bound on |fast_log10(v) − log10(v)| for every positive normal v (the tests check it).
@@ -191,19 +206,14 @@ fn fast_log10<const F: bool>(v: f64) -> f64 {
 /// Pass 1 of the AIC: `out[i]` within the bound of the exact value for i < n−1. The
 /// variances are computed exactly as [`aic_value`] does (they may cancel, so only the
 /// logarithm may differ); after the clamp they lie in [f32::MIN_POSITIVE, n·f32::MAX²],
-/// positive and normal, as [`fast_log10`] needs (the samples are finite, checked).
+/// positive and normal, as [`fast_log10`] needs (the sum of squares is finite, checked).
 #[inline(always)]
 fn aic_approx_generic<const F: bool>(sum: &[f64], sq: &[f64], out: &mut [f64]) {
     let n = sq.len();
-    let (total, total_sq) = (sum[n - 1], sq[n - 1]);
     let eps = f32::MIN_POSITIVE as f64;
     for (i, o) in out.iter_mut().enumerate().take(n - 1) {
         let (l_len, r_len) = ((i + 1) as f64, (n - i - 1) as f64);
-        let (l_sum, l_sq) = (sum[i], sq[i]);
-        let (r_sum, r_sq) = (total - l_sum, total_sq - l_sq);
-        let (l_mean, r_mean) = ((1.0 / l_len) * l_sum, (1.0 / r_len) * r_sum);
-        let l_var = (1.0 / l_len) * l_sq - l_mean * l_mean;
-        let r_var = (1.0 / r_len) * r_sq - r_mean * r_mean;
+        let (l_var, r_var) = variances(i, n, sum, sq);
         let l_var = if l_var > eps { l_var } else { eps };
         let r_var = if r_var > eps { r_var } else { eps };
         *o = l_len * fast_log10::<F>(l_var) + (r_len - 1.0) * fast_log10::<F>(r_var);
@@ -226,22 +236,17 @@ fn aic_approx(sum: &[f64], sq: &[f64], out: &mut [f64]) {
     aic_approx_generic::<false>(sum, sq, out)
 }
 
-fn aic_loaded(x: &[f32], s: &mut PickScratch) -> Option<usize> {
+fn aic_loaded(s: &mut PickScratch) -> Option<usize> {
     let n = s.sq.len();
     if n < 2 {
         return None;
     }
     let (sum, sq) = (&s.sum, &s.sq);
-    if !x.iter().all(|v| v.is_finite()) {
-        // Not a record the feature path lets through; the direct way, as numpy would.
-        let mut best: Option<(usize, f64)> = None;
-        for i in 0..n {
-            let v = aic_value(i, n, sum, sq, f64::log10);
-            if !v.is_nan() && best.is_none_or(|(_, b)| v < b) {
-                best = Some((i, v));
-            }
-        }
-        return best.map(|b| b.0);
+    // A sum of squares (non-negative terms) is finite exactly when every square is: no
+    // NaN or infinite sample, none whose f32 square overflows. Else (not a record the
+    // feature path lets through) the direct way, as numpy would.
+    if !sq[n - 1].is_finite() {
+        return exact_first_min(0..n, n, sum, sq);
     }
     // Pass 1: every defined value to within `bound` of the exact one.
     s.approx.clear();
@@ -256,17 +261,8 @@ fn aic_loaded(x: &[f32], s: &mut PickScratch) -> Option<usize> {
     let bound = 2.0 * (nf * FAST_LOG10_ERR + 8.0 * nf * 80.0 * f64::EPSILON);
     // Pass 2: the exact values of the candidates, in index order (the first minimum wins).
     // The last element is undefined (NaN) and never a candidate.
-    let mut best: Option<(usize, f64)> = None;
-    for (i, &a) in s.approx.iter().enumerate() {
-        if a > lowest + bound {
-            continue;
-        }
-        let v = aic_value(i, n, sum, sq, f64::log10);
-        if !v.is_nan() && best.is_none_or(|(_, b)| v < b) {
-            best = Some((i, v));
-        }
-    }
-    best.map(|b| b.0)
+    let candidates = (0..n - 1).filter(|&i| s.approx[i] <= lowest + bound);
+    exact_first_min(candidates, n, sum, sq)
 }
 
 /// Energy ratio with windows of `win` samples (vallenae's default 100). `None` when the
@@ -391,8 +387,7 @@ mod tests {
     /// vallenae's AIC computed the direct way: every value with the library's log10.
     fn aic_reference(x: &[f32]) -> Option<usize> {
         let mut s = PickScratch::default();
-        s.load_squares(x);
-        s.load_sums(x);
+        s.load_both(x);
         let n = x.len();
         let mut best: Option<(usize, f64)> = None;
         for i in 0..n {

@@ -21,7 +21,6 @@ pub mod table;
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 
-pub use builder::{build, CloseReason, Event, EventBuilder, Fate, HitIn, Params};
 pub use part::{run_part, PartTables};
 pub use table::{events_table, EventRow};
 

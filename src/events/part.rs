@@ -256,19 +256,13 @@ pub fn run_part(p: &PartTables, cfg: &ValidConfig) -> Result<EventsSummary, Even
                    fi: Vec<Option<bool>>,
                    zo: Vec<Option<&str>>|
      -> [(&'static str, ArrayRef); 3] {
+        let [e, f, z] = crate::store::table::EVENT_COLUMNS;
         [
-            ("event", Arc::new(Int64Array::from(ev)) as ArrayRef),
-            ("event_first", Arc::new(BooleanArray::from(fi)) as ArrayRef),
-            ("zone", Arc::new(StringArray::from(zo)) as ArrayRef),
+            (e, Arc::new(Int64Array::from(ev)) as ArrayRef),
+            (f, Arc::new(BooleanArray::from(fi)) as ArrayRef),
+            (z, Arc::new(StringArray::from(zo)) as ArrayRef),
         ]
     };
-    crate::store::rewrite::replace_columns(
-        p.hits,
-        &crate::store::hits_table().schema(),
-        &columns(ev_of.clone(), first.clone(), zone.clone()),
-        rg,
-    )
-    .map_err(store)?;
     if let (Some((path, schema)), Some((fch, fhit, _))) = (&p.features, &feats) {
         // Each features row takes its hit's values (through hits.transient).
         let hit_row: HashMap<(u32, i64), usize> = (0..n)
@@ -287,5 +281,13 @@ pub fn run_part(p: &PartTables, cfg: &ValidConfig) -> Result<EventsSummary, Even
         crate::store::rewrite::replace_columns(path, schema, &columns(fe, ff, fz), rg)
             .map_err(store)?;
     }
+    // The hits' own columns last, moved rather than copied.
+    crate::store::rewrite::replace_columns(
+        p.hits,
+        &crate::store::hits_table().schema(),
+        &columns(ev_of, first, zone),
+        rg,
+    )
+    .map_err(store)?;
     Ok(summary)
 }

@@ -41,27 +41,18 @@ pub fn resolve(
     channels: &BTreeSet<u32>,
 ) -> Setup {
     let mut prov = BTreeMap::new();
-    let from_vaex = |name: &str| {
-        vaex.map(|(p, _)| format!("vaex: {p}"))
-            .unwrap_or_else(|| name.into())
-    };
+    // Where a value from the .vaex came from (only used when there is one).
+    let vaex_src = vaex.map(|(p, _)| format!("vaex: {p}")).unwrap_or_default();
     let veb = vaex.and_then(|(_, v)| v.event_builder.as_ref());
     let vloc = vaex.and_then(|(_, v)| v.location.as_ref());
 
     // Location: the TOML's when it names a kind, else the .vaex's.
-    let locator = if let (Some(kind), Some(v)) = (loc.kind, loc.velocity_m_s) {
-        prov.insert("location".into(), "toml".into());
-        Some(Locator {
-            kind,
-            velocity_m_s: v,
-            sensors: loc
-                .sensor_positions()
-                .into_iter()
-                .map(|(c, x, y)| (c, (x, y)))
-                .collect(),
-            zone: loc.zone.clone(),
-            max_iterations: loc.max_iterations,
-        })
+    let geometry = if let (Some(kind), Some(v)) = (loc.kind, loc.velocity_m_s) {
+        let sensors = loc
+            .sensor_positions()
+            .into_iter()
+            .map(|(c, x, y)| (c, (x, y)));
+        Some((kind, v, sensors.collect(), "toml".to_string()))
     } else {
         vloc.and_then(|l| {
             let v = l.velocity_m_s?;
@@ -73,16 +64,20 @@ pub fn resolve(
             } else {
                 LocationKind::Linear
             });
-            prov.insert("location".into(), from_vaex("vaex"));
-            Some(Locator {
-                kind,
-                velocity_m_s: v,
-                sensors: l.sensors.iter().map(|&(c, x, y)| (c, (x, y))).collect(),
-                zone: loc.zone.clone(),
-                max_iterations: loc.max_iterations,
-            })
+            let sensors = l.sensors.iter().map(|&(c, x, y)| (c, (x, y)));
+            Some((kind, v, sensors.collect(), vaex_src.clone()))
         })
     };
+    let locator = geometry.map(|(kind, velocity_m_s, sensors, src)| {
+        prov.insert("location".into(), src);
+        Locator {
+            kind,
+            velocity_m_s,
+            sensors,
+            zone: loc.zone.clone(),
+            max_iterations: loc.max_iterations,
+        }
+    });
 
     // DT1X: TOML, .vaex, the sensor layout, or the fixed default.
     let span = locator.as_ref().map(|l| {
@@ -95,15 +90,6 @@ pub fn resolve(
         }
         (d, l.velocity_m_s)
     });
-    let mut pick = |key: &str, toml: Option<f64>, vaex_v: Option<f64>, default: (f64, String)| {
-        let (v, src) = match (toml, vaex_v) {
-            (Some(v), _) => (v, "toml".to_string()),
-            (None, Some(v)) => (v, from_vaex("vaex")),
-            (None, None) => default,
-        };
-        prov.insert(key.into(), src);
-        v
-    };
     let dt1x_default = match span {
         Some((d, v)) if d > 0.0 => (
             2.0 * d / v,
@@ -114,6 +100,8 @@ pub fn resolve(
             format!("default: {} µs", DEFAULT_DT1X_S * 1e6),
         ),
     };
+    let mut pick =
+        |key: &str, toml, vaex_v, default| choose(&mut prov, key, toml, vaex_v, &vaex_src, default);
     let dt1x = pick(
         "dt1x_max_s",
         ev.dt1x_max_s,
@@ -132,20 +120,14 @@ pub fn resolve(
         veb.and_then(|e| e.fhcdt_s),
         (dt1x, "default: dt1x_max_s".into()),
     );
-    let allow_duplicates = match (ev.allow_duplicates, veb.and_then(|e| e.allow_duplicates)) {
-        (Some(a), _) => {
-            prov.insert("allow_duplicates".into(), "toml".into());
-            a
-        }
-        (None, Some(a)) => {
-            prov.insert("allow_duplicates".into(), from_vaex("vaex"));
-            a
-        }
-        (None, None) => {
-            prov.insert("allow_duplicates".into(), "default: false".into());
-            false
-        }
-    };
+    let allow_duplicates = choose(
+        &mut prov,
+        "allow_duplicates",
+        ev.allow_duplicates,
+        veb.and_then(|e| e.allow_duplicates),
+        &vaex_src,
+        (false, "default: false".into()),
+    );
     // Roles: the TOML's lists when any is given, else the .vaex's channel functions.
     let mut roles = BTreeMap::new();
     let toml_roles = !(ev.guard_channels.is_empty()
@@ -166,7 +148,7 @@ pub fn resolve(
         for &(c, r) in &e.channels {
             roles.insert(c, r);
         }
-        prov.insert("channel_roles".into(), from_vaex("vaex"));
+        prov.insert("channel_roles".into(), vaex_src.clone());
     } else {
         prov.insert(
             "channel_roles".into(),
@@ -194,4 +176,23 @@ pub fn resolve(
         locator,
         provenance: prov,
     }
+}
+
+/// The TOML's value, else the .vaex's, else the default; where it came from goes into `prov`
+/// under `key`.
+fn choose<T>(
+    prov: &mut BTreeMap<String, String>,
+    key: &str,
+    toml: Option<T>,
+    vaex: Option<T>,
+    vaex_src: &str,
+    default: (T, String),
+) -> T {
+    let (v, src) = match (toml, vaex) {
+        (Some(v), _) => (v, "toml".to_string()),
+        (None, Some(v)) => (v, vaex_src.to_string()),
+        (None, None) => default,
+    };
+    prov.insert(key.into(), src);
+    v
 }

@@ -419,12 +419,7 @@ fn group(kinds: Vec<(PathBuf, Kind)>, d: &mut Discovery) {
                     d.skipped.retain(|(p, _)| p != &trf);
                     companions.push(trf);
                 }
-                // The VisualAE setup beside it gives the event builder and location.
-                let vaex = base.with_extension("vaex");
-                if vaex.is_file() {
-                    d.skipped.retain(|(p, _)| p != &vaex);
-                    companions.push(vaex);
-                }
+                adopt_vaex(&base, &mut d.skipped, &mut companions);
                 d.sources.push(Source {
                     id,
                     format: Format::Vallen,
@@ -436,11 +431,7 @@ fn group(kinds: Vec<(PathBuf, Kind)>, d: &mut Discovery) {
             // that should have a transient record into a reject row.
             (Some(pri), None) => {
                 let mut companions = vec![pri];
-                let vaex = base.with_extension("vaex");
-                if vaex.is_file() {
-                    d.skipped.retain(|(p, _)| p != &vaex);
-                    companions.push(vaex);
-                }
+                adopt_vaex(&base, &mut d.skipped, &mut companions);
                 d.sources.push(Source {
                     id,
                     format: Format::Vallen,
@@ -587,5 +578,14 @@ fn unique_ids(sources: &mut [Source], roots: &std::collections::HashMap<PathBuf,
             *n += 1;
             sources[i].id = if *n == 1 { id } else { format!("{id}-{n}") };
         }
+    }
+}
+
+/// The VisualAE setup beside a Vallen file (it gives the event builder and location): a
+/// companion of the source, not a passed-over file.
+fn adopt_vaex(base: &Path, skipped: &mut Vec<(PathBuf, String)>, companions: &mut Vec<PathBuf>) {
+    if let Some(vaex) = super::vallen::vaex::beside(base) {
+        skipped.retain(|(p, _)| p != &vaex);
+        companions.push(vaex);
     }
 }

@@ -162,13 +162,14 @@ pub fn read_shards(
 /// `aepipe merge`: the whole-batch tables and manifest of a sharded run, into `out_dir`,
 /// the same bytes an unsharded run writes. The job is the shards' own; `only` refuses,
 /// before writing anything, shards of another job (`aepipe merge` without `--tables-only`
-/// runs the feature stages, which need feature shards).
+/// runs the feature stages, which need feature shards). Returns the merged run, the shards'
+/// configuration and the input paths the shards were given.
 pub fn merge(
     dir: &Path,
     out_dir: &Path,
     threads: usize,
     only: Option<StreamJob>,
-) -> Result<(RunReport, crate::config::ValidConfig), MergeError> {
+) -> Result<(RunReport, crate::config::ValidConfig, Vec<PathBuf>), MergeError> {
     let t0 = Instant::now();
     let started = utc_now();
     let kind = sh_store::detect(dir)?;
@@ -266,5 +267,5 @@ pub fn merge(
         t0,
         produced,
     )?;
-    Ok((r, cfg))
+    Ok((r, cfg, first.inputs.clone()))
 }

@@ -9,6 +9,7 @@ pub mod sources;
 
 use crate::model::AeRecord;
 use ndarray::ArrayView2;
+use plotters::coord::types::RangedCoordf64;
 use plotters::prelude::*;
 use plotters::style::colors::colormaps::ViridisRGB;
 use std::path::Path;
@@ -57,6 +58,21 @@ fn err<E: std::fmt::Display>(path: &Path) -> impl Fn(E) -> PlotError + '_ {
         path: path.display().to_string(),
         message: e.to_string(),
     }
+}
+
+/// The series legend every chart of ours draws: a white box with a black border, 14 px text.
+fn draw_legend<'a, DB: DrawingBackend + 'a>(
+    c: &mut ChartContext<'a, DB, Cartesian2d<RangedCoordf64, RangedCoordf64>>,
+    position: SeriesLabelPosition,
+    path: &Path,
+) -> Result<(), PlotError> {
+    c.configure_series_labels()
+        .position(position)
+        .background_style(WHITE.mix(0.85))
+        .border_style(BLACK)
+        .label_font(("sans-serif", 14))
+        .draw()
+        .map_err(err(path))
 }
 
 /// Draw a record's waveform (top) and CWT magnitude (bottom) into a PNG.
@@ -301,12 +317,8 @@ pub fn trend_png(
         ))
         .legend(move |(x, y)| PathElement::new([(x, y), (x + 20, y)], color.stroke_width(3)));
     }
-    c.configure_series_labels()
-        .background_style(WHITE.mix(0.85))
-        .border_style(BLACK)
-        .label_font(("sans-serif", 14))
-        .draw()
-        .map_err(&e)?;
+    // (plotters' default position)
+    draw_legend(&mut c, SeriesLabelPosition::MiddleRight, path)?;
     root.present().map_err(&e)?;
     Ok(true)
 }
@@ -488,12 +500,6 @@ pub fn damage_profile_png(
         .y_desc("share of the class's hits so far")
         .draw()
         .map_err(&e)?;
-    let colours = [
-        RGBColor(31, 119, 180),
-        RGBColor(214, 39, 40),
-        RGBColor(255, 127, 14),
-        RGBColor(120, 120, 120),
-    ];
     let last = rows.last().map(|r| r.counts).unwrap_or([0; 4]);
     let names: Vec<String> = CLASSES
         .iter()
@@ -504,7 +510,7 @@ pub fn damage_profile_png(
         if last[k] == 0 {
             continue;
         }
-        let colour = colours[k];
+        let colour = sources::class_colour(&names[k]);
         c.draw_series(LineSeries::new(
             rows.iter()
                 .enumerate()
@@ -524,13 +530,7 @@ pub fn damage_profile_png(
         .label("peak load")
         .legend(|(x, y)| PathElement::new([(x, y), (x + 20, y)], BLACK.mix(0.6)));
     }
-    c.configure_series_labels()
-        .position(SeriesLabelPosition::UpperLeft)
-        .background_style(WHITE.mix(0.85))
-        .border_style(BLACK)
-        .label_font(("sans-serif", 14))
-        .draw()
-        .map_err(&e)?;
+    draw_legend(&mut c, SeriesLabelPosition::UpperLeft, path)?;
     root.present().map_err(&e)?;
     Ok(())
 }

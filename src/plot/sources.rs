@@ -2,13 +2,13 @@
 //! coloured by class, with the zone and the sensors) and the damage evolution (cumulative
 //! sources per class against time and load, b- and Ib-value over the test).
 
-use super::{ensure_font, err, PlotError};
+use super::{draw_legend, ensure_font, err, PlotError};
 use crate::analysis::evolution::EvolutionRow;
 use crate::config::ZoneSpec;
 use plotters::prelude::*;
 use std::path::Path;
 
-/// The classes' colours in every source picture (the damage profile's).
+/// The classes' colours in every picture of classes (damage profile, location, evolution).
 pub fn class_colour(class: &str) -> RGBColor {
     match class {
         "bond_failure" => RGBColor(31, 119, 180),
@@ -19,6 +19,9 @@ pub fn class_colour(class: &str) -> RGBColor {
         _ => RGBColor(120, 120, 120),
     }
 }
+
+/// Sensor positions by channel, m (`[location] sensors`).
+pub type Sensors = std::collections::BTreeMap<String, Vec<f64>>;
 
 /// One located event: where, and its class (the SOM's class of its first hit, or
 /// "outside the zone" for the events the zone leaves out, which are not classified).
@@ -53,7 +56,7 @@ pub fn location_png(
     title: &str,
     sources: &[LocatedSource],
     zone: Option<&ZoneSpec>,
-    sensors: &[(String, Vec<f64>)],
+    sensors: &Sensors,
 ) -> Result<(), PlotError> {
     ensure_font()?;
     if sources.iter().any(|s| s.y_m.is_some()) || sensors.iter().any(|s| s.1.len() > 1) {
@@ -148,13 +151,7 @@ pub fn location_png(
             .map_err(&e)?;
         }
     }
-    c.configure_series_labels()
-        .position(SeriesLabelPosition::UpperRight)
-        .background_style(WHITE.mix(0.85))
-        .border_style(BLACK)
-        .label_font(("sans-serif", 14))
-        .draw()
-        .map_err(&e)?;
+    draw_legend(&mut c, SeriesLabelPosition::UpperRight, path)?;
     root.present().map_err(&e)?;
     Ok(())
 }
@@ -164,7 +161,7 @@ fn planar_png(
     title: &str,
     sources: &[LocatedSource],
     zone: Option<&ZoneSpec>,
-    sensors: &[(String, Vec<f64>)],
+    sensors: &Sensors,
 ) -> Result<(), PlotError> {
     let e = err(path);
     let pts = sensors
@@ -230,13 +227,7 @@ fn planar_png(
         )])
         .map_err(&e)?;
     }
-    c.configure_series_labels()
-        .position(SeriesLabelPosition::UpperRight)
-        .background_style(WHITE.mix(0.85))
-        .border_style(BLACK)
-        .label_font(("sans-serif", 14))
-        .draw()
-        .map_err(&e)?;
+    draw_legend(&mut c, SeriesLabelPosition::UpperRight, path)?;
     root.present().map_err(&e)?;
     Ok(())
 }
@@ -264,17 +255,6 @@ pub fn evolution_png(
     let root = BitMapBackend::new(path, (1000, 900)).into_drawing_area();
     root.fill(&WHITE).map_err(&e)?;
     let parts = root.split_evenly((3, 1));
-    macro_rules! legend {
-        ($c:expr) => {
-            $c.configure_series_labels()
-                .position(SeriesLabelPosition::UpperLeft)
-                .background_style(WHITE.mix(0.85))
-                .border_style(BLACK)
-                .label_font(("sans-serif", 14))
-                .draw()
-                .map_err(&e)?
-        };
-    }
     // (1) against time, (2) against load.
     for (k, area) in parts.iter().take(2).enumerate() {
         let against_load = k == 1;
@@ -334,7 +314,7 @@ pub fn evolution_png(
                 .label("peak load")
                 .legend(|(x, y)| PathElement::new([(x, y), (x + 20, y)], BLACK.mix(0.5)));
         }
-        legend!(c);
+        draw_legend(&mut c, SeriesLabelPosition::UpperLeft, path)?;
     }
     // (3) b and Ib of all sources.
     let all = series("all");
@@ -399,7 +379,7 @@ pub fn evolution_png(
             ))
             .map_err(&e)?;
         }
-        legend!(c);
+        draw_legend(&mut c, SeriesLabelPosition::UpperLeft, path)?;
     }
     root.present().map_err(&e)?;
     Ok(())

@@ -45,8 +45,6 @@ pub struct RunSummary {
     pub truth: Option<TruthScore>,
     /// Events and location against the truth's sources (a synthetic test with sensors).
     pub sources: Option<SourceScore>,
-    /// The events step's account per experiment (the manifest's `events`).
-    pub events: Vec<crate::events::EventsSummary>,
     pub config: crate::config::ValidConfig,
     pub seconds: Vec<(String, f64)>,
 }
@@ -284,6 +282,19 @@ fn img(path: &Path, alt: &str, width: Option<u32>) -> String {
     }
 }
 
+/// One 900-px figure per (name, picture): alt text "`what` name", caption "name`note`".
+fn figures(h: &mut String, plots: &[(String, PathBuf)], what: &str, note: &str) {
+    for (name, p) in plots {
+        let _ = write!(
+            h,
+            "<figure>{}<figcaption>{}{}</figcaption></figure>",
+            img(p, &format!("{what} {name}"), Some(900)),
+            esc(name),
+            esc(note)
+        );
+    }
+}
+
 /// A thumbnail that a click swaps for the whole picture (and back): the full PNG rides in a
 /// data attribute, so the report stays one file and no data: URL is navigated to (browsers
 /// refuse that).
@@ -432,14 +443,7 @@ fn trend_section(h: &mut String, s: &RunSummary) {
             }
         }
         h.push_str("</table>");
-        for (name, p) in &s.trend_plots {
-            let _ = write!(
-                h,
-                "<figure>{}<figcaption>{}</figcaption></figure>",
-                img(p, &format!("trend {name}"), Some(900)),
-                esc(name)
-            );
-        }
+        figures(h, &s.trend_plots, "trend", "");
     }
 }
 
@@ -495,14 +499,7 @@ fn profile_section(h: &mut String, s: &RunSummary) {
         }
     }
     h.push_str("</table>");
-    for (name, p) in &m.profile_plots {
-        let _ = write!(
-            h,
-            "<figure>{}<figcaption>{}</figcaption></figure>",
-            img(p, &format!("damage profile {name}"), Some(900)),
-            esc(name)
-        );
-    }
+    figures(h, &m.profile_plots, "damage profile", "");
 }
 
 fn truth_section(h: &mut String, s: &RunSummary) {

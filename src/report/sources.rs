@@ -2,12 +2,18 @@
 //! machine noise the zone and the guard sensors kept out, where the events are, and the
 //! damage evolution.
 
-use super::{esc, img, RunSummary};
+use super::{esc, figures, RunSummary};
 use std::fmt::Write as _;
 
 /// Events, location, zone and guard sensors per experiment; the location pictures.
 pub(super) fn sources_section(h: &mut String, s: &RunSummary) {
-    let built: Vec<&crate::events::EventsSummary> = s.events.iter().filter(|e| e.enabled).collect();
+    let built: Vec<&crate::events::EventsSummary> = s
+        .features
+        .stats
+        .events
+        .iter()
+        .filter(|e| e.enabled)
+        .collect();
     if built.is_empty() {
         return;
     }
@@ -75,14 +81,12 @@ pub(super) fn sources_section(h: &mut String, s: &RunSummary) {
         h.push_str("</ul>");
     }
     if let Some(m) = &s.som {
-        for (name, p) in &m.location_plots {
-            let _ = write!(
-                h,
-                "<figure>{}<figcaption>{}: events by the SOM's class of their first hit</figcaption></figure>",
-                img(p, &format!("location {name}"), Some(900)),
-                esc(name)
-            );
-        }
+        figures(
+            h,
+            &m.location_plots,
+            "location",
+            ": events by the SOM's class of their first hit",
+        );
     }
 }
 
@@ -105,12 +109,5 @@ pub(super) fn evolution_section(h: &mut String, s: &RunSummary) {
         e.window,
         esc(&m.evolution_table.display().to_string())
     );
-    for (name, p) in &m.evolution_plots {
-        let _ = write!(
-            h,
-            "<figure>{}<figcaption>{}</figcaption></figure>",
-            img(p, &format!("damage evolution {name}"), Some(900)),
-            esc(name)
-        );
-    }
+    figures(h, &m.evolution_plots, "damage evolution", "");
 }

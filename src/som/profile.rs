@@ -118,6 +118,8 @@ pub struct ProfileRow {
     pub amplitude_db: Option<f64>,
     pub energy_eu: Option<f64>,
     pub source_hits: u64,
+    /// The event the row opened (None: a hit outside events).
+    pub event: Option<i64>,
 }
 
 /// Per experiment × channel: the class totals and how many came before the peak load.
@@ -201,7 +203,7 @@ pub fn build(
         col("extension_m"),
     ];
     sel.extend(t.event_first_col());
-    let has = |c: &str| t.column_names().iter().any(|n| n == c);
+    let has = |c: &str| t.dtype(c).is_some();
     let optional = ["peak_amplitude_db", "energy_eu", "event"];
     for c in optional {
         if has(c) {
@@ -255,7 +257,7 @@ pub fn build(
                 _ => Some((i, l)),
             });
         let peak_pos = peak.and_then(|(pi, _)| idx.iter().position(|&i| i == pi));
-        let mut counts = [0u64; 4];
+        let mut counts = [0u64; OTHER + 1];
         let mut summary = ProfileSummary {
             experiment: experiment.clone(),
             channel,
@@ -267,14 +269,15 @@ pub fn build(
         };
         for (pos, &i) in idx.iter().enumerate() {
             let class = classes[&keys[i]].clone();
-            counts[slot(&class)] += 1;
+            let k = slot(&class);
+            counts[k] += 1;
             let before = peak_pos.map(|p| pos < p);
             let e = summary.classes.entry(class.clone()).or_insert((0, 0));
             e.0 += 1;
             if before == Some(true) {
                 e.1 += 1;
             }
-            if Mechanism::parse(&class) == Some(Mechanism::FibreFailure) {
+            if CLASSES.get(k) == Some(&Mechanism::FibreFailure) {
                 summary.last_fibre_s = time[i].or(summary.last_fibre_s);
             }
             summary.last_hit_s = time[i].or(summary.last_hit_s);
@@ -291,6 +294,10 @@ pub fn build(
                 source_hits: match (first[i], event[i]) {
                     (Some(true), Some(e)) => event_hits[&(keys[i].0.as_str(), e as i64)],
                     _ => 1,
+                },
+                event: match (first[i], event[i]) {
+                    (Some(true), Some(e)) => Some(e as i64),
+                    _ => None,
                 },
             });
         }

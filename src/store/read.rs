@@ -31,12 +31,20 @@ impl SourceRows {
         }
     }
 
-    /// The same rule on one row's values (for callers that hold them already).
-    pub fn counts(&self, event_first: Option<bool>, zone: Option<&str>) -> bool {
-        match event_first {
-            None => !(self.exclude_outside && zone == Some("guard")),
-            Some(false) => false,
-            Some(true) => !(self.exclude_outside && zone == Some("outside")),
+    /// The rule as a Polars predicate over a table's `event_first` and `zone`: a hit in no
+    /// event (`event_first` null: events not built) unless a guard suppressed it, or an
+    /// event's first hit unless its event lies outside the zone (those two exclusions only
+    /// with `exclude_outside`).
+    pub fn keep(&self) -> Expr {
+        let zone = |z: &str| col("zone").eq(lit(z.to_string())).fill_null(lit(false));
+        let first = || col("event_first");
+        if self.exclude_outside {
+            first()
+                .is_null()
+                .and(zone("guard").not())
+                .or(first().fill_null(lit(false)).and(zone("outside").not()))
+        } else {
+            first().is_null().or(first().fill_null(lit(false)))
         }
     }
 }
@@ -95,17 +103,7 @@ impl TableScan {
         if self.schema.get("event_first").is_none() || self.schema.get("zone").is_none() {
             return self;
         }
-        let zone = |z: &str| col("zone").eq(lit(z.to_string())).fill_null(lit(false));
-        let first = || col("event_first");
-        let keep = if rows.exclude_outside {
-            first()
-                .is_null()
-                .and(zone("guard").not())
-                .or(first().fill_null(lit(false)).and(zone("outside").not()))
-        } else {
-            first().is_null().or(first().fill_null(lit(false)))
-        };
-        self.lf = self.lf.filter(keep);
+        self.lf = self.lf.filter(rows.keep());
         self
     }
 
@@ -113,12 +111,18 @@ impl TableScan {
     /// no such column).
     pub fn event_first(&self, df: &DataFrame) -> Result<Vec<Option<bool>>, StoreError> {
         match df.column("event_first") {
-            Ok(c) => {
-                let b = c.bool().map_err(|e| self.err(e))?;
-                Ok((0..b.len()).map(|i| b.get(i)).collect())
-            }
+            Ok(_) => self.bools(df, "event_first"),
             Err(_) => Ok(vec![None; df.height()]),
         }
+    }
+
+    /// A boolean column (nulls as `None`).
+    pub fn bools(&self, df: &DataFrame, name: &str) -> Result<Vec<Option<bool>>, StoreError> {
+        let b = df
+            .column(name)
+            .and_then(|c| c.bool().cloned())
+            .map_err(|e| self.err(format!("{name}: {e}")))?;
+        Ok((0..b.len()).map(|i| b.get(i)).collect())
     }
 
     /// `col("event_first")` when the table has it (for a selection list).

@@ -58,17 +58,15 @@ impl RunDir {
 
     /// One hit's gallery picture (the id made file-safe).
     pub fn gallery_png(&self, key: &HitKey) -> PathBuf {
-        self.gallery().join(format!(
-            "{}_ch{}_hit{}.png",
-            crate::util::file_safe(&key.0),
-            key.1,
-            key.2
-        ))
+        self.gallery_file(key, "")
     }
     /// The whole record's picture behind a gallery thumbnail.
     pub fn gallery_full_png(&self, key: &HitKey) -> PathBuf {
+        self.gallery_file(key, "_full")
+    }
+    fn gallery_file(&self, key: &HitKey, suffix: &str) -> PathBuf {
         self.gallery().join(format!(
-            "{}_ch{}_hit{}_full.png",
+            "{}_ch{}_hit{}{suffix}.png",
             crate::util::file_safe(&key.0),
             key.1,
             key.2

@@ -141,16 +141,15 @@ pub fn merge(
     let run_dir = RunDir::new(out);
     clean_stale(&run_dir);
     let t = std::time::Instant::now();
-    let (features, cfg) = crate::pipeline::merge(
+    let (features, cfg, inputs) = crate::pipeline::merge(
         dir,
         run_dir.features().path(),
         threads,
         Some(crate::pipeline::StreamJob::Features),
     )?;
-    let shards = crate::pipeline::read_shards(dir, crate::pipeline::StreamJob::Features)?;
     let job = RunJob {
         config: &cfg,
-        inputs: &shards[0].payload.inputs,
+        inputs: &inputs,
         out,
         truth,
         threads,
@@ -204,26 +203,10 @@ fn stages(
     let mut som = None;
     if cfg.som.enabled {
         let t = std::time::Instant::now();
-        som = Some(som_stage(job, &feats)?);
+        som = Some(som_stage(job, &feats, &features.events_path)?);
         seconds.push(("som".to_string(), t.elapsed().as_secs_f64()));
     }
-    let truth = match (job.truth, &som) {
-        (Some(p), Some(s)) => Some(score_truth(p, &s.classification)?),
-        _ => None,
-    };
-    let sources = match job.truth {
-        Some(p) if features.events_path.is_file() => score_sources(
-            p,
-            &features.table_path,
-            &features.events_path,
-            crate::store::SourceRows::of(cfg),
-        )?,
-        _ => None,
-    };
-    // The manifest was written by this run's feature stage a moment ago.
-    let events = crate::pipeline::Manifest::read(&features.manifest_path)
-        .map(|m| m.events)
-        .unwrap_or_default();
+    let (truth, sources) = truth::scores(job.truth, som.as_ref(), &features, cfg)?;
     let mut summary = RunSummary {
         out: job.out.to_path_buf(),
         inputs: job.inputs.to_vec(),
@@ -233,7 +216,6 @@ fn stages(
         som,
         truth,
         sources,
-        events,
         config: cfg.clone(),
         seconds,
     };
@@ -272,4 +254,3 @@ pub use runfile::rebuild_report;
 use runfile::write_run_json;
 pub use schema::{table_schema, TABLES};
 use stages::{som_stage, trend_stage};
-pub use truth::{score_sources, score_truth};

@@ -1,6 +1,6 @@
 //! `run.json` and `aepipe report`: rebuild the summary of a finished run from its folder.
 
-use super::stages::{classes_of, profile_stage, trend_stage};
+use super::stages::{classified_stage, trend_stage, Trained};
 use super::*;
 use crate::pipeline::PartTable;
 
@@ -48,7 +48,6 @@ pub fn rebuild_report(dir: &Path) -> Result<PathBuf, WorkflowError> {
     let fdir = run.features();
     let mp = fdir.manifest();
     let m = crate::pipeline::Manifest::read(&mp).map_err(|e| input_err(&mp, e))?;
-    let events = m.events.clone();
     let job = crate::pipeline::StreamJob::Features;
     let features = RunReport {
         stats: m.stats(),
@@ -80,39 +79,25 @@ pub fn rebuild_report(dir: &Path) -> Result<PathBuf, WorkflowError> {
             sdir.path(),
             crate::store::SourceRows::of(&config),
         )?;
-        let classes = classes_of(&confusion);
         let existing = |p: PathBuf| p.is_file().then_some(p);
-        let pr = profile_stage(&config, &feats[0], &features.events_path, &sdir)?;
-        som = Some(SomStage {
-            profile_table: sdir.damage_profile(),
-            profile: pr.summaries,
-            profile_plots: pr.plots,
-            evolution_table: pr.evolution_table,
-            evolution_plots: pr.evolution_plots,
-            location_plots: pr.location_plots,
+        let trained = Trained {
             model_dir: run.som_model().path().to_path_buf(),
             trained_on: f.som_trained_on.clone().unwrap_or_default(),
             training_rows: f.som_training_rows.unwrap_or(0),
-            confusion,
-            classification: sdir.classification(),
             u_matrix: existing(sdir.u_matrix()),
             hit_maps: existing(sdir.hit_maps()),
-            classes,
-        });
-    }
-    let truth = match (&f.truth, &som) {
-        (Some(p), Some(s)) => Some(score_truth(p, &s.classification)?),
-        _ => None,
-    };
-    let sources = match &f.truth {
-        Some(p) if features.events_path.is_file() => super::score_sources(
-            p,
-            &features.table_path,
+        };
+        som = Some(classified_stage(
+            &config,
+            confusion,
+            &feats[0],
             &features.events_path,
-            crate::store::SourceRows::of(&config),
-        )?,
-        _ => None,
-    };
+            &sdir,
+            trained,
+        )?);
+    }
+    let (truth, sources) =
+        super::truth::scores(f.truth.as_deref(), som.as_ref(), &features, &config)?;
     let summary = RunSummary {
         out: dir.to_path_buf(),
         inputs: f.inputs,
@@ -122,7 +107,6 @@ pub fn rebuild_report(dir: &Path) -> Result<PathBuf, WorkflowError> {
         som,
         truth,
         sources,
-        events,
         config,
         seconds: f.seconds,
     };

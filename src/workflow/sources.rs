@@ -62,11 +62,12 @@ pub(super) fn evolution_stage(
 }
 
 /// A location picture per experiment with located events: each event coloured by its first
-/// hit's SOM class ("outside the zone" for those the zone leaves out, which the SOM does not
-/// classify with `exclude_outside`).
+/// hit's SOM class (from the damage profile's `rows`, the classified hits), "outside the
+/// zone" for those the zone leaves out (which the SOM does not classify with
+/// `exclude_outside`).
 pub(super) fn location_stage(
     cfg: &ValidConfig,
-    features: &Path,
+    rows: &[ProfileRow],
     events: &Path,
     som_dir: &ClassifyDir,
 ) -> Result<Vec<(String, PathBuf)>, WorkflowError> {
@@ -88,26 +89,10 @@ pub(super) fn location_stage(
     if xs.iter().all(Option::is_none) {
         return Ok(Vec::new());
     }
-    // (experiment, event) → the first hit's key.
-    let ft = TableScan::open(features)?;
-    if ft.column_names().iter().all(|c| c != "event") {
-        return Ok(Vec::new());
-    }
-    let mut sel = vec![col("experiment"), col("channel"), col("hit"), col("event")];
-    sel.extend(ft.event_first_col());
-    let fdf = ft.select(sel)?;
-    let keys = ft.hit_keys(&fdf)?;
-    let fev = ft.f64s(&fdf, "event")?;
-    let first = ft.event_first(&fdf)?;
-    let mut first_hit: BTreeMap<(String, i64), HitKey> = BTreeMap::new();
-    for ((k, e), f) in keys.into_iter().zip(fev).zip(first) {
-        if let (Some(e), Some(true)) = (e, f) {
-            first_hit.insert((k.0.clone(), e as i64), k);
-        }
-    }
-    let classes: BTreeMap<HitKey, String> = TableScan::open(&som_dir.classification())?
-        .keyed_strings("som_label")?
-        .into_iter()
+    // (experiment, event) → the SOM's class of its first hit.
+    let class_of: BTreeMap<(&str, i64), &str> = rows
+        .iter()
+        .filter_map(|r| Some(((r.key.0.as_str(), r.event?), r.class.as_str())))
         .collect();
     let mut per_exp: BTreeMap<String, Vec<LocatedSource>> = BTreeMap::new();
     for i in 0..df.height() {
@@ -115,26 +100,19 @@ pub(super) fn location_stage(
             continue;
         };
         let class = if zones[i].as_deref() == Some("outside") {
-            "outside the zone".to_string()
+            "outside the zone"
         } else {
-            first_hit
-                .get(&(exp.clone(), n as i64))
-                .and_then(|k| classes.get(k))
-                .cloned()
-                .unwrap_or_else(|| "unclassified".to_string())
+            class_of
+                .get(&(exp.as_str(), n as i64))
+                .copied()
+                .unwrap_or("unclassified")
         };
         per_exp.entry(exp.clone()).or_default().push(LocatedSource {
             x_m: x,
             y_m: ys[i],
-            class,
+            class: class.to_string(),
         });
     }
-    let sensors: Vec<(String, Vec<f64>)> = cfg
-        .location
-        .sensors
-        .iter()
-        .map(|(k, v)| (k.clone(), v.clone()))
-        .collect();
     let mut plots = Vec::new();
     for (exp, located) in per_exp {
         let png = som_dir.location_png(&exp);
@@ -144,7 +122,7 @@ pub(super) fn location_stage(
             &title,
             &located,
             cfg.location.zone.as_ref(),
-            &sensors,
+            &cfg.location.sensors,
         )?;
         plots.push((exp, png));
     }

@@ -40,7 +40,11 @@ pub(super) fn classes_of(c: &Confusion) -> BTreeMap<String, usize> {
     classes
 }
 
-pub(super) fn som_stage(job: &RunJob, feats: &[PathBuf]) -> Result<SomStage, WorkflowError> {
+pub(super) fn som_stage(
+    job: &RunJob,
+    feats: &[PathBuf],
+    events: &Path,
+) -> Result<SomStage, WorkflowError> {
     use crate::som::tables::{classify_tables, train, TrainOptions, TrainingSet};
     let cfg = job.config;
     let run = job.dir();
@@ -120,13 +124,38 @@ pub(super) fn som_stage(job: &RunJob, feats: &[PathBuf]) -> Result<SomStage, Wor
     crate::plot::u_matrix_png(&u, &model.som)?;
     let hm = som_dir.hit_maps();
     crate::plot::hit_maps_png(&hm, &model.som, &confusion.hits)?;
-    let (u_matrix, hit_maps) = (Some(u), Some(hm));
+    let trained = Trained {
+        model_dir: model_dir.path().to_path_buf(),
+        trained_on,
+        training_rows: model.composition.values().map(|(_, r)| r).sum(),
+        u_matrix: Some(u),
+        hit_maps: Some(hm),
+    };
+    classified_stage(cfg, confusion, &feats[0], events, &som_dir, trained)
+}
+
+/// What is known of a trained map when its classification is summed up.
+pub(super) struct Trained {
+    pub model_dir: PathBuf,
+    pub trained_on: String,
+    pub training_rows: usize,
+    pub u_matrix: Option<PathBuf>,
+    pub hit_maps: Option<PathBuf>,
+}
+
+/// After a map classified the feature tables into `som_dir`: the class counts, the damage
+/// profile, the evolution and the location pictures, as a [`SomStage`] (`aepipe run` after
+/// training; `aepipe report` from a run folder).
+pub(super) fn classified_stage(
+    cfg: &ValidConfig,
+    confusion: Confusion,
+    features: &Path,
+    events: &Path,
+    som_dir: &ClassifyDir,
+    t: Trained,
+) -> Result<SomStage, WorkflowError> {
     let classes = classes_of(&confusion);
-    let events = run.features().table(
-        crate::pipeline::PartTable::Events,
-        crate::pipeline::StreamJob::Features,
-    );
-    let pr = profile_stage(cfg, &feats[0], &events, &som_dir)?;
+    let pr = profile_stage(cfg, features, events, som_dir)?;
     Ok(SomStage {
         profile_table: som_dir.damage_profile(),
         profile: pr.summaries,
@@ -134,13 +163,13 @@ pub(super) fn som_stage(job: &RunJob, feats: &[PathBuf]) -> Result<SomStage, Wor
         evolution_table: pr.evolution_table,
         evolution_plots: pr.evolution_plots,
         location_plots: pr.location_plots,
-        model_dir: model_dir.path().to_path_buf(),
-        trained_on,
-        training_rows: model.composition.values().map(|(_, r)| r).sum(),
+        model_dir: t.model_dir,
+        trained_on: t.trained_on,
+        training_rows: t.training_rows,
         confusion,
         classification: som_dir.classification(),
-        u_matrix,
-        hit_maps,
+        u_matrix: t.u_matrix,
+        hit_maps: t.hit_maps,
         classes,
     })
 }
@@ -176,7 +205,7 @@ pub(super) fn profile_stage(
     }
     let (evolution_table, evolution_plots) =
         super::sources::evolution_stage(cfg, &rows, &summaries, som_dir)?;
-    let location_plots = super::sources::location_stage(cfg, features, events, som_dir)?;
+    let location_plots = super::sources::location_stage(cfg, &rows, events, som_dir)?;
     Ok(Profile {
         summaries,
         plots,

@@ -3,7 +3,10 @@
 use super::*;
 
 /// Compare the SOM classes with `truth.parquet`.
-pub fn score_truth(truth: &Path, classification: &Path) -> Result<TruthScore, WorkflowError> {
+pub(super) fn score_truth(
+    truth: &Path,
+    classification: &Path,
+) -> Result<TruthScore, WorkflowError> {
     let t: BTreeMap<_, _> = TableScan::open(truth)?
         .keyed_strings("mechanism")?
         .into_iter()
@@ -30,11 +33,39 @@ pub fn score_truth(truth: &Path, classification: &Path) -> Result<TruthScore, Wo
     Ok(s)
 }
 
+/// Both scores of a run given a truth table: the SOM's classes (with a SOM stage) and the
+/// events and locations (with an events table). `aepipe run` and `aepipe report` alike.
+pub(super) fn scores(
+    truth: Option<&Path>,
+    som: Option<&SomStage>,
+    features: &RunReport,
+    cfg: &ValidConfig,
+) -> Result<(Option<TruthScore>, Option<crate::report::SourceScore>), WorkflowError> {
+    let Some(truth) = truth else {
+        return Ok((None, None));
+    };
+    let classes = match som {
+        Some(s) => Some(score_truth(truth, &s.classification)?),
+        None => None,
+    };
+    let sources = if features.events_path.is_file() {
+        score_sources(
+            truth,
+            &features.table_path,
+            &features.events_path,
+            crate::store::SourceRows::of(cfg),
+        )?
+    } else {
+        None
+    };
+    Ok((classes, sources))
+}
+
 /// Score the events and their locations against the truth's sources: which aepipe events
 /// hold which sources' hits (through `features.parquet`'s `event`), how far each located
 /// specimen event lies from its source, and which sources the zone and guards keep out of
 /// the counts.
-pub fn score_sources(
+pub(super) fn score_sources(
     truth: &Path,
     features: &Path,
     events: &Path,
@@ -77,20 +108,15 @@ pub fn score_sources(
         col("channel"),
         col("hit"),
         col("event"),
-        col("event_first"),
-        col("zone"),
+        rows.keep().alias("counts"),
     ])?;
     let fk = f.hit_keys(&df)?;
     let fev = f.f64s(&df, "event")?;
-    let ffirst = f.event_first(&df)?;
-    let fzone = f.strings(&df, "zone")?;
+    let counts = f.bools(&df, "counts")?;
     let hit: BTreeMap<HitKey, (Option<i64>, bool)> = fk
         .into_iter()
         .enumerate()
-        .map(|(i, k)| {
-            let counts = rows.counts(ffirst[i], fzone[i].as_deref());
-            (k, (fev[i].map(|v| v as i64), counts))
-        })
+        .map(|(i, k)| (k, (fev[i].map(|v| v as i64), counts[i].unwrap_or(false))))
         .collect();
     let e = TableScan::open(events)?;
     let df = e.select(vec![
