@@ -20,7 +20,8 @@ use super::next_fast_len;
 use crate::config::CwtConfig;
 use rustfft::num_complex::Complex32;
 use rustfft::{Fft, FftPlanner};
-use std::collections::HashMap;
+/// The caches' maps: keys are a few integers, hashed per frequency per record.
+type HashMap<K, V> = std::collections::HashMap<K, V, rustc_hash::FxBuildHasher>;
 use std::f64::consts::PI;
 use std::sync::Arc;
 
@@ -30,7 +31,13 @@ const FWHM_SIGMAS: f64 = 2.354_820_045_030_949_4;
 const SUPPORT_SIGMAS: f64 = 5.0;
 /// Cache bounds, per engine (one per worker). Records of any length map to few padded FFT
 /// lengths (3-smooth), so these are rarely reached; when one is, that cache starts afresh.
-const MAX_PLANS: usize = 96;
+/// Plans are bounded by their summed lengths (a plan's twiddles take about 8 bytes per point),
+/// not their number: a LinWave-like test meets ~66 padded record lengths plus the segment
+/// lengths, forward and inverse, and a bound of 96 plans cleared the cache every few records,
+/// so planning (twiddles, ~18 % of that workload) ran again and again.
+const MAX_PLAN_POINTS: usize = 8 << 20;
+/// And by number, for many tiny plans.
+const MAX_PLANS: usize = 1024;
 const MAX_GROUP_SETS: usize = 256;
 /// Filter taps kept (f32 each): 8 Mi taps = 32 MiB per worker.
 const MAX_FILTER_TAPS: usize = 8 << 20;
@@ -141,6 +148,8 @@ fn make_band(bank: &WaveletBank, fi: usize, m: usize, fs: f64) -> Band {
 pub struct Cwt {
     bank: WaveletBank,
     plans: HashMap<(usize, bool), Arc<dyn Fft<f32>>>,
+    /// Summed lengths of `plans` (their memory bound).
+    plan_points: usize,
     filters: HashMap<(usize, u64, usize), Arc<Band>>,
     /// Filter taps held by `filters` (their memory bound).
     filter_taps: usize,
@@ -159,10 +168,11 @@ impl Cwt {
     pub fn new(bank: WaveletBank) -> Cwt {
         Cwt {
             bank,
-            plans: HashMap::new(),
-            filters: HashMap::new(),
+            plans: HashMap::default(),
+            plan_points: 0,
+            filters: HashMap::default(),
             filter_taps: 0,
-            groups: HashMap::new(),
+            groups: HashMap::default(),
             full: Vec::new(),
             loaded: None,
             seg: Vec::new(),
@@ -182,8 +192,14 @@ impl Cwt {
     /// met before. A fresh one gives each length the same plan on every worker, thread
     /// count and shard: the tables are byte-identical however the batch is split.
     fn plan(&mut self, m: usize, inverse: bool) -> Arc<dyn Fft<f32>> {
-        if self.plans.len() >= MAX_PLANS && !self.plans.contains_key(&(m, inverse)) {
+        if !self.plans.contains_key(&(m, inverse))
+            && (self.plans.len() >= MAX_PLANS || self.plan_points + m > MAX_PLAN_POINTS)
+        {
             self.plans.clear();
+            self.plan_points = 0;
+        }
+        if !self.plans.contains_key(&(m, inverse)) {
+            self.plan_points += m;
         }
         self.plans
             .entry((m, inverse))
@@ -282,9 +298,13 @@ impl Cwt {
         self.work.clear();
         self.work.resize(m, Complex32::default());
         let spec = if from_full { &self.full } else { &self.seg };
-        for (j, &t) in band.taps.iter().enumerate() {
-            let k = band.k0 + j;
-            self.work[k] = spec[k] * t;
+        let taps = band.k0..band.k0 + band.taps.len();
+        for ((w, &v), &t) in self.work[taps.clone()]
+            .iter_mut()
+            .zip(&spec[taps])
+            .zip(&band.taps)
+        {
+            *w = v * t;
         }
         let need = plan.get_inplace_scratch_len();
         if self.scratch.len() < need {
@@ -648,6 +668,7 @@ mod tests {
         // Many lengths, few FFT sizes, and every cache within its bound.
         assert!(padded.len() < 60, "{} padded lengths", padded.len());
         assert!(cwt.plans.len() <= MAX_PLANS);
+        assert!(cwt.plan_points <= MAX_PLAN_POINTS);
         assert!(cwt.groups.len() <= MAX_GROUP_SETS);
         assert!(cwt.filter_taps <= 2 * MAX_FILTER_TAPS);
     }

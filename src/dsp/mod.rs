@@ -46,9 +46,53 @@ pub fn condition(samples: &[f32], pretrigger: usize, out: &mut Vec<f32>) -> f64 
     dc
 }
 
+/// The largest `f(v)` over `x`, from 0 (0 for an empty slice or one without a positive
+/// value), skipping NaN as `f32::max` does. A maximum does not depend on the order it is
+/// taken in, so eight lanes take it at once: the plain fold is one long compare chain and
+/// ran at its latency.
+#[inline]
+pub fn max_from_zero(x: &[f32], f: impl Fn(f32) -> f32) -> f32 {
+    let mut m = [0.0f32; 8];
+    let chunks = x.chunks_exact(8);
+    let tail = chunks.remainder();
+    for c in chunks {
+        for (lane, &v) in m.iter_mut().zip(c) {
+            let v = f(v);
+            *lane = if v > *lane { v } else { *lane };
+        }
+    }
+    let top = m.iter().fold(0.0f32, |a, &b| if b > a { b } else { a });
+    tail.iter()
+        .map(|&v| f(v))
+        .fold(top, |a, b| if b > a { b } else { a })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_lane_maximum_is_the_plain_fold() {
+        let mut r = crate::util::Rng::new(5);
+        for n in [0usize, 1, 7, 8, 9, 63, 64, 65, 1000] {
+            let mut x: Vec<f32> = (0..n).map(|_| (r.uniform() - 0.7) as f32).collect();
+            if n > 3 {
+                x[n / 2] = f32::NAN;
+            }
+            let plain = x.iter().fold(0.0f32, |m, v| m.max(v.abs()));
+            assert_eq!(
+                max_from_zero(&x, f32::abs).to_bits(),
+                plain.to_bits(),
+                "n = {n}"
+            );
+            let plain = x.iter().fold(0.0f32, |m, &v| m.max(v));
+            assert_eq!(
+                max_from_zero(&x, |v| v).to_bits(),
+                plain.to_bits(),
+                "n = {n}"
+            );
+        }
+    }
 
     #[test]
     fn fast_lengths() {

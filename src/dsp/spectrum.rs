@@ -34,6 +34,10 @@ pub fn power_ratios(
     let mut total_all = 0.0;
     let mut moment = 0.0;
     let mut peak = (0usize, -1.0f64);
+    // Bins come in frequency order, so each band is one run of bins: its sum is kept in a
+    // register and stored when the band changes (the same additions in the same order as
+    // `ratios[i] += p`, without a load and store per bin on the chain).
+    let (mut band, mut acc) = (usize::MAX, 0.0f64);
     for (j, x) in spec.iter().enumerate().take(half + 1) {
         let p = x.norm_sqr() as f64;
         let f = j as f64 * df;
@@ -46,8 +50,17 @@ pub fn power_ratios(
         }
         if f < band_max {
             let i = ((f / band_hz) as usize).min(ratios.len() - 1);
-            ratios[i] += p;
+            if i != band {
+                if band != usize::MAX {
+                    ratios[band] = acc;
+                }
+                (band, acc) = (i, 0.0);
+            }
+            acc += p;
         }
+    }
+    if band != usize::MAX {
+        ratios[band] = acc;
     }
     let total: f64 = ratios.iter().sum();
     if total.is_nan() || total <= 0.0 || !total.is_finite() {

@@ -107,7 +107,7 @@ pub fn acquisition_fault(
         ));
     };
     // Clipped: a run of samples sitting at the raw record's extreme value.
-    let extreme = raw.iter().fold(0.0f32, |m, v| m.max(v.abs()));
+    let extreme = crate::dsp::max_from_zero(raw, f32::abs);
     if extreme > 0.0 && c.clip_run > 1 {
         let mut run = 0;
         for v in raw {
