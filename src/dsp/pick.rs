@@ -470,6 +470,8 @@ mod tests {
         Some(best)
     }
 
+    // Written as vallenae's formula reads, index by index.
+    #[allow(clippy::needless_range_loop)]
     fn ratios_reference(x: &[f32], win: usize) -> [Option<usize>; 2] {
         let n = x.len();
         if win == 0 || n <= 2 * win {

@@ -274,6 +274,8 @@ fn strongest_peak(freqs: &[f64], peaks: &[f32], lo: f64, hi: f64) -> Option<usiz
 /// ascending sample order (the f32 result of the plain loop, bit for bit), but the windows'
 /// sums advance together: one add chain per window instead of one long chain, which is what
 /// bounded this loop's speed (f32 add latency).
+// The index loop is the point: sample j of every lane in turn, eight chains in flight.
+#[allow(clippy::needless_range_loop)]
 fn window_sums(row: &[f32], edges: &[usize], sums: &mut [f32; 64]) {
     const LANES: usize = 8;
     let nw = edges.len() - 1;
