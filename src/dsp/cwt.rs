@@ -192,26 +192,22 @@ impl Cwt {
     /// met before. A fresh one gives each length the same plan on every worker, thread
     /// count and shard: the tables are byte-identical however the batch is split.
     fn plan(&mut self, m: usize, inverse: bool) -> Arc<dyn Fft<f32>> {
-        if !self.plans.contains_key(&(m, inverse))
-            && (self.plans.len() >= MAX_PLANS || self.plan_points + m > MAX_PLAN_POINTS)
-        {
+        if let Some(p) = self.plans.get(&(m, inverse)) {
+            return p.clone();
+        }
+        if self.plans.len() >= MAX_PLANS || self.plan_points + m > MAX_PLAN_POINTS {
             self.plans.clear();
             self.plan_points = 0;
         }
-        if !self.plans.contains_key(&(m, inverse)) {
-            self.plan_points += m;
-        }
-        self.plans
-            .entry((m, inverse))
-            .or_insert_with(|| {
-                let mut planner = FftPlanner::new();
-                if inverse {
-                    planner.plan_fft_inverse(m)
-                } else {
-                    planner.plan_fft_forward(m)
-                }
-            })
-            .clone()
+        let mut planner = FftPlanner::new();
+        let plan = if inverse {
+            planner.plan_fft_inverse(m)
+        } else {
+            planner.plan_fft_forward(m)
+        };
+        self.plan_points += m;
+        self.plans.insert((m, inverse), plan.clone());
+        plan
     }
 
     /// The filter of frequency `fi` on an `m`-point grid at `fs`, made on first use (only the

@@ -161,7 +161,9 @@ fn add_at(x: &mut [f64], sig: &[f64], at: usize, amp: f64) {
 /// library's erroneous records (triggered before the front, two signals, clipped — a
 /// clipped one is clipped again after the band and noise, as an ADC would), or, from a
 /// library without them, two bursts 150 µs apart or a burst that starts before the trigger.
-fn from_library(lib: &Library, spec: &HitSpec, rng: &mut Rng) -> (Vec<f32>, String) {
+/// Returns the samples, the signals' sources, and whether the hit was clipped (a clipped
+/// library record: a caller that adds its own noise afterwards clips again, as the ADC would).
+fn from_library(lib: &Library, spec: &HitSpec, rng: &mut Rng) -> (Vec<f32>, String, bool) {
     let fs = spec.sample_rate_hz;
     let n = spec.n_samples;
     let pre = spec.pretrigger.min(n);
@@ -231,7 +233,7 @@ fn from_library(lib: &Library, spec: &HitSpec, rng: &mut Rng) -> (Vec<f32>, Stri
         let range = 0.9 * out.iter().fold(0.0f32, |m, v| m.max(v.abs()));
         out.iter_mut().for_each(|v| *v = v.clamp(-range, range));
     }
-    (out, sources.join("; "))
+    (out, sources.join("; "), clip)
 }
 
 /// The load curve of a notched-strip tensile test (Fig. 4.15 shape): rises almost linearly,
@@ -432,9 +434,9 @@ impl Experiment {
             spec.amplitude_v = 0.003 * (1.0 + 9.0 * rng.uniform().powi(3));
             // Damage shifts power from ~750 to ~250 kHz as the test goes on (ch. 4.5.5).
             spec.low_share = 0.3 + 0.4 * progress;
-            let (samples, source) = match &self.library {
+            let (samples, source, _) = match &self.library {
                 Some(lib) => from_library(lib, &spec, &mut rng),
-                None => (waveform(&spec, &mut rng), String::new()),
+                None => (waveform(&spec, &mut rng), String::new(), false),
             };
             let rec = AeRecord {
                 kind: crate::model::RecordKind::Hit,

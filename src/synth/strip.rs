@@ -121,19 +121,16 @@ pub(super) fn strip_hits(e: &Experiment, strip: &Strip) -> Vec<SynthHit> {
         spec.low_share = 0.3 + 0.4 * progress;
         let noise_v = spec.noise_v;
         spec.noise_v = 0.0;
-        let (base, reference) = match &e.library {
+        let (base, reference, clipped) = match &e.library {
             Some(lib) => from_library(lib, &spec, &mut rng),
-            None => (waveform(&spec, &mut rng), String::new()),
+            None => (waveform(&spec, &mut rng), String::new(), false),
         };
         let p = spec.pretrigger;
         let fs = spec.sample_rate_hz;
-        // A clipped library record (its base sits at its extreme for 3 or more samples, the
-        // library's own test) is clipped again at each sensor, after that sensor's
-        // attenuation and noise, as its ADC would: the noise added after a clip broke the
-        // runs at the rail, and the quality check saw 2 of 22 clipped records on demo seeds
-        // 11–14 (issue 24).
-        let top = base.iter().fold(0.0f32, |m, v| m.max(v.abs()));
-        let clipped = top > 0.0 && base.iter().filter(|v| v.abs() == top).count() >= 3;
+        // A hit from a clipped library record is clipped again at each sensor, after that
+        // sensor's attenuation and noise, as its ADC would: the noise added after a clip
+        // broke the runs at the rail, and the quality check saw 2 of 22 clipped records on
+        // demo seeds 11–14 (issue 24).
         for &(channel, x_k) in &strip.sensors {
             let d = (x_s - x_k).abs();
             let gain = 10f64.powf(-strip.attenuation_db_per_m * d / 20.0);
