@@ -452,6 +452,7 @@ fn som(which: SomCmd) -> Result<Outcome> {
             features,
             out,
             reference,
+            read_erroneous,
         } => {
             let m = load_model(&model)?;
             let reference = reference.unwrap_or_else(|| m.label_column.clone());
@@ -461,7 +462,9 @@ fn som(which: SomCmd) -> Result<Outcome> {
                 Some(&reference),
                 &out,
                 crate::store::SourceRows::default(),
+                read_erroneous.into(),
             )?;
+            println!("{}", conf.reading.describe());
             println!(
                 "SOM class (rows) against {reference} (columns), share of the SOM class's hits:"
             );

@@ -266,6 +266,21 @@ pub enum InitArg {
     Linear,
 }
 
+#[derive(Clone, Copy, clap::ValueEnum)]
+pub enum ReadErroneousArg {
+    QualityCheck,
+    Map,
+}
+
+impl From<ReadErroneousArg> for crate::config::ReadErroneous {
+    fn from(a: ReadErroneousArg) -> Self {
+        match a {
+            ReadErroneousArg::QualityCheck => crate::config::ReadErroneous::QualityCheck,
+            ReadErroneousArg::Map => crate::config::ReadErroneous::Map,
+        }
+    }
+}
+
 #[derive(Subcommand)]
 pub enum SomCmd {
     /// Train a map on a balanced ~10 % of the labelled hits (ch. 5.4): MODEL_DIR/model.json, model.cod, train.dat, u_matrix.png
@@ -308,6 +323,11 @@ pub enum SomCmd {
         /// model's label column)
         #[arg(long, visible_alias = "label")]
         reference: Option<String>,
+        /// How the map's erroneous area is read: quality-check (erroneous iff the features'
+        /// quality_fault is set; a sound hit on an erroneous node takes its nearest other
+        /// node's class) or map (the BMU's label alone, as the thesis)
+        #[arg(long, value_enum, default_value_t = ReadErroneousArg::QualityCheck)]
+        read_erroneous: ReadErroneousArg,
     },
     /// Summarise a model and draw its U-matrix with node labels
     Show {

@@ -246,6 +246,33 @@ pub struct SomConfig {
     /// with `train_on = "criteria"`, trained on: any column (criteria_label, label,
     /// experiment, channel, …).
     pub label: String,
+    /// How the map's erroneous area is read (issue 24): `quality-check` (default) — a hit
+    /// is erroneous when the features' time-domain quality check (`quality_fault`) found a
+    /// fault, and a sound hit whose BMU is labelled erroneous takes the class of its
+    /// nearest node labelled otherwise; `map` — the BMU's label alone, as the thesis read
+    /// it (ch. 5.4).
+    pub read_erroneous: ReadErroneous,
+}
+
+/// How the SOM stage reads the map's erroneous area (`[som] read_erroneous`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum ReadErroneous {
+    /// Erroneous iff the time-domain quality check found a fault; the map decides among
+    /// the other classes. Maps with no node labelled erroneous are read as `Map`.
+    #[default]
+    QualityCheck,
+    /// The BMU's label alone (the thesis's reading).
+    Map,
+}
+
+impl ReadErroneous {
+    pub fn as_str(self) -> &'static str {
+        match self {
+            ReadErroneous::QualityCheck => "quality-check",
+            ReadErroneous::Map => "map",
+        }
+    }
 }
 
 impl Default for SomConfig {
@@ -259,6 +286,7 @@ impl Default for SomConfig {
             rows: som_defaults::ROWS,
             cols: som_defaults::COLS,
             seed: som_defaults::SEED,
+            read_erroneous: ReadErroneous::default(),
         }
     }
 }
@@ -381,8 +409,16 @@ pub struct CriteriaConfig {
     pub burst_gap_s: f64,
     pub burst_quiet_ratio: f64,
     pub burst_level_ratio: f64,
-    /// Clipped: this many consecutive samples at the record's extreme value.
+    /// Clipped: this many consecutive samples at the record's extreme value…
     pub clip_run: usize,
+    /// …or this many samples at it in all (0: off; issue 24: a 250 kHz wave at 10 MHz
+    /// clipped at 90 % of its peak sits at the rail 2–3 samples a half-cycle, so the run
+    /// alone missed it)…
+    pub clip_count: usize,
+    /// …when the extreme is at least this many quantisation steps (the smallest gap between
+    /// the record's distinct values): a weak record spanning a few ADC codes repeats its top
+    /// code without being clipped.
+    pub clip_min_steps: f64,
 }
 
 impl Default for DspConfig {
@@ -445,6 +481,8 @@ impl Default for CriteriaConfig {
             burst_quiet_ratio: 0.25,
             burst_level_ratio: 0.5,
             clip_run: 3,
+            clip_count: 8,
+            clip_min_steps: 100.0,
         }
     }
 }

@@ -91,6 +91,50 @@ pub struct Decision {
     pub reason: String,
 }
 
+/// The kind of an acquisition fault: `features.parquet`'s `quality_fault` column and what
+/// the SOM stage reads the map's erroneous area by (see `som::tables::Reading`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum FaultKind {
+    /// The record never reaches the threshold.
+    Empty,
+    /// A run of samples at the record's extreme value (the ADC's rail).
+    Clipped,
+    /// Above the threshold well before the trigger (ch. 5.4, Fig. 5.8b).
+    TriggeredEarly,
+    /// The front comes well after the trigger (ch. 5.4, Fig. 5.8c).
+    BeforeFront,
+    /// Two separate bursts in one record.
+    TwoBursts,
+}
+
+impl FaultKind {
+    pub const ALL: [FaultKind; 5] = [
+        FaultKind::Empty,
+        FaultKind::Clipped,
+        FaultKind::TriggeredEarly,
+        FaultKind::BeforeFront,
+        FaultKind::TwoBursts,
+    ];
+
+    /// The column's spelling.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            FaultKind::Empty => "empty",
+            FaultKind::Clipped => "clipped",
+            FaultKind::TriggeredEarly => "triggered_early",
+            FaultKind::BeforeFront => "before_front",
+            FaultKind::TwoBursts => "two_bursts",
+        }
+    }
+}
+
+/// A time-domain acquisition fault: its kind and the numbers behind it, in words.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Fault {
+    pub kind: FaultKind,
+    pub reason: String,
+}
+
 /// Time-domain acquisition faults; `None` when the record looks sound.
 pub fn acquisition_fault(
     raw: &[f32],
@@ -99,43 +143,79 @@ pub fn acquisition_fault(
     pretrigger: usize,
     hit: &HitFeatures,
     c: &CriteriaConfig,
-) -> Option<String> {
+) -> Option<Fault> {
+    let fault = |kind, reason| Some(Fault { kind, reason });
     let Some(first) = hit.first_crossing else {
-        return Some(format!(
-            "empty: never reaches the threshold ({:.1} dB_AE)",
-            crate::model::db_ae(hit.threshold_v)
-        ));
+        return fault(
+            FaultKind::Empty,
+            format!(
+                "empty: never reaches the threshold ({:.1} dB_AE)",
+                crate::model::db_ae(hit.threshold_v)
+            ),
+        );
     };
-    // Clipped: a run of samples sitting at the raw record's extreme value.
+    // Clipped: a run of samples sitting at the raw record's extreme value, or many samples
+    // at it (a fast wave clipped a little above its rail touches it for 2–3 samples a
+    // half-cycle), where the extreme is far above the quantisation step (a weak record in
+    // a few ADC steps repeats its top code by nature).
     let extreme = crate::dsp::max_from_zero(raw, f32::abs);
-    if extreme > 0.0 && c.clip_run > 1 {
-        let mut run = 0;
+    if extreme > 0.0 {
+        let (mut run, mut count) = (0, 0);
         for v in raw {
             if v.abs() == extreme {
                 run += 1;
-                if run >= c.clip_run {
-                    return Some(format!(
-                        "clipped: {run}+ consecutive samples at {extreme:.6} V"
-                    ));
+                count += 1;
+                if c.clip_run > 1 && run >= c.clip_run {
+                    return fault(
+                        FaultKind::Clipped,
+                        format!("clipped: {run}+ consecutive samples at {extreme:.6} V"),
+                    );
                 }
             } else {
                 run = 0;
             }
         }
+        if c.clip_count > 0 && count >= c.clip_count {
+            let step = quantisation_step(raw);
+            let steps = if step > 0.0 {
+                (extreme / step) as f64
+            } else {
+                f64::INFINITY
+            };
+            if steps >= c.clip_min_steps {
+                return fault(
+                    FaultKind::Clipped,
+                    format!(
+                        "clipped: {count} samples at ±{extreme:.6} V ({} quantisation steps)",
+                        if steps.is_finite() {
+                            format!("{steps:.0}")
+                        } else {
+                            "∞".into()
+                        }
+                    ),
+                );
+            }
+        }
     }
     let early = (c.early_trigger_s * fs).round() as usize;
     if pretrigger > early && first < pretrigger - early {
-        return Some(format!(
-            "triggered early: above threshold {:.1} µs before the trigger",
-            (pretrigger - first) as f64 / fs * 1e6
-        ));
+        return fault(
+            FaultKind::TriggeredEarly,
+            format!(
+                "triggered early: above threshold {:.1} µs before the trigger",
+                (pretrigger - first) as f64 / fs * 1e6
+            ),
+        );
     }
     let late = (c.late_front_s * fs).round() as usize;
     if first > pretrigger + late {
-        return Some(format!(
-            "triggered before the front: the signal first reaches the threshold {:.1} µs after the trigger",
-            (first - pretrigger) as f64 / fs * 1e6
-        ));
+        return fault(
+            FaultKind::BeforeFront,
+            format!(
+                "triggered before the front: the signal first reaches the threshold {:.1} µs after the trigger",
+                (first - pretrigger) as f64 / fs * 1e6
+            ),
+        );
     }
     // Two bursts, on a 1 µs block-maximum envelope.
     let block = ((1e-6 * fs).round() as usize).max(1);
@@ -154,10 +234,13 @@ pub fn acquisition_fault(
             if !in_burst && (bursts == 0 || quiet_run >= gap_blocks) {
                 bursts += 1;
                 if bursts == 2 {
-                    return Some(format!(
-                        "two bursts: a second one starts {:.1} µs after the first ended",
-                        (i - first_end) as f64 * block as f64 / fs * 1e6
-                    ));
+                    return fault(
+                        FaultKind::TwoBursts,
+                        format!(
+                            "two bursts: a second one starts {:.1} µs after the first ended",
+                            (i - first_end) as f64 * block as f64 / fs * 1e6
+                        ),
+                    );
                 }
             }
             in_burst = true;
@@ -173,6 +256,18 @@ pub fn acquisition_fault(
         }
     }
     None
+}
+
+/// The record's quantisation step: the smallest gap between two distinct sample values
+/// (0 for fewer than two distinct values). Sorts a copy: called only for a record that
+/// already repeats its extreme `clip_count` times.
+fn quantisation_step(raw: &[f32]) -> f32 {
+    let mut v: Vec<f32> = raw.iter().copied().filter(|x| x.is_finite()).collect();
+    v.sort_by(f32::total_cmp);
+    v.windows(2)
+        .map(|w| w[1] - w[0])
+        .filter(|&d| d > 0.0)
+        .fold(0.0f32, |m, d| if m == 0.0 || d < m { d } else { m })
 }
 
 fn near(f: f64, target: f64, tol: f64) -> bool {
@@ -274,6 +369,66 @@ mod tests {
             duration_s: dur_us * 1e-6,
             arrival_s: arr_us * 1e-6,
         })
+    }
+
+    /// A burst at `f` Hz decaying with time constant `tau` from the trigger (10 MHz, 500
+    /// samples of pretrigger), quantised to `step` volts.
+    fn burst(f: f64, tau: f64, amp: f64, step: f64) -> Vec<f32> {
+        (0..4096)
+            .map(|i| {
+                let t = (i as f64 - 500.0) / 10e6;
+                let v = if t < 0.0 {
+                    0.0
+                } else {
+                    amp * (-t / tau).exp() * (2.0 * std::f64::consts::PI * f * t).sin()
+                };
+                ((v / step).round() * step) as f32
+            })
+            .collect()
+    }
+
+    fn fault_of(x: &[f32], c: &CriteriaConfig) -> Option<FaultKind> {
+        let mut cond = Vec::new();
+        crate::dsp::condition(x, 500, &mut cond);
+        let hit = crate::dsp::hit::hit_features(&cond, 10e6, 1e-4);
+        acquisition_fault(x, &cond, 10e6, 500, &hit, c).map(|f| f.kind)
+    }
+
+    #[test]
+    fn a_wave_clipped_just_below_its_peak_is_clipped_and_a_coarse_weak_one_is_not() {
+        let c = CriteriaConfig::default();
+        // The bond wave's 750 kHz part: 13.3 samples a period.
+        let w = burst(750e3, 50e-6, 0.01, 1e-6);
+        assert_eq!(fault_of(&w, &c), None);
+        // The ADC's rail at 90 % of the peak: 1–2 samples a half-cycle sit on it, so a run of
+        // clip_run = 3 is not reached; the count is.
+        let rail = 0.9 * w.iter().fold(0.0f32, |m, v| m.max(v.abs()));
+        let clipped: Vec<f32> = w.iter().map(|v| v.clamp(-rail, rail)).collect();
+        let at = clipped.iter().filter(|v| v.abs() == rail).count();
+        assert!(at >= c.clip_count, "{at} samples at the rail");
+        assert_eq!(fault_of(&clipped, &c), Some(FaultKind::Clipped));
+        let runs_only = CriteriaConfig {
+            clip_count: 0,
+            ..c.clone()
+        };
+        assert_eq!(fault_of(&clipped, &runs_only), None, "runs of 2–3 only");
+        // A weak record spanning 7 ADC steps repeats its top code without being clipped: the
+        // count rule (the run rule off here) holds back below clip_min_steps.
+        let coarse = burst(250e3, 300e-6, 2e-4, 2e-4 / 7.0);
+        let top = coarse.iter().fold(0.0f32, |m, v| m.max(v.abs()));
+        let repeats = coarse.iter().filter(|v| v.abs() == top).count();
+        assert!(repeats >= c.clip_count, "{repeats}");
+        let count_only = CriteriaConfig {
+            clip_run: 0,
+            ..c.clone()
+        };
+        assert_eq!(fault_of(&coarse, &count_only), None);
+        let no_guard = CriteriaConfig {
+            clip_min_steps: 0.0,
+            ..count_only
+        };
+        assert_eq!(fault_of(&coarse, &no_guard), Some(FaultKind::Clipped));
+        assert!((quantisation_step(&coarse) - 2e-4 / 7.0).abs() < 1e-9);
     }
 
     #[test]

@@ -191,6 +191,7 @@ pub fn features_table(cfg: &PipelineConfig) -> Table<FeatureRow> {
     )
     .col(ColumnSpec::new("criteria_label", ColType::Utf8, "", &format!("ch. 4.7 label: {}", mechanism_list())), |r| s(r.an.label.as_str()))
     .col(ColumnSpec::new("criteria_reason", ColType::Utf8, "", "the numbers behind the label, in words"), |r| s(&r.an.reason))
+    .col(ColumnSpec::new("quality_fault", ColType::Utf8, "", &format!("the time-domain quality check's finding (ch. 5.4's erroneous data, kept out of the bins): {}; null when the record looks sound. The SOM stage reads the map's erroneous area by it (som.read_erroneous)", fault_list())).nullable(), |r| Value::Str(r.an.fault.map(|f| f.as_str().to_string())))
     .col(f64c("dominant_freq_hz", "Hz", "CWT frequency with the largest |W|² in the bins' window; null when the window holds no power").nullable(), move |r| opt(r.an.components.dominant, |d| d.freq_hz))
     .col(f64c("dominant_duration_s", "s", "time around its peak that the dominant component stays ≥ half its peak power").nullable(), move |r| opt(r.an.components.dominant, |d| d.duration_s))
     .col(f64c("dominant_arrival_s", "s", "first time the dominant component reaches half its peak power, from the trigger").nullable(), move |r| opt(r.an.components.dominant, |d| d.arrival_s))
@@ -225,12 +226,20 @@ fn idx(i: Option<usize>) -> Value {
 
 /// The class names the criteria give, in words for the column's documentation.
 fn mechanism_list() -> String {
-    let n = crate::model::Mechanism::ALL.len();
-    crate::model::Mechanism::ALL
-        .iter()
+    words(crate::model::Mechanism::ALL.iter().map(|m| m.as_str()))
+}
+
+fn fault_list() -> String {
+    words(criteria::FaultKind::ALL.iter().map(|f| f.as_str()))
+}
+
+/// "a, b or c".
+fn words<'a>(items: impl ExactSizeIterator<Item = &'a str>) -> String {
+    let n = items.len();
+    items
         .enumerate()
         .map(|(i, m)| match i {
-            0 => m.as_str().to_string(),
+            0 => m.to_string(),
             i if i + 1 == n => format!(" or {m}"),
             _ => format!(", {m}"),
         })
@@ -335,6 +344,8 @@ pub struct Analysis {
     pub components: Components,
     pub label: crate::model::Mechanism,
     pub reason: String,
+    /// The time-domain quality check's finding (then `label` is erroneous).
+    pub fault: Option<criteria::FaultKind>,
     /// The four pickers' arrivals, 0-based sample index in the record.
     pub onsets: Onsets,
 }
@@ -496,9 +507,9 @@ impl FeatureExtractor {
             high: component(crit.bond_high_hz - tol, crit.bond_high_hz + tol),
             fibre: component(crit.fibre_min_hz + 1e-9, f64::INFINITY),
         };
-        let (label, reason) = match acquisition_fault(&r.samples, &self.cond, fs, pre, &hit, &crit)
-        {
-            Some(why) => (crate::model::Mechanism::Erroneous, why),
+        let fault = acquisition_fault(&r.samples, &self.cond, fs, pre, &hit, &crit);
+        let (label, reason) = match &fault {
+            Some(f) => (crate::model::Mechanism::Erroneous, f.reason.clone()),
             None => {
                 let d = decide(&components, &crit);
                 (d.label, d.reason)
@@ -519,6 +530,7 @@ impl FeatureExtractor {
             components,
             label,
             reason,
+            fault: fault.map(|f| f.kind),
         }
     }
 
@@ -655,6 +667,7 @@ mod tests {
         let a = FeatureExtractor::new(&cfg).analyse(&r);
         assert_eq!(a.label, Mechanism::Erroneous);
         assert!(a.reason.starts_with("triggered early"), "{}", a.reason);
+        assert_eq!(a.fault, Some(criteria::FaultKind::TriggeredEarly));
         // Clip the normal record at 40 % of its peak.
         spec.pretrigger = 500;
         w = waveform(&spec, &mut Rng::new(3));
@@ -663,11 +676,13 @@ mod tests {
         let a = FeatureExtractor::new(&cfg).analyse(&rec(clipped, 500));
         assert_eq!(a.label, Mechanism::Erroneous);
         assert!(a.reason.starts_with("clipped"), "{}", a.reason);
+        assert_eq!(a.fault, Some(criteria::FaultKind::Clipped));
         // Pure noise below the threshold is empty.
         let mut rng = Rng::new(4);
         let noise: Vec<f32> = (0..4096).map(|_| (1e-5 * rng.normal()) as f32).collect();
         let a = FeatureExtractor::new(&cfg).analyse(&rec(noise, 500));
         assert!(a.reason.starts_with("empty"), "{}", a.reason);
+        assert_eq!(a.fault, Some(criteria::FaultKind::Empty));
     }
 
     /// Sum a full-resolution CWT into the bins the way the thesis describes (independently of

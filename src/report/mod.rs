@@ -452,9 +452,10 @@ fn som_section(h: &mut String, s: &RunSummary) {
     if let Some(m) = &s.som {
         let _ = write!(
             h,
-            "<h2>Self-organising map (ch. 5)</h2><p>Trained on {} ({} training rows).</p>",
+            "<h2>Self-organising map (ch. 5)</h2><p>Trained on {} ({} training rows). {}.</p>",
             esc(&m.trained_on),
-            m.training_rows
+            m.training_rows,
+            esc(&m.confusion.reading.describe())
         );
         if let Some(p) = &m.u_matrix {
             h.push_str(&img(p, "U-matrix", Some(450)));

@@ -550,6 +550,19 @@ impl Som {
         (best.0, best.1.sqrt())
     }
 
+    /// The nearest node among those `keep` accepts, and its distance; `None` when it accepts
+    /// none. With every node kept this is [`Som::bmu`].
+    pub fn bmu_among(&self, x: &[f64], keep: impl Fn(usize) -> bool) -> Option<(usize, f64)> {
+        let mut best = None;
+        for j in (0..self.nodes()).filter(|&j| keep(j)) {
+            let d = sq_dist(x, self.node(j));
+            if best.is_none_or(|(_, b)| d < b) {
+                best = Some((j, d));
+            }
+        }
+        best.map(|(j, d)| (j, d.sqrt()))
+    }
+
     /// Mean distance of each input to its BMU (Eq. 5.4.1).
     pub fn quantisation_error(&self, data: ArrayView2<f64>) -> f64 {
         let data = data.as_standard_layout();
@@ -978,6 +991,14 @@ mod tests {
         assert_eq!(som.classify(&[5.0]).2, Some("e"));
         // No calibration row reaches 10: the training label stands.
         assert_eq!(som.classify(&[10.0]).2, Some("b"));
+        // The nearest node among the kept ones: leaving "e" out, 5.0 goes to a neighbour.
+        let (j, _) = som.bmu_among(&[5.0], |j| som.labels[j] != "e").unwrap();
+        assert_ne!(som.labels[j], "e");
+        assert_eq!(
+            som.bmu_among(&[5.0], |_| true).map(|b| b.0),
+            Some(som.bmu(&[5.0]).0)
+        );
+        assert_eq!(som.bmu_among(&[5.0], |_| false), None);
     }
 
     #[test]

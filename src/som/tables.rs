@@ -3,6 +3,7 @@
 
 use super::layout::{ClassifyDir, ModelDir};
 use super::{Init, Som, SomError, SomParams};
+use crate::config::ReadErroneous;
 use crate::model::Mechanism;
 use crate::store::{ColType, ColumnSpec, HitKey, SourceRows, Table, TableScan, TableWriter, Value};
 use ndarray::{Array2, ArrayView2, Axis};
@@ -17,8 +18,20 @@ pub struct SomInput {
     /// One row per kept hit.
     pub data: Array2<f64>,
     pub labels: Vec<Option<String>>,
+    /// Each row's time-domain quality (`features.parquet`'s `quality_fault`).
+    pub quality: Vec<Quality>,
     /// Rows left out because a feature was null or not finite (flat or empty records).
     pub skipped: usize,
+}
+
+/// A row's time-domain quality check, as its feature table states it.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum Quality {
+    /// The table has no `quality_fault` column (written by another tool or an older aepipe).
+    Unknown,
+    Sound,
+    /// The fault's kind (`clipped`, `two_bursts`, …).
+    Fault(String),
 }
 
 impl SomInput {
@@ -51,6 +64,9 @@ fn werr(p: &Path, m: impl std::fmt::Display) -> SomError {
 
 /// The name the label column is read under (a name no table of aepipe's uses).
 const LABEL_ALIAS: &str = "__aepipe_label";
+/// `features.parquet`'s time-domain quality column, and its alias when read.
+const QUALITY: &str = "quality_fault";
+const QUALITY_ALIAS: &str = "__aepipe_quality";
 
 /// Read `columns` (a fixed-size list such as `tf_bins` expands to its elements; numeric
 /// scalars give one dimension each) and the optional label column, through the store's
@@ -62,6 +78,7 @@ pub fn read_inputs(
     sources: SourceRows,
 ) -> Result<SomInput, SomError> {
     let (mut keys, mut labels, mut blocks, mut skipped) = (Vec::new(), Vec::new(), Vec::new(), 0);
+    let mut quality = Vec::new();
     for p in paths {
         let t = TableScan::open(p).map_err(serr)?.sources(sources);
         let mut need = vec!["experiment", "channel", "hit"];
@@ -71,11 +88,24 @@ pub fn read_inputs(
         // read under its own alias, as text, so it never clashes with the key columns.
         let mut sel = vec![col("experiment"), col("channel"), col("hit")];
         sel.extend(label.map(|l| col(l).cast(DataType::String).alias(LABEL_ALIAS)));
+        let has_quality = t.dtype(QUALITY).is_some();
+        if has_quality {
+            sel.push(col(QUALITY).cast(DataType::String).alias(QUALITY_ALIAS));
+        }
         let df = t.select(sel).map_err(serr)?;
         let k = t.hit_keys(&df).map_err(serr)?;
         let l = match label {
             Some(_) => t.strings(&df, LABEL_ALIAS).map_err(serr)?,
             None => vec![None; k.len()],
+        };
+        let q: Vec<Quality> = if has_quality {
+            t.strings(&df, QUALITY_ALIAS)
+                .map_err(serr)?
+                .into_iter()
+                .map(|f| f.map_or(Quality::Sound, Quality::Fault))
+                .collect()
+        } else {
+            vec![Quality::Unknown; k.len()]
         };
         let (m, keep) = t.matrix(columns).map_err(serr)?;
         if let Some(first) = blocks.first().map(|b: &Array2<f64>| b.ncols()) {
@@ -86,10 +116,11 @@ pub fn read_inputs(
                 ));
             }
         }
-        for ((key, lab), kept) in k.into_iter().zip(l).zip(&keep) {
+        for (((key, lab), q), kept) in k.into_iter().zip(l).zip(q).zip(&keep) {
             if *kept {
                 keys.push(key);
                 labels.push(lab);
+                quality.push(q);
             } else {
                 skipped += 1;
             }
@@ -111,6 +142,7 @@ pub fn read_inputs(
         keys,
         data,
         labels,
+        quality,
         skipped,
     })
 }
@@ -436,6 +468,10 @@ pub struct Classified {
     pub bmu_col: usize,
     pub bmu_distance: f64,
     pub som_label: String,
+    /// The BMU's own label (what the map alone says).
+    pub node_label: String,
+    /// The features' quality finding (`None`: sound, or not stated).
+    pub quality_fault: Option<String>,
     pub reference_label: Option<String>,
 }
 
@@ -448,7 +484,9 @@ pub fn classification_table() -> Table<Classified> {
         .col(ColumnSpec::new("bmu_row", ColType::Int32, "", "row of the best-matching unit on the map"), |c| Value::I32(Some(c.bmu_row as i32)))
         .col(ColumnSpec::new("bmu_col", ColType::Int32, "", "column of the best-matching unit"), |c| Value::I32(Some(c.bmu_col as i32)))
         .col(ColumnSpec::new("bmu_distance", ColType::Float64, "1", "Euclidean distance of the hit's vector to its BMU (in the model's, possibly standardised, units)"), |c| Value::F64(Some(c.bmu_distance)))
-        .col(ColumnSpec::new("som_label", ColType::Utf8, "", "label of the BMU node: the class the SOM assigns"), |c| Value::Str(Some(c.som_label.clone())))
+        .col(ColumnSpec::new("som_label", ColType::Utf8, "", "the class the SOM stage assigns: with som.read_erroneous = quality-check (default) on a map with an erroneous area, erroneous when quality_fault is set, else the label of the nearest node not labelled erroneous; otherwise (read_erroneous = map, or no quality_fault column in the features) node_label"), |c| Value::Str(Some(c.som_label.clone())))
+        .col(ColumnSpec::new("node_label", ColType::Utf8, "", "label of the BMU node: the map's own reading (ch. 5.4)"), |c| Value::Str(Some(c.node_label.clone())))
+        .col(ColumnSpec::new("quality_fault", ColType::Utf8, "", "the features' time-domain quality finding (features.quality_fault); null when sound or when the features do not state it").nullable(), |c| Value::Str(c.quality_fault.clone()))
         .col(ColumnSpec::new("reference_label", ColType::Utf8, "", "the hit's label in the reference column (e.g. criteria_label or label); null if none").nullable(), |c| Value::Str(c.reference_label.clone()))
 }
 
@@ -461,6 +499,43 @@ pub struct Confusion {
     pub total: usize,
     /// Reference group → hits per map node (for the hit maps).
     pub hits: BTreeMap<String, Vec<f64>>,
+    /// How the erroneous area was read, and what that changed.
+    pub reading: Reading,
+}
+
+/// What reading the map's erroneous area by the quality check did in one classification.
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct Reading {
+    /// The reading in force: `quality-check` or `map` (the configured one, or `map` when the
+    /// map has no erroneous area).
+    pub rule: String,
+    /// Hits the quality check called erroneous.
+    pub faults: usize,
+    /// Hits the map alone called erroneous and the quality check found sound (read as
+    /// their nearest other class).
+    pub reread: usize,
+    /// Hits whose features did not state their quality (read by the map alone).
+    pub unknown: usize,
+}
+
+impl Reading {
+    /// One sentence for the terminal and the report.
+    pub fn describe(&self) -> String {
+        if self.rule != ReadErroneous::QualityCheck.as_str() {
+            return "erroneous read by the map alone (the BMU's label, as the thesis)".into();
+        }
+        let mut s = format!(
+            "erroneous read by the time-domain quality check: {} hits with a quality_fault; {} sound hits on erroneous nodes read as their nearest other node's class",
+            self.faults, self.reread
+        );
+        if self.unknown > 0 {
+            s += &format!(
+                "; {} hits without quality_fault read by the map alone",
+                self.unknown
+            );
+        }
+        s
+    }
 }
 
 impl Confusion {
@@ -534,6 +609,7 @@ pub fn classify_tables(
     reference: Option<&str>,
     out: &Path,
     sources: SourceRows,
+    read: ReadErroneous,
 ) -> Result<Confusion, SomError> {
     let inp = read_inputs(paths, &model.columns, reference, sources)?;
     if inp.dim() != model.som.dim {
@@ -548,15 +624,54 @@ pub fn classify_tables(
     let table = classification_table();
     let mut w =
         TableWriter::create(&path, table.schema(), &[], 4096).map_err(|e| werr(&path, e))?;
-    let mut conf = Confusion::default();
+    let erroneous = Mechanism::Erroneous.as_str();
+    let labels = &model.som.labels;
+    // The quality check reads the map's erroneous area only where the map has one (a map
+    // labelled by experiment or channel is read as it is).
+    let gate = read == ReadErroneous::QualityCheck && labels.iter().any(|l| l == erroneous);
+    let other = |j: usize| {
+        labels
+            .get(j)
+            .is_some_and(|l| !l.is_empty() && l != erroneous)
+    };
+    let mut conf = Confusion {
+        reading: Reading {
+            rule: if gate { read } else { ReadErroneous::Map }.as_str().into(),
+            ..Default::default()
+        },
+        ..Default::default()
+    };
     let mut x = vec![0.0; inp.dim()];
     for (i, key) in inp.keys.iter().enumerate() {
         x.iter_mut().zip(inp.data.row(i)).for_each(|(a, b)| *a = *b);
         if let Some(s) = &model.scaling {
             s.apply(&mut x);
         }
-        let (b, d, l) = model.som.classify(&x);
-        let l = l.unwrap_or("").to_string();
+        let (b, d, node) = model.som.classify(&x);
+        let node = node.unwrap_or("").to_string();
+        let quality_fault = match &inp.quality[i] {
+            Quality::Fault(f) => Some(f.clone()),
+            _ => None,
+        };
+        let l = match (&inp.quality[i], gate) {
+            (_, false) => node.clone(),
+            (Quality::Unknown, true) => {
+                conf.reading.unknown += 1;
+                node.clone()
+            }
+            (Quality::Fault(_), true) => {
+                conf.reading.faults += 1;
+                erroneous.to_string()
+            }
+            (Quality::Sound, true) if node == erroneous => {
+                conf.reading.reread += 1;
+                match model.som.bmu_among(&x, other) {
+                    Some((j, _)) => labels[j].clone(),
+                    None => node.clone(),
+                }
+            }
+            (Quality::Sound, true) => node.clone(),
+        };
         if let Some(r) = &inp.labels[i] {
             conf.hits
                 .entry(r.clone())
@@ -573,6 +688,8 @@ pub fn classify_tables(
             bmu_col: b % model.som.cols,
             bmu_distance: d,
             som_label: l,
+            node_label: node,
+            quality_fault,
             reference_label: inp.labels[i].clone(),
         }))
         .map_err(|e| werr(&path, e))?;

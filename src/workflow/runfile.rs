@@ -78,6 +78,7 @@ pub fn rebuild_report(dir: &Path) -> Result<PathBuf, WorkflowError> {
             Some(&config.som.label),
             sdir.path(),
             crate::store::SourceRows::of(&config),
+            config.som.read_erroneous,
         )?;
         let existing = |p: PathBuf| p.is_file().then_some(p);
         let trained = Trained {

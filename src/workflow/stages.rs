@@ -119,6 +119,7 @@ pub(super) fn som_stage(
         Some(&cfg.som.label),
         som_dir.path(),
         crate::store::SourceRows::of(cfg),
+        cfg.som.read_erroneous,
     )?;
     let u = som_dir.u_matrix();
     crate::plot::u_matrix_png(&u, &model.som)?;

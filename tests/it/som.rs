@@ -45,6 +45,7 @@ fn som_trained_on_criteria_labels_classifies_the_experiment() {
         Some("criteria_label"),
         &out,
         Default::default(),
+        aepipe::config::ReadErroneous::Map,
     )
     .unwrap();
     let acc = conf.accuracy().unwrap();
@@ -119,6 +120,7 @@ fn som_pak_codebook_classifies_like_the_model_and_carries_its_labels() {
             std::slice::from_ref(&features),
             None,
             &o,
+            Default::default(),
             Default::default(),
         )
         .unwrap();
