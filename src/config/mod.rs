@@ -796,6 +796,12 @@ impl PipelineConfig {
                 "pipeline.row_group_rows must be ≥ 1".into(),
             ));
         }
+        let m = self.criteria.clip_min_steps;
+        if !(m.is_finite() && m >= 0.0) {
+            return Err(ConfigError::Invalid(format!(
+                "criteria.clip_min_steps must be a number ≥ 0, got {m}"
+            )));
+        }
         let d = &self.dsp;
         positive(d.band_hz, "dsp.band_hz")?;
         positive(d.band_max_hz, "dsp.band_max_hz")?;
@@ -940,6 +946,11 @@ mod tests {
         assert!(t.contains("cutoff = \"time:2.5\""), "{t}");
         assert!(t.contains("train_on = \"criteria\""), "{t}");
         assert!(PipelineConfig::from_toml("[som]\ntrain_on = \"maybe\"\n").is_err());
+        assert_eq!(c.som.read_erroneous, ReadErroneous::QualityCheck);
+        let m = PipelineConfig::from_toml("[som]\nread_erroneous = \"map\"\n").unwrap();
+        assert_eq!(m.som.read_erroneous, ReadErroneous::Map);
+        assert!(m.to_toml().contains("read_erroneous = \"map\""));
+        assert!(PipelineConfig::from_toml("[som]\nread_erroneous = \"both\"\n").is_err());
         let e = PipelineConfig::from_toml("[trend]\ncutoff = \"soon\"\n").unwrap_err();
         assert!(e.to_string().contains("cutoff"), "{e}");
     }
@@ -949,6 +960,8 @@ mod tests {
         assert!(PipelineConfig::from_toml("[ingest]\nsample_rate_hz = -1.0\n").is_err());
         assert!(PipelineConfig::from_toml("[ingest.vallen]\nload_param = \"X7\"\n").is_err());
         assert!(PipelineConfig::from_toml("[pipeline]\nbatch_size = 0\n").is_err());
+        assert!(PipelineConfig::from_toml("[criteria]\nclip_min_steps = -1.0\n").is_err());
+        assert!(PipelineConfig::from_toml("[criteria]\nclip_min_steps = nan\n").is_err());
     }
 
     #[test]

@@ -160,39 +160,39 @@ pub fn acquisition_fault(
     // a few ADC steps repeats its top code by nature).
     let extreme = crate::dsp::max_from_zero(raw, f32::abs);
     if extreme > 0.0 {
-        let (mut run, mut count) = (0, 0);
+        let (mut run, mut longest, mut count) = (0, 0, 0);
         for v in raw {
             if v.abs() == extreme {
                 run += 1;
                 count += 1;
-                if c.clip_run > 1 && run >= c.clip_run {
-                    return fault(
-                        FaultKind::Clipped,
-                        format!("clipped: {run}+ consecutive samples at {extreme:.6} V"),
-                    );
-                }
+                longest = longest.max(run);
             } else {
                 run = 0;
             }
         }
-        if c.clip_count > 0 && count >= c.clip_count {
+        let by_run = c.clip_run > 1 && longest >= c.clip_run;
+        let by_count = c.clip_count > 0 && count >= c.clip_count;
+        if by_run || by_count {
+            // Either way the extreme must stand far above the quantisation step.
             let step = quantisation_step(raw);
             let steps = if step > 0.0 {
-                (extreme / step) as f64
+                extreme as f64 / step as f64
             } else {
                 f64::INFINITY
             };
             if steps >= c.clip_min_steps {
+                let steps = if steps.is_finite() {
+                    format!("{steps:.0}")
+                } else {
+                    "∞".into()
+                };
                 return fault(
                     FaultKind::Clipped,
-                    format!(
-                        "clipped: {count} samples at ±{extreme:.6} V ({} quantisation steps)",
-                        if steps.is_finite() {
-                            format!("{steps:.0}")
-                        } else {
-                            "∞".into()
-                        }
-                    ),
+                    if by_run {
+                        format!("clipped: {longest} consecutive samples at {extreme:.6} V ({steps} quantisation steps)")
+                    } else {
+                        format!("clipped: {count} samples at ±{extreme:.6} V ({steps} quantisation steps)")
+                    },
                 );
             }
         }
@@ -260,7 +260,7 @@ pub fn acquisition_fault(
 
 /// The record's quantisation step: the smallest gap between two distinct sample values
 /// (0 for fewer than two distinct values). Sorts a copy: called only for a record that
-/// already repeats its extreme `clip_count` times.
+/// already sits at its extreme `clip_run` times in a row or `clip_count` times in all.
 fn quantisation_step(raw: &[f32]) -> f32 {
     let mut v: Vec<f32> = raw.iter().copied().filter(|x| x.is_finite()).collect();
     v.sort_by(f32::total_cmp);
@@ -400,8 +400,8 @@ mod tests {
         // The bond wave's 750 kHz part: 13.3 samples a period.
         let w = burst(750e3, 50e-6, 0.01, 1e-6);
         assert_eq!(fault_of(&w, &c), None);
-        // The ADC's rail at 90 % of the peak: 1–2 samples a half-cycle sit on it, so a run of
-        // clip_run = 3 is not reached; the count is.
+        // The ADC's rail at 90 % of the peak: at most 2 samples a half-cycle sit on it in a
+        // row, so a run of clip_run = 3 is not reached; the count is.
         let rail = 0.9 * w.iter().fold(0.0f32, |m, v| m.max(v.abs()));
         let clipped: Vec<f32> = w.iter().map(|v| v.clamp(-rail, rail)).collect();
         let at = clipped.iter().filter(|v| v.abs() == rail).count();
@@ -412,20 +412,16 @@ mod tests {
             ..c.clone()
         };
         assert_eq!(fault_of(&clipped, &runs_only), None, "runs of 2–3 only");
-        // A weak record spanning 7 ADC steps repeats its top code without being clipped: the
-        // count rule (the run rule off here) holds back below clip_min_steps.
+        // A weak record spanning 7 ADC steps repeats its top code, in runs too, without being
+        // clipped: both rules hold back below clip_min_steps (default configuration).
         let coarse = burst(250e3, 300e-6, 2e-4, 2e-4 / 7.0);
         let top = coarse.iter().fold(0.0f32, |m, v| m.max(v.abs()));
         let repeats = coarse.iter().filter(|v| v.abs() == top).count();
         assert!(repeats >= c.clip_count, "{repeats}");
-        let count_only = CriteriaConfig {
-            clip_run: 0,
-            ..c.clone()
-        };
-        assert_eq!(fault_of(&coarse, &count_only), None);
+        assert_eq!(fault_of(&coarse, &c), None);
         let no_guard = CriteriaConfig {
             clip_min_steps: 0.0,
-            ..count_only
+            ..c.clone()
         };
         assert_eq!(fault_of(&coarse, &no_guard), Some(FaultKind::Clipped));
         assert!((quantisation_step(&coarse) - 2e-4 / 7.0).abs() < 1e-9);

@@ -191,7 +191,7 @@ pub fn features_table(cfg: &PipelineConfig) -> Table<FeatureRow> {
     )
     .col(ColumnSpec::new("criteria_label", ColType::Utf8, "", &format!("ch. 4.7 label: {}", mechanism_list())), |r| s(r.an.label.as_str()))
     .col(ColumnSpec::new("criteria_reason", ColType::Utf8, "", "the numbers behind the label, in words"), |r| s(&r.an.reason))
-    .col(ColumnSpec::new("quality_fault", ColType::Utf8, "", &format!("the time-domain quality check's finding (ch. 5.4's erroneous data, kept out of the bins): {}; null when the record looks sound. The SOM stage reads the map's erroneous area by it (som.read_erroneous)", fault_list())).nullable(), |r| Value::Str(r.an.fault.map(|f| f.as_str().to_string())))
+    .col(ColumnSpec::new("quality_fault", ColType::Utf8, "", &format!("the time-domain quality check's finding (ch. 5.4's erroneous data; a column beside the 200 bins, which do not carry it): {}; null when the record looks sound. The SOM stage reads the map's erroneous area by it (som.read_erroneous)", fault_list())).nullable(), |r| Value::Str(r.an.fault.map(|f| f.as_str().to_string())))
     .col(f64c("dominant_freq_hz", "Hz", "CWT frequency with the largest |W|² in the bins' window; null when the window holds no power").nullable(), move |r| opt(r.an.components.dominant, |d| d.freq_hz))
     .col(f64c("dominant_duration_s", "s", "time around its peak that the dominant component stays ≥ half its peak power").nullable(), move |r| opt(r.an.components.dominant, |d| d.duration_s))
     .col(f64c("dominant_arrival_s", "s", "first time the dominant component reaches half its peak power, from the trigger").nullable(), move |r| opt(r.an.components.dominant, |d| d.arrival_s))

@@ -102,7 +102,10 @@ pub fn read_inputs(
             t.strings(&df, QUALITY_ALIAS)
                 .map_err(serr)?
                 .into_iter()
-                .map(|f| f.map_or(Quality::Sound, Quality::Fault))
+                .map(|f| match f {
+                    Some(f) if !f.is_empty() => Quality::Fault(f),
+                    _ => Quality::Sound,
+                })
                 .collect()
         } else {
             vec![Quality::Unknown; k.len()]
@@ -663,13 +666,13 @@ pub fn classify_tables(
                 conf.reading.faults += 1;
                 erroneous.to_string()
             }
-            (Quality::Sound, true) if node == erroneous => {
-                conf.reading.reread += 1;
-                match model.som.bmu_among(&x, other) {
-                    Some((j, _)) => labels[j].clone(),
-                    None => node.clone(),
+            (Quality::Sound, true) if node == erroneous => match model.som.bmu_among(&x, other) {
+                Some((j, _)) => {
+                    conf.reading.reread += 1;
+                    labels[j].clone()
                 }
-            }
+                None => node.clone(),
+            },
             (Quality::Sound, true) => node.clone(),
         };
         if let Some(r) = &inp.labels[i] {

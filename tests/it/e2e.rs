@@ -369,10 +369,10 @@ fn the_readme_states_the_numbers_the_demo_prints() {
         k.trim().parse::<f64>().unwrap() / n.trim().parse::<f64>().unwrap()
     };
     assert!(ratio(&acc) >= 0.95, "bond vs fibre {acc}");
-    // Issue 14 asked 80 % at the demo's seed; since the demo's test is recorded by two
-    // sensors and classified by its gauge-section events (issue 23) it is 16/21 = 76 % there,
-    // inside the 70–94 % per-seed spread the README states; issue 24 owns the recall.
-    assert!(ratio(&recall) >= 0.70, "erroneous recall {recall}");
+    // Issue 14 asked 80 % at the demo's seed; with the erroneous area read by the quality
+    // check (issue 24) it is 20/21 there (the map alone 16/21); the held-out seeds are
+    // erroneous_records_are_recognised_on_held_out_seeds's.
+    assert!(ratio(&recall) >= 0.85, "erroneous recall {recall}");
     // Issue 23's targets, against the truth of where each source was:
     // "events: 649 built for 651 sources (544 specimen, 107 grip); …"
     // "location: 543 specimen events, error median 0.16 mm, 90 % within 1.20 mm"
