@@ -168,6 +168,7 @@ pub fn stream_point(
             progress: false,
             resume: false,
             shard: None,
+            control: None,
         },
     )?;
     Ok(StreamPoint {

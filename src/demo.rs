@@ -54,6 +54,7 @@ pub fn run_demo(
         progress: true,
         resume: false,
         shard: None,
+        control: None,
     })?;
     Ok(DemoResult {
         data_dir,

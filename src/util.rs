@@ -70,6 +70,39 @@ pub fn num_cpus() -> usize {
         .unwrap_or(1)
 }
 
+/// What a front door other than the terminal (the Python package, a watcher) shares with a
+/// long job while it runs: a stop request the job honours at its next record or stage, and
+/// the number of records done so far, which the caller can show as progress. The job only
+/// reads the flag and adds to the count; the caller owns both.
+#[derive(Debug, Default)]
+pub struct JobControl {
+    cancelled: std::sync::atomic::AtomicBool,
+    done: std::sync::atomic::AtomicU64,
+}
+
+impl JobControl {
+    /// Ask the job to stop; it returns a `Cancelled` error at its next check.
+    pub fn cancel(&self) {
+        self.cancelled
+            .store(true, std::sync::atomic::Ordering::Relaxed)
+    }
+    pub fn is_cancelled(&self) -> bool {
+        self.cancelled.load(std::sync::atomic::Ordering::Relaxed)
+    }
+    /// Count `n` more records done.
+    pub fn add(&self, n: u64) {
+        self.done.fetch_add(n, std::sync::atomic::Ordering::Relaxed);
+    }
+    pub fn done(&self) -> u64 {
+        self.done.load(std::sync::atomic::Ordering::Relaxed)
+    }
+}
+
+/// Whether an optional control asks to stop.
+pub fn cancelled(c: &Option<std::sync::Arc<JobControl>>) -> bool {
+    c.as_ref().is_some_and(|c| c.is_cancelled())
+}
+
 /// Run `f` on a rayon pool of `threads` workers (0 = all cores); on the global pool if a
 /// pool cannot be made.
 pub fn with_threads<R: Send>(threads: usize, f: impl FnOnce() -> R + Send) -> R {

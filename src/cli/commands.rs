@@ -242,6 +242,7 @@ fn run(
         progress: true,
         resume,
         shard,
+        control: None,
     })?;
     match outcome {
         crate::workflow::RunOutcome::Whole(s) => {
@@ -331,6 +332,7 @@ fn stream_job(job: StreamJob, a: RunArgs) -> Result<Outcome> {
         progress: !a.quiet,
         resume: a.resume,
         shard: a.shard,
+        control: None,
     };
     let report = crate::pipeline::run(job, &a.inputs, &a.out, &cfg, &opts)?;
     print::stream_run(&report, job.table_file());

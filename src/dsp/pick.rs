@@ -415,6 +415,64 @@ fn ratios_loaded(
     )
 }
 
+/// The detection functions themselves, each as vallenae returns it beside its pick (the
+/// first element of its tuple), for callers who plot or post-process them (the Python
+/// package's `aepipe.pickers`). The pick is the matching picker's, so it is the index
+/// vallenae gives; these only add the values, which the feature path never needs.
+pub mod function {
+    use super::*;
+
+    /// Hinkley's S[i] (float64 in vallenae). Empty for an empty record.
+    pub fn hinkley(x: &[f32], alpha: f64, s: &mut PickScratch, out: &mut Vec<f64>) {
+        s.load_squares(x);
+        out.clear();
+        let n = x.len();
+        if n == 0 {
+            return;
+        }
+        let trend = s.sq[n - 1] / (alpha * n as f64);
+        out.extend(
+            s.sq.iter()
+                .enumerate()
+                .map(|(i, &e)| e - (i as f32) as f64 * trend),
+        );
+    }
+
+    /// AIC[i] (float64 in vallenae); the last element is NaN.
+    pub fn aic(x: &[f32], s: &mut PickScratch, out: &mut Vec<f64>) {
+        s.load_both(x);
+        out.clear();
+        let n = x.len();
+        out.extend((0..n).map(|i| aic_value(i, n, &s.sum, &s.sq, f64::log10)));
+    }
+
+    /// ER[i] and MER[i] (float32 in vallenae), 0 outside win..n−win.
+    pub fn ratios(
+        x: &[f32],
+        win: usize,
+        s: &mut PickScratch,
+        er: &mut Vec<f32>,
+        mer: &mut Vec<f32>,
+    ) {
+        let n = x.len();
+        er.clear();
+        mer.clear();
+        er.resize(n, 0.0);
+        mer.resize(n, 0.0);
+        if win == 0 || n <= 2 * win {
+            return;
+        }
+        s.load_squares(x);
+        s.ratios.clear();
+        s.ratios.resize(n - 2 * win, [0.0; 2]);
+        ratios_generic(x, win, &s.sq, &mut s.ratios);
+        for (k, [v, m]) in s.ratios.iter().enumerate() {
+            er[k + win] = *v;
+            mer[k + win] = *m;
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -612,5 +670,45 @@ mod tests {
         assert_eq!(energy_ratio(&x, 100, &mut s), Some(100));
         // MER: inf·|0| is NaN too, so it also picks the first NaN.
         assert_eq!(modified_energy_ratio(&x, 100, &mut s), Some(100));
+    }
+
+    #[test]
+    fn the_detection_functions_hold_the_picks() {
+        // numpy's argmin/argmax over each function is the picker's index (the Python
+        // package returns both; vallenae's pairs agree the same way).
+        let mut s = PickScratch::default();
+        let (mut h, mut a, mut er, mut mer) = (vec![], vec![], vec![], vec![]);
+        let first_min = |v: &[f64]| {
+            let m = v
+                .iter()
+                .copied()
+                .filter(|x| !x.is_nan())
+                .fold(f64::INFINITY, f64::min);
+            v.iter().position(|&x| x == m)
+        };
+        let first_max = |v: &[f32]| {
+            let m = v.iter().copied().fold(f32::NEG_INFINITY, f32::max);
+            v.iter().position(|&x| x == m)
+        };
+        for seed in 0..12 {
+            let x = burst(900 + 173 * seed as usize, 300 + 40 * seed as usize, seed);
+            function::hinkley(&x, 5.0, &mut s, &mut h);
+            assert_eq!(first_min(&h), hinkley(&x, 5.0, &mut s));
+            function::aic(&x, &mut s, &mut a);
+            assert!(a[x.len() - 1].is_nan());
+            assert_eq!(first_min(&a), aic(&x, &mut s));
+            function::ratios(&x, 100, &mut s, &mut er, &mut mer);
+            assert_eq!((er.len(), mer.len()), (x.len(), x.len()));
+            assert!(er[..100]
+                .iter()
+                .chain(&er[x.len() - 100..])
+                .all(|&v| v == 0.0));
+            assert_eq!(first_max(&er), energy_ratio(&x, 100, &mut s));
+            assert_eq!(first_max(&mer), modified_energy_ratio(&x, 100, &mut s));
+        }
+        function::hinkley(&[], 5.0, &mut s, &mut h);
+        assert!(h.is_empty());
+        function::ratios(&[1.0; 150], 100, &mut s, &mut er, &mut mer);
+        assert!(er.iter().chain(&mer).all(|&v| v == 0.0));
     }
 }

@@ -30,6 +30,9 @@ pub enum PipelineError {
     NoInput,
     #[error(transparent)]
     Events(#[from] crate::events::EventsError),
+    /// The caller asked the job to stop ([`StreamOptions::control`]); nothing was published.
+    #[error("interrupted")]
+    Cancelled,
 }
 
 impl crate::util::HasKind for PipelineError {
@@ -37,7 +40,9 @@ impl crate::util::HasKind for PipelineError {
         use crate::util::ErrorKind;
         match self {
             PipelineError::Store(s) => s.kind(),
-            PipelineError::Io(_) | PipelineError::Pool(_) => ErrorKind::Failed,
+            PipelineError::Io(_) | PipelineError::Pool(_) | PipelineError::Cancelled => {
+                ErrorKind::Failed
+            }
             PipelineError::NoInput => ErrorKind::Usage,
             PipelineError::Events(e) => e.kind(),
         }
@@ -78,6 +83,9 @@ pub struct StreamOptions {
     pub resume: bool,
     /// [`run`]: only this shard's experiments, published as a Hive-partitioned dataset.
     pub shard: Option<crate::util::Shard>,
+    /// A caller's stop request and progress count (the Python package's Ctrl-C and
+    /// progress bar); checked once per record read.
+    pub control: Option<std::sync::Arc<crate::util::JobControl>>,
 }
 
 impl Default for StreamOptions {
@@ -87,6 +95,7 @@ impl Default for StreamOptions {
             progress: true,
             resume: false,
             shard: None,
+            control: None,
         }
     }
 }

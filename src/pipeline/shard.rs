@@ -257,6 +257,7 @@ pub fn merge(
         progress: false,
         resume: false,
         shard: None,
+        control: None,
     };
     let r = assemble(
         job,

@@ -285,11 +285,16 @@ where
     let pb = progress_bar(opts.progress);
     let read_count = std::sync::atomic::AtomicU64::new(0);
 
+    let control = opts.control.clone();
     let result: Result<StreamStats, PipelineError> = std::thread::scope(|s| {
         let read_count = &read_count;
+        let reader_control = control.clone();
         s.spawn(move || {
             let mut batch = Vec::with_capacity(bs);
             for it in items {
+                if crate::util::cancelled(&reader_control) {
+                    return; // the caller stopped the job: the sink sees a short stream
+                }
                 if matches!(it, Item::Record(_)) {
                     read_count.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
                 }
@@ -307,6 +312,7 @@ where
             }
         });
         let pb2 = pb.clone();
+        let sink_control = control.clone();
         let sink = s.spawn(move || -> Result<StreamStats, PipelineError> {
             let mut st = StreamStats::default();
             for outs in rx_out {
@@ -316,15 +322,26 @@ where
                             writers.table.push(row)?;
                             st.add_row(&exp);
                             pb2.inc(1);
+                            if let Some(c) = &sink_control {
+                                c.add(1);
+                            }
                         }
                         Out::Item(it) => {
                             if matches!(it, Item::Hit(_) | Item::Reject(_)) {
                                 pb2.inc(1);
                             }
+                            // The control counts records done: rows and rejects.
+                            if let (Some(c), Item::Reject(_)) = (&sink_control, &it) {
+                                c.add(1);
+                            }
                             sink_item(&mut writers, &mut st, it)?;
                         }
                     }
                 }
+            }
+            if crate::util::cancelled(&sink_control) {
+                // A stopped job's tables are incomplete: never finished under their names.
+                return Err(PipelineError::Cancelled);
             }
             writers.finish()?;
             Ok(st)

@@ -37,6 +37,9 @@ pub enum SimError {
     /// The shards of a library do not make one (missing, disagreeing, changed files).
     #[error(transparent)]
     Shards(#[from] crate::store::shard::ShardSetError),
+    /// The caller asked the job to stop ([`crate::util::JobControl`]).
+    #[error("interrupted")]
+    Cancelled,
 }
 
 impl crate::util::HasKind for SimError {
@@ -45,7 +48,9 @@ impl crate::util::HasKind for SimError {
             SimError::Model(_) | SimError::Parse { .. } | SimError::Read(_) => {
                 crate::util::ErrorKind::Usage
             }
-            SimError::Solver(_) | SimError::Io(_) => crate::util::ErrorKind::Failed,
+            SimError::Solver(_) | SimError::Io(_) | SimError::Cancelled => {
+                crate::util::ErrorKind::Failed
+            }
             SimError::Shards(e) => e.kind(),
         }
     }

@@ -234,6 +234,18 @@ pub fn build_library_part(
     shard: Option<crate::util::Shard>,
     progress: bool,
 ) -> Result<(usize, u64, f64), SimError> {
+    build_library_controlled(cfg, out, shard, progress, None)
+}
+
+/// [`build_library_part`] with a caller's stop request and progress count (one per
+/// simulation run): a stopped build returns [`SimError::Cancelled`] and writes nothing.
+pub fn build_library_controlled(
+    cfg: &ReferenceConfig,
+    out: &Path,
+    shard: Option<crate::util::Shard>,
+    progress: bool,
+    control: Option<&crate::util::JobControl>,
+) -> Result<(usize, u64, f64), SimError> {
     let t0 = std::time::Instant::now();
     std::fs::create_dir_all(out).map_err(|e| SimError::Io(format!("{}: {e}", out.display())))?;
     let all = expand(cfg);
@@ -257,6 +269,9 @@ pub fn build_library_part(
     let results: Vec<_> = runs
         .par_iter()
         .map(|(_, (name, p, _))| {
+            if control.is_some_and(|c| c.is_cancelled()) {
+                return Err(SimError::Cancelled);
+            }
             let mut m = scenario::build(name, p)?;
             if !cfg.sensors.is_empty() && m.grid.is_some() {
                 m.sensors = cfg
@@ -269,6 +284,9 @@ pub fn build_library_part(
             m.name = LIBRARY_EXPERIMENT.into();
             let o = simulate(&m, &SimOptions::default())?;
             pb.inc(1);
+            if let Some(c) = control {
+                c.add(1);
+            }
             Ok((m, o, format!("scenario:{name}"), p.to_json()))
         })
         .collect::<Result<Vec<_>, SimError>>()?;

@@ -339,7 +339,6 @@ impl Default for TrainOptions {
 pub fn train(paths: &[PathBuf], out: &Path, o: &TrainOptions) -> Result<Model, SomError> {
     let inp = read_inputs(paths, &o.columns, Some(&o.label), o.sources)?;
     let (rows, comp) = draw_training(&inp, &o.training)?;
-    let dim = inp.dim();
     let mut data = inp.data.select(Axis(0), &rows);
     let labels: Vec<String> = rows
         .iter()
@@ -398,27 +397,42 @@ pub fn train(paths: &[PathBuf], out: &Path, o: &TrainOptions) -> Result<Model, S
         calibration,
         tool_version: env!("CARGO_PKG_VERSION").into(),
     };
+    save_model(&model, out, Some((data.view(), &labels)))?;
+    Ok(model)
+}
+
+/// Write a model folder: `model.json` (everything `load_model` reads), `model.cod` (the
+/// SOM_PAK codebook) and, when the training rows are given, `train.dat` (SOM_PAK's input
+/// format, scaled as the map saw them, with their labels). The one writer of a model folder
+/// (`aepipe som train`, `aepipe run`, the Python package's `Som.save`).
+pub fn save_model(
+    model: &Model,
+    out: &Path,
+    training: Option<(ArrayView2<f64>, &[String])>,
+) -> Result<(), SomError> {
     std::fs::create_dir_all(out).map_err(|e| werr(out, e))?;
     let dir = ModelDir::new(out);
     let w = |p: PathBuf, text: String| {
         crate::util::write_atomic(&p, text.as_bytes()).map_err(|e| werr(&p, e))
     };
-    w(dir.json(), serde_json::to_string(&model).expect("json"))?;
+    w(dir.json(), serde_json::to_string(model).expect("json"))?;
     w(dir.cod(), model.som.to_cod())?;
-    let mut dat = format!("{dim}\n");
-    for (x, l) in data.rows().into_iter().zip(&labels) {
-        dat.push_str(
-            &x.iter()
-                .map(|v| format!("{v:e}"))
-                .collect::<Vec<_>>()
-                .join(" "),
-        );
-        dat.push(' ');
-        dat.push_str(l);
-        dat.push('\n');
+    if let Some((data, labels)) = training {
+        let mut dat = format!("{}\n", data.ncols());
+        for (x, l) in data.rows().into_iter().zip(labels) {
+            dat.push_str(
+                &x.iter()
+                    .map(|v| format!("{v:e}"))
+                    .collect::<Vec<_>>()
+                    .join(" "),
+            );
+            dat.push(' ');
+            dat.push_str(l);
+            dat.push('\n');
+        }
+        w(dir.train_dat(), dat)?;
     }
-    w(dir.train_dat(), dat)?;
-    Ok(model)
+    Ok(())
 }
 
 /// Load a model: a model folder, its `model.json`, or a SOM_PAK codebook (`.cod`) beside a

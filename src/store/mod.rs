@@ -328,7 +328,7 @@ fn build_column(spec: &ColumnSpec, col: usize, rows: &[Row]) -> Result<ArrayRef,
 #[error("{0}")]
 pub struct RowError(pub String);
 
-pub(crate) fn rows_to_batch(table: &TableSchema, rows: &[Row]) -> Result<RecordBatch, RowError> {
+pub fn rows_to_batch(table: &TableSchema, rows: &[Row]) -> Result<RecordBatch, RowError> {
     for (i, r) in rows.iter().enumerate() {
         if r.len() != table.columns.len() {
             return Err(RowError(format!(

@@ -1,4 +1,4 @@
-//! What a run prints on the terminal.
+//! What a run tells its caller: the terminal's headline lines and the JSON summary.
 
 use super::*;
 
@@ -82,4 +82,90 @@ pub fn headline(s: &RunSummary) -> Vec<String> {
             .join(", ")
     ));
     l
+}
+
+/// The run's summary as JSON, for callers that are not a terminal (the Python package's
+/// `aepipe.run` returns it as a dict): where every output is, the counts, the significant
+/// trends, the SOM's classes and the scores against a truth, the timings and the headline.
+pub fn summary_json(s: &RunSummary) -> serde_json::Value {
+    use serde_json::json;
+    let dir = RunDir::new(&s.out);
+    let path = |p: &Path| p.display().to_string();
+    let existing = |p: PathBuf| p.is_file().then(|| path(&p));
+    let st = &s.features.stats;
+    let mut tables = serde_json::Map::new();
+    let f = &s.features;
+    for (name, p) in [
+        ("features", &f.table_path),
+        ("hits", &f.hits_path),
+        ("rejects", &f.rejects_path),
+        ("parametric", &f.parametric_path),
+        ("markers", &f.markers_path),
+        ("events", &f.events_path),
+    ] {
+        if let Some(p) = existing(p.clone()) {
+            tables.insert(name.into(), p.into());
+        }
+    }
+    if let Some(t) = &s.trend {
+        tables.insert("trend".into(), path(&t.table_path).into());
+    }
+    if let Some(m) = &s.som {
+        tables.insert("classification".into(), path(&m.classification).into());
+        tables.insert("damage_profile".into(), path(&m.profile_table).into());
+        if let Some(p) = existing(dir.som().evolution()) {
+            tables.insert("evolution".into(), p.into());
+        }
+    }
+    let trend = s.trend.as_ref().map(|t| {
+        t.rows
+            .iter()
+            .filter(|r| r.significant)
+            .map(|r| {
+                json!({
+                    "experiment": r.experiment, "channel": r.channel, "column": r.column,
+                    "n": r.n, "cutoff": r.cutoff,
+                    "r": r.fit.map(|f| f.r), "p": r.fit.map(|f| f.p),
+                    "slope": r.fit.map(|f| f.slope), "intercept": r.fit.map(|f| f.intercept),
+                })
+            })
+            .collect::<Vec<_>>()
+    });
+    let som = s.som.as_ref().map(|m| {
+        json!({
+            "model": path(&m.model_dir),
+            "trained_on": m.trained_on,
+            "training_rows": m.training_rows,
+            "classes": m.classes,
+            "agreement_with_criteria": {"correct": m.confusion.correct, "total": m.confusion.total},
+            "reading": m.confusion.reading.describe(),
+        })
+    });
+    let truth = s.truth.as_ref().map(|t| {
+        let (ek, en) = t.erroneous_recall();
+        let (ok, all) = t.thesis_overall();
+        json!({
+            "path": path(&t.path),
+            "bond_vs_fibre": {"correct": t.bond_fibre_correct, "total": t.bond_fibre_total},
+            "erroneous_recognised": {"correct": ek, "total": en},
+            "thesis_overall": {"correct": ok, "total": all},
+        })
+    });
+    let report = existing(dir.report_html());
+    json!({
+        "out": path(&s.out),
+        "report": report,
+        "run_json": existing(dir.run_json()),
+        "inputs": s.inputs.iter().map(|p| path(p)).collect::<Vec<_>>(),
+        "tables": tables,
+        "counts": {
+            "records_read": st.records_read, "hits": st.hits, "feature_rows": st.rows,
+            "rejects": st.rejects, "parametric": st.parametric, "markers": st.markers,
+        },
+        "trend_significant": trend,
+        "som": som,
+        "truth": truth,
+        "seconds": s.seconds.iter().map(|(k, v)| (k.clone(), json!(v))).collect::<serde_json::Map<_, _>>(),
+        "headline": headline(s),
+    })
 }

@@ -81,6 +81,9 @@ pub struct RunJob<'a> {
     /// Only this shard's experiments, features only, as a Hive-partitioned dataset in `out`
     /// (`aepipe merge` runs the whole-batch stages).
     pub shard: Option<crate::util::Shard>,
+    /// A caller's stop request and progress count (see [`crate::util::JobControl`]): the
+    /// feature stream checks it per record, the run between its stages.
+    pub control: Option<std::sync::Arc<crate::util::JobControl>>,
 }
 
 impl RunJob<'_> {
@@ -96,6 +99,16 @@ impl RunJob<'_> {
             progress: self.progress,
             resume: self.resume,
             shard: self.shard,
+            control: self.control.clone(),
+        }
+    }
+
+    /// `Err(Cancelled)` once the caller has asked the run to stop.
+    fn go_on(&self) -> Result<(), WorkflowError> {
+        if crate::util::cancelled(&self.control) {
+            Err(WorkflowError::Pipeline(PipelineError::Cancelled))
+        } else {
+            Ok(())
         }
     }
 }
@@ -156,6 +169,7 @@ pub fn merge(
         progress,
         resume: false,
         shard: None,
+        control: None,
     };
     stages(
         &job,
@@ -193,6 +207,7 @@ fn stages(
 
     let (mut trend, mut trend_plots) = (None, Vec::new());
     if cfg.trend.enabled {
+        job.go_on()?;
         let t = std::time::Instant::now();
         let (rep, plots) = trend_stage(cfg, &feats, &dir.trend())?;
         trend = Some(rep);
@@ -202,6 +217,7 @@ fn stages(
 
     let mut som = None;
     if cfg.som.enabled {
+        job.go_on()?;
         let t = std::time::Instant::now();
         som = Some(som_stage(job, &feats, &features.events_path)?);
         seconds.push(("som".to_string(), t.elapsed().as_secs_f64()));
@@ -220,6 +236,7 @@ fn stages(
         seconds,
     };
     if cfg.report.enabled {
+        job.go_on()?;
         let t = std::time::Instant::now();
         let g = gather(&summary)?;
         crate::report::write(&summary, &g, &dir.report_html())?;
@@ -246,7 +263,7 @@ mod schema;
 mod sources;
 mod stages;
 mod truth;
-pub use headline::headline;
+pub use headline::{headline, summary_json};
 pub use layout::RunDir;
 pub use pictures::cwt_of_hit;
 use pictures::gather;

@@ -71,6 +71,7 @@ pub(super) fn som_stage(
                 progress: false,
                 resume: false,
                 shard: None,
+                control: job.control.clone(),
             },
         )?;
         (

@@ -113,6 +113,7 @@ fn each_bad_input_becomes_a_clear_reject_and_good_hits_are_all_written() {
             progress: false,
             resume: false,
             shard: None,
+            control: None,
         },
     )
     .unwrap();
@@ -344,6 +345,7 @@ fn an_experiment_id_never_writes_outside_the_output_folder() {
             progress: false,
             resume: false,
             shard: None,
+            control: None,
         },
     )
     .unwrap();

@@ -691,6 +691,7 @@ fn recordings(batch: &Path) -> Vec<Case> {
                     progress: false,
                     resume: false,
                     shard: None,
+                    control: None,
                 },
             )
             .unwrap();

@@ -114,6 +114,7 @@ fn the_real_dta_gives_the_hits_and_samples_mistrasdta_gives() {
             progress: false,
             resume: false,
             shard: None,
+            control: None,
         },
     )
     .unwrap();
@@ -330,6 +331,7 @@ fn written_dta_files_four_channels_a_chain_and_bad_endings() {
             progress: false,
             resume: false,
             shard: None,
+            control: None,
         },
     )
     .unwrap();

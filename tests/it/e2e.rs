@@ -162,6 +162,7 @@ fn run_classifies_against_truth_finds_the_trend_and_writes_a_report_a_browser_re
         progress: false,
         resume: false,
         shard: None,
+        control: None,
     })
     .unwrap();
     // The designed shift (ch. 4.5.5): 200–300 kHz rising, 700–800 kHz falling, p < 0.01.
@@ -227,6 +228,7 @@ fn run_classifies_against_truth_finds_the_trend_and_writes_a_report_a_browser_re
         progress: false,
         resume: false,
         shard: None,
+        control: None,
     })
     .unwrap();
     let m = c.som.as_ref().unwrap();

@@ -16,6 +16,7 @@ fn opts() -> StreamOptions {
         progress: false,
         resume: false,
         shard: None,
+        control: None,
     }
 }
 

@@ -14,6 +14,7 @@ fn opts() -> StreamOptions {
         progress: false,
         resume: false,
         shard: None,
+        control: None,
     }
 }
 

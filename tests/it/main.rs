@@ -125,6 +125,7 @@ pub fn synthetic_features(
             progress: false,
             resume: false,
             shard: None,
+            control: None,
         },
     )
     .unwrap()

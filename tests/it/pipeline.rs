@@ -14,6 +14,7 @@ fn opts(threads: usize) -> StreamOptions {
         progress: false,
         resume: false,
         shard: None,
+        control: None,
     }
 }
 

@@ -270,6 +270,7 @@ fn hit_features_agree_with_vallenae() {
             progress: false,
             resume: false,
             shard: None,
+            control: None,
         },
     )
     .unwrap();

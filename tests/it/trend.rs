@@ -103,6 +103,7 @@ fn designed_trend_is_found_with_the_right_signs_end_to_end() {
             progress: false,
             resume: false,
             shard: None,
+            control: None,
         },
     )
     .unwrap();

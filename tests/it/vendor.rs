@@ -17,6 +17,7 @@ fn opts() -> StreamOptions {
         progress: false,
         resume: false,
         shard: None,
+        control: None,
     }
 }
 
