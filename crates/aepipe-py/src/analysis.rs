@@ -1,0 +1,274 @@
+//! The whole-batch analysis from Python: the trend statistics of a feature table and the
+//! self-organising map (fit, predict, save and load in `aepipe som train`'s model folder).
+
+use crate::control::TempDir;
+use crate::errors;
+use crate::frames::ArrowStream;
+use aepipe::analysis::trend::{run_trend, TrendOptions};
+use aepipe::config::Cutoff;
+use aepipe::som::tables::{load_model, save_model, Composition, Model, Scaling, TrainingSet};
+use aepipe::som::{Som, SomParams};
+use aepipe::store::SourceRows;
+use numpy::{PyArray1, PyArray2, PyArray3, PyReadonlyArray2};
+use pyo3::exceptions::PyValueError;
+use pyo3::prelude::*;
+use std::path::PathBuf;
+
+/// `trend.parquet`'s rows for feature tables (files written by aepipe, or by the Python
+/// layer from a frame).
+#[pyfunction]
+#[pyo3(signature = (paths, cutoff="peak-load".to_string(), columns=None, alpha=0.01, exclude_outside=false))]
+pub fn trend(
+    py: Python<'_>,
+    paths: Vec<PathBuf>,
+    cutoff: String,
+    columns: Option<Vec<String>>,
+    alpha: f64,
+    exclude_outside: bool,
+) -> PyResult<ArrowStream> {
+    let cutoff: Cutoff = cutoff.parse().map_err(errors::config)?;
+    let opts = TrendOptions {
+        cutoff,
+        alpha,
+        columns: columns.unwrap_or_default(),
+        sources: SourceRows { exclude_outside },
+    };
+    let dir = TempDir::new()?;
+    let out = dir.path().to_path_buf();
+    let table = py.detach(|| -> Result<_, aepipe::analysis::trend::TrendError> {
+        let rep = run_trend(&paths, &out, &opts)?;
+        Ok(aepipe::store::read_parquet(&rep.table_path)?)
+    });
+    let (schema, _, batches) = table.map_err(errors::trend)?;
+    Ok(ArrowStream::new(schema, batches))
+}
+
+/// Best-matching nodes and their distances, one each per row.
+type NodesAndDistances<'py> = (Bound<'py, PyArray1<i64>>, Bound<'py, PyArray1<f64>>);
+
+/// A self-organising map with what is needed to apply it to feature tables: the model of
+/// `MODEL_DIR/model.json`.
+#[pyclass(module = "aepipe._aepipe", name = "SomModel", frozen)]
+pub struct SomModel {
+    model: Model,
+}
+
+/// A finite `n × dim` matrix in the map's scaling.
+fn scaled(model: &Model, x: &PyReadonlyArray2<'_, f64>) -> PyResult<ndarray::Array2<f64>> {
+    let mut a = x.as_array().as_standard_layout().into_owned();
+    if a.ncols() != model.som.dim {
+        return Err(errors::SomError::new_err(format!(
+            "som: the map's nodes have {} values, the rows {}",
+            model.som.dim,
+            a.ncols()
+        )));
+    }
+    if let Some(i) = a.iter().position(|v| !v.is_finite()) {
+        return Err(PyValueError::new_err(format!(
+            "row {} holds a non-finite value",
+            i / model.som.dim.max(1)
+        )));
+    }
+    if let Some(s) = &model.scaling {
+        for mut r in a.rows_mut() {
+            s.apply(r.as_slice_mut().expect("standard layout"));
+        }
+    }
+    Ok(a)
+}
+
+/// Train a map on `x` (rows are inputs) with the Table 5.2 stages; label its nodes with
+/// `labels` (rows whose label is `None` train but do not vote).
+#[pyfunction]
+#[pyo3(signature = (x, labels, rows, cols, seed, columns, label_column, standardise))]
+#[allow(clippy::too_many_arguments)]
+pub fn som_fit(
+    py: Python<'_>,
+    x: PyReadonlyArray2<'_, f64>,
+    labels: Option<Vec<Option<String>>>,
+    rows: usize,
+    cols: usize,
+    seed: u64,
+    columns: Vec<String>,
+    label_column: String,
+    standardise: bool,
+) -> PyResult<SomModel> {
+    let mut data = x.as_array().as_standard_layout().into_owned();
+    if data.nrows() == 0 || data.ncols() == 0 {
+        return Err(errors::SomError::new_err("som: no rows to train on"));
+    }
+    if let Some(i) = data.iter().position(|v| !v.is_finite()) {
+        return Err(PyValueError::new_err(format!(
+            "row {} holds a non-finite value",
+            i / data.ncols()
+        )));
+    }
+    if let Some(l) = &labels {
+        if l.len() != data.nrows() {
+            return Err(PyValueError::new_err(format!(
+                "{} labels for {} rows",
+                l.len(),
+                data.nrows()
+            )));
+        }
+    }
+    let params = SomParams {
+        rows,
+        cols,
+        seed,
+        ..SomParams::default()
+    }
+    .check()
+    .map_err(errors::som)?;
+    let scaling = standardise.then(|| Scaling::fit(data.view()));
+    if let Some(s) = &scaling {
+        for mut r in data.rows_mut() {
+            s.apply(r.as_slice_mut().expect("standard layout"));
+        }
+    }
+    let model = py.detach(move || -> Result<Model, aepipe::som::SomError> {
+        let mut som = Som::fit(&params, data.view())?;
+        let mut composition = Composition::new();
+        if let Some(l) = &labels {
+            let keep: Vec<usize> = (0..l.len()).filter(|&i| l[i].is_some()).collect();
+            let voters = data.select(ndarray::Axis(0), &keep);
+            let names: Vec<String> = keep
+                .iter()
+                .map(|&i| l[i].clone().unwrap_or_default())
+                .collect();
+            for n in &names {
+                let e = composition.entry(n.clone()).or_insert((0, 0));
+                e.0 += 1;
+                e.1 += 1;
+            }
+            som.label_nodes(voters.view(), &names)?;
+        }
+        Ok(Model {
+            som,
+            columns,
+            label_column,
+            scaling,
+            // Every row given was a training row: no sampling, no balancing, no
+            // calibration (what the caller chose to pass is the training set).
+            training: TrainingSet {
+                fraction: 1.0,
+                exclude: Vec::new(),
+                balance: false,
+                seed,
+                calibrate: false,
+                calibration_exclude: Vec::new(),
+            },
+            composition,
+            calibration: Composition::new(),
+            tool_version: env!("CARGO_PKG_VERSION").into(),
+        })
+    });
+    Ok(SomModel {
+        model: model.map_err(errors::som)?,
+    })
+}
+
+#[pymethods]
+impl SomModel {
+    /// Read `MODEL_DIR` (or its `model.json`, or a SOM_PAK `.cod` beside one), as
+    /// `aepipe som classify` does.
+    #[staticmethod]
+    fn load(path: PathBuf) -> PyResult<SomModel> {
+        Ok(SomModel {
+            model: load_model(&path).map_err(errors::som)?,
+        })
+    }
+
+    /// Write `model.json` and `model.cod` into `dir`, which `aepipe som classify` reads.
+    fn save(&self, dir: PathBuf) -> PyResult<()> {
+        save_model(&self.model, &dir, None).map_err(errors::som)
+    }
+
+    #[getter]
+    fn rows(&self) -> usize {
+        self.model.som.rows
+    }
+    #[getter]
+    fn cols(&self) -> usize {
+        self.model.som.cols
+    }
+    #[getter]
+    fn dim(&self) -> usize {
+        self.model.som.dim
+    }
+    #[getter]
+    fn seed(&self) -> u64 {
+        self.model.som.params.seed
+    }
+    /// The feature columns the map's input is made of (a list column such as `tf_bins`
+    /// gives its elements).
+    #[getter]
+    fn columns(&self) -> Vec<String> {
+        self.model.columns.clone()
+    }
+    #[getter]
+    fn label_column(&self) -> String {
+        self.model.label_column.clone()
+    }
+    /// Node labels, node `r·cols + c`; empty for an unlabelled map.
+    #[getter]
+    fn labels(&self) -> Vec<String> {
+        self.model.som.labels.clone()
+    }
+    /// Whether inputs are standardised (per-column mean and standard deviation of the
+    /// training rows) before they meet the nodes.
+    #[getter]
+    fn standardised(&self) -> bool {
+        self.model.scaling.is_some()
+    }
+    /// The quantisation error before training and after each stage (None for a map read
+    /// from a SOM_PAK codebook).
+    #[getter]
+    fn training_qe(&self) -> Option<Vec<f64>> {
+        self.model.som.log.as_ref().map(|l| l.qe.clone())
+    }
+
+    /// The weights as rows × cols × dim (in the map's scaled space).
+    fn codebook<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray3<f64>>> {
+        let s = &self.model.som;
+        let a = ndarray::Array3::from_shape_vec((s.rows, s.cols, s.dim), s.weights.clone())
+            .map_err(|e| PyValueError::new_err(e.to_string()))?;
+        Ok(PyArray3::from_owned_array(py, a))
+    }
+
+    /// Best-matching node of each row (r·cols + c) and its distance.
+    fn bmu<'py>(
+        &self,
+        py: Python<'py>,
+        x: PyReadonlyArray2<'py, f64>,
+    ) -> PyResult<NodesAndDistances<'py>> {
+        let a = scaled(&self.model, &x)?;
+        let (nodes, dist): (Vec<i64>, Vec<f64>) = py.detach(|| {
+            a.rows()
+                .into_iter()
+                .map(|r| {
+                    let (j, d) = self.model.som.bmu(r.as_slice().expect("standard layout"));
+                    (j as i64, d)
+                })
+                .unzip()
+        });
+        Ok((PyArray1::from_vec(py, nodes), PyArray1::from_vec(py, dist)))
+    }
+
+    /// Mean distance of the rows to their best-matching nodes.
+    fn quantization_error(&self, py: Python<'_>, x: PyReadonlyArray2<'_, f64>) -> PyResult<f64> {
+        let a = scaled(&self.model, &x)?;
+        Ok(py.detach(|| self.model.som.quantisation_error(a.view())))
+    }
+
+    /// Share of rows whose two best nodes are not neighbours.
+    fn topographic_error(&self, py: Python<'_>, x: PyReadonlyArray2<'_, f64>) -> PyResult<f64> {
+        let a = scaled(&self.model, &x)?;
+        Ok(py.detach(|| self.model.som.topographic_error(a.view())))
+    }
+
+    /// The U-matrix: each node's mean distance to its 4 grid neighbours, rows × cols.
+    fn umatrix<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray2<f64>> {
+        PyArray2::from_owned_array(py, self.model.som.u_matrix())
+    }
+}

@@ -1,0 +1,109 @@
+//! Whole jobs from Python: a simulation, a reference library, and `aepipe run`.
+
+use crate::control::{self, TempDir};
+use crate::errors;
+use crate::frames::ArrowStream;
+use aepipe::config::PipelineConfig;
+use aepipe::sim::reference::{build_library_controlled, LibraryDir, ReferenceFile};
+use aepipe::sim::{scenario::Params, SimError, SimJob, SimOptions};
+use pyo3::prelude::*;
+use std::path::PathBuf;
+
+fn read_table(p: &std::path::Path) -> Result<ArrowStream, aepipe::store::StoreError> {
+    let (schema, _, b) = aepipe::store::read_parquet(p)?;
+    Ok(ArrowStream::new(schema, b))
+}
+
+/// One simulation (a scenario by name, or a model file: Appendix-A sections or TOML):
+/// `waveforms.parquet`'s rows, one per sensor, and the lines `aepipe simulate` prints.
+#[pyfunction]
+#[pyo3(signature = (scenario, params, model=None))]
+pub fn simulate(
+    py: Python<'_>,
+    scenario: Option<String>,
+    params: Vec<(String, f64)>,
+    model: Option<PathBuf>,
+) -> PyResult<(ArrowStream, Vec<String>)> {
+    let dir = TempDir::new()?;
+    let job = SimJob {
+        model,
+        scenario,
+        params: Params(params),
+        sweep: None,
+        solver: None,
+        out: dir.path().to_path_buf(),
+        run: SimOptions::default(),
+        acquisition: Default::default(),
+    };
+    let done = control::run(py, None, move |_| -> Result<_, SimError> {
+        let lines = aepipe::sim::run_job(&job)?;
+        let wf = job.out.join("waveforms.parquet");
+        if !wf.is_file() {
+            return Err(SimError::Model(
+                "the model has no acoustic grid or sensors: it records no waveforms".into(),
+            ));
+        }
+        let t = read_table(&wf).map_err(|e| SimError::Io(e.to_string()))?;
+        Ok((t, lines))
+    })?;
+    drop(dir);
+    done.map_err(errors::sim)
+}
+
+/// A reference library (`pipelines/reference-library.toml`'s format; None: the embedded
+/// default the demo uses): its `waveforms.parquet` rows.
+#[pyfunction]
+#[pyo3(signature = (path=None, threads=None, progress=false))]
+pub fn reference_library(
+    py: Python<'_>,
+    path: Option<PathBuf>,
+    threads: Option<usize>,
+    progress: bool,
+) -> PyResult<ArrowStream> {
+    let f = match &path {
+        Some(p) => ReferenceFile::read(p).map_err(errors::sim)?,
+        None => ReferenceFile::default_library(),
+    };
+    let dir = TempDir::new()?;
+    let out = dir.path().to_path_buf();
+    let done = control::run(py, progress.then_some("simulations"), move |c| {
+        aepipe::util::with_threads(threads.unwrap_or(0), || {
+            build_library_controlled(&f.reference, &out, None, false, Some(&c))?;
+            read_table(&LibraryDir::new(&out).waveforms()).map_err(|e| SimError::Io(e.to_string()))
+        })
+    })?;
+    drop(dir);
+    done.map_err(errors::sim)
+}
+
+/// `aepipe run --config CONFIG INPUTS… --out OUT [--truth T]`: every enabled stage, the
+/// report in `OUT/report.html`. Returns the summary as JSON text (the Python layer parses
+/// it into a dict).
+#[pyfunction]
+#[pyo3(signature = (config, inputs, out, truth=None, threads=None, progress=false))]
+pub fn run(
+    py: Python<'_>,
+    config: PathBuf,
+    inputs: Vec<PathBuf>,
+    out: PathBuf,
+    truth: Option<PathBuf>,
+    threads: Option<usize>,
+    progress: bool,
+) -> PyResult<String> {
+    let cfg = PipelineConfig::from_file(&config).map_err(errors::config)?;
+    let done = control::run(py, progress.then_some("records"), move |c| {
+        let job = aepipe::workflow::RunJob {
+            config: &cfg,
+            inputs: &inputs,
+            out: &out,
+            truth: truth.as_deref(),
+            threads: threads.unwrap_or(0),
+            progress: false,
+            resume: false,
+            shard: None,
+            control: Some(c),
+        };
+        aepipe::workflow::run(&job).map(|s| aepipe::workflow::summary_json(&s).to_string())
+    })?;
+    done.map_err(errors::workflow)
+}

@@ -1,0 +1,146 @@
+"""Whole jobs from Python — simulation, reference library, the run — against the command
+line, and what a long call does on Ctrl-C."""
+
+from __future__ import annotations
+
+import _thread
+import glob
+import os
+import tempfile
+import threading
+import time
+from pathlib import Path
+
+import polars as pl
+import pytest
+
+import aepipe
+from conftest import ROOT, aepipe_cli, synthetic_signals, wav_folder
+
+
+def test_simulate_equals_the_command_lines_waveforms(tmp_path: Path) -> None:
+    ours = aepipe.simulate("structure2x1-fibre-failure", point=7, iterations=3000)
+    aepipe_cli("simulate", "--scenario", "structure2x1-fibre-failure", "--param", "point=7", "--param", "iterations=3000", "--out", tmp_path)
+    theirs = pl.read_parquet(tmp_path / "waveforms.parquet")
+    assert ours.height == theirs.height == 2
+    assert ours.drop("source_file").equals(theirs.drop("source_file"))
+    assert ours["label"].to_list() == ["fibre_failure"] * 2
+    # A model file is a scenario too (Appendix-A sections or TOML).
+    with pytest.raises(aepipe.SimError, match="unknown scenario"):
+        aepipe.simulate("no-such-scenario")
+
+
+def test_reference_library_equals_the_command_lines(tmp_path: Path) -> None:
+    toml = tmp_path / "lib.toml"
+    toml.write_text(
+        "[reference]\nseed = 11\nvariants = 1\nsensors = [[125, 100]]\n"
+        '[[reference.scenario]]\nname = "mesh3x3-bond-failure"\n'
+        "params = { stretch = [0.009, 0.011], iterations = [3000] }\nerroneous = 2\n"
+        '[[reference.scenario]]\nname = "structure2x1-fibre-failure"\n'
+        "params = { point = [3, 7], iterations = [3000] }\n"
+    )
+    ours = aepipe.reference_library(toml, threads=2)
+    aepipe_cli("reference", "--config", toml, "--out", tmp_path / "lib", "--threads", "1")
+    theirs = pl.read_parquet(tmp_path / "lib" / "waveforms.parquet")
+    assert ours.equals(theirs)
+    labels = ours.group_by("label").len().sort("label")
+    assert dict(labels.iter_rows()) == {"bond_failure": 2, "erroneous": 4, "fibre_failure": 2}
+
+
+def test_run_gives_the_command_lines_tables_and_a_summary(tmp_path: Path) -> None:
+    fs = 10_000_000
+    folder = wav_folder(tmp_path / "wav", synthetic_signals(90, 4096, fs, seed=4), fs)
+    cfg = tmp_path / "run.toml"
+    cfg.write_text(
+        "[ingest]\npretrigger_samples = 500\n"
+        '[trend]\ncutoff = "none"\n'
+        '[som]\ntrain_on = "criteria"\nrows = 5\ncols = 5\n'
+    )
+    s = aepipe.run(cfg, folder, tmp_path / "py")
+    aepipe_cli("run", "--config", cfg, folder, "--out", tmp_path / "cli")
+    assert Path(s["report"]).is_file() and s["report"].endswith("report.html")
+    assert s["counts"]["feature_rows"] == 90 and s["counts"]["rejects"] == 0
+    for name in ("features", "hits", "trend", "classification", "damage_profile"):
+        p = Path(s["tables"][name])
+        assert p.is_file(), name
+        rel = p.relative_to(tmp_path / "py")
+        assert pl.read_parquet(p).equals(pl.read_parquet(tmp_path / "cli" / rel)), name
+    assert sum(s["som"]["classes"].values()) == 90
+    assert s["headline"][0].startswith("hits: 90 read")
+    assert {"features", "trend", "som"} <= set(s["seconds"])
+
+
+def test_a_long_call_returns_on_ctrl_c_within_a_second_and_cleans_up() -> None:
+    def interrupt_later(delay: float, at: list[float]) -> None:
+        time.sleep(delay)
+        at.append(time.perf_counter())
+        _thread.interrupt_main()
+
+    leftovers = lambda: glob.glob(os.path.join(tempfile.gettempdir(), f"aepipe-py-{os.getpid()}-*"))  # noqa: E731
+    # The embedded library: 64 simulations, many seconds in any build.
+    at: list[float] = []
+    threading.Thread(target=interrupt_later, args=(1.0, at), daemon=True).start()
+    with pytest.raises(KeyboardInterrupt):
+        aepipe.reference_library(threads=2)
+    waited = time.perf_counter() - at[0]
+    assert waited < 1.0, f"returned {waited:.2f} s after Ctrl-C"
+    # The job stopped (its next simulation saw the request) and its folder is gone.
+    deadline = time.time() + 20
+    while leftovers() and time.time() < deadline:
+        time.sleep(0.2)
+    assert not leftovers()
+    # The feature pipeline stops too: a batch of 3 000 records, interrupted.
+    fs = 10_000_000
+    with tempfile.TemporaryDirectory() as d:
+        x = synthetic_signals(40, 4096, fs, seed=1)
+        for k in range(75):
+            wav_folder(Path(d) / f"e{k}", x, fs)
+        at.clear()
+        threading.Thread(target=interrupt_later, args=(0.8, at), daemon=True).start()
+        with pytest.raises(KeyboardInterrupt):
+            aepipe.features(d, threads=1)
+        assert time.perf_counter() - at[0] < 1.0
+        deadline = time.time() + 10
+        while leftovers() and time.time() < deadline:
+            time.sleep(0.2)
+        assert not leftovers()
+
+
+def test_bad_inputs_raise_typed_errors(tmp_path: Path) -> None:
+    import numpy as np
+
+    with pytest.raises(aepipe.IngestError, match="no such file"):
+        aepipe.read_hits(tmp_path / "missing.pridb")
+    bad = tmp_path / "bad.toml"
+    bad.write_text("[dsp]\nband_hz = -1\n")
+    with pytest.raises(aepipe.ConfigError, match="band_hz"):
+        aepipe.features(np.zeros((1, 64), np.float32), sample_rate_hz=1e6, config=bad)
+    with pytest.raises(aepipe.ConfigError):
+        aepipe.read_hits(tmp_path, config=tmp_path / "absent.toml")
+    x = np.zeros((2, 256), np.float32)
+    x[1, 7] = np.nan
+    with pytest.raises(aepipe.FeatureError, match="signal 1"):
+        aepipe.features(x, sample_rate_hz=1e6)
+    with pytest.raises(ValueError, match="sample_rate_hz"):
+        aepipe.features(x)
+    with pytest.raises(ValueError):
+        aepipe.cwt(np.ones(16, np.float32), -1.0)
+    with pytest.raises(aepipe.ConfigError, match="cut-off"):
+        aepipe.trend(pl.DataFrame({"experiment": ["a"], "channel": [1], "hit": [1]}), cutoff="soon")
+    with pytest.raises(aepipe.TrendError):
+        aepipe.trend(pl.DataFrame({"experiment": ["a"], "channel": [1], "hit": [1]}), columns=["pr_nothing"])
+    som = aepipe.Som(3, 3).fit(np.random.default_rng(0).normal(size=(50, 4)))
+    with pytest.raises(aepipe.SomError, match="4 values"):
+        som.predict(np.zeros((2, 5)))
+    with pytest.raises(aepipe.SomError):
+        aepipe.Som.load(tmp_path)
+    with pytest.raises(aepipe.SomError, match="1 row"):
+        aepipe.Som(0, 3).fit(np.zeros((5, 2)))
+    # A named input that is not there is a reject row, as on the command line; with nothing
+    # left to classify the SOM stage says so.
+    with pytest.raises(aepipe.SomError, match="no usable rows"):
+        aepipe.run(ROOT / "pipelines" / "notched-paper.toml", tmp_path / "nothing-here", tmp_path / "o")
+    with pytest.raises(ValueError, match="2 samples"):
+        aepipe.pickers.aic(np.ones(1, np.float32))
+    for cls in (aepipe.ConfigError, aepipe.IngestError, aepipe.SomError, aepipe.TrendError, aepipe.SimError, aepipe.WorkflowError):
+        assert issubclass(cls, aepipe.AepipeError)
