@@ -286,6 +286,48 @@ fn clap_stays_in_the_command_line() {
     assert!(bad.is_empty(), "clap outside src/cli: {bad:?}");
 }
 
+/// The core knows nothing of Python (polars' and tokenizers' way): no pyo3 or numpy in
+/// `src/` or in the root package's dependencies; the bindings crate only converts, calling
+/// the core through `aepipe::`, never reaching into its files.
+#[test]
+fn python_stays_in_the_bindings_crate() {
+    let mut files = Vec::new();
+    rust_files(&src(), &mut files);
+    let bad: Vec<String> = files
+        .iter()
+        .filter(|f| {
+            let t = std::fs::read_to_string(f).unwrap();
+            t.contains("pyo3") || t.contains("numpy::") || t.contains("#[pyclass")
+        })
+        .map(|f| f.display().to_string())
+        .collect();
+    assert!(bad.is_empty(), "Python in the core: {bad:?}");
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let manifest = std::fs::read_to_string(root.join("Cargo.toml")).unwrap();
+    let deps = manifest
+        .split("[dependencies]")
+        .nth(1)
+        .and_then(|d| d.split("\n[").next())
+        .unwrap();
+    assert!(
+        !deps.contains("pyo3") && !deps.contains("numpy"),
+        "the core depends on Python crates"
+    );
+    // `cargo test` at the root builds the root package only.
+    assert!(manifest.contains("default-members = [\".\"]"), "{manifest}");
+    let mut py = Vec::new();
+    rust_files(&root.join("crates/aepipe-py/src"), &mut py);
+    assert!(!py.is_empty());
+    for f in py {
+        let t = std::fs::read_to_string(&f).unwrap();
+        assert!(
+            !t.contains("#[path") && !t.contains("include!("),
+            "{} reaches into the core's files",
+            f.display()
+        );
+    }
+}
+
 #[test]
 fn lib_rs_names_every_room() {
     let lib = std::fs::read_to_string(src().join("lib.rs")).unwrap();
