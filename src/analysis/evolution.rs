@@ -121,44 +121,74 @@ pub fn evolve(experiment: &str, sources: &[Source], p: &EvolutionParams) -> Vec<
     classes.sort_unstable();
     classes.dedup();
     let mut out = Vec::new();
-    let mut mags = std::collections::VecDeque::with_capacity(p.window);
     for class in std::iter::once("all").chain(classes) {
-        let (mut n, mut hits, mut energy) = (0u64, 0u64, 0.0f64);
-        mags.clear();
+        let mut series = Series::new(experiment, class, p);
         for s in sources
             .iter()
             .filter(|s| class == "all" || s.class == class)
         {
-            n += 1;
-            hits += s.hits;
-            energy += s.energy_eu.filter(|e| e.is_finite()).unwrap_or(0.0);
-            if let Some(a) = s.amplitude_db.filter(|a| a.is_finite()) {
-                if mags.len() == p.window {
-                    mags.pop_front();
-                }
-                mags.push_back(a / 20.0);
-            }
-            let (b, ib) = if mags.len() == p.window {
-                let window = mags.make_contiguous();
-                (b_value(window, p.m_c), ib_value(window, p.alpha1, p.alpha2))
-            } else {
-                (None, None)
-            };
-            out.push(EvolutionRow {
-                experiment: experiment.to_string(),
-                class: class.to_string(),
-                key: s.key.clone(),
-                time_s: s.time_s,
-                load_n: s.load_n,
-                cum_sources: n,
-                cum_hits: hits,
-                cum_energy_eu: energy,
-                b_value: b,
-                ib_value: ib,
-            });
+            out.push(series.step(s));
         }
     }
     out
+}
+
+/// One series of [`evolve`] as its sources stream by (`all`, or one class's): the running
+/// sums and the window of the last magnitudes.
+pub struct Series<'a> {
+    experiment: &'a str,
+    class: &'a str,
+    p: EvolutionParams,
+    n: u64,
+    hits: u64,
+    energy: f64,
+    mags: std::collections::VecDeque<f64>,
+}
+
+impl<'a> Series<'a> {
+    pub fn new(experiment: &'a str, class: &'a str, p: &EvolutionParams) -> Series<'a> {
+        Series {
+            experiment,
+            class,
+            p: *p,
+            n: 0,
+            hits: 0,
+            energy: 0.0,
+            mags: std::collections::VecDeque::with_capacity(p.window),
+        }
+    }
+
+    /// The series' row after one more source.
+    pub fn step(&mut self, s: &Source) -> EvolutionRow {
+        let p = &self.p;
+        self.n += 1;
+        self.hits += s.hits;
+        self.energy += s.energy_eu.filter(|e| e.is_finite()).unwrap_or(0.0);
+        if let Some(a) = s.amplitude_db.filter(|a| a.is_finite()) {
+            if self.mags.len() == p.window {
+                self.mags.pop_front();
+            }
+            self.mags.push_back(a / 20.0);
+        }
+        let (b, ib) = if self.mags.len() == p.window {
+            let window = self.mags.make_contiguous();
+            (b_value(window, p.m_c), ib_value(window, p.alpha1, p.alpha2))
+        } else {
+            (None, None)
+        };
+        EvolutionRow {
+            experiment: self.experiment.to_string(),
+            class: self.class.to_string(),
+            key: s.key.clone(),
+            time_s: s.time_s,
+            load_n: s.load_n,
+            cum_sources: self.n,
+            cum_hits: self.hits,
+            cum_energy_eu: self.energy,
+            b_value: b,
+            ib_value: ib,
+        }
+    }
 }
 
 /// `evolution.parquet`.

@@ -41,56 +41,138 @@ pub struct LinearTrend {
 /// Fit y against x.
 pub fn linear_trend(x: &[f64], y: &[f64]) -> Result<LinearTrend, NoTrend> {
     assert_eq!(x.len(), y.len());
-    let n = x.len();
-    if n < 3 {
-        return Err(NoTrend::TooFew(n));
-    }
-    if x.iter().chain(y).any(|v| !v.is_finite()) {
-        return Err(NoTrend::NotFinite);
-    }
-    let nf = n as f64;
-    let mx = x.iter().sum::<f64>() / nf;
-    let my = y.iter().sum::<f64>() / nf;
-    // Two-pass sums about the means (numerically stable).
-    let (mut sxx, mut syy, mut sxy) = (0.0, 0.0, 0.0);
+    let mut f = TrendFit::default();
     for (&a, &b) in x.iter().zip(y) {
-        let (dx, dy) = (a - mx, b - my);
-        sxx += dx * dx;
-        syy += dy * dy;
-        sxy += dx * dy;
+        f.pass1(a, b);
     }
-    if sxx == 0.0 {
-        return Err(NoTrend::Constant("x"));
+    f.end1()?;
+    for (&a, &b) in x.iter().zip(y) {
+        f.pass2(a, b);
     }
-    if syy == 0.0 {
-        return Err(NoTrend::Constant("y"));
+    f.end2()?;
+    for (&a, &b) in x.iter().zip(y) {
+        f.pass3(a, b);
     }
-    let r = (sxy / (sxx.sqrt() * syy.sqrt())).clamp(-1.0, 1.0);
-    let slope = sxy / sxx;
-    let intercept = my - slope * mx;
-    let df = nf - 2.0;
-    let one_minus_r2 = ((1.0 - r) * (1.0 + r)).max(0.0);
-    let p = if one_minus_r2 == 0.0 {
-        0.0
-    } else {
-        // t² = df·r²/(1 − r²); x = df/(df + t²) = 1 − r².
-        beta_inc(df / 2.0, 0.5, one_minus_r2)
-    };
-    // Residual sum of squares summed explicitly: (1 − r²)·s_yy cancels when r → 1.
-    let sse: f64 = x
-        .iter()
-        .zip(y)
-        .map(|(&a, &b)| (b - intercept - slope * a).powi(2))
-        .sum();
-    let slope_stderr = (sse / df / sxx).sqrt();
-    Ok(LinearTrend {
-        n,
-        r,
-        p,
-        slope,
-        intercept,
-        slope_stderr,
-    })
+    Ok(f.finish())
+}
+
+/// [`linear_trend`] in three passes over the points, so that a series too large to hold
+/// can be fitted as it streams by: the means, then the sums about them (numerically
+/// stable), then the residuals. Every sum adds in the points' order, as a slice's would,
+/// so a streamed fit equals the in-memory one to the bit.
+#[derive(Debug, Clone)]
+pub struct TrendFit {
+    n: usize,
+    sx: f64,
+    sy: f64,
+    finite: bool,
+    mx: f64,
+    my: f64,
+    sxx: f64,
+    syy: f64,
+    sxy: f64,
+    fit: Option<LinearTrend>,
+    sse: f64,
+}
+
+impl Default for TrendFit {
+    fn default() -> Self {
+        TrendFit {
+            n: 0,
+            // `Iterator::sum` of f64 starts from −0.0.
+            sx: -0.0,
+            sy: -0.0,
+            finite: true,
+            mx: 0.0,
+            my: 0.0,
+            sxx: 0.0,
+            syy: 0.0,
+            sxy: 0.0,
+            fit: None,
+            sse: -0.0,
+        }
+    }
+}
+
+impl TrendFit {
+    /// Points seen in pass 1.
+    pub fn points(&self) -> usize {
+        self.n
+    }
+
+    pub fn pass1(&mut self, x: f64, y: f64) {
+        self.n += 1;
+        self.sx += x;
+        self.sy += y;
+        self.finite &= x.is_finite() && y.is_finite();
+    }
+
+    /// After pass 1: whether there is a trend to fit at all.
+    pub fn end1(&mut self) -> Result<(), NoTrend> {
+        if self.n < 3 {
+            return Err(NoTrend::TooFew(self.n));
+        }
+        if !self.finite {
+            return Err(NoTrend::NotFinite);
+        }
+        let nf = self.n as f64;
+        self.mx = self.sx / nf;
+        self.my = self.sy / nf;
+        Ok(())
+    }
+
+    pub fn pass2(&mut self, x: f64, y: f64) {
+        let (dx, dy) = (x - self.mx, y - self.my);
+        self.sxx += dx * dx;
+        self.syy += dy * dy;
+        self.sxy += dx * dy;
+    }
+
+    /// After pass 2: r, p, the line (pass 3 then sums the residuals).
+    pub fn end2(&mut self) -> Result<(), NoTrend> {
+        let (sxx, syy, sxy) = (self.sxx, self.syy, self.sxy);
+        if sxx == 0.0 {
+            return Err(NoTrend::Constant("x"));
+        }
+        if syy == 0.0 {
+            return Err(NoTrend::Constant("y"));
+        }
+        let r = (sxy / (sxx.sqrt() * syy.sqrt())).clamp(-1.0, 1.0);
+        let slope = sxy / sxx;
+        let intercept = self.my - slope * self.mx;
+        let df = self.n as f64 - 2.0;
+        let one_minus_r2 = ((1.0 - r) * (1.0 + r)).max(0.0);
+        let p = if one_minus_r2 == 0.0 {
+            0.0
+        } else {
+            // t² = df·r²/(1 − r²); x = df/(df + t²) = 1 − r².
+            beta_inc(df / 2.0, 0.5, one_minus_r2)
+        };
+        self.fit = Some(LinearTrend {
+            n: self.n,
+            r,
+            p,
+            slope,
+            intercept,
+            slope_stderr: f64::NAN,
+        });
+        Ok(())
+    }
+
+    pub fn pass3(&mut self, x: f64, y: f64) {
+        if let Some(f) = &self.fit {
+            // Residual sum of squares summed explicitly: (1 − r²)·s_yy cancels when r → 1.
+            self.sse += (y - f.intercept - f.slope * x).powi(2);
+        }
+    }
+
+    /// The fit (after a successful [`TrendFit::end2`] and pass 3).
+    pub fn finish(&self) -> LinearTrend {
+        let mut f = self.fit.expect("end2 succeeded");
+        let df = self.n as f64 - 2.0;
+        f.slope_stderr = (self.sse / df / self.sxx).sqrt();
+        f
+    }
 }
 
 /// ln Γ(x) for x > 0 (Lanczos, g = 7, 9 terms: ~1e-15 relative).

@@ -6,7 +6,8 @@
 //! begins to decrease"): by default only the hits up to the peak load when the experiment has
 //! a load channel; otherwise all hits, and the table says so.
 
-use super::stats::{linear_trend, LinearTrend};
+use super::stats::{linear_trend, LinearTrend, NoTrend, TrendFit};
+use crate::store::spill::{Dec, Enc, Sorted, Sorter, Span, Spill};
 use crate::store::{ColType, ColumnSpec, Table, TableWriter, Value};
 use crate::store::{SourceRows, StoreError, TableScan};
 use polars::prelude::col;
@@ -247,62 +248,88 @@ pub fn read_series(
 
 /// How many leading hits of a series the cut-off keeps, and the description.
 pub fn select(s: &TrendSeries, cutoff: Cutoff) -> Selection {
-    let total = s.hit.len();
+    let rows = (0..s.hit.len()).map(|i| (s.hit[i], s.time_s[i], s.load_n[i]));
+    select_from(&s.experiment, s.channel, rows, cutoff)
+}
+
+/// [`select`] over a series' (hit, time, load) rows in hit order, as they stream by (one
+/// pass, nothing kept).
+pub fn select_from(
+    experiment: &str,
+    channel: i32,
+    rows: impl Iterator<Item = (i64, Option<f64>, Option<f64>)>,
+    cutoff: Cutoff,
+) -> Selection {
+    let (mut total, mut last) = (0usize, None);
+    // The first largest load (the fold keeps an earlier row on a tie), its row and time.
+    let mut peak: Option<(usize, f64, i64, Option<f64>)> = None;
+    // Time cut: the leading rows at or before t, and whether any row lacks a time.
+    let (mut lead, mut leading, mut no_time) = (0usize, true, false);
+    let mut lead_hit = None;
+    let mut nth_hit = None;
+    for (i, (hit, time, load)) in rows.enumerate() {
+        total += 1;
+        last = Some(hit);
+        if let Some(l) = load {
+            if !matches!(peak, Some((_, ml, _, _)) if ml >= l) {
+                peak = Some((i, l, hit, time));
+            }
+        }
+        if let Cutoff::Time(t) = cutoff {
+            if leading && time.is_some_and(|x| x <= t) {
+                lead += 1;
+                lead_hit = Some(hit);
+            } else {
+                leading = false;
+            }
+        }
+        no_time |= time.is_none();
+        if let Cutoff::Hits(n) = cutoff {
+            if i + 1 == n {
+                nth_hit = Some(hit);
+            }
+        }
+    }
     let mut sel = Selection {
-        experiment: s.experiment.clone(),
-        channel: s.channel,
+        experiment: experiment.to_string(),
+        channel,
         hits_total: total,
         hits_used: total,
-        last_hit: s.hit.last().copied(),
+        last_hit: last,
         cutoff: "none (all hits)".into(),
         peak_load_n: None,
         peak_load_time_s: None,
         note: None,
     };
-    let keep = |sel: &mut Selection, k: usize| {
-        sel.hits_used = k;
-        sel.last_hit = if k > 0 { Some(s.hit[k - 1]) } else { None };
-    };
     match cutoff {
         Cutoff::None => {}
-        Cutoff::PeakLoad => {
-            let peak = s
-                .load_n
-                .iter()
-                .enumerate()
-                .filter_map(|(i, l)| l.map(|l| (i, l)))
-                .fold(None, |m: Option<(usize, f64)>, (i, l)| match m {
-                    Some((_, ml)) if ml >= l => m,
-                    _ => Some((i, l)),
-                });
-            match peak {
-                Some((i, l)) => {
-                    keep(&mut sel, i + 1);
-                    sel.peak_load_n = Some(l);
-                    sel.peak_load_time_s = s.time_s[i];
-                    sel.cutoff = format!("peak-load: hits up to {} at {:.6} N", s.hit[i], l);
-                }
-                None => {
-                    sel.cutoff = "none (all hits): no load channel".into();
-                    sel.note = Some("--cutoff peak-load asked, but the experiment has no load channel: all hits used".into());
-                }
+        Cutoff::PeakLoad => match peak {
+            Some((i, l, hit, time)) => {
+                sel.hits_used = i + 1;
+                sel.last_hit = Some(hit);
+                sel.peak_load_n = Some(l);
+                sel.peak_load_time_s = time;
+                sel.cutoff = format!("peak-load: hits up to {hit} at {l:.6} N");
             }
-        }
+            None => {
+                sel.cutoff = "none (all hits): no load channel".into();
+                sel.note = Some("--cutoff peak-load asked, but the experiment has no load channel: all hits used".into());
+            }
+        },
         Cutoff::Time(t) => {
-            let k = s
-                .time_s
-                .iter()
-                .take_while(|x| x.is_some_and(|x| x <= t))
-                .count();
-            keep(&mut sel, k);
+            sel.hits_used = lead;
+            sel.last_hit = lead_hit;
             sel.cutoff = format!("time ≤ {t} s");
-            if s.time_s.iter().any(Option::is_none) {
+            if no_time {
                 sel.note =
                     Some("some hits have no time: the cut-off stops at the first of them".into());
             }
         }
         Cutoff::Hits(n) => {
-            keep(&mut sel, n.min(total));
+            sel.hits_used = n.min(total);
+            if n < total {
+                sel.last_hit = nth_hit;
+            }
             sel.cutoff = format!("first {n} hits");
         }
     }
@@ -347,9 +374,307 @@ pub fn trends(s: &TrendSeries, columns: &[String], sel: &Selection, alpha: f64) 
 pub struct TrendReport {
     pub rows: Vec<TrendRow>,
     pub selections: Vec<Selection>,
-    pub series: Vec<TrendSeries>,
     pub columns: Vec<String>,
     pub table_path: PathBuf,
+}
+
+/// One row of a trend series as it is sorted: the group, the hit, its position in the input
+/// (ties keep input order, as the in-memory sort did), time, load and the tested values.
+#[derive(Debug, Clone, PartialEq)]
+struct SeriesRow {
+    experiment: String,
+    channel: i32,
+    hit: i64,
+    seq: u64,
+    time_s: Option<f64>,
+    load_n: Option<f64>,
+    values: Vec<Option<f64>>,
+}
+
+impl SeriesRow {
+    fn key(&self) -> (&str, i32, i64, u64) {
+        (&self.experiment, self.channel, self.hit, self.seq)
+    }
+}
+
+impl Eq for SeriesRow {}
+impl PartialOrd for SeriesRow {
+    fn partial_cmp(&self, o: &Self) -> Option<std::cmp::Ordering> {
+        Some(self.cmp(o))
+    }
+}
+impl Ord for SeriesRow {
+    fn cmp(&self, o: &Self) -> std::cmp::Ordering {
+        self.key().cmp(&o.key())
+    }
+}
+
+impl Spill for SeriesRow {
+    fn encode(&self, out: &mut Vec<u8>) {
+        let mut e = Enc(out);
+        e.str(&self.experiment)
+            .i32(self.channel)
+            .i64(self.hit)
+            .u64(self.seq)
+            .opt_f64(self.time_s)
+            .opt_f64(self.load_n)
+            .u32(self.values.len() as u32);
+        for v in &self.values {
+            e.opt_f64(*v);
+        }
+    }
+    fn decode(b: &mut Dec<'_>) -> Option<Self> {
+        let (experiment, channel, hit, seq) = (b.str()?, b.i32()?, b.i64()?, b.u64()?);
+        let (time_s, load_n) = (b.opt_f64()?, b.opt_f64()?);
+        let n = b.u32()? as usize;
+        let values = (0..n).map(|_| b.opt_f64()).collect::<Option<Vec<_>>>()?;
+        Some(SeriesRow {
+            experiment,
+            channel,
+            hit,
+            seq,
+            time_s,
+            load_n,
+            values,
+        })
+    }
+    fn mem_bytes(&self) -> usize {
+        std::mem::size_of::<Self>()
+            + self.experiment.len()
+            + self.values.len() * std::mem::size_of::<Option<f64>>()
+    }
+}
+
+/// The tested columns of the tables, checked (every `pr_*` column of the first table when
+/// none are named).
+fn tested_columns(t: &TableScan, p: &Path, wanted: &[String]) -> Result<Vec<String>, TrendError> {
+    let mut columns = wanted.to_vec();
+    if columns.is_empty() {
+        columns = t
+            .column_names()
+            .into_iter()
+            .filter(|n| n.starts_with("pr_"))
+            .collect();
+        if columns.is_empty() {
+            return Err(TrendError::Read {
+                path: p.display().to_string(),
+                message: "no pr_* power-ratio columns; name the columns to test with --columns"
+                    .into(),
+            });
+        }
+    }
+    for c in &columns {
+        match t.dtype(c) {
+            None => {
+                return Err(TrendError::Read {
+                    path: p.display().to_string(),
+                    message: format!("no column {c}"),
+                })
+            }
+            Some(dt) if !dt.is_primitive_numeric() => {
+                return Err(TrendError::Read {
+                    path: p.display().to_string(),
+                    message: format!("column {c} is {dt}, not a number"),
+                })
+            }
+            _ => {}
+        }
+    }
+    Ok(columns)
+}
+
+/// Every series row of the tables, sorted by experiment, group channel and hit, in bounded
+/// memory (read a batch at a time; sorted runs spill under `spill_dir`).
+fn sorted_series(
+    paths: &[PathBuf],
+    wanted: &[String],
+    rows: SourceRows,
+    spill_dir: &Path,
+) -> Result<(Vec<String>, Sorted<SeriesRow>), TrendError> {
+    let read = |e: StoreError| match e {
+        StoreError::Read { path, message } => TrendError::Read { path, message },
+        other => TrendError::Store(other),
+    };
+    let mut columns: Vec<String> = wanted.to_vec();
+    let mut sorter = Sorter::new(spill_dir);
+    let mut seq = 0u64;
+    for p in paths {
+        let t = TableScan::open(p).map_err(read)?.sources(rows);
+        t.require(
+            &["experiment", "channel", "hit", "time_s", "load_n"],
+            ": not an aepipe features table",
+        )
+        .map_err(read)?;
+        columns = tested_columns(&t, p, &columns)?;
+        let mut sel = vec![
+            col("experiment"),
+            col("channel"),
+            col("hit"),
+            col("time_s"),
+            col("load_n"),
+        ];
+        sel.extend(columns.iter().map(|c| col(c.as_str())));
+        sel.extend(t.event_first_col());
+        for batch in t.batches(sel) {
+            let (_, df) = batch.map_err(read)?;
+            let keys = t.hit_keys(&df).map_err(read)?;
+            let first = t.event_first(&df).map_err(read)?;
+            let time = t.f64s(&df, "time_s").map_err(read)?;
+            let load = t.f64s(&df, "load_n").map_err(read)?;
+            let vals: Vec<Vec<Option<f64>>> = columns
+                .iter()
+                .map(|c| t.f64s(&df, c))
+                .collect::<Result<_, _>>()
+                .map_err(read)?;
+            for (i, (exp, ch, hit)) in keys.into_iter().enumerate() {
+                sorter.push(SeriesRow {
+                    experiment: exp,
+                    channel: crate::store::group_channel(ch, first[i]),
+                    hit,
+                    seq,
+                    time_s: time[i],
+                    load_n: load[i],
+                    values: vals.iter().map(|v| v[i]).collect(),
+                })?;
+                seq += 1;
+            }
+        }
+    }
+    Ok((columns, sorter.finish()?))
+}
+
+/// The fits of every tested column of one series, from its sorted rows: three passes over
+/// the first `k` rows (the cut-off's), exactly [`trends`]'s arithmetic.
+fn trends_sorted(
+    sorted: &Sorted<SeriesRow>,
+    span: Span,
+    columns: &[String],
+    sel: &Selection,
+    alpha: f64,
+) -> Result<Vec<TrendRow>, StoreError> {
+    let k = sel.hits_used;
+    let mut fits = vec![TrendFit::default(); columns.len()];
+    let mut failed: Vec<Option<NoTrend>> = vec![None; columns.len()];
+    // x = AE number (1-based position in the series); a row whose value is null (a flat
+    // record) is left out of the fit but keeps its AE number.
+    let pass = |f: &mut dyn FnMut(usize, f64, f64)| -> Result<(), StoreError> {
+        for (i, r) in sorted.span_iter(span).take(k).enumerate() {
+            let r = r?;
+            for (ci, v) in r.values.iter().enumerate() {
+                if let Some(v) = v {
+                    f(ci, (i + 1) as f64, *v);
+                }
+            }
+        }
+        Ok(())
+    };
+    pass(&mut |ci, x, y| fits[ci].pass1(x, y))?;
+    for (ci, f) in fits.iter_mut().enumerate() {
+        failed[ci] = f.end1().err();
+    }
+    pass(&mut |ci, x, y| {
+        if failed[ci].is_none() {
+            fits[ci].pass2(x, y)
+        }
+    })?;
+    for (ci, f) in fits.iter_mut().enumerate() {
+        if failed[ci].is_none() {
+            failed[ci] = f.end2().err();
+        }
+    }
+    pass(&mut |ci, x, y| {
+        if failed[ci].is_none() {
+            fits[ci].pass3(x, y)
+        }
+    })?;
+    Ok(columns
+        .iter()
+        .enumerate()
+        .map(|(ci, name)| {
+            let (fit, note) = match &failed[ci] {
+                Some(why) => (None, Some(why.to_string())),
+                None => (Some(fits[ci].finish()), sel.note.clone()),
+            };
+            TrendRow {
+                experiment: sel.experiment.clone(),
+                channel: sel.channel,
+                column: name.clone(),
+                n: fits[ci].points(),
+                cutoff: sel.cutoff.clone(),
+                significant: fit.is_some_and(|f| f.p < alpha),
+                fit,
+                note,
+            }
+        })
+        .collect())
+}
+
+/// The points a Fig. 4.18 picture draws: the steepest significant columns of one series
+/// (at most `max_lines`), each (AE number, value) up to the cut-off, at most
+/// [`MAX_PLOT_POINTS`] each (every m-th point when more: said on the picture).
+pub struct TrendPicture<'a> {
+    pub selection: &'a Selection,
+    pub lines: Vec<(&'a TrendRow, Vec<(f64, f64)>)>,
+    /// The largest value of the drawn columns (all points, drawn or not).
+    pub ymax: f64,
+    /// Every m-th point drawn (1: all).
+    pub every: usize,
+}
+
+/// Points drawn per line of a trend picture, at most.
+pub const MAX_PLOT_POINTS: usize = 20_000;
+
+/// The steepest significant rows of one series, at most `max_lines`, steepest first.
+pub fn drawn_rows(rows: &[TrendRow], max_lines: usize) -> Vec<&TrendRow> {
+    let mut sig: Vec<&TrendRow> = rows.iter().filter(|r| r.significant).collect();
+    sig.sort_by(|a, b| {
+        b.fit
+            .map(|f| f.slope.abs())
+            .unwrap_or(0.0)
+            .total_cmp(&a.fit.map(|f| f.slope.abs()).unwrap_or(0.0))
+    });
+    sig.truncate(max_lines);
+    sig
+}
+
+fn picture<'a>(
+    sorted: &Sorted<SeriesRow>,
+    span: Span,
+    columns: &[String],
+    sel: &'a Selection,
+    rows: &'a [TrendRow],
+    max_lines: usize,
+) -> Result<Option<TrendPicture<'a>>, StoreError> {
+    let drawn = drawn_rows(rows, max_lines);
+    if drawn.is_empty() {
+        return Ok(None);
+    }
+    let k = sel.hits_used;
+    let every = k.div_ceil(MAX_PLOT_POINTS).max(1);
+    let ci: Vec<usize> = drawn
+        .iter()
+        .map(|r| columns.iter().position(|c| c == &r.column).expect("tested"))
+        .collect();
+    let mut lines: Vec<(&TrendRow, Vec<(f64, f64)>)> =
+        drawn.iter().map(|r| (*r, Vec::new())).collect();
+    let mut ymax = 0.0f64;
+    for (j, r) in sorted.span_iter(span).take(k).enumerate() {
+        let r = r?;
+        for (l, &c) in ci.iter().enumerate() {
+            if let Some(v) = r.values[c] {
+                ymax = ymax.max(v);
+                if j.is_multiple_of(every) {
+                    lines[l].1.push(((j + 1) as f64, v));
+                }
+            }
+        }
+    }
+    Ok(Some(TrendPicture {
+        selection: sel,
+        lines,
+        ymax,
+        every,
+    }))
 }
 
 /// Read, select, fit and write `DIR/trend.parquet` and `DIR/trend_manifest.json`.
@@ -358,18 +683,31 @@ pub fn run_trend(
     out_dir: &Path,
     opts: &TrendOptions,
 ) -> Result<TrendReport, TrendError> {
+    run_trend_with(inputs, out_dir, opts, 0, |_| Ok::<(), TrendError>(()))
+}
+
+/// [`run_trend`], calling `picture` with each series' Fig. 4.18 data (its steepest
+/// `max_lines` significant columns) while the series is at hand: the stage streams, so the
+/// points are not kept for later. The rows are read a batch at a time and sorted in
+/// bounded memory; the fits take three passes over each series.
+pub fn run_trend_with<E: From<TrendError> + From<StoreError>>(
+    inputs: &[PathBuf],
+    out_dir: &Path,
+    opts: &TrendOptions,
+    max_lines: usize,
+    mut picture_of: impl FnMut(&TrendPicture) -> Result<(), E>,
+) -> Result<TrendReport, E> {
     if !(opts.alpha > 0.0 && opts.alpha < 1.0) {
-        return Err(TrendError::Usage(format!(
-            "alpha must be in (0, 1), got {}",
-            opts.alpha
-        )));
+        return Err(
+            TrendError::Usage(format!("alpha must be in (0, 1), got {}", opts.alpha)).into(),
+        );
     }
-    let (columns, series) = read_series(inputs, &opts.columns, opts.sources)?;
     std::fs::create_dir_all(out_dir).map_err(|source| crate::store::StoreError::Io {
         path: out_dir.display().to_string(),
         source,
     })?;
     crate::store::clean_stale_tmp(out_dir);
+    let (columns, sorted) = sorted_series(inputs, &opts.columns, opts.sources, out_dir)?;
     let dir = TrendDir::new(out_dir);
     let table_path = dir.table();
     let meta = vec![
@@ -383,12 +721,30 @@ pub fn run_trend(
     let mut w = TableWriter::create(&table_path, table.schema(), &meta, 4096)?;
     let mut rows = Vec::new();
     let mut selections = Vec::new();
-    for s in &series {
-        let sel = select(s, opts.cutoff);
-        for t in trends(s, &columns, &sel, opts.alpha) {
-            w.push(table.row(t.clone()))?;
-            rows.push(t);
+    for ((experiment, channel), span) in sorted.groups(|r| (r.experiment.clone(), r.channel))? {
+        let sel = select_from(
+            &experiment,
+            channel,
+            sorted
+                .span_iter(span)
+                .map_while(Result::ok)
+                .map(|r| (r.hit, r.time_s, r.load_n)),
+            opts.cutoff,
+        );
+        if sel.hits_total as u64 != span.len {
+            // A record that did not read back (map_while stopped): say which file.
+            sorted.span_iter(span).collect::<Result<Vec<_>, _>>()?;
         }
+        let group = trends_sorted(&sorted, span, &columns, &sel, opts.alpha)?;
+        if max_lines > 0 {
+            if let Some(p) = picture(&sorted, span, &columns, &sel, &group, max_lines)? {
+                picture_of(&p)?;
+            }
+        }
+        for t in &group {
+            w.push(table.row(t.clone()))?;
+        }
+        rows.extend(group);
         selections.push(sel);
     }
     w.finish()?;
@@ -411,7 +767,6 @@ pub fn run_trend(
     Ok(TrendReport {
         rows,
         selections,
-        series,
         columns,
         table_path,
     })

@@ -390,15 +390,18 @@ fn trend(
         columns,
         sources: crate::store::SourceRows::default(),
     };
-    let rep = trend::run_trend(features, out, &opts)?;
+    let mut plots = Vec::new();
+    let lines = if no_plots { 0 } else { 4 };
+    let rep = trend::run_trend_with(features, out, &opts, lines, |pic| {
+        let sel = pic.selection;
+        let png = trend::TrendDir::new(out).png(&sel.experiment, sel.channel);
+        crate::plot::trend_png(&png, pic)?;
+        plots.push(png);
+        Ok::<(), anyhow::Error>(())
+    })?;
     print!("{}", trend::format_table(&rep));
-    if !no_plots {
-        for sel in &rep.selections {
-            let png = trend::TrendDir::new(out).png(&sel.experiment, sel.channel);
-            if crate::plot::trend_png(&png, &rep, &sel.experiment, sel.channel, 4)? {
-                println!("plot: {}", png.display());
-            }
-        }
+    for png in plots {
+        println!("plot: {}", png.display());
     }
     println!(
         "wrote {} and {}",

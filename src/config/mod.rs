@@ -313,6 +313,11 @@ pub struct ReportConfig {
     pub enabled: bool,
     /// CWT thumbnails per class in the gallery (Appendix B style).
     pub gallery_per_class: usize,
+    /// Pictures drawn per kind (trend, damage profile, evolution, location) for at most this
+    /// many series, the first in order (experiment, channel): a study of thousands of
+    /// experiments keeps its tables whole and its report readable. The report says how
+    /// many series it has pictures of.
+    pub series_figures: usize,
 }
 
 impl Default for ReportConfig {
@@ -320,6 +325,7 @@ impl Default for ReportConfig {
         ReportConfig {
             enabled: true,
             gallery_per_class: 6,
+            series_figures: 24,
         }
     }
 }

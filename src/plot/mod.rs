@@ -211,59 +211,27 @@ pub fn cwt_window_png(
 }
 
 /// Fig. 4.18 style: power ratio against AE number for the steepest significant windows of
-/// one experiment × channel, with their fitted lines.
-pub fn trend_png(
-    path: &Path,
-    rep: &crate::analysis::trend::TrendReport,
-    experiment: &str,
-    channel: i32,
-    max_lines: usize,
-) -> Result<bool, PlotError> {
+/// one experiment × channel, with their fitted lines. A series of more than
+/// `MAX_PLOT_POINTS` hits draws every m-th point and says so in the caption.
+pub fn trend_png(path: &Path, pic: &crate::analysis::trend::TrendPicture) -> Result<(), PlotError> {
     use crate::analysis::trend::window_name;
     ensure_font()?;
-    let Some(series) = rep
-        .series
-        .iter()
-        .find(|s| s.experiment == experiment && s.channel == channel)
-    else {
-        return Ok(false);
-    };
-    let sel = rep
-        .selections
-        .iter()
-        .find(|s| s.experiment == experiment && s.channel == channel)
-        .expect("selection per series");
-    let mut sig: Vec<&crate::analysis::trend::TrendRow> = rep
-        .rows
-        .iter()
-        .filter(|r| r.experiment == experiment && r.channel == channel && r.significant)
-        .collect();
-    if sig.is_empty() {
-        return Ok(false);
-    }
-    sig.sort_by(|a, b| {
-        b.fit
-            .map(|f| f.slope.abs())
-            .unwrap_or(0.0)
-            .total_cmp(&a.fit.map(|f| f.slope.abs()).unwrap_or(0.0))
-    });
-    sig.truncate(max_lines);
+    let sel = pic.selection;
     let k = sel.hits_used;
     let e = err(path);
     let root = BitMapBackend::new(path, (1000, 620)).into_drawing_area();
     root.fill(&WHITE).map_err(&e)?;
-    let ymax = sig
-        .iter()
-        .filter_map(|r| rep.columns.iter().position(|c| c == &r.column))
-        .flat_map(|ci| series.values[ci][..k].iter().flatten().copied())
-        .fold(0.0f64, f64::max)
-        .max(1e-6)
-        * 1.05;
+    let ymax = pic.ymax.max(1e-6) * 1.05;
+    let sampled = if pic.every > 1 {
+        format!("; every {}th point drawn", pic.every)
+    } else {
+        String::new()
+    };
     let mut c = ChartBuilder::on(&root)
         .caption(
             format!(
-                "{experiment} ch{channel}: power ratio vs AE number ({})",
-                sel.cutoff
+                "{} ch{}: power ratio vs AE number ({}{sampled})",
+                sel.experiment, sel.channel, sel.cutoff
             ),
             ("sans-serif", 18),
         )
@@ -285,19 +253,13 @@ pub fn trend_png(
         RGBColor(255, 127, 14),
         RGBColor(23, 190, 207),
     ];
-    for (i, r) in sig.iter().enumerate() {
+    for (i, (r, pts)) in pic.lines.iter().enumerate() {
         let color = palette[i % palette.len()];
-        let ci = rep
-            .columns
-            .iter()
-            .position(|c| c == &r.column)
-            .expect("tested column");
-        let pts = series.values[ci][..k]
-            .iter()
-            .enumerate()
-            .filter_map(|(j, v)| v.map(|v| ((j + 1) as f64, v)));
-        c.draw_series(pts.map(|p| Circle::new(p, 2, color.mix(0.5).filled())))
-            .map_err(&e)?;
+        c.draw_series(
+            pts.iter()
+                .map(|p| Circle::new(*p, 2, color.mix(0.5).filled())),
+        )
+        .map_err(&e)?;
         let f = r.fit.expect("significant");
         c.draw_series(LineSeries::new(
             [
@@ -320,7 +282,7 @@ pub fn trend_png(
     // (plotters' default position)
     draw_legend(&mut c, SeriesLabelPosition::MiddleRight, path)?;
     root.present().map_err(&e)?;
-    Ok(true)
+    Ok(())
 }
 
 /// Draw a map-sized grid of values as coloured cells with optional text per cell.
@@ -445,25 +407,30 @@ pub fn hit_maps_png(
 /// The damage profile of one experiment × channel (Fig. 6.1): the load over time above, and
 /// below, for each class, the share of its hits so far (so that a class of 9 hits is as
 /// visible as one of 500; the legend gives the totals), with the peak load marked.
+///
+/// `rows` are (position in the series, row): all of them, or every `every`-th and the last
+/// for a long series (the caption says so).
 pub fn damage_profile_png(
     path: &Path,
-    rows: &[&crate::som::profile::ProfileRow],
+    rows: &[(usize, crate::som::profile::ProfileRow)],
     summary: &crate::som::profile::ProfileSummary,
+    every: usize,
 ) -> Result<(), PlotError> {
     use crate::som::profile::CLASSES;
     ensure_font()?;
     let e = err(path);
     let x_of = |i: usize, r: &crate::som::profile::ProfileRow| r.time_s.unwrap_or(i as f64);
-    let xlabel = if rows.iter().all(|r| r.time_s.is_some()) {
+    let xlabel = if rows.iter().all(|(_, r)| r.time_s.is_some()) {
         "time (s)"
     } else {
         "hit (in order)"
     };
-    let xmax = rows
-        .iter()
-        .enumerate()
-        .map(|(i, r)| x_of(i, r))
-        .fold(1e-9, f64::max);
+    let xmax = rows.iter().map(|(i, r)| x_of(*i, r)).fold(1e-9, f64::max);
+    let sampled = if every > 1 {
+        format!("; every {every}th hit drawn")
+    } else {
+        String::new()
+    };
     let root = BitMapBackend::new(path, (1000, 640)).into_drawing_area();
     root.fill(&WHITE).map_err(&e)?;
     let (top, bottom) = root.split_vertically(240);
@@ -471,7 +438,7 @@ pub fn damage_profile_png(
     let mut c = ChartBuilder::on(&top)
         .caption(
             format!(
-                "{} ch{}: damage profile (Fig. 6.1)",
+                "{} ch{}: damage profile (Fig. 6.1){sampled}",
                 summary.experiment, summary.channel
             ),
             ("sans-serif", 18),
@@ -484,8 +451,7 @@ pub fn damage_profile_png(
     c.configure_mesh().y_desc("load (N)").draw().map_err(&e)?;
     c.draw_series(LineSeries::new(
         rows.iter()
-            .enumerate()
-            .filter_map(|(i, r)| r.load_n.map(|l| (x_of(i, r), l))),
+            .filter_map(|(i, r)| r.load_n.map(|l| (x_of(*i, r), l))),
         BLACK.stroke_width(2),
     ))
     .map_err(&e)?;
@@ -500,7 +466,7 @@ pub fn damage_profile_png(
         .y_desc("share of the class's hits so far")
         .draw()
         .map_err(&e)?;
-    let last = rows.last().map(|r| r.counts).unwrap_or([0; 4]);
+    let last = rows.last().map(|(_, r)| r.counts).unwrap_or([0; 4]);
     let names: Vec<String> = CLASSES
         .iter()
         .map(|s| s.to_string())
@@ -513,8 +479,7 @@ pub fn damage_profile_png(
         let colour = sources::class_colour(&names[k]);
         c.draw_series(LineSeries::new(
             rows.iter()
-                .enumerate()
-                .map(|(i, r)| (x_of(i, r), r.counts[k] as f64 / last[k] as f64)),
+                .map(|(i, r)| (x_of(*i, r), r.counts[k] as f64 / last[k] as f64)),
             colour.stroke_width(2),
         ))
         .map_err(&e)?

@@ -241,7 +241,13 @@ pub fn evolution_png(
     rows: &[&EvolutionRow],
     window: usize,
     peak_time_s: Option<f64>,
+    every: usize,
 ) -> Result<(), PlotError> {
+    let sampled = if every > 1 {
+        format!(" (every {every}th source drawn)")
+    } else {
+        String::new()
+    };
     ensure_font()?;
     let e = err(path);
     let mut classes: Vec<&str> = rows.iter().map(|r| r.class.as_str()).collect();
@@ -271,9 +277,9 @@ pub fn evolution_png(
         let mut c = ChartBuilder::on(area)
             .caption(
                 if against_load {
-                    format!("{experiment}: cumulative sources against load")
+                    format!("{experiment}: cumulative sources against load{sampled}")
                 } else {
-                    format!("{experiment}: cumulative sources against time")
+                    format!("{experiment}: cumulative sources against time{sampled}")
                 },
                 ("sans-serif", 16),
             )

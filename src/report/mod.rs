@@ -235,10 +235,10 @@ pub struct Gallery {
 /// What the report shows besides the summary, gathered by the workflow from the run folder.
 #[derive(Default)]
 pub struct Gathered {
-    /// The ch. 4.7 label of every hit.
-    pub criteria: BTreeMap<HitKey, String>,
-    /// The SOM class of every hit (empty without a SOM stage).
-    pub som: BTreeMap<HitKey, String>,
+    /// Hits per (experiment, ch. 4.7 label).
+    pub criteria: BTreeMap<(String, String), usize>,
+    /// Hits per (experiment, SOM class) (empty without a SOM stage).
+    pub som: BTreeMap<(String, String), usize>,
     pub gallery: Gallery,
     /// The features stage's `manifest.json`, as text.
     pub manifest: String,
@@ -249,14 +249,51 @@ pub fn choose_gallery(
     labels: &BTreeMap<HitKey, String>,
     per: usize,
 ) -> BTreeMap<String, Vec<HitKey>> {
-    let mut chosen: BTreeMap<String, Vec<HitKey>> = BTreeMap::new();
+    let mut g = GalleryChoice::new(per);
     for (k, c) in labels {
-        let v = chosen.entry(c.clone()).or_default();
-        if v.len() < per {
-            v.push(k.clone());
+        g.offer(k, c);
+    }
+    g.chosen()
+}
+
+/// [`choose_gallery`] as the hits stream by in any order: each class keeps the `per`
+/// smallest keys it has seen (a bounded max-heap), so memory holds `per` keys a class.
+#[derive(Debug, Clone)]
+pub struct GalleryChoice {
+    per: usize,
+    heaps: BTreeMap<String, std::collections::BinaryHeap<HitKey>>,
+}
+
+impl GalleryChoice {
+    pub fn new(per: usize) -> GalleryChoice {
+        GalleryChoice {
+            per,
+            heaps: BTreeMap::new(),
         }
     }
-    chosen
+
+    pub fn offer(&mut self, key: &HitKey, class: &str) {
+        if self.per == 0 {
+            return;
+        }
+        if !self.heaps.contains_key(class) {
+            self.heaps.insert(class.to_string(), Default::default());
+        }
+        let h = self.heaps.get_mut(class).expect("inserted");
+        if h.len() < self.per {
+            h.push(key.clone());
+        } else if h.peek().is_some_and(|top| key < top) {
+            h.pop();
+            h.push(key.clone());
+        }
+    }
+
+    pub fn chosen(self) -> BTreeMap<String, Vec<HitKey>> {
+        self.heaps
+            .into_iter()
+            .map(|(c, h)| (c, h.into_sorted_vec()))
+            .collect()
+    }
 }
 
 fn esc(s: &str) -> String {
@@ -380,8 +417,8 @@ fn inputs_section(h: &mut String, s: &RunSummary) {
 }
 
 fn classes_section(h: &mut String, g: &Gathered) {
-    let mut classes: BTreeSet<String> = g.criteria.values().cloned().collect();
-    classes.extend(g.som.values().cloned());
+    let mut classes: BTreeSet<String> = g.criteria.keys().map(|k| k.1.clone()).collect();
+    classes.extend(g.som.keys().map(|k| k.1.clone()));
     let experiments: BTreeSet<String> = g.criteria.keys().map(|k| k.0.clone()).collect();
     let _ = write!(
         h,
@@ -398,7 +435,7 @@ fn classes_section(h: &mut String, g: &Gathered) {
             }
             let _ = write!(h, "<tr><td class=l>{}</td><td class=l>{name}</td>", esc(e));
             for c in &classes {
-                let n = map.iter().filter(|(k, v)| &k.0 == e && *v == c).count();
+                let n = map.get(&(e.clone(), c.clone())).copied().unwrap_or(0);
                 let _ = write!(h, "<td>{n}</td>");
             }
             h.push_str("</tr>");

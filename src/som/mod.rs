@@ -17,7 +17,7 @@ pub mod tables;
 use crate::util::Rng;
 use ndarray::{Array2, ArrayView2};
 
-#[derive(Debug, thiserror::Error, PartialEq)]
+#[derive(Debug, thiserror::Error)]
 pub enum SomError {
     #[error("som: {0}")]
     Params(String),
@@ -31,6 +31,9 @@ pub enum SomError {
     Write { path: String, message: String },
     #[error("SOM_PAK codebook: {0}")]
     Codebook(String),
+    /// A temporary (spill) file of a whole-batch stage could not be written or read.
+    #[error(transparent)]
+    Store(#[from] crate::store::StoreError),
 }
 
 impl crate::util::HasKind for SomError {
@@ -41,6 +44,7 @@ impl crate::util::HasKind for SomError {
             | SomError::File { .. }
             | SomError::Codebook(_) => crate::util::ErrorKind::Usage,
             SomError::Write { .. } => crate::util::ErrorKind::Failed,
+            SomError::Store(e) => crate::util::HasKind::kind(e),
         }
     }
 }
@@ -241,6 +245,53 @@ pub struct Som {
 }
 
 use kernel::sq_dist;
+
+/// Class-balanced votes of labelled rows for the nodes they map to, gathered one row at a
+/// time (each row of class c votes 1 / (rows of c)) so that a calibration set need not be in
+/// memory; the same sums in the same order as voting over the whole set at once.
+#[derive(Debug, Clone)]
+pub struct Votes {
+    sizes: std::collections::BTreeMap<String, usize>,
+    votes: Vec<std::collections::BTreeMap<String, f64>>,
+}
+
+impl Votes {
+    /// Votes for `som`'s nodes, with the class sizes of the whole calibration set.
+    pub fn new(som: &Som, sizes: std::collections::BTreeMap<String, usize>) -> Votes {
+        Votes {
+            sizes,
+            votes: vec![Default::default(); som.nodes()],
+        }
+    }
+
+    /// One row (in the map's scaling) of class `label` votes for its BMU.
+    pub fn add(&mut self, som: &Som, x: &[f64], label: &str) {
+        let w = 1.0 / self.sizes.get(label).copied().unwrap_or(1).max(1) as f64;
+        let b = som.bmu(x).0;
+        match self.votes[b].get_mut(label) {
+            Some(v) => *v += w,
+            None => {
+                self.votes[b].insert(label.to_string(), 0.0 + w);
+            }
+        }
+    }
+
+    /// Each node's winning label (`None`: no row reached it); ties go to the label that
+    /// sorts first.
+    fn winners(&self) -> Vec<Option<String>> {
+        self.votes
+            .iter()
+            .map(|v| {
+                v.iter()
+                    .fold(None, |m: Option<(&String, f64)>, (l, &c)| match m {
+                        Some((_, mc)) if mc >= c => m,
+                        _ => Some((l, c)),
+                    })
+                    .map(|(l, _)| l.clone())
+            })
+            .collect()
+    }
+}
 
 /// The hot loops of training. Each sum runs in 8 fixed lanes, so the compiler can keep them
 /// in SIMD registers and the result does not depend on the vector width. The update uses
@@ -711,13 +762,34 @@ impl Som {
         }
         // Each row votes 1 / (rows of its class): every class has the same total say, so a
         // class the calibration set holds many of does not win a node by numbers alone.
-        let mut sizes: std::collections::BTreeMap<&str, usize> = Default::default();
+        let mut sizes: std::collections::BTreeMap<String, usize> = Default::default();
         for l in labels {
-            *sizes.entry(l.as_str()).or_default() += 1;
+            *sizes.entry(l.clone()).or_default() += 1;
         }
-        let voted = self.vote(data, labels, |l| 1.0 / sizes[l] as f64)?;
+        let data = data.as_standard_layout();
+        let data = data.as_slice().expect("standard layout");
+        if data.len() / self.dim != labels.len() {
+            return Err(SomError::Data(format!(
+                "{} inputs but {} labels",
+                data.len() / self.dim,
+                labels.len()
+            )));
+        }
+        let mut votes = Votes::new(self, sizes);
+        for (x, l) in data.chunks(self.dim).zip(labels) {
+            votes.add(self, x, l);
+        }
+        self.relabel_with(votes)
+    }
+
+    /// [`Som::relabel_where_hit`]'s second half: apply the votes gathered row by row (a
+    /// calibration set streamed in batches). Returns how many nodes changed label.
+    pub fn relabel_with(&mut self, votes: Votes) -> Result<usize, SomError> {
+        if self.labels.len() != self.nodes() {
+            return Err(SomError::Data("the nodes carry no labels to keep".into()));
+        }
         let mut changed = 0;
-        for (j, v) in voted.into_iter().enumerate() {
+        for (j, v) in votes.winners().into_iter().enumerate() {
             if let Some(l) = v {
                 if self.labels[j] != l {
                     self.labels[j] = l;

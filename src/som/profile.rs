@@ -4,7 +4,8 @@
 
 use super::SomError;
 use crate::model::Mechanism;
-use crate::store::{ColType, ColumnSpec, HitKey, Table, TableScan, TableWriter, Value};
+use crate::store::spill::{Dec, Enc, Sorted, Sorter, Span, Spill};
+use crate::store::{ColType, ColumnSpec, HitKey, StoreError, Table, TableScan, TableWriter, Value};
 use polars::prelude::col;
 use std::collections::BTreeMap;
 use std::path::Path;
@@ -168,19 +169,212 @@ fn slot(class: &str) -> usize {
         .unwrap_or(OTHER)
 }
 
+/// A classified row on its way into the profile: its series (experiment, group channel), the
+/// order within it (time, null last; hit; position in the features table), and what the
+/// profile and the evolution read.
+#[derive(Debug, Clone, PartialEq)]
+struct Rec {
+    experiment: String,
+    channel: i32,
+    time_s: Option<f64>,
+    hit: i64,
+    seq: u64,
+    /// The hit's own channel (its key in the tables).
+    hit_channel: i32,
+    load_n: Option<f64>,
+    extension_m: Option<f64>,
+    amplitude_db: Option<f64>,
+    energy_eu: Option<f64>,
+    event: Option<i64>,
+    first: Option<bool>,
+    class: String,
+    source_hits: u64,
+}
+
+impl Rec {
+    fn time_key(&self) -> f64 {
+        self.time_s.unwrap_or(f64::NAN)
+    }
+}
+
+impl Eq for Rec {}
+impl PartialOrd for Rec {
+    fn partial_cmp(&self, o: &Self) -> Option<std::cmp::Ordering> {
+        Some(self.cmp(o))
+    }
+}
+impl Ord for Rec {
+    fn cmp(&self, o: &Self) -> std::cmp::Ordering {
+        (self.experiment.as_str(), self.channel)
+            .cmp(&(o.experiment.as_str(), o.channel))
+            .then(self.time_key().total_cmp(&o.time_key()))
+            .then(self.hit.cmp(&o.hit))
+            .then(self.seq.cmp(&o.seq))
+    }
+}
+
+impl Spill for Rec {
+    fn encode(&self, out: &mut Vec<u8>) {
+        Enc(out)
+            .str(&self.experiment)
+            .i32(self.channel)
+            .opt_f64(self.time_s)
+            .i64(self.hit)
+            .u64(self.seq)
+            .i32(self.hit_channel)
+            .opt_f64(self.load_n)
+            .opt_f64(self.extension_m)
+            .opt_f64(self.amplitude_db)
+            .opt_f64(self.energy_eu)
+            .opt_i64(self.event)
+            .opt_bool(self.first)
+            .str(&self.class)
+            .u64(self.source_hits);
+    }
+    fn decode(b: &mut Dec<'_>) -> Option<Self> {
+        Some(Rec {
+            experiment: b.str()?,
+            channel: b.i32()?,
+            time_s: b.opt_f64()?,
+            hit: b.i64()?,
+            seq: b.u64()?,
+            hit_channel: b.i32()?,
+            load_n: b.opt_f64()?,
+            extension_m: b.opt_f64()?,
+            amplitude_db: b.opt_f64()?,
+            energy_eu: b.opt_f64()?,
+            event: b.opt_i64()?,
+            first: b.opt_bool()?,
+            class: b.str()?,
+            source_hits: b.u64()?,
+        })
+    }
+    fn mem_bytes(&self) -> usize {
+        std::mem::size_of::<Self>() + self.experiment.len() + self.class.len()
+    }
+}
+
+/// A features row that belongs to an event, sorted by (experiment, event, position): the
+/// runs count each event's hits; a classified row carries its profile record along.
+#[derive(Debug, Clone, PartialEq, Eq)]
+struct EventRow {
+    experiment: String,
+    event: i64,
+    seq: u64,
+    rec: Option<Box<Rec>>,
+}
+
+impl PartialOrd for EventRow {
+    fn partial_cmp(&self, o: &Self) -> Option<std::cmp::Ordering> {
+        Some(self.cmp(o))
+    }
+}
+impl Ord for EventRow {
+    fn cmp(&self, o: &Self) -> std::cmp::Ordering {
+        (self.experiment.as_str(), self.event, self.seq).cmp(&(
+            o.experiment.as_str(),
+            o.event,
+            o.seq,
+        ))
+    }
+}
+
+impl Spill for EventRow {
+    fn encode(&self, out: &mut Vec<u8>) {
+        Enc(out)
+            .str(&self.experiment)
+            .i64(self.event)
+            .u64(self.seq)
+            .u8(self.rec.is_some() as u8);
+        if let Some(r) = &self.rec {
+            r.encode(out);
+        }
+    }
+    fn decode(b: &mut Dec<'_>) -> Option<Self> {
+        let (experiment, event, seq) = (b.str()?, b.i64()?, b.u64()?);
+        let rec = match b.u8()? {
+            0 => None,
+            _ => Some(Box::new(Rec::decode(b)?)),
+        };
+        Some(EventRow {
+            experiment,
+            event,
+            seq,
+            rec,
+        })
+    }
+    fn mem_bytes(&self) -> usize {
+        std::mem::size_of::<Self>()
+            + self.experiment.len()
+            + self.rec.as_ref().map_or(0, |r| r.mem_bytes())
+    }
+}
+
+/// The classification's (key, class) rows, read a batch at a time in file order.
+struct ClassStream {
+    t: TableScan,
+    spans: std::vec::IntoIter<(usize, usize)>,
+    ready: std::collections::VecDeque<(HitKey, String)>,
+}
+
+impl ClassStream {
+    fn open(path: &Path) -> Result<ClassStream, StoreError> {
+        let t = TableScan::open(path)?;
+        t.require(&["experiment", "channel", "hit", "som_label"], "")?;
+        Ok(ClassStream {
+            spans: t.batch_spans().into_iter(),
+            t,
+            ready: Default::default(),
+        })
+    }
+
+    /// The next (key, class), without taking it.
+    fn peek(&mut self) -> Result<Option<&(HitKey, String)>, StoreError> {
+        while self.ready.is_empty() {
+            let Some(span) = self.spans.next() else {
+                return Ok(None);
+            };
+            let sel = vec![
+                col("experiment"),
+                col("channel"),
+                col("hit"),
+                col("som_label"),
+            ];
+            let df = self.t.read_batch(span, sel)?;
+            let keys = self.t.hit_keys(&df)?;
+            let vals = self.t.strings(&df, "som_label")?;
+            self.ready.extend(
+                keys.into_iter()
+                    .zip(vals.into_iter().map(Option::unwrap_or_default)),
+            );
+        }
+        Ok(self.ready.front())
+    }
+
+    /// The class of `key` if it is the next classified row (the join of two tables in the
+    /// same order: a features row the classification skipped gets `None`).
+    fn take_if(&mut self, key: &HitKey) -> Result<Option<String>, StoreError> {
+        match self.peek()? {
+            Some((k, _)) if k == key => Ok(self.ready.pop_front().map(|(_, c)| c)),
+            _ => Ok(None),
+        }
+    }
+}
+
+/// The damage profile of a classified feature table, sorted into its series: every series'
+/// rows can be emitted (and re-read) in order without holding the table.
+pub struct Profile {
+    sorted: Sorted<Rec>,
+    groups: Vec<((String, i32), Span)>,
+}
+
 /// Build the profile from a feature table (time, load, extension) and the classification
-/// table (`som_label`) of the same run; hits missing from either are left out.
-pub fn build(
-    features: &Path,
-    classification: &Path,
-) -> Result<(Vec<ProfileRow>, Vec<ProfileSummary>), SomError> {
+/// table (`som_label`) made from it: the classification's rows are a subsequence of the
+/// features' rows in the same order (it classifies the features table's rows in order), so
+/// the two are joined as they stream. Rows are read a batch at a time and sorted into their
+/// series within a memory budget, spilling under `spill_dir`.
+pub fn open(features: &Path, classification: &Path, spill_dir: &Path) -> Result<Profile, SomError> {
     let serr = |e: crate::store::StoreError| SomError::Data(e.to_string());
-    let classes: BTreeMap<HitKey, String> = TableScan::open(classification)
-        .map_err(serr)?
-        .keyed_strings("som_label")
-        .map_err(serr)?
-        .into_iter()
-        .collect();
     let t = TableScan::open(features).map_err(serr)?;
     t.require(
         &[
@@ -210,98 +404,180 @@ pub fn build(
             sel.push(col(c));
         }
     }
-    let df = t.select(sel).map_err(serr)?;
-    let keys = t.hit_keys(&df).map_err(serr)?;
-    let first = t.event_first(&df).map_err(serr)?;
-    let opt = |c: &str| -> Result<Vec<Option<f64>>, SomError> {
-        if has(c) {
-            t.f64s(&df, c).map_err(serr)
-        } else {
-            Ok(vec![None; df.height()])
-        }
-    };
-    let (amp, energy, event) = (opt("peak_amplitude_db")?, opt("energy_eu")?, opt("event")?);
-    // Hits per event, over every row (all sensors, classified or not).
-    let mut event_hits: BTreeMap<(&str, i64), u64> = BTreeMap::new();
-    for (k, e) in keys.iter().zip(&event) {
-        if let Some(e) = e {
-            *event_hits.entry((k.0.as_str(), *e as i64)).or_default() += 1;
-        }
-    }
-    let time = t.f64s(&df, "time_s").map_err(serr)?;
-    let load = t.f64s(&df, "load_n").map_err(serr)?;
-    let ext = t.f64s(&df, "extension_m").map_err(serr)?;
-    // Per experiment × channel, in time order (hit order where there is no time).
-    let mut groups: BTreeMap<(String, i32), Vec<usize>> = BTreeMap::new();
-    // With events built, an experiment's events form one series (channel 0), whichever
-    // sensor heard each first.
-    let group = |i: usize| crate::store::group_channel(keys[i].1, first[i]);
-    for (i, k) in keys.iter().enumerate() {
-        if classes.contains_key(k) {
-            groups.entry((k.0.clone(), group(i))).or_default().push(i);
-        }
-    }
-    let mut rows = Vec::new();
-    let mut summaries = Vec::new();
-    for ((experiment, channel), mut idx) in groups {
-        idx.sort_by(|&a, &b| {
-            let ta = time[a].unwrap_or(f64::NAN);
-            let tb = time[b].unwrap_or(f64::NAN);
-            ta.total_cmp(&tb).then(keys[a].2.cmp(&keys[b].2))
-        });
-        let peak = idx
-            .iter()
-            .filter_map(|&i| load[i].filter(|l| l.is_finite()).map(|l| (i, l)))
-            .fold(None, |m: Option<(usize, f64)>, (i, l)| match m {
-                Some((_, ml)) if ml >= l => m,
-                _ => Some((i, l)),
+    let mut classes = ClassStream::open(classification).map_err(serr)?;
+    let mut series: Sorter<Rec> = Sorter::new(spill_dir);
+    let mut events: Sorter<EventRow> = Sorter::new(spill_dir);
+    let mut seq = 0u64;
+    for batch in t.batches(sel) {
+        let (_, df) = batch.map_err(serr)?;
+        let keys = t.hit_keys(&df).map_err(serr)?;
+        let first = t.event_first(&df).map_err(serr)?;
+        let opt = |c: &str| -> Result<Vec<Option<f64>>, SomError> {
+            if has(c) {
+                t.f64s(&df, c).map_err(serr)
+            } else {
+                Ok(vec![None; df.height()])
+            }
+        };
+        let (amp, energy, event) = (opt("peak_amplitude_db")?, opt("energy_eu")?, opt("event")?);
+        let time = t.f64s(&df, "time_s").map_err(serr)?;
+        let load = t.f64s(&df, "load_n").map_err(serr)?;
+        let ext = t.f64s(&df, "extension_m").map_err(serr)?;
+        for (i, k) in keys.into_iter().enumerate() {
+            let class = classes.take_if(&k).map_err(serr)?;
+            let event_no = event[i].map(|e| e as i64);
+            let rec = class.map(|class| Rec {
+                channel: crate::store::group_channel(k.1, first[i]),
+                time_s: time[i],
+                hit: k.2,
+                seq,
+                hit_channel: k.1,
+                load_n: load[i],
+                extension_m: ext[i],
+                amplitude_db: amp[i],
+                energy_eu: energy[i],
+                event: event_no,
+                first: first[i],
+                class,
+                source_hits: 1,
+                experiment: k.0.clone(),
             });
-        let peak_pos = peak.and_then(|(pi, _)| idx.iter().position(|&i| i == pi));
+            match event_no {
+                // Hits per event, over every row (all sensors, classified or not): an event's
+                // rows meet in the event sort, which also carries the classified one along.
+                Some(e) => events.push(EventRow {
+                    experiment: k.0,
+                    event: e,
+                    seq,
+                    rec: rec.map(Box::new),
+                })?,
+                None => {
+                    if let Some(r) = rec {
+                        series.push(r)?;
+                    }
+                }
+            }
+            seq += 1;
+        }
+    }
+    if let Some((k, _)) = classes.peek().map_err(serr)? {
+        return Err(SomError::Data(format!(
+            "{}: hit ({}, {}, {}) is not among the rows of {} in their order (the \
+             classification was not made from this features table)",
+            classification.display(),
+            k.0,
+            k.1,
+            k.2,
+            features.display()
+        )));
+    }
+    let events = events.finish()?;
+    for (_, span) in events.groups(|r| (r.experiment.clone(), r.event))? {
+        let rows: Vec<EventRow> = events.span_iter(span).collect::<Result<_, _>>()?;
+        let n = rows.len() as u64;
+        for r in rows {
+            if let Some(mut rec) = r.rec {
+                if rec.first == Some(true) {
+                    rec.source_hits = n;
+                }
+                series.push(*rec)?;
+            }
+        }
+    }
+    drop(events);
+    let sorted = series.finish()?;
+    let groups = sorted.groups(|r| (r.experiment.clone(), r.channel))?;
+    Ok(Profile { sorted, groups })
+}
+
+impl Profile {
+    /// The series (experiment, channel), in order.
+    pub fn series(&self) -> impl Iterator<Item = &(String, i32)> {
+        self.groups.iter().map(|(g, _)| g)
+    }
+
+    /// Rows in series `g`.
+    pub fn len(&self, g: usize) -> u64 {
+        self.groups[g].1.len
+    }
+
+    /// Emit series `g`: `row` gets each row in time order (hit order where there is no
+    /// time), with the running counts; returns its summary. Two passes: the peak load first.
+    pub fn emit<E: From<SomError>>(
+        &self,
+        g: usize,
+        mut row: impl FnMut(&ProfileRow) -> Result<(), E>,
+    ) -> Result<ProfileSummary, E> {
+        let ((experiment, channel), span) = &self.groups[g];
+        let serr = |e: crate::store::StoreError| SomError::Data(e.to_string());
+        // The first largest finite load, and where it is.
+        let mut peak: Option<(u64, f64, Option<f64>)> = None;
+        for (pos, r) in self.sorted.span_iter(*span).enumerate() {
+            let r = r.map_err(serr)?;
+            if let Some(l) = r.load_n.filter(|l| l.is_finite()) {
+                if !matches!(peak, Some((_, ml, _)) if ml >= l) {
+                    peak = Some((pos as u64, l, r.time_s));
+                }
+            }
+        }
         let mut counts = [0u64; OTHER + 1];
         let mut summary = ProfileSummary {
             experiment: experiment.clone(),
-            channel,
+            channel: *channel,
             peak_load_n: peak.map(|p| p.1),
-            peak_time_s: peak.and_then(|p| time[p.0]),
+            peak_time_s: peak.and_then(|p| p.2),
             classes: BTreeMap::new(),
             last_fibre_s: None,
             last_hit_s: None,
         };
-        for (pos, &i) in idx.iter().enumerate() {
-            let class = classes[&keys[i]].clone();
-            let k = slot(&class);
+        for (pos, r) in self.sorted.span_iter(*span).enumerate() {
+            let r = r.map_err(serr)?;
+            let k = slot(&r.class);
             counts[k] += 1;
-            let before = peak_pos.map(|p| pos < p);
-            let e = summary.classes.entry(class.clone()).or_insert((0, 0));
+            let before = peak.map(|p| (pos as u64) < p.0);
+            let e = summary.classes.entry(r.class.clone()).or_insert((0, 0));
             e.0 += 1;
             if before == Some(true) {
                 e.1 += 1;
             }
             if CLASSES.get(k) == Some(&Mechanism::FibreFailure) {
-                summary.last_fibre_s = time[i].or(summary.last_fibre_s);
+                summary.last_fibre_s = r.time_s.or(summary.last_fibre_s);
             }
-            summary.last_hit_s = time[i].or(summary.last_hit_s);
-            rows.push(ProfileRow {
-                key: (keys[i].0.clone(), group(i), keys[i].2),
-                time_s: time[i],
-                load_n: load[i],
-                extension_m: ext[i],
-                class,
+            summary.last_hit_s = r.time_s.or(summary.last_hit_s);
+            row(&ProfileRow {
+                key: (r.experiment, r.channel, r.hit),
+                time_s: r.time_s,
+                load_n: r.load_n,
+                extension_m: r.extension_m,
+                class: r.class,
                 before_peak_load: before,
                 counts,
-                amplitude_db: amp[i],
-                energy_eu: energy[i],
-                source_hits: match (first[i], event[i]) {
-                    (Some(true), Some(e)) => event_hits[&(keys[i].0.as_str(), e as i64)],
-                    _ => 1,
-                },
-                event: match (first[i], event[i]) {
-                    (Some(true), Some(e)) => Some(e as i64),
+                amplitude_db: r.amplitude_db,
+                energy_eu: r.energy_eu,
+                source_hits: r.source_hits,
+                event: match (r.first, r.event) {
+                    (Some(true), Some(e)) => Some(e),
                     _ => None,
                 },
-            });
+            })?;
         }
-        summaries.push(summary);
+        Ok(summary)
+    }
+}
+
+/// Every row and summary of the profile at once (small tables, tests).
+pub fn build(
+    features: &Path,
+    classification: &Path,
+    spill_dir: &Path,
+) -> Result<(Vec<ProfileRow>, Vec<ProfileSummary>), SomError> {
+    let p = open(features, classification, spill_dir)?;
+    let (mut rows, mut summaries) = (Vec::new(), Vec::new());
+    for g in 0..p.groups.len() {
+        summaries.push(p.emit(g, |r| {
+            rows.push(r.clone());
+            Ok::<(), SomError>(())
+        })?);
     }
     Ok((rows, summaries))
 }

@@ -70,7 +70,8 @@ const QUALITY_ALIAS: &str = "__aepipe_quality";
 
 /// Read `columns` (a fixed-size list such as `tf_bins` expands to its elements; numeric
 /// scalars give one dimension each) and the optional label column, through the store's
-/// table reader.
+/// table reader: every usable row at once (for a training set or a small table; whole-batch
+/// stages use [`for_each_input`]).
 pub fn read_inputs(
     paths: &[PathBuf],
     columns: &[String],
@@ -79,57 +80,14 @@ pub fn read_inputs(
 ) -> Result<SomInput, SomError> {
     let (mut keys, mut labels, mut blocks, mut skipped) = (Vec::new(), Vec::new(), Vec::new(), 0);
     let mut quality = Vec::new();
-    for p in paths {
-        let t = TableScan::open(p).map_err(serr)?.sources(sources);
-        let mut need = vec!["experiment", "channel", "hit"];
-        need.extend(label);
-        t.require(&need, "").map_err(serr)?;
-        // The label may be any column, a key column included (`--label experiment`): it is
-        // read under its own alias, as text, so it never clashes with the key columns.
-        let mut sel = vec![col("experiment"), col("channel"), col("hit")];
-        sel.extend(label.map(|l| col(l).cast(DataType::String).alias(LABEL_ALIAS)));
-        let has_quality = t.dtype(QUALITY).is_some();
-        if has_quality {
-            sel.push(col(QUALITY).cast(DataType::String).alias(QUALITY_ALIAS));
-        }
-        let df = t.select(sel).map_err(serr)?;
-        let k = t.hit_keys(&df).map_err(serr)?;
-        let l = match label {
-            Some(_) => t.strings(&df, LABEL_ALIAS).map_err(serr)?,
-            None => vec![None; k.len()],
-        };
-        let q: Vec<Quality> = if has_quality {
-            t.strings(&df, QUALITY_ALIAS)
-                .map_err(serr)?
-                .into_iter()
-                .map(|f| match f {
-                    Some(f) if !f.is_empty() => Quality::Fault(f),
-                    _ => Quality::Sound,
-                })
-                .collect()
-        } else {
-            vec![Quality::Unknown; k.len()]
-        };
-        let (m, keep) = t.matrix(columns).map_err(serr)?;
-        if let Some(first) = blocks.first().map(|b: &Array2<f64>| b.ncols()) {
-            if m.ncols() != first && m.nrows() > 0 {
-                return Err(ferr(
-                    p,
-                    format!("rows of dimension {first} and {}", m.ncols()),
-                ));
-            }
-        }
-        for (((key, lab), q), kept) in k.into_iter().zip(l).zip(q).zip(&keep) {
-            if *kept {
-                keys.push(key);
-                labels.push(lab);
-                quality.push(q);
-            } else {
-                skipped += 1;
-            }
-        }
-        blocks.push(m);
-    }
+    for_each_input(paths, columns, label, sources, |b| {
+        keys.extend(b.keys);
+        labels.extend(b.labels);
+        quality.extend(b.quality);
+        skipped += b.skipped;
+        blocks.push(b.data);
+        Ok(())
+    })?;
     if keys.is_empty() {
         return Err(SomError::Data(
             "no usable rows in the feature tables".into(),
@@ -148,6 +106,88 @@ pub fn read_inputs(
         quality,
         skipped,
     })
+}
+
+/// [`read_inputs`] a batch at a time ([`crate::store::read::BATCH_ROWS`] rows of a file):
+/// `f` gets each batch's usable rows, in file order, so memory does not grow with the
+/// table. Every batch has the same dimension (else an error naming the file).
+pub fn for_each_input(
+    paths: &[PathBuf],
+    columns: &[String],
+    label: Option<&str>,
+    sources: SourceRows,
+    mut f: impl FnMut(SomInput) -> Result<(), SomError>,
+) -> Result<(), SomError> {
+    let mut dim = None;
+    for p in paths {
+        let t = TableScan::open(p).map_err(serr)?.sources(sources);
+        let mut need = vec!["experiment", "channel", "hit"];
+        need.extend(label);
+        t.require(&need, "").map_err(serr)?;
+        let names: Vec<&str> = columns.iter().map(String::as_str).collect();
+        t.require(&names, "").map_err(serr)?;
+        // The label may be any column, a key column included (`--label experiment`): it is
+        // read under its own alias, as text, so it never clashes with the key columns.
+        let mut sel = vec![col("experiment"), col("channel"), col("hit")];
+        sel.extend(label.map(|l| col(l).cast(DataType::String).alias(LABEL_ALIAS)));
+        let has_quality = t.dtype(QUALITY).is_some();
+        if has_quality {
+            sel.push(col(QUALITY).cast(DataType::String).alias(QUALITY_ALIAS));
+        }
+        // A feature column that is also the key or the label is read once, by its name.
+        for c in columns {
+            if !["experiment", "channel", "hit"].contains(&c.as_str()) {
+                sel.push(col(c.as_str()));
+            }
+        }
+        for batch in t.batches(sel) {
+            let (_, df) = batch.map_err(serr)?;
+            let k = t.hit_keys(&df).map_err(serr)?;
+            let l = match label {
+                Some(_) => t.strings(&df, LABEL_ALIAS).map_err(serr)?,
+                None => vec![None; k.len()],
+            };
+            let q: Vec<Quality> = if has_quality {
+                t.strings(&df, QUALITY_ALIAS)
+                    .map_err(serr)?
+                    .into_iter()
+                    .map(|f| match f {
+                        Some(f) if !f.is_empty() => Quality::Fault(f),
+                        _ => Quality::Sound,
+                    })
+                    .collect()
+            } else {
+                vec![Quality::Unknown; k.len()]
+            };
+            let (m, keep) = t.matrix_of(&df, columns).map_err(serr)?;
+            if m.nrows() > 0 {
+                match dim {
+                    Some(d) if d != m.ncols() => {
+                        return Err(ferr(p, format!("rows of dimension {d} and {}", m.ncols())))
+                    }
+                    _ => dim = Some(m.ncols()),
+                }
+            }
+            let mut input = SomInput {
+                keys: Vec::with_capacity(m.nrows()),
+                data: m,
+                labels: Vec::with_capacity(keep.len()),
+                quality: Vec::with_capacity(keep.len()),
+                skipped: 0,
+            };
+            for (((key, lab), q), kept) in k.into_iter().zip(l).zip(q).zip(&keep) {
+                if *kept {
+                    input.keys.push(key);
+                    input.labels.push(lab);
+                    input.quality.push(q);
+                } else {
+                    input.skipped += 1;
+                }
+            }
+            f(input)?;
+        }
+    }
+    Ok(())
 }
 
 /// How the training set is drawn (ch. 5.4).
@@ -202,17 +242,27 @@ pub fn draw_training(
     inp: &SomInput,
     ts: &TrainingSet,
 ) -> Result<(Vec<usize>, Composition), SomError> {
+    let labels: Vec<Option<&str>> = inp.labels.iter().map(|l| l.as_deref()).collect();
+    draw_training_of(&labels, ts)
+}
+
+/// [`draw_training`] from the usable rows' labels alone (in row order): a table's training
+/// set is drawn without holding its features.
+pub fn draw_training_of(
+    labels: &[Option<&str>],
+    ts: &TrainingSet,
+) -> Result<(Vec<usize>, Composition), SomError> {
     if !(ts.fraction > 0.0 && ts.fraction <= 1.0) {
         return Err(SomError::Params(format!(
             "training fraction must be in (0, 1], got {}",
             ts.fraction
         )));
     }
-    let mut by_class: BTreeMap<String, Vec<usize>> = BTreeMap::new();
-    for (i, l) in inp.labels.iter().enumerate() {
+    let mut by_class: BTreeMap<&str, Vec<usize>> = BTreeMap::new();
+    for (i, l) in labels.iter().enumerate() {
         if let Some(l) = l {
-            if !ts.exclude.contains(l) {
-                by_class.entry(l.clone()).or_default().push(i);
+            if !ts.exclude.iter().any(|e| e == l) {
+                by_class.entry(l).or_default().push(i);
             }
         }
     }
@@ -221,7 +271,7 @@ pub fn draw_training(
             "no labelled hits to train on (after excluding erroneous/unclassified)".into(),
         ));
     }
-    let total = ((ts.fraction * inp.keys.len() as f64).round() as usize).max(by_class.len());
+    let total = ((ts.fraction * labels.len() as f64).round() as usize).max(by_class.len());
     let per = (total / by_class.len()).max(1);
     let n_all: usize = by_class.values().map(Vec::len).sum();
     let mut rng = crate::util::Rng::new(ts.seed);
@@ -237,14 +287,14 @@ pub fn draw_training(
             // An equal share per class; a class with fewer hits than its share is repeated.
             let distinct = per.min(idx.len());
             rows.extend((0..per).map(|k| idx[k % distinct]));
-            comp.insert(class, (distinct, per));
+            comp.insert(class.to_string(), (distinct, per));
         } else {
             let k = ((idx.len() as f64 / n_all as f64) * total as f64)
                 .round()
                 .max(1.0) as usize;
             let k = k.min(idx.len());
             rows.extend_from_slice(&idx[..k]);
-            comp.insert(class, (k, k));
+            comp.insert(class.to_string(), (k, k));
         }
     }
     Ok((rows, comp))
@@ -336,13 +386,65 @@ impl Default for TrainOptions {
 }
 
 /// Train a model on feature tables and write `model.json`, `model.cod` and `train.dat`.
+///
+/// The tables are read a batch at a time, three times: the usable rows' labels (the draw
+/// needs only those), the drawn rows' features (the training set, `fraction` of the rows),
+/// and, to calibrate, every labelled row once more, voting as it passes. Memory holds the
+/// training set and a few bytes per row for the draw, never the tables.
 pub fn train(paths: &[PathBuf], out: &Path, o: &TrainOptions) -> Result<Model, SomError> {
-    let inp = read_inputs(paths, &o.columns, Some(&o.label), o.sources)?;
-    let (rows, comp) = draw_training(&inp, &o.training)?;
-    let mut data = inp.data.select(Axis(0), &rows);
+    // Pass 1: every usable row's label, interned.
+    let mut names: Vec<String> = Vec::new();
+    let mut ids: BTreeMap<String, u32> = BTreeMap::new();
+    let mut row_labels: Vec<Option<u32>> = Vec::new();
+    let mut dim = 0;
+    for_each_input(paths, &o.columns, Some(&o.label), o.sources, |b| {
+        if !b.keys.is_empty() {
+            dim = b.dim();
+        }
+        for l in b.labels {
+            row_labels.push(l.map(|l| match ids.get(&l) {
+                Some(&i) => i,
+                None => {
+                    let i = names.len() as u32;
+                    ids.insert(l.clone(), i);
+                    names.push(l);
+                    i
+                }
+            }));
+        }
+        Ok(())
+    })?;
+    if row_labels.is_empty() {
+        return Err(SomError::Data(
+            "no usable rows in the feature tables".into(),
+        ));
+    }
+    let (rows, comp) = {
+        let as_str: Vec<Option<&str>> = row_labels
+            .iter()
+            .map(|l| l.map(|i| names[i as usize].as_str()))
+            .collect();
+        draw_training_of(&as_str, &o.training)?
+    };
+    // Pass 2: the drawn rows' features, in the draw's order (a row drawn twice is twice).
+    let mut wanted: Vec<(usize, usize)> =
+        rows.iter().enumerate().map(|(pos, &i)| (i, pos)).collect();
+    wanted.sort_unstable();
+    let mut data = Array2::<f64>::zeros((rows.len(), dim));
+    let (mut next, mut base) = (0usize, 0usize);
+    for_each_input(paths, &o.columns, None, o.sources, |b| {
+        let n = b.keys.len();
+        while next < wanted.len() && wanted[next].0 < base + n {
+            let (i, pos) = wanted[next];
+            data.row_mut(pos).assign(&b.data.row(i - base));
+            next += 1;
+        }
+        base += n;
+        Ok(())
+    })?;
     let labels: Vec<String> = rows
         .iter()
-        .map(|&i| inp.labels[i].clone().expect("training rows are labelled"))
+        .map(|&i| names[row_labels[i].expect("training rows are labelled") as usize].clone())
         .collect();
     let scaling = o.standardise.then(|| Scaling::fit(data.view()));
     if let Some(s) = &scaling {
@@ -363,29 +465,32 @@ pub fn train(paths: &[PathBuf], out: &Path, o: &TrainOptions) -> Result<Model, S
     som.label_nodes(data.view(), &labels)?;
     let mut calibration = Composition::new();
     if o.training.calibrate {
-        let keep: Vec<usize> = (0..inp.labels.len())
-            .filter(|&i| {
-                inp.labels[i]
-                    .as_ref()
-                    .is_some_and(|l| !o.training.calibration_exclude.contains(l))
-            })
-            .collect();
-        let mut cal = inp.data.select(Axis(0), &keep);
-        if let Some(s) = &scaling {
-            cal.rows_mut()
-                .into_iter()
-                .for_each(|mut x| s.apply(x.as_slice_mut().expect("standard layout")));
+        // Pass 3: every labelled row not excluded votes, class-balanced, in row order.
+        let counted = |i: &u32| !o.training.calibration_exclude.contains(&names[*i as usize]);
+        let mut sizes: BTreeMap<String, usize> = BTreeMap::new();
+        for l in row_labels.iter().flatten().filter(|i| counted(i)) {
+            *sizes.entry(names[*l as usize].clone()).or_default() += 1;
         }
-        let cal_labels: Vec<String> = keep
-            .iter()
-            .map(|&i| inp.labels[i].clone().expect("kept rows are labelled"))
-            .collect();
-        for l in &cal_labels {
-            let e = calibration.entry(l.clone()).or_insert((0, 0));
-            e.0 += 1;
-            e.1 += 1;
+        for (l, n) in &sizes {
+            calibration.insert(l.clone(), (*n, *n));
         }
-        som.relabel_where_hit(cal.view(), &cal_labels)?;
+        let mut votes = super::Votes::new(&som, sizes);
+        let mut at = 0usize;
+        let mut x = vec![0.0; dim];
+        for_each_input(paths, &o.columns, None, o.sources, |b| {
+            for r in 0..b.keys.len() {
+                if let Some(l) = row_labels[at].filter(counted) {
+                    x.iter_mut().zip(b.data.row(r)).for_each(|(a, v)| *a = *v);
+                    if let Some(s) = &scaling {
+                        s.apply(&mut x);
+                    }
+                    votes.add(&som, &x, &names[l as usize]);
+                }
+                at += 1;
+            }
+            Ok(())
+        })?;
+        som.relabel_with(votes)?;
     }
     let model = Model {
         som,
@@ -619,7 +724,9 @@ impl Confusion {
     }
 }
 
-/// Classify every hit of the feature tables; write `DIR/classification.parquet`.
+/// Classify every hit of the feature tables; write `DIR/classification.parquet`. Reads a
+/// batch of rows at a time ([`for_each_input`]) and classifies its rows in parallel, so
+/// memory stays bounded whatever the table's size; rows are written in file order.
 pub fn classify_tables(
     model: &Model,
     paths: &[PathBuf],
@@ -628,14 +735,7 @@ pub fn classify_tables(
     sources: SourceRows,
     read: ReadErroneous,
 ) -> Result<Confusion, SomError> {
-    let inp = read_inputs(paths, &model.columns, reference, sources)?;
-    if inp.dim() != model.som.dim {
-        return Err(SomError::Data(format!(
-            "feature dimension {} differs from the model's {}",
-            inp.dim(),
-            model.som.dim
-        )));
-    }
+    use rayon::prelude::*;
     std::fs::create_dir_all(out).map_err(|e| werr(out, e))?;
     let path = ClassifyDir::new(out).classification();
     let table = classification_table();
@@ -658,58 +758,92 @@ pub fn classify_tables(
         },
         ..Default::default()
     };
-    let mut x = vec![0.0; inp.dim()];
-    for (i, key) in inp.keys.iter().enumerate() {
-        x.iter_mut().zip(inp.data.row(i)).for_each(|(a, b)| *a = *b);
-        if let Some(s) = &model.scaling {
-            s.apply(&mut x);
+    let mut rows = 0usize;
+    for_each_input(paths, &model.columns, reference, sources, |inp| {
+        if inp.keys.is_empty() {
+            return Ok(());
         }
-        let (b, d, node) = model.som.classify(&x);
-        let node = node.unwrap_or("").to_string();
-        let quality_fault = match &inp.quality[i] {
-            Quality::Fault(f) => Some(f.clone()),
-            _ => None,
-        };
-        let l = match (&inp.quality[i], gate) {
-            (_, false) => node.clone(),
-            (Quality::Unknown, true) => {
-                conf.reading.unknown += 1;
-                node.clone()
-            }
-            (Quality::Fault(_), true) => {
-                conf.reading.faults += 1;
-                erroneous.to_string()
-            }
-            (Quality::Sound, true) if node == erroneous => match model.som.bmu_among(&x, other) {
-                Some((j, _)) => {
-                    conf.reading.reread += 1;
-                    labels[j].clone()
+        if inp.dim() != model.som.dim {
+            return Err(SomError::Data(format!(
+                "feature dimension {} differs from the model's {}",
+                inp.dim(),
+                model.som.dim
+            )));
+        }
+        rows += inp.keys.len();
+        // Each row's BMU (and, where the quality check re-reads it, its nearest node of
+        // another class): independent per row, so computed in parallel.
+        let found: Vec<(usize, f64, Option<usize>)> = (0..inp.keys.len())
+            .into_par_iter()
+            .map_init(
+                || vec![0.0; inp.dim()],
+                |x, i| {
+                    x.iter_mut().zip(inp.data.row(i)).for_each(|(a, b)| *a = *b);
+                    if let Some(s) = &model.scaling {
+                        s.apply(x);
+                    }
+                    let (b, d, node) = model.som.classify(x);
+                    let reread =
+                        (gate && inp.quality[i] == Quality::Sound && node == Some(erroneous))
+                            .then(|| model.som.bmu_among(x, other).map(|(j, _)| j))
+                            .flatten();
+                    (b, d, reread)
+                },
+            )
+            .collect();
+        for (i, (b, d, reread)) in found.into_iter().enumerate() {
+            let node = labels.get(b).map(String::as_str).unwrap_or("").to_string();
+            let quality_fault = match &inp.quality[i] {
+                Quality::Fault(f) => Some(f.clone()),
+                _ => None,
+            };
+            let l = match (&inp.quality[i], gate) {
+                (_, false) => node.clone(),
+                (Quality::Unknown, true) => {
+                    conf.reading.unknown += 1;
+                    node.clone()
                 }
-                None => node.clone(),
-            },
-            (Quality::Sound, true) => node.clone(),
-        };
-        if let Some(r) = &inp.labels[i] {
-            conf.hits
-                .entry(r.clone())
-                .or_insert_with(|| vec![0.0; model.som.nodes()])[b] += 1.0;
-            *conf.counts.entry((l.clone(), r.clone())).or_default() += 1;
-            conf.total += 1;
-            if &l == r {
-                conf.correct += 1;
+                (Quality::Fault(_), true) => {
+                    conf.reading.faults += 1;
+                    erroneous.to_string()
+                }
+                (Quality::Sound, true) if node == erroneous => match reread {
+                    Some(j) => {
+                        conf.reading.reread += 1;
+                        labels[j].clone()
+                    }
+                    None => node.clone(),
+                },
+                (Quality::Sound, true) => node.clone(),
+            };
+            if let Some(r) = &inp.labels[i] {
+                conf.hits
+                    .entry(r.clone())
+                    .or_insert_with(|| vec![0.0; model.som.nodes()])[b] += 1.0;
+                *conf.counts.entry((l.clone(), r.clone())).or_default() += 1;
+                conf.total += 1;
+                if &l == r {
+                    conf.correct += 1;
+                }
             }
+            w.push(table.row(Classified {
+                key: inp.keys[i].clone(),
+                bmu_row: b / model.som.cols,
+                bmu_col: b % model.som.cols,
+                bmu_distance: d,
+                som_label: l,
+                node_label: node,
+                quality_fault,
+                reference_label: inp.labels[i].clone(),
+            }))
+            .map_err(|e| werr(&path, e))?;
         }
-        w.push(table.row(Classified {
-            key: key.clone(),
-            bmu_row: b / model.som.cols,
-            bmu_col: b % model.som.cols,
-            bmu_distance: d,
-            som_label: l,
-            node_label: node,
-            quality_fault,
-            reference_label: inp.labels[i].clone(),
-        }))
-        .map_err(|e| werr(&path, e))?;
+        Ok(())
+    })?;
+    if rows == 0 {
+        return Err(SomError::Data(
+            "no usable rows in the feature tables".into(),
+        ));
     }
     w.finish().map_err(|e| werr(&path, e))?;
     Ok(conf)

@@ -365,6 +365,7 @@ pub use crate::util::tmp_path_for;
 pub mod read;
 pub mod rewrite;
 pub mod shard;
+pub mod spill;
 pub mod table;
 pub use read::{group_channel, HitKey, SourceRows, TableScan};
 pub use table::{

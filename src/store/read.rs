@@ -63,9 +63,19 @@ pub fn group_channel(channel: i32, event_first: Option<bool>) -> i32 {
 /// A lazily scanned table and its schema.
 pub struct TableScan {
     path: PathBuf,
-    lf: LazyFrame,
+    /// The whole table, and the row filter applied after any slicing ([`TableScan::sources`]):
+    /// a batch slices the file first, then filters, so reading batch k never scans the
+    /// rows before it.
+    base: LazyFrame,
+    filter: Option<Expr>,
     schema: SchemaRef,
+    /// Rows per row group of the file, in order.
+    row_groups: Vec<usize>,
 }
+
+/// Rows read at a time by [`TableScan::batches`] (whole row groups are added until this is
+/// reached): with the 200 `tf_bins` a batch holds ~13 MB of floats as read, ~26 MB as f64.
+pub const BATCH_ROWS: usize = 16_384;
 
 fn read_err(p: &Path, m: impl std::fmt::Display) -> StoreError {
     StoreError::Read {
@@ -80,21 +90,81 @@ impl TableScan {
         if !path.is_file() {
             return Err(read_err(path, "no such file"));
         }
-        let mut lf = LazyFrame::scan_parquet(
+        let mut base = LazyFrame::scan_parquet(
             PlRefPath::try_from_path(path).map_err(|e| read_err(path, e))?,
             ScanArgsParquet::default(),
         )
         .map_err(|e| read_err(path, e))?;
-        let schema = lf.collect_schema().map_err(|e| read_err(path, e))?;
+        let schema = base.collect_schema().map_err(|e| read_err(path, e))?;
+        let row_groups = row_group_sizes(path)?;
         Ok(TableScan {
             path: path.to_path_buf(),
-            lf,
+            base,
+            filter: None,
             schema,
+            row_groups,
         })
     }
 
-    pub fn path(&self) -> &Path {
-        &self.path
+    /// The table with its row filter.
+    fn lf(&self) -> LazyFrame {
+        match &self.filter {
+            Some(f) => self.base.clone().filter(f.clone()),
+            None => self.base.clone(),
+        }
+    }
+
+    /// Rows in the file (before any filter).
+    pub fn file_rows(&self) -> usize {
+        self.row_groups.iter().sum()
+    }
+
+    /// The selected expressions, a batch of whole row groups (about [`BATCH_ROWS`] rows of
+    /// the file) at a time, in file order, the row filter applied within each batch: the
+    /// rows of [`TableScan::select`], in bounded memory. Each item also gives the file row
+    /// of the batch's first row.
+    pub fn batches(
+        &self,
+        exprs: Vec<Expr>,
+    ) -> impl Iterator<Item = Result<(usize, DataFrame), StoreError>> + '_ {
+        self.batch_spans()
+            .into_iter()
+            .map(move |span| self.read_batch(span, exprs.clone()).map(|df| (span.0, df)))
+    }
+
+    /// The (first file row, rows) of each batch [`TableScan::batches`] reads.
+    pub fn batch_spans(&self) -> Vec<(usize, usize)> {
+        let mut spans = Vec::new();
+        let (mut start, mut len) = (0usize, 0usize);
+        for &g in &self.row_groups {
+            if len > 0 && len + g > BATCH_ROWS {
+                spans.push((start, len));
+                start += len;
+                len = 0;
+            }
+            len += g;
+        }
+        if len > 0 {
+            spans.push((start, len));
+        }
+        spans
+    }
+
+    /// One batch: the file's rows `span` (first row, rows), filtered, the expressions
+    /// selected. The file is sliced before the filter, so a batch never scans the rows
+    /// before it.
+    pub fn read_batch(
+        &self,
+        span: (usize, usize),
+        exprs: Vec<Expr>,
+    ) -> Result<DataFrame, StoreError> {
+        let mut lf = self.base.clone().slice(span.0 as i64, span.1 as IdxSize);
+        if let Some(f) = &self.filter {
+            lf = lf.filter(f.clone());
+        }
+        lf.select(exprs)
+            .collect()
+            .map_err(|e| read_err(&self.path, e))
     }
 
     /// Only the rows that count as sources ([`SourceRows`]); a table without the event
@@ -103,7 +173,7 @@ impl TableScan {
         if self.schema.get("event_first").is_none() || self.schema.get("zone").is_none() {
             return self;
         }
-        self.lf = self.lf.filter(rows.keep());
+        self.filter = Some(rows.keep());
         self
     }
 
@@ -149,8 +219,7 @@ impl TableScan {
 
     /// Read the selected expressions into memory.
     pub fn select(&self, exprs: Vec<Expr>) -> Result<DataFrame, StoreError> {
-        self.lf
-            .clone()
+        self.lf()
             .select(exprs)
             .collect()
             .map_err(|e| read_err(&self.path, e))
@@ -227,6 +296,15 @@ impl TableScan {
         let names: Vec<&str> = columns.iter().map(String::as_str).collect();
         self.require(&names, "")?;
         let df = self.select(columns.iter().map(|c| col(c.as_str())).collect())?;
+        self.matrix_of(&df, columns)
+    }
+
+    /// [`TableScan::matrix`] of a frame (a batch) that selected `columns`.
+    pub fn matrix_of(
+        &self,
+        df: &DataFrame,
+        columns: &[String],
+    ) -> Result<(Array2<f64>, Vec<bool>), StoreError> {
         let n = df.height();
         // Per column: its width and a row-major block of values (NaN for null).
         let mut blocks: Vec<(usize, Vec<f64>)> = Vec::with_capacity(columns.len());
@@ -259,7 +337,7 @@ impl TableScan {
                     blocks.push((*width, v));
                 }
                 dt if dt.is_primitive_numeric() => {
-                    let v = self.f64s(&df, name)?;
+                    let v = self.f64s(df, name)?;
                     blocks.push((1, v.into_iter().map(|x| x.unwrap_or(f64::NAN)).collect()));
                 }
                 other => {
@@ -288,4 +366,17 @@ impl TableScan {
         let m = Array2::from_shape_vec((rows, dim), data).map_err(|e| self.err(e))?;
         Ok((m, keep))
     }
+}
+
+/// Rows per row group of a Parquet file, from its footer.
+fn row_group_sizes(path: &Path) -> Result<Vec<usize>, StoreError> {
+    let file = std::fs::File::open(path).map_err(|e| read_err(path, e))?;
+    let meta = parquet::file::metadata::ParquetMetaDataReader::new()
+        .parse_and_finish(&file)
+        .map_err(|e| read_err(path, e))?;
+    Ok(meta
+        .row_groups()
+        .iter()
+        .map(|g| g.num_rows().max(0) as usize)
+        .collect())
 }

@@ -2,27 +2,21 @@
 
 use super::*;
 
-/// Read what the report shows besides the summary (the label columns, the manifest) and draw
-/// the CWT gallery (one pass over the inputs).
+/// Read what the report shows besides the summary (the hits per class and experiment, the
+/// gallery's choice, the manifest) and draw the CWT gallery (one pass over the inputs). The
+/// label columns are read a batch at a time: nothing per hit is kept.
 pub(super) fn gather(s: &RunSummary) -> Result<Gathered, WorkflowError> {
-    let criteria: BTreeMap<HitKey, String> = TableScan::open(&s.features.table_path)?
-        .keyed_strings("criteria_label")?
-        .into_iter()
-        .collect();
-    let som: BTreeMap<HitKey, String> = match &s.som {
-        Some(m) => TableScan::open(&m.classification)?
-            .keyed_strings("som_label")?
-            .into_iter()
-            .collect(),
-        None => BTreeMap::new(),
-    };
     let per = s.config.report.gallery_per_class;
-    let (by, labels) = if som.is_empty() {
-        ("criteria", &criteria)
-    } else {
-        ("SOM", &som)
+    let (criteria, by_criteria) = count_labels(&s.features.table_path, "criteria_label", per)?;
+    let (som, by_som) = match &s.som {
+        Some(m) => count_labels(&m.classification, "som_label", per)?,
+        None => (BTreeMap::new(), crate::report::GalleryChoice::new(per)),
     };
-    let chosen = crate::report::choose_gallery(labels, per);
+    let (by, chosen) = if som.is_empty() {
+        ("criteria", by_criteria.chosen())
+    } else {
+        ("SOM", by_som.chosen())
+    };
     let pics = draw_gallery(&s.inputs, &s.config, &chosen, &RunDir::new(&s.out));
     let gallery = Gallery {
         by,
@@ -48,6 +42,43 @@ pub(super) fn gather(s: &RunSummary) -> Result<Gathered, WorkflowError> {
         gallery,
         manifest,
     })
+}
+
+/// Hits per (experiment, label), and the gallery's choice.
+type LabelCounts = (
+    BTreeMap<(String, String), usize>,
+    crate::report::GalleryChoice,
+);
+
+/// Hits per (experiment, label) of a table's label column (null as ""), and the gallery's
+/// choice among them, a batch at a time.
+fn count_labels(path: &Path, column: &str, per: usize) -> Result<LabelCounts, WorkflowError> {
+    let t = TableScan::open(path)?;
+    t.require(&["experiment", "channel", "hit", column], "")?;
+    let sel = vec![
+        polars::prelude::col("experiment"),
+        polars::prelude::col("channel"),
+        polars::prelude::col("hit"),
+        polars::prelude::col(column),
+    ];
+    let mut counts: BTreeMap<(String, String), usize> = BTreeMap::new();
+    let mut choice = crate::report::GalleryChoice::new(per);
+    for batch in t.batches(sel) {
+        let (_, df) = batch?;
+        let keys = t.hit_keys(&df)?;
+        let labels = t.strings(&df, column)?;
+        for (k, l) in keys.iter().zip(labels) {
+            let l = l.unwrap_or_default();
+            choice.offer(k, &l);
+            match counts.get_mut(&(k.0.clone(), l.clone())) {
+                Some(n) => *n += 1,
+                None => {
+                    counts.insert((k.0.clone(), l), 1);
+                }
+            }
+        }
+    }
+    Ok((counts, choice))
 }
 
 /// The gallery thumbnails' window about the first threshold crossing, s.

@@ -1,73 +1,306 @@
 //! After the classification: the damage evolution (`evolution.parquet` and a picture per
 //! experiment) and where the classified events are (a location picture per experiment).
+//! Both take what the damage profile emits, sorted on disk as it passes (bounded memory).
 
+use super::stages::thin_every;
 use super::*;
-use crate::analysis::evolution::{evolve, EvolutionParams, EvolutionRow, Source};
+use crate::analysis::evolution::{EvolutionParams, EvolutionRow, Series, Source};
 use crate::plot::sources::LocatedSource;
 use crate::som::layout::ClassifyDir;
 use crate::som::profile::{ProfileRow, ProfileSummary};
+use crate::store::spill::{Dec, Enc, Sorter, Spill};
 use polars::prelude::col;
 
-/// `evolution.parquet` from the damage profile's rows (the classified sources, in time order
-/// per series) and one picture per experiment. Returns the table and the pictures.
+/// A profile row as a source of its experiment's evolution, in the order the evolution
+/// reads them: by time (null last), hit, then the profile's own order.
+#[derive(Debug, Clone, PartialEq)]
+struct EvoRec {
+    experiment: String,
+    time_s: Option<f64>,
+    hit: i64,
+    /// Position in the damage profile's output (ties keep the profile's order).
+    row: u64,
+    channel: i32,
+    load_n: Option<f64>,
+    amplitude_db: Option<f64>,
+    energy_eu: Option<f64>,
+    hits: u64,
+    class: String,
+}
+
+impl Eq for EvoRec {}
+impl PartialOrd for EvoRec {
+    fn partial_cmp(&self, o: &Self) -> Option<std::cmp::Ordering> {
+        Some(self.cmp(o))
+    }
+}
+impl Ord for EvoRec {
+    fn cmp(&self, o: &Self) -> std::cmp::Ordering {
+        let t = |r: &EvoRec| r.time_s.unwrap_or(f64::NAN);
+        self.experiment
+            .cmp(&o.experiment)
+            .then(t(self).total_cmp(&t(o)))
+            .then(self.hit.cmp(&o.hit))
+            .then(self.row.cmp(&o.row))
+    }
+}
+
+impl Spill for EvoRec {
+    fn encode(&self, out: &mut Vec<u8>) {
+        Enc(out)
+            .str(&self.experiment)
+            .opt_f64(self.time_s)
+            .i64(self.hit)
+            .u64(self.row)
+            .i32(self.channel)
+            .opt_f64(self.load_n)
+            .opt_f64(self.amplitude_db)
+            .opt_f64(self.energy_eu)
+            .u64(self.hits)
+            .str(&self.class);
+    }
+    fn decode(b: &mut Dec<'_>) -> Option<Self> {
+        Some(EvoRec {
+            experiment: b.str()?,
+            time_s: b.opt_f64()?,
+            hit: b.i64()?,
+            row: b.u64()?,
+            channel: b.i32()?,
+            load_n: b.opt_f64()?,
+            amplitude_db: b.opt_f64()?,
+            energy_eu: b.opt_f64()?,
+            hits: b.u64()?,
+            class: b.str()?,
+        })
+    }
+    fn mem_bytes(&self) -> usize {
+        std::mem::size_of::<Self>() + self.experiment.len() + self.class.len()
+    }
+}
+
+impl EvoRec {
+    fn source(&self) -> Source {
+        Source {
+            key: (self.experiment.clone(), self.channel, self.hit),
+            time_s: self.time_s,
+            load_n: self.load_n,
+            amplitude_db: self.amplitude_db,
+            energy_eu: self.energy_eu,
+            hits: self.hits,
+            class: self.class.clone(),
+        }
+    }
+}
+
+/// The damage profile's rows, gathered for the evolution as the profile emits them.
+pub(super) struct EvolutionInput {
+    sorter: Sorter<EvoRec>,
+    rows: u64,
+}
+
+impl EvolutionInput {
+    pub fn new(spill_dir: &Path) -> EvolutionInput {
+        EvolutionInput {
+            sorter: Sorter::new(spill_dir),
+            rows: 0,
+        }
+    }
+
+    pub fn push(&mut self, r: &ProfileRow) -> Result<(), WorkflowError> {
+        self.sorter.push(EvoRec {
+            experiment: r.key.0.clone(),
+            time_s: r.time_s,
+            hit: r.key.2,
+            row: self.rows,
+            channel: r.key.1,
+            load_n: r.load_n,
+            amplitude_db: r.amplitude_db,
+            energy_eu: r.energy_eu,
+            hits: r.source_hits,
+            class: r.class.clone(),
+        })?;
+        self.rows += 1;
+        Ok(())
+    }
+}
+
+/// `evolution.parquet` from the damage profile's rows (the classified sources; an
+/// experiment's channels' series merge into one by time) and one picture per experiment
+/// (the first `[report] series_figures`). Each experiment is read 1 + C times from the
+/// sorted rows: `all`, then each of its C classes in name order.
 pub(super) fn evolution_stage(
     cfg: &ValidConfig,
-    rows: &[ProfileRow],
+    input: EvolutionInput,
     summaries: &[ProfileSummary],
     som_dir: &ClassifyDir,
 ) -> Result<(PathBuf, Vec<(String, PathBuf)>), WorkflowError> {
     let p = EvolutionParams::of(&cfg.evolution);
-    let mut by_exp: BTreeMap<&str, Vec<&ProfileRow>> = BTreeMap::new();
-    for r in rows {
-        by_exp.entry(r.key.0.as_str()).or_default().push(r);
-    }
-    let mut out: Vec<EvolutionRow> = Vec::new();
-    let mut spans = Vec::new();
-    for (exp, mut rs) in by_exp {
-        // Channels' series (no events built) merge into the experiment's, by time.
-        rs.sort_by(|a, b| {
-            let (ta, tb) = (a.time_s.unwrap_or(f64::NAN), b.time_s.unwrap_or(f64::NAN));
-            ta.total_cmp(&tb).then(a.key.2.cmp(&b.key.2))
-        });
-        let sources: Vec<Source> = rs
-            .iter()
-            .map(|r| Source {
-                key: r.key.clone(),
-                time_s: r.time_s,
-                load_n: r.load_n,
-                amplitude_db: r.amplitude_db,
-                energy_eu: r.energy_eu,
-                hits: r.source_hits,
-                class: r.class.clone(),
-            })
-            .collect();
-        let start = out.len();
-        out.extend(evolve(exp, &sources, &p));
-        spans.push((exp.to_string(), start..out.len()));
-    }
-    let table = som_dir.evolution();
-    crate::analysis::evolution::write(&table, &out, &cfg.hash())?;
+    let sorted = input.sorter.finish()?;
+    let table_path = som_dir.evolution();
+    let table = crate::analysis::evolution::evolution_table();
+    let meta = [("aepipe.config_sha256".to_string(), cfg.hash())];
+    let mut w = crate::store::TableWriter::create(&table_path, table.schema(), &meta, 65_536)?;
     let mut plots = Vec::new();
-    for (exp, span) in spans {
-        let rows: Vec<&EvolutionRow> = out[span].iter().collect();
-        let peak = summaries
-            .iter()
-            .filter(|s| s.experiment == exp)
-            .find_map(|s| s.peak_time_s);
-        let png = som_dir.evolution_png(&exp);
-        crate::plot::sources::evolution_png(&png, &exp, &rows, p.window, peak)?;
-        plots.push((exp, png));
+    for (k, (exp, span)) in sorted
+        .groups(|r| r.experiment.clone())?
+        .into_iter()
+        .enumerate()
+    {
+        let mut classes: Vec<String> = Vec::new();
+        for r in sorted.span_iter(span) {
+            let r = r?;
+            if let Err(at) = classes.binary_search(&r.class) {
+                classes.insert(at, r.class);
+            }
+        }
+        let draw = k < cfg.report.series_figures;
+        let every = thin_every(span.len as usize);
+        let mut drawn: Vec<EvolutionRow> = Vec::new();
+        for class in std::iter::once("all").chain(classes.iter().map(String::as_str)) {
+            let mut series = Series::new(&exp, class, &p);
+            let mut i = 0usize;
+            let mut last = None;
+            for r in sorted.span_iter(span) {
+                let r = r?;
+                if class != "all" && r.class != class {
+                    continue;
+                }
+                let row = series.step(&r.source());
+                w.push(table.row(row.clone()))?;
+                if draw {
+                    if i.is_multiple_of(every) {
+                        drawn.push(row);
+                        last = None;
+                    } else {
+                        last = Some(row);
+                    }
+                }
+                i += 1;
+            }
+            // Each drawn series ends at its last row (its totals are in the legend).
+            drawn.extend(last);
+        }
+        if draw {
+            let peak = summaries
+                .iter()
+                .filter(|s| s.experiment == exp)
+                .find_map(|s| s.peak_time_s);
+            let png = som_dir.evolution_png(&exp);
+            let rows: Vec<&EvolutionRow> = drawn.iter().collect();
+            crate::plot::sources::evolution_png(&png, &exp, &rows, p.window, peak, every)?;
+            plots.push((exp, png));
+        }
     }
-    Ok((table, plots))
+    w.finish()?;
+    Ok((table_path, plots))
 }
 
-/// A location picture per experiment with located events: each event coloured by its first
-/// hit's SOM class (from the damage profile's `rows`, the classified hits), "outside the
-/// zone" for those the zone leaves out (which the SOM does not classify with
-/// `exclude_outside`).
+/// (experiment, event) → the SOM's class of its first hit, sorted by the event.
+#[derive(Debug, Clone, PartialEq, Eq, PartialOrd, Ord)]
+struct EventClass {
+    experiment: String,
+    event: i64,
+    class: String,
+}
+
+impl Spill for EventClass {
+    fn encode(&self, out: &mut Vec<u8>) {
+        Enc(out)
+            .str(&self.experiment)
+            .i64(self.event)
+            .str(&self.class);
+    }
+    fn decode(b: &mut Dec<'_>) -> Option<Self> {
+        Some(EventClass {
+            experiment: b.str()?,
+            event: b.i64()?,
+            class: b.str()?,
+        })
+    }
+    fn mem_bytes(&self) -> usize {
+        std::mem::size_of::<Self>() + self.experiment.len() + self.class.len()
+    }
+}
+
+/// The classes of the events the damage profile's rows opened, gathered as it emits them.
+pub(super) struct EventClasses(Sorter<EventClass>);
+
+impl EventClasses {
+    pub fn new(spill_dir: &Path) -> EventClasses {
+        EventClasses(Sorter::new(spill_dir))
+    }
+
+    pub fn push(&mut self, r: &ProfileRow) -> Result<(), WorkflowError> {
+        if let Some(event) = r.event {
+            self.0.push(EventClass {
+                experiment: r.key.0.clone(),
+                event,
+                class: r.class.clone(),
+            })?;
+        }
+        Ok(())
+    }
+}
+
+/// A located event of `events.parquet`, sorted by (experiment, event).
+#[derive(Debug, Clone, PartialEq)]
+struct Located {
+    experiment: String,
+    event: i64,
+    seq: u64,
+    x_m: f64,
+    y_m: Option<f64>,
+    outside: bool,
+}
+
+impl Eq for Located {}
+impl PartialOrd for Located {
+    fn partial_cmp(&self, o: &Self) -> Option<std::cmp::Ordering> {
+        Some(self.cmp(o))
+    }
+}
+impl Ord for Located {
+    fn cmp(&self, o: &Self) -> std::cmp::Ordering {
+        (self.experiment.as_str(), self.event, self.seq).cmp(&(
+            o.experiment.as_str(),
+            o.event,
+            o.seq,
+        ))
+    }
+}
+
+impl Spill for Located {
+    fn encode(&self, out: &mut Vec<u8>) {
+        Enc(out)
+            .str(&self.experiment)
+            .i64(self.event)
+            .u64(self.seq)
+            .f64(self.x_m)
+            .opt_f64(self.y_m)
+            .u8(self.outside as u8);
+    }
+    fn decode(b: &mut Dec<'_>) -> Option<Self> {
+        Some(Located {
+            experiment: b.str()?,
+            event: b.i64()?,
+            seq: b.u64()?,
+            x_m: b.f64()?,
+            y_m: b.opt_f64()?,
+            outside: b.u8()? != 0,
+        })
+    }
+    fn mem_bytes(&self) -> usize {
+        std::mem::size_of::<Self>() + self.experiment.len()
+    }
+}
+
+/// A location picture per experiment with located events (the first `[report]
+/// series_figures`): each event coloured by its first hit's SOM class (from the damage
+/// profile's rows), "outside the zone" for those the zone leaves out (which the SOM does
+/// not classify with `exclude_outside`). Events and classes are joined in event order.
 pub(super) fn location_stage(
     cfg: &ValidConfig,
-    rows: &[ProfileRow],
+    classes: EventClasses,
     events: &Path,
     som_dir: &ClassifyDir,
 ) -> Result<Vec<(String, PathBuf)>, WorkflowError> {
@@ -75,56 +308,92 @@ pub(super) fn location_stage(
         return Ok(Vec::new());
     }
     let ev = TableScan::open(events)?;
-    let df = ev.select(vec![
+    let sel = vec![
         col("experiment"),
         col("event"),
         col("x_m"),
         col("y_m"),
         col("zone"),
-    ])?;
-    let exps = ev.strings(&df, "experiment")?;
-    let numbers = ev.f64s(&df, "event")?;
-    let (xs, ys) = (ev.f64s(&df, "x_m")?, ev.f64s(&df, "y_m")?);
-    let zones = ev.strings(&df, "zone")?;
-    if xs.iter().all(Option::is_none) {
+    ];
+    let mut located: Sorter<Located> = Sorter::new(som_dir.path());
+    let mut seq = 0u64;
+    for batch in ev.batches(sel) {
+        let (_, df) = batch?;
+        let exps = ev.strings(&df, "experiment")?;
+        let numbers = ev.f64s(&df, "event")?;
+        let (xs, ys) = (ev.f64s(&df, "x_m")?, ev.f64s(&df, "y_m")?);
+        let zones = ev.strings(&df, "zone")?;
+        for i in 0..df.height() {
+            if let (Some(exp), Some(n), Some(x)) = (&exps[i], numbers[i], xs[i]) {
+                located.push(Located {
+                    experiment: exp.clone(),
+                    event: n as i64,
+                    seq,
+                    x_m: x,
+                    y_m: ys[i],
+                    outside: zones[i].as_deref() == Some("outside"),
+                })?;
+            }
+            seq += 1;
+        }
+    }
+    let located = located.finish()?;
+    if located.is_empty() {
         return Ok(Vec::new());
     }
-    // (experiment, event) → the SOM's class of its first hit.
-    let class_of: BTreeMap<(&str, i64), &str> = rows
-        .iter()
-        .filter_map(|r| Some(((r.key.0.as_str(), r.event?), r.class.as_str())))
-        .collect();
-    let mut per_exp: BTreeMap<String, Vec<LocatedSource>> = BTreeMap::new();
-    for i in 0..df.height() {
-        let (Some(exp), Some(n), Some(x)) = (&exps[i], numbers[i], xs[i]) else {
-            continue;
-        };
-        let class = if zones[i].as_deref() == Some("outside") {
-            "outside the zone"
-        } else {
-            class_of
-                .get(&(exp.as_str(), n as i64))
-                .copied()
-                .unwrap_or("unclassified")
-        };
-        per_exp.entry(exp.clone()).or_default().push(LocatedSource {
-            x_m: x,
-            y_m: ys[i],
-            class: class.to_string(),
-        });
-    }
+    let classes = classes.0.finish()?;
+    let mut class_iter = classes.iter();
+    let mut head: Option<EventClass> = class_iter.next().transpose()?;
     let mut plots = Vec::new();
-    for (exp, located) in per_exp {
-        let png = som_dir.location_png(&exp);
-        let title = format!("{exp}: where the events are ({} located)", located.len());
-        crate::plot::sources::location_png(
-            &png,
-            &title,
-            &located,
-            cfg.location.zone.as_ref(),
-            &cfg.location.sensors,
-        )?;
-        plots.push((exp, png));
+    for (k, (exp, span)) in located
+        .groups(|r| r.experiment.clone())?
+        .into_iter()
+        .enumerate()
+    {
+        let draw = k < cfg.report.series_figures;
+        let every = thin_every(span.len as usize);
+        let mut drawn: Vec<LocatedSource> = Vec::new();
+        for (i, r) in located.span_iter(span).enumerate() {
+            let r = r?;
+            // Advance the classes to this event (both are in (experiment, event) order).
+            let mut class = None;
+            while let Some(c) = &head {
+                match (c.experiment.as_str(), c.event).cmp(&(r.experiment.as_str(), r.event)) {
+                    std::cmp::Ordering::Less => head = class_iter.next().transpose()?,
+                    std::cmp::Ordering::Equal => {
+                        class = Some(c.class.clone());
+                        break;
+                    }
+                    std::cmp::Ordering::Greater => break,
+                }
+            }
+            if draw && (i.is_multiple_of(every) || i as u64 + 1 == span.len) {
+                drawn.push(LocatedSource {
+                    x_m: r.x_m,
+                    y_m: r.y_m,
+                    class: if r.outside {
+                        "outside the zone".to_string()
+                    } else {
+                        class.unwrap_or_else(|| "unclassified".to_string())
+                    },
+                });
+            }
+        }
+        if draw {
+            let png = som_dir.location_png(&exp);
+            let mut title = format!("{exp}: where the events are ({} located)", span.len);
+            if every > 1 {
+                title += &format!("; every {every}th drawn");
+            }
+            crate::plot::sources::location_png(
+                &png,
+                &title,
+                &drawn,
+                cfg.location.zone.as_ref(),
+                &cfg.location.sensors,
+            )?;
+            plots.push((exp, png));
+        }
     }
     Ok(plots)
 }

@@ -19,15 +19,19 @@ pub(super) fn trend_stage(
         columns: vec![],
         sources: crate::store::SourceRows::of(cfg),
     };
-    let rep = crate::analysis::trend::run_trend(feats, dir.path(), &opts)?;
     let mut plots = Vec::new();
-    for sel in &rep.selections {
+    let figures = cfg.report.series_figures;
+    let rep = crate::analysis::trend::run_trend_with(feats, dir.path(), &opts, 4, |pic| {
+        if plots.len() >= figures {
+            return Ok(());
+        }
+        let sel = pic.selection;
         let png = dir.png(&sel.experiment, sel.channel);
         // A picture that cannot be written fails the stage (exit 3), it is not skipped quietly.
-        if crate::plot::trend_png(&png, &rep, &sel.experiment, sel.channel, 4)? {
-            plots.push((format!("{} ch{}", sel.experiment, sel.channel), png));
-        }
-    }
+        crate::plot::trend_png(&png, pic)?;
+        plots.push((format!("{} ch{}", sel.experiment, sel.channel), png));
+        Ok::<(), WorkflowError>(())
+    })?;
     Ok((rep, plots))
 }
 
@@ -176,9 +180,20 @@ pub(super) fn classified_stage(
     })
 }
 
+/// Points a picture draws of one series, at most: a longer series draws every m-th row
+/// (and its last), and the picture says so.
+pub(crate) const MAX_PLOT_POINTS: usize = crate::analysis::trend::MAX_PLOT_POINTS;
+
+/// The stride that keeps `n` rows within [`MAX_PLOT_POINTS`].
+pub(super) fn thin_every(n: usize) -> usize {
+    n.div_ceil(MAX_PLOT_POINTS).max(1)
+}
+
 /// The damage profile of a classified run into `som_dir`: `damage_profile.parquet` and a
-/// Fig. 6.1 picture per experiment × channel; then the damage evolution and the location
-/// pictures (`super::sources`).
+/// Fig. 6.1 picture per experiment × channel (the first `[report] series_figures`); then
+/// the damage evolution and the location pictures (`super::sources`). Streams: the profile
+/// is sorted on disk, each series emitted in order, and what the evolution and the location
+/// need is sorted as it passes.
 pub(super) struct Profile {
     pub summaries: Vec<crate::som::profile::ProfileSummary>,
     pub plots: Vec<(String, PathBuf)>,
@@ -193,21 +208,46 @@ pub(super) fn profile_stage(
     events: &Path,
     som_dir: &ClassifyDir,
 ) -> Result<Profile, WorkflowError> {
-    let (rows, summaries) = crate::som::profile::build(features, &som_dir.classification())?;
-    crate::som::profile::write(&som_dir.damage_profile(), &rows, &cfg.hash())?;
+    use crate::som::profile::ProfileRow;
+    let prof = crate::som::profile::open(features, &som_dir.classification(), som_dir.path())?;
+    let table = crate::som::profile::profile_table();
+    let path = som_dir.damage_profile();
+    let meta = [("aepipe.config_sha256".to_string(), cfg.hash())];
+    let mut w = crate::store::TableWriter::create(&path, table.schema(), &meta, 65_536)?;
+    let mut evolution = super::sources::EvolutionInput::new(som_dir.path());
+    let mut classes = super::sources::EventClasses::new(som_dir.path());
     let mut plots = Vec::new();
-    for s in &summaries {
-        let group: Vec<&crate::som::profile::ProfileRow> = rows
-            .iter()
-            .filter(|r| r.key.0 == s.experiment && r.key.1 == s.channel)
-            .collect();
-        let png = som_dir.damage_profile_png(&s.experiment, s.channel);
-        crate::plot::damage_profile_png(&png, &group, s)?;
-        plots.push((format!("{} ch{}", s.experiment, s.channel), png));
+    let mut summaries = Vec::new();
+    let figures = cfg.report.series_figures;
+    let series: Vec<(String, i32)> = prof.series().cloned().collect();
+    for (g, (experiment, channel)) in series.iter().enumerate() {
+        let n = prof.len(g) as usize;
+        let draw = g < figures;
+        let every = thin_every(n);
+        let mut drawn: Vec<(usize, ProfileRow)> = Vec::new();
+        let mut i = 0usize;
+        let summary = prof.emit(g, |r| {
+            w.push(table.row(r.clone()))?;
+            evolution.push(r)?;
+            classes.push(r)?;
+            if draw && (i.is_multiple_of(every) || i + 1 == n) {
+                drawn.push((i, r.clone()));
+            }
+            i += 1;
+            Ok::<(), WorkflowError>(())
+        })?;
+        if draw {
+            let png = som_dir.damage_profile_png(experiment, *channel);
+            crate::plot::damage_profile_png(&png, &drawn, &summary, every)?;
+            plots.push((format!("{experiment} ch{channel}"), png));
+        }
+        summaries.push(summary);
     }
+    w.finish()?;
+    drop(prof);
     let (evolution_table, evolution_plots) =
-        super::sources::evolution_stage(cfg, &rows, &summaries, som_dir)?;
-    let location_plots = super::sources::location_stage(cfg, &rows, events, som_dir)?;
+        super::sources::evolution_stage(cfg, evolution, &summaries, som_dir)?;
+    let location_plots = super::sources::location_stage(cfg, classes, events, som_dir)?;
     Ok(Profile {
         summaries,
         plots,

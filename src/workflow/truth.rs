@@ -2,23 +2,90 @@
 
 use super::*;
 
-/// Compare the SOM classes with `truth.parquet`.
+/// A hit's key and a label, sortable by the key (then by which table it came from).
+#[derive(Debug, Clone, PartialEq, Eq, PartialOrd, Ord)]
+struct Keyed {
+    key: HitKey,
+    /// 0: the truth's mechanism, 1: the SOM's class.
+    from: u8,
+    label: String,
+}
+
+impl crate::store::spill::Spill for Keyed {
+    fn encode(&self, out: &mut Vec<u8>) {
+        crate::store::spill::Enc(out)
+            .str(&self.key.0)
+            .i32(self.key.1)
+            .i64(self.key.2)
+            .u8(self.from)
+            .str(&self.label);
+    }
+    fn decode(b: &mut crate::store::spill::Dec<'_>) -> Option<Self> {
+        Some(Keyed {
+            key: (b.str()?, b.i32()?, b.i64()?),
+            from: b.u8()?,
+            label: b.str()?,
+        })
+    }
+    fn mem_bytes(&self) -> usize {
+        std::mem::size_of::<Self>() + self.key.0.len() + self.label.len()
+    }
+}
+
+/// Push `(key, column)` of every row of a table, a batch at a time.
+fn push_labels(
+    sorter: &mut crate::store::spill::Sorter<Keyed>,
+    path: &Path,
+    column: &str,
+    from: u8,
+) -> Result<(), WorkflowError> {
+    use polars::prelude::col;
+    let t = TableScan::open(path)?;
+    t.require(&["experiment", "channel", "hit", column], "")?;
+    let sel = vec![col("experiment"), col("channel"), col("hit"), col(column)];
+    for batch in t.batches(sel) {
+        let (_, df) = batch?;
+        let keys = t.hit_keys(&df)?;
+        let labels = t.strings(&df, column)?;
+        for (key, l) in keys.into_iter().zip(labels) {
+            sorter.push(Keyed {
+                key,
+                from,
+                label: l.unwrap_or_default(),
+            })?;
+        }
+    }
+    Ok(())
+}
+
+/// Compare the SOM classes with `truth.parquet`: both sorted by hit on disk and joined.
 pub(super) fn score_truth(
     truth: &Path,
     classification: &Path,
 ) -> Result<TruthScore, WorkflowError> {
-    let t: BTreeMap<_, _> = TableScan::open(truth)?
-        .keyed_strings("mechanism")?
-        .into_iter()
-        .collect();
+    let dir = classification.parent().unwrap_or(Path::new("."));
+    let mut sorter = crate::store::spill::Sorter::new(dir);
+    push_labels(&mut sorter, truth, "mechanism", 0)?;
+    push_labels(&mut sorter, classification, "som_label", 1)?;
+    let sorted = sorter.finish()?;
     let mut s = TruthScore {
         path: truth.to_path_buf(),
         counts: BTreeMap::new(),
         bond_fibre_total: 0,
         bond_fibre_correct: 0,
     };
-    for (key, class) in TableScan::open(classification)?.keyed_strings("som_label")? {
-        let Some(m) = t.get(&key) else { continue };
+    // A key's truth (the last, if a truth table repeated a key) then its classes.
+    let mut mechanism: Option<(HitKey, String)> = None;
+    for r in sorted.iter() {
+        let r = r?;
+        if r.from == 0 {
+            mechanism = Some((r.key, r.label));
+            continue;
+        }
+        let Some((_, m)) = mechanism.as_ref().filter(|(k, _)| *k == r.key) else {
+            continue;
+        };
+        let class = r.label;
         *s.counts.entry((class.clone(), m.clone())).or_insert(0) += 1;
         if matches!(
             crate::model::Mechanism::parse(m),
