@@ -3,7 +3,6 @@
 //! truth), and runs the whole pipeline on it through the real ingest path: features, trend,
 //! SOM, classification against the truth, and the HTML report.
 
-use crate::config::PipelineConfig;
 use crate::inspect;
 use std::path::{Path, PathBuf};
 
@@ -15,12 +14,7 @@ pub struct DemoResult {
     pub seconds: f64,
 }
 
-/// The demo's pipeline definition, `pipelines/demo.toml`, embedded in the binary so that
-/// `aepipe demo` needs no file beside it.
-pub fn demo_config() -> crate::config::ValidConfig {
-    PipelineConfig::from_toml(include_str!("../pipelines/demo.toml"))
-        .expect("pipelines/demo.toml is valid")
-}
+pub use crate::synth::demo_config;
 
 /// The whole method on data it makes itself: a synthetic notched-paper experiment built from
 /// a reference library simulated with the demo's seed (`root/data`, `root/truth.parquet`),

@@ -63,6 +63,41 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), IoAt> {
     std::fs::rename(&tmp, path).map_err(|e| IoAt::new(path, e))
 }
 
+/// Peak resident set size of this process so far (VmHWM), bytes; `None` off Linux.
+pub fn peak_rss_bytes() -> Option<u64> {
+    proc_status_kib("VmHWM:").map(|k| k * 1024)
+}
+
+/// Current resident set size (VmRSS), bytes; `None` off Linux.
+pub fn rss_bytes() -> Option<u64> {
+    proc_status_kib("VmRSS:").map(|k| k * 1024)
+}
+
+fn proc_status_kib(field: &str) -> Option<u64> {
+    let s = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = s.lines().find(|l| l.starts_with(field))?;
+    line.split_whitespace().nth(1)?.parse().ok()
+}
+
+/// Give the memory freed since the last call back to the operating system (glibc keeps
+/// freed heap for reuse): between whole-batch stages, so that one stage's sort buffers do
+/// not stay resident through the next, and each stage's peak reads as its own.
+pub fn release_freed_memory() {
+    #[cfg(all(target_os = "linux", target_env = "gnu"))]
+    // SAFETY: malloc_trim only returns free heap pages to the kernel; it touches no live
+    // allocation.
+    unsafe {
+        libc::malloc_trim(0);
+    }
+}
+
+/// Start a new peak-RSS reading: the kernel's mark (VmHWM) drops to the current RSS, so the
+/// next [`peak_rss_bytes`] is the peak since now (Linux ≥ 4.0: `/proc/self/clear_refs` 5;
+/// elsewhere, or where that is refused, the mark keeps the process's peak so far).
+pub fn reset_peak_rss() {
+    let _ = std::fs::write("/proc/self/clear_refs", "5");
+}
+
 /// Logical cores (1 when unknown).
 pub fn num_cpus() -> usize {
     std::thread::available_parallelism()

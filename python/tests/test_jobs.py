@@ -67,7 +67,8 @@ def test_run_gives_the_command_lines_tables_and_a_summary(tmp_path: Path) -> Non
         assert pl.read_parquet(p).equals(pl.read_parquet(tmp_path / "cli" / rel)), name
     assert sum(s["som"]["classes"].values()) == 90
     assert s["headline"][0].startswith("hits: 90 read")
-    assert {"features", "trend", "som"} <= set(s["seconds"])
+    assert {"features", "trend", "som training", "classification", "damage profile", "report"} <= set(s["seconds"])
+    assert set(s["peak_rss_bytes"]) == set(s["seconds"])
 
 
 def test_a_long_call_returns_on_ctrl_c_within_a_second_and_cleans_up() -> None:

@@ -506,16 +506,12 @@ fn sorted_series(
         )
         .map_err(read)?;
         columns = tested_columns(&t, p, &columns)?;
-        let mut sel = vec![
-            col("experiment"),
-            col("channel"),
-            col("hit"),
-            col("time_s"),
-            col("load_n"),
-        ];
-        sel.extend(columns.iter().map(|c| col(c.as_str())));
-        sel.extend(t.event_first_col());
-        for batch in t.batches(sel) {
+        let mut sel = vec!["experiment", "channel", "hit", "time_s", "load_n"];
+        sel.extend(columns.iter().map(String::as_str));
+        if t.dtype("event_first").is_some() {
+            sel.push("event_first");
+        }
+        for batch in t.batches(&sel) {
             let (_, df) = batch.map_err(read)?;
             let keys = t.hit_keys(&df).map_err(read)?;
             let first = t.event_first(&df).map_err(read)?;

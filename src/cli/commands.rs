@@ -579,6 +579,22 @@ fn bench(which: BenchCmd) -> Result<Outcome> {
                 );
             }
         }
+        BenchCmd::Analysis {
+            rows,
+            experiments,
+            base,
+            threads,
+            out,
+        } => {
+            let b = crate::bench::analysis::analysis(
+                rows,
+                experiments,
+                base.as_deref(),
+                &out,
+                threads,
+            )?;
+            print::analysis_bench(&b);
+        }
     }
     Ok(Outcome::Success)
 }

@@ -404,4 +404,24 @@ pub enum BenchCmd {
         #[arg(long, default_value = "target/bench-stream")]
         out: PathBuf,
     },
+    /// The whole-batch stages (trend, classification, damage profile, report) on a study of
+    /// N feature rows made by repeating the demo's run: time and peak RSS per stage
+    Analysis {
+        /// Feature rows of the study
+        #[arg(long, default_value_t = 100_000)]
+        rows: u64,
+        /// Experiments the rows are spread over (default: one per repetition of the demo's
+        /// 1 302 rows)
+        #[arg(long)]
+        experiments: Option<u64>,
+        /// A demo folder already written (`aepipe demo --out DIR`); default: OUT/base, built
+        /// once and reused
+        #[arg(long)]
+        base: Option<PathBuf>,
+        #[arg(long, default_value_t = 0)]
+        threads: usize,
+        /// Where to write the study's run folder (OUT/run) and the base
+        #[arg(long, default_value = "target/bench-analysis")]
+        out: PathBuf,
+    },
 }

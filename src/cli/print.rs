@@ -215,3 +215,27 @@ pub fn cwt_peers(ours: &[CwtBenchRow], python: &Path, peers: &Path) {
         }
     }
 }
+
+/// `aepipe bench analysis`: a row per stage.
+pub fn analysis_bench(b: &crate::bench::analysis::AnalysisBench) {
+    println!(
+        "{} feature rows in {} experiments ({})",
+        b.rows,
+        b.experiments,
+        b.out.display()
+    );
+    println!("{:<18} {:>10} {:>14}", "stage", "seconds", "peak RSS MB");
+    for (name, s, rss) in &b.stages {
+        let rss = rss.map_or("–".to_string(), |r| format!("{:.0}", r as f64 / 1e6));
+        println!("{name:<18} {s:>10.2} {rss:>14}");
+    }
+    let total: f64 = b.stages.iter().map(|s| s.1).sum();
+    println!(
+        "total {total:.1} s; disk {:.2} GB (features.parquet {:.2} GB)",
+        b.disk_bytes as f64 / 1e9,
+        b.features_bytes as f64 / 1e9
+    );
+    if let Some(peak) = b.stages.iter().filter_map(|s| s.2).max() {
+        println!("peak RSS of the stages: {:.0} MB", peak as f64 / 1e6);
+    }
+}

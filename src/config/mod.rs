@@ -236,6 +236,11 @@ pub struct SomConfig {
     /// Reference library `waveforms.parquet`; empty: build the embedded
     /// `pipelines/reference-library.toml` into the run's folder.
     pub reference_library: String,
+    /// A trained map to classify with instead of training one (a model folder written by
+    /// `aepipe som train`, a run's `som/model`, or the Python package's `Som.save`); empty:
+    /// train as `train_on` says. A study classified with one lab map, a live test, a
+    /// benchmark.
+    pub model: String,
     /// Share of the hits in the training set (ch. 5.4: 10 %; a reference library is used
     /// whole).
     pub fraction: f64,
@@ -282,6 +287,7 @@ impl Default for SomConfig {
             enabled: true,
             train_on: TrainOn::Reference,
             reference_library: String::new(),
+            model: String::new(),
             fraction: som_defaults::FRACTION,
             rows: som_defaults::ROWS,
             cols: som_defaults::COLS,
@@ -615,7 +621,9 @@ pub struct RunConfig {
     /// Batches in flight between stages (bounds memory: about
     /// `(2·queue_batches + 2) · batch_size` waveforms at most).
     pub queue_batches: usize,
-    /// Rows per Parquet row group.
+    /// Rows per Parquet row group. A reader holds the footer, ~400 bytes per row group and
+    /// column, so large tables want large groups; a writer holds one group (~15 MB of
+    /// feature rows at 16 384).
     pub row_group_rows: usize,
 }
 
@@ -672,7 +680,7 @@ impl Default for RunConfig {
         RunConfig {
             batch_size: 256,
             queue_batches: 2,
-            row_group_rows: 4096,
+            row_group_rows: 16_384,
         }
     }
 }

@@ -47,6 +47,8 @@ pub struct RunSummary {
     pub sources: Option<SourceScore>,
     pub config: crate::config::ValidConfig,
     pub seconds: Vec<(String, f64)>,
+    /// Each stage's peak resident memory, bytes (see `workflow::StageLog`).
+    pub peak_rss: Vec<(String, u64)>,
 }
 
 /// The SOM stage of a run.
@@ -617,6 +619,18 @@ fn gallery_section(h: &mut String, g: &Gallery) {
     }
 }
 
+/// "features 0.4 s (75 MB), trend 0.1 s (40 MB), …": each stage's time and peak memory.
+pub fn stage_line(s: &RunSummary) -> String {
+    s.seconds
+        .iter()
+        .map(|(k, v)| match s.peak_rss.iter().find(|(n, _)| n == k) {
+            Some((_, b)) => format!("{k} {v:.1} s ({:.0} MB)", *b as f64 / 1e6),
+            None => format!("{k} {v:.1} s"),
+        })
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
 fn footer(h: &mut String, s: &RunSummary, g: &Gathered) {
     // Manifest and timings.
     let manifest = &g.manifest;
@@ -627,7 +641,7 @@ fn footer(h: &mut String, s: &RunSummary, g: &Gathered) {
 window.addEventListener('load',function(){{var i=Array.prototype.slice.call(document.images);\
 document.body.setAttribute('data-images-loaded',i.filter(function(x){{return x.complete&&x.naturalWidth>0}}).length+'/'+i.length);}});</script>\
 </body></html>\n",
-        esc(&s.seconds.iter().map(|(k, v)| format!("{k} {v:.1} s")).collect::<Vec<_>>().join(", ")),
+        esc(&stage_line(s)),
         esc(manifest)
     );
 }

@@ -6,7 +6,6 @@ use super::SomError;
 use crate::model::Mechanism;
 use crate::store::spill::{Dec, Enc, Sorted, Sorter, Span, Spill};
 use crate::store::{ColType, ColumnSpec, HitKey, StoreError, Table, TableScan, TableWriter, Value};
-use polars::prelude::col;
 use std::collections::BTreeMap;
 use std::path::Path;
 
@@ -313,7 +312,7 @@ impl Spill for EventRow {
 /// The classification's (key, class) rows, read a batch at a time in file order.
 struct ClassStream {
     t: TableScan,
-    spans: std::vec::IntoIter<(usize, usize)>,
+    spans: std::vec::IntoIter<crate::store::read::BatchSpan>,
     ready: std::collections::VecDeque<(HitKey, String)>,
 }
 
@@ -334,13 +333,8 @@ impl ClassStream {
             let Some(span) = self.spans.next() else {
                 return Ok(None);
             };
-            let sel = vec![
-                col("experiment"),
-                col("channel"),
-                col("hit"),
-                col("som_label"),
-            ];
-            let df = self.t.read_batch(span, sel)?;
+            let sel = ["experiment", "channel", "hit", "som_label"];
+            let df = self.t.read_batch(&span, &sel)?;
             let keys = self.t.hit_keys(&df)?;
             let vals = self.t.strings(&df, "som_label")?;
             self.ready.extend(
@@ -389,26 +383,28 @@ pub fn open(features: &Path, classification: &Path, spill_dir: &Path) -> Result<
     )
     .map_err(serr)?;
     let mut sel = vec![
-        col("experiment"),
-        col("channel"),
-        col("hit"),
-        col("time_s"),
-        col("load_n"),
-        col("extension_m"),
+        "experiment",
+        "channel",
+        "hit",
+        "time_s",
+        "load_n",
+        "extension_m",
     ];
-    sel.extend(t.event_first_col());
+    if t.dtype("event_first").is_some() {
+        sel.push("event_first");
+    }
     let has = |c: &str| t.dtype(c).is_some();
     let optional = ["peak_amplitude_db", "energy_eu", "event"];
     for c in optional {
         if has(c) {
-            sel.push(col(c));
+            sel.push(c);
         }
     }
     let mut classes = ClassStream::open(classification).map_err(serr)?;
     let mut series: Sorter<Rec> = Sorter::new(spill_dir);
     let mut events: Sorter<EventRow> = Sorter::new(spill_dir);
     let mut seq = 0u64;
-    for batch in t.batches(sel) {
+    for batch in t.batches(&sel) {
         let (_, df) = batch.map_err(serr)?;
         let keys = t.hit_keys(&df).map_err(serr)?;
         let first = t.event_first(&df).map_err(serr)?;
@@ -471,11 +467,13 @@ pub fn open(features: &Path, classification: &Path, spill_dir: &Path) -> Result<
             features.display()
         )));
     }
+    // One pass over the events' rows in order: each event's run, counted, then its
+    // classified rows (a few hits an event) into the series.
     let events = events.finish()?;
-    for (_, span) in events.groups(|r| (r.experiment.clone(), r.event))? {
-        let rows: Vec<EventRow> = events.span_iter(span).collect::<Result<_, _>>()?;
-        let n = rows.len() as u64;
-        for r in rows {
+    let mut run: Vec<EventRow> = Vec::new();
+    let flush = |run: &mut Vec<EventRow>, series: &mut Sorter<Rec>| -> Result<(), SomError> {
+        let n = run.len() as u64;
+        for r in run.drain(..) {
             if let Some(mut rec) = r.rec {
                 if rec.first == Some(true) {
                     rec.source_hits = n;
@@ -483,7 +481,19 @@ pub fn open(features: &Path, classification: &Path, spill_dir: &Path) -> Result<
                 series.push(*rec)?;
             }
         }
+        Ok(())
+    };
+    for r in events.iter() {
+        let r = r?;
+        if run
+            .last()
+            .is_some_and(|l| (l.experiment.as_str(), l.event) != (r.experiment.as_str(), r.event))
+        {
+            flush(&mut run, &mut series)?;
+        }
+        run.push(r);
     }
+    flush(&mut run, &mut series)?;
     drop(events);
     let sorted = series.finish()?;
     let groups = sorted.groups(|r| (r.experiment.clone(), r.channel))?;

@@ -7,7 +7,6 @@ use crate::config::ReadErroneous;
 use crate::model::Mechanism;
 use crate::store::{ColType, ColumnSpec, HitKey, SourceRows, Table, TableScan, TableWriter, Value};
 use ndarray::{Array2, ArrayView2, Axis};
-use polars::prelude::{col, DataType};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
@@ -62,11 +61,8 @@ fn werr(p: &Path, m: impl std::fmt::Display) -> SomError {
     }
 }
 
-/// The name the label column is read under (a name no table of aepipe's uses).
-const LABEL_ALIAS: &str = "__aepipe_label";
 /// `features.parquet`'s time-domain quality column, and its alias when read.
 const QUALITY: &str = "quality_fault";
-const QUALITY_ALIAS: &str = "__aepipe_quality";
 
 /// Read `columns` (a fixed-size list such as `tf_bins` expands to its elements; numeric
 /// scalars give one dimension each) and the optional label column, through the store's
@@ -128,27 +124,26 @@ pub fn for_each_input(
         t.require(&names, "").map_err(serr)?;
         // The label may be any column, a key column included (`--label experiment`): it is
         // read under its own alias, as text, so it never clashes with the key columns.
-        let mut sel = vec![col("experiment"), col("channel"), col("hit")];
-        sel.extend(label.map(|l| col(l).cast(DataType::String).alias(LABEL_ALIAS)));
+        // The label may be any column, a key column included (`--label experiment`), read as
+        // text; a column named twice is read once.
+        let mut sel: Vec<&str> = vec!["experiment", "channel", "hit"];
+        sel.extend(label);
         let has_quality = t.dtype(QUALITY).is_some();
         if has_quality {
-            sel.push(col(QUALITY).cast(DataType::String).alias(QUALITY_ALIAS));
+            sel.push(QUALITY);
         }
-        // A feature column that is also the key or the label is read once, by its name.
-        for c in columns {
-            if !["experiment", "channel", "hit"].contains(&c.as_str()) {
-                sel.push(col(c.as_str()));
-            }
-        }
-        for batch in t.batches(sel) {
+        sel.extend(columns.iter().map(String::as_str));
+        sel.sort_unstable();
+        sel.dedup();
+        for batch in t.batches(&sel) {
             let (_, df) = batch.map_err(serr)?;
             let k = t.hit_keys(&df).map_err(serr)?;
             let l = match label {
-                Some(_) => t.strings(&df, LABEL_ALIAS).map_err(serr)?,
+                Some(name) => t.as_strings(&df, name).map_err(serr)?,
                 None => vec![None; k.len()],
             };
             let q: Vec<Quality> = if has_quality {
-                t.strings(&df, QUALITY_ALIAS)
+                t.as_strings(&df, QUALITY)
                     .map_err(serr)?
                     .into_iter()
                     .map(|f| match f {

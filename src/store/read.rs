@@ -63,19 +63,27 @@ pub fn group_channel(channel: i32, event_first: Option<bool>) -> i32 {
 /// A lazily scanned table and its schema.
 pub struct TableScan {
     path: PathBuf,
-    /// The whole table, and the row filter applied after any slicing ([`TableScan::sources`]):
-    /// a batch slices the file first, then filters, so reading batch k never scans the
-    /// rows before it.
-    base: LazyFrame,
+    /// The row filter ([`TableScan::sources`]), applied to each batch.
     filter: Option<Expr>,
     schema: SchemaRef,
-    /// Rows per row group of the file, in order.
-    row_groups: Vec<usize>,
+    /// The file's footer, parsed once: batches are read by row group with arrow-rs from it
+    /// (a Polars scan parses the footer again at every collect, and a footer grows with
+    /// the row groups, so slicing a large table batch by batch cost rows² / batch).
+    meta: parquet::arrow::arrow_reader::ArrowReaderMetadata,
 }
 
 /// Rows read at a time by [`TableScan::batches`] (whole row groups are added until this is
 /// reached): with the 200 `tf_bins` a batch holds ~13 MB of floats as read, ~26 MB as f64.
 pub const BATCH_ROWS: usize = 16_384;
+
+/// The row groups one batch reads.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct BatchSpan {
+    /// The file row of the batch's first row, and its rows (before the filter).
+    pub first_row: usize,
+    pub rows: usize,
+    groups: std::ops::Range<usize>,
+}
 
 fn read_err(p: &Path, m: impl std::fmt::Display) -> StoreError {
     StoreError::Read {
@@ -85,86 +93,126 @@ fn read_err(p: &Path, m: impl std::fmt::Display) -> StoreError {
 }
 
 impl TableScan {
-    /// Open `path` for scanning; fails when it is not a readable Parquet file.
+    /// Open `path` for scanning; fails when it is not a readable Parquet file. Reads the
+    /// footer once, without the column statistics nothing here uses (a footer grows with
+    /// the row groups: kept whole, a 3-million-row table's cost ~50 MB).
     pub fn open(path: &Path) -> Result<TableScan, StoreError> {
+        use parquet::arrow::arrow_reader::{ArrowReaderMetadata, ArrowReaderOptions};
+        use parquet::file::metadata::ParquetStatisticsPolicy as Keep;
         if !path.is_file() {
             return Err(read_err(path, "no such file"));
         }
-        let mut base = LazyFrame::scan_parquet(
-            PlRefPath::try_from_path(path).map_err(|e| read_err(path, e))?,
-            ScanArgsParquet::default(),
-        )
-        .map_err(|e| read_err(path, e))?;
-        let schema = base.collect_schema().map_err(|e| read_err(path, e))?;
-        let row_groups = row_group_sizes(path)?;
+        let file = std::fs::File::open(path).map_err(|e| read_err(path, e))?;
+        let options = ArrowReaderOptions::new()
+            .with_column_stats_policy(Keep::SkipAll)
+            .with_size_stats_policy(Keep::SkipAll)
+            .with_encoding_stats_policy(Keep::SkipAll);
+        let meta = ArrowReaderMetadata::load(&file, options).map_err(|e| read_err(path, e))?;
+        let schema = polars_schema(meta.schema()).map_err(|e| read_err(path, e))?;
         Ok(TableScan {
             path: path.to_path_buf(),
-            base,
             filter: None,
             schema,
-            row_groups,
+            meta,
         })
     }
 
-    /// The table with its row filter.
-    fn lf(&self) -> LazyFrame {
-        match &self.filter {
-            Some(f) => self.base.clone().filter(f.clone()),
-            None => self.base.clone(),
-        }
+    /// The table with its row filter, as a Polars scan (whole-table selections: small
+    /// tables, tests).
+    fn lf(&self) -> Result<LazyFrame, StoreError> {
+        let base = LazyFrame::scan_parquet(
+            PlRefPath::try_from_path(&self.path).map_err(|e| self.err(e))?,
+            ScanArgsParquet::default(),
+        )
+        .map_err(|e| self.err(e))?;
+        Ok(match &self.filter {
+            Some(f) => base.filter(f.clone()),
+            None => base,
+        })
     }
 
     /// Rows in the file (before any filter).
     pub fn file_rows(&self) -> usize {
-        self.row_groups.iter().sum()
+        self.meta.metadata().file_metadata().num_rows().max(0) as usize
     }
 
-    /// The selected expressions, a batch of whole row groups (about [`BATCH_ROWS`] rows of
-    /// the file) at a time, in file order, the row filter applied within each batch: the
-    /// rows of [`TableScan::select`], in bounded memory. Each item also gives the file row
-    /// of the batch's first row.
-    pub fn batches(
-        &self,
-        exprs: Vec<Expr>,
-    ) -> impl Iterator<Item = Result<(usize, DataFrame), StoreError>> + '_ {
-        self.batch_spans()
-            .into_iter()
-            .map(move |span| self.read_batch(span, exprs.clone()).map(|df| (span.0, df)))
+    /// The named columns, a batch of whole row groups (about [`BATCH_ROWS`] rows of the
+    /// file) at a time, in file order, the row filter applied within each batch: the rows
+    /// of [`TableScan::select`] of those columns, in bounded memory. Each item also gives
+    /// the file row of the batch's first row.
+    pub fn batches<'a>(
+        &'a self,
+        columns: &'a [&'a str],
+    ) -> impl Iterator<Item = Result<(usize, DataFrame), StoreError>> + 'a {
+        self.batch_spans().into_iter().map(move |span| {
+            self.read_batch(&span, columns)
+                .map(|df| (span.first_row, df))
+        })
     }
 
-    /// The (first file row, rows) of each batch [`TableScan::batches`] reads.
-    pub fn batch_spans(&self) -> Vec<(usize, usize)> {
+    /// The batches [`TableScan::batches`] reads, in order.
+    pub fn batch_spans(&self) -> Vec<BatchSpan> {
+        let groups = self.meta.metadata().row_groups();
         let mut spans = Vec::new();
-        let (mut start, mut len) = (0usize, 0usize);
-        for &g in &self.row_groups {
-            if len > 0 && len + g > BATCH_ROWS {
-                spans.push((start, len));
-                start += len;
-                len = 0;
+        let (mut start, mut first, mut rows) = (0usize, 0usize, 0usize);
+        for (k, g) in groups.iter().enumerate() {
+            let n = g.num_rows().max(0) as usize;
+            if rows > 0 && rows + n > BATCH_ROWS {
+                spans.push(BatchSpan {
+                    first_row: first,
+                    rows,
+                    groups: start..k,
+                });
+                start = k;
+                first += rows;
+                rows = 0;
             }
-            len += g;
+            rows += n;
         }
-        if len > 0 {
-            spans.push((start, len));
+        if rows > 0 {
+            spans.push(BatchSpan {
+                first_row: first,
+                rows,
+                groups: start..groups.len(),
+            });
         }
         spans
     }
 
-    /// One batch: the file's rows `span` (first row, rows), filtered, the expressions
-    /// selected. The file is sliced before the filter, so a batch never scans the rows
-    /// before it.
-    pub fn read_batch(
-        &self,
-        span: (usize, usize),
-        exprs: Vec<Expr>,
-    ) -> Result<DataFrame, StoreError> {
-        let mut lf = self.base.clone().slice(span.0 as i64, span.1 as IdxSize);
-        if let Some(f) = &self.filter {
-            lf = lf.filter(f.clone());
+    /// One batch: the named columns of its row groups, as a Polars frame (the arrow arrays
+    /// handed over without a copy), the row filter applied.
+    pub fn read_batch(&self, span: &BatchSpan, columns: &[&str]) -> Result<DataFrame, StoreError> {
+        use parquet::arrow::arrow_reader::ParquetRecordBatchReaderBuilder;
+        use parquet::arrow::ProjectionMask;
+        let e = |m: &dyn std::fmt::Display| read_err(&self.path, m);
+        let mut names: Vec<&str> = columns.to_vec();
+        if self.filter.is_some() {
+            names.extend(["event_first", "zone"]);
         }
-        lf.select(exprs)
-            .collect()
-            .map_err(|e| read_err(&self.path, e))
+        for n in &names {
+            if self.schema.get(n).is_none() {
+                return Err(e(&format!("no column {n}")));
+            }
+        }
+        names.sort_unstable();
+        names.dedup();
+        let file = std::fs::File::open(&self.path).map_err(|x| e(&x))?;
+        let mask = ProjectionMask::columns(
+            self.meta.metadata().file_metadata().schema_descr(),
+            names.iter().copied(),
+        );
+        let reader = ParquetRecordBatchReaderBuilder::new_with_metadata(file, self.meta.clone())
+            .with_row_groups(span.groups.clone().collect())
+            .with_projection(mask)
+            .with_batch_size(span.rows.max(1))
+            .build()
+            .map_err(|x| e(&x))?;
+        let batches = reader.collect::<Result<Vec<_>, _>>().map_err(|x| e(&x))?;
+        let df = to_polars(&batches, span.rows).map_err(|x| e(&x))?;
+        match &self.filter {
+            Some(f) => df.lazy().filter(f.clone()).collect().map_err(|x| e(&x)),
+            None => Ok(df),
+        }
     }
 
     /// Only the rows that count as sources ([`SourceRows`]); a table without the event
@@ -219,7 +267,7 @@ impl TableScan {
 
     /// Read the selected expressions into memory.
     pub fn select(&self, exprs: Vec<Expr>) -> Result<DataFrame, StoreError> {
-        self.lf()
+        self.lf()?
             .select(exprs)
             .collect()
             .map_err(|e| read_err(&self.path, e))
@@ -258,6 +306,21 @@ impl TableScan {
             .column(name)
             .and_then(|c| c.str().cloned())
             .map_err(|e| self.err(format!("{name}: {e}")))?;
+        Ok((0..c.len()).map(|i| c.get(i).map(str::to_string)).collect())
+    }
+
+    /// Any column as text, cast as Polars casts (nulls as `None`): a label column of any
+    /// type.
+    pub fn as_strings(
+        &self,
+        df: &DataFrame,
+        name: &str,
+    ) -> Result<Vec<Option<String>>, StoreError> {
+        let c = df
+            .column(name)
+            .and_then(|c| c.cast(&DataType::String))
+            .map_err(|e| self.err(format!("{name}: {e}")))?;
+        let c = c.str().map_err(|e| self.err(format!("{name}: {e}")))?;
         Ok((0..c.len()).map(|i| c.get(i).map(str::to_string)).collect())
     }
 
@@ -368,15 +431,63 @@ impl TableScan {
     }
 }
 
-/// Rows per row group of a Parquet file, from its footer.
-fn row_group_sizes(path: &Path) -> Result<Vec<usize>, StoreError> {
-    let file = std::fs::File::open(path).map_err(|e| read_err(path, e))?;
-    let meta = parquet::file::metadata::ParquetMetaDataReader::new()
-        .parse_and_finish(&file)
-        .map_err(|e| read_err(path, e))?;
-    Ok(meta
-        .row_groups()
-        .iter()
-        .map(|g| g.num_rows().max(0) as usize)
-        .collect())
+/// arrow-rs batches (one schema) as a Polars frame: each column's arrays cross by the Arrow
+/// C Data Interface, which both implement, so the buffers are shared, not copied.
+fn to_polars(batches: &[arrow::array::RecordBatch], rows: usize) -> Result<DataFrame, String> {
+    let Some(first) = batches.first() else {
+        return Ok(DataFrame::empty());
+    };
+    let schema = first.schema();
+    let mut cols: Vec<Column> = Vec::with_capacity(schema.fields().len());
+    for (k, f) in schema.fields().iter().enumerate() {
+        let mut chunks: Vec<Box<dyn polars_arrow::array::Array>> = Vec::new();
+        for b in batches {
+            let data = b.column(k).to_data();
+            let (array, ffi_schema) =
+                arrow::ffi::to_ffi(&data).map_err(|x| format!("{}: {x}", f.name()))?;
+            // SAFETY: arrow-rs's FFI_ArrowArray / FFI_ArrowSchema and polars-arrow's
+            // ArrowArray / ArrowSchema are both the C Data Interface's #[repr(C)] structs
+            // (same fields, same order). The schema is only read here and released by
+            // arrow-rs when dropped; the array is moved into Polars, which calls its
+            // release callback when the chunk is dropped (arrow-rs's Drop never runs on it).
+            let chunk = unsafe {
+                let s = &*(&ffi_schema as *const arrow::ffi::FFI_ArrowSchema
+                    as *const polars_arrow::ffi::ArrowSchema);
+                let field = polars_arrow::ffi::import_field_from_c(s)
+                    .map_err(|x| format!("{}: {x}", f.name()))?;
+                let a: polars_arrow::ffi::ArrowArray = std::mem::transmute(array);
+                polars_arrow::ffi::import_array_from_c(a, field.dtype)
+                    .map_err(|x| format!("{}: {x}", f.name()))?
+            };
+            chunks.push(chunk);
+        }
+        let s = Series::from_arrow_chunks(f.name().as_str().into(), chunks)
+            .map_err(|x| format!("{}: {x}", f.name()))?;
+        cols.push(s.into());
+    }
+    DataFrame::new(rows, cols).map_err(|x| x.to_string())
+}
+
+/// The Polars schema of an arrow-rs schema (each field through the C Data Interface, as the
+/// batches cross).
+fn polars_schema(schema: &arrow::datatypes::Schema) -> Result<SchemaRef, String> {
+    let mut fields = Vec::with_capacity(schema.fields().len());
+    for f in schema.fields() {
+        let ffi = arrow::ffi::FFI_ArrowSchema::try_from(f.as_ref())
+            .map_err(|x| format!("{}: {x}", f.name()))?;
+        // SAFETY: both structs are the C Data Interface's ArrowSchema (#[repr(C)]); it is
+        // only read here and released by arrow-rs.
+        let field = unsafe {
+            polars_arrow::ffi::import_field_from_c(
+                &*(&ffi as *const arrow::ffi::FFI_ArrowSchema
+                    as *const polars_arrow::ffi::ArrowSchema),
+            )
+        }
+        .map_err(|x| format!("{}: {x}", f.name()))?;
+        fields.push(Field::new(
+            field.name.clone(),
+            DataType::from_arrow_field(&field),
+        ));
+    }
+    Ok(std::sync::Arc::new(Schema::from_iter(fields)))
 }

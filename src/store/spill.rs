@@ -16,7 +16,7 @@ use std::io::{BufReader, BufWriter, Read, Seek, SeekFrom, Write};
 use std::path::{Path, PathBuf};
 
 /// Bytes of records a sorter keeps in memory before it spills a run.
-pub const SORT_BUDGET_BYTES: usize = 64 << 20;
+pub const SORT_BUDGET_BYTES: usize = 32 << 20;
 
 /// A record that can be spilled: a compact binary form, and its size in memory.
 pub trait Spill: Sized + Ord {
@@ -278,9 +278,10 @@ impl<T: Spill> Sorter<T> {
     }
 
     pub fn push(&mut self, t: T) -> Result<(), StoreError> {
-        self.bytes += t.mem_bytes();
+        // What the records own beyond their slots, and the slots the buffer has reserved.
+        self.bytes += t.mem_bytes().saturating_sub(std::mem::size_of::<T>());
         self.buf.push(t);
-        if self.bytes >= self.budget {
+        if self.bytes + self.buf.capacity() * std::mem::size_of::<T>() >= self.budget {
             self.spill()?;
         }
         Ok(())

@@ -496,6 +496,14 @@ impl Experiment {
     }
 }
 
+/// The demo's pipeline definition, `pipelines/demo.toml` (the strip this module builds, read
+/// as a Vallen test), embedded in the binary so that `aepipe demo` and `aepipe bench
+/// analysis` need no file beside them.
+pub fn demo_config() -> crate::config::ValidConfig {
+    crate::config::PipelineConfig::from_toml(include_str!("../../pipelines/demo.toml"))
+        .expect("pipelines/demo.toml is valid")
+}
+
 /// `aepipe synth-experiment`: a library-built experiment in `dir` (the library built from the
 /// embedded definition into `dir/reference` unless given). Returns a summary line.
 pub fn synth_experiment(

@@ -73,14 +73,7 @@ pub fn headline(s: &RunSummary) -> Vec<String> {
         l.push("Table 5.4 (share of each SOM class's hits):".into());
         l.extend(t.format_table_5_4().lines().map(|x| format!("  {x}")));
     }
-    l.push(format!(
-        "stages: {}",
-        s.seconds
-            .iter()
-            .map(|(k, v)| format!("{k} {v:.1} s"))
-            .collect::<Vec<_>>()
-            .join(", ")
-    ));
+    l.push(format!("stages: {}", crate::report::stage_line(s)));
     l
 }
 
@@ -166,6 +159,7 @@ pub fn summary_json(s: &RunSummary) -> serde_json::Value {
         "som": som,
         "truth": truth,
         "seconds": s.seconds.iter().map(|(k, v)| (k.clone(), json!(v))).collect::<serde_json::Map<_, _>>(),
+        "peak_rss_bytes": s.peak_rss.iter().map(|(k, v)| (k.clone(), json!(v))).collect::<serde_json::Map<_, _>>(),
         "headline": headline(s),
     })
 }

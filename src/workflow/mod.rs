@@ -171,35 +171,44 @@ pub fn merge(
         shard: None,
         control: None,
     };
-    stages(
-        &job,
-        features,
-        vec![("merge".to_string(), t.elapsed().as_secs_f64())],
-    )
+    let mut log = StageLog::default();
+    log.seconds
+        .push(("merge".to_string(), t.elapsed().as_secs_f64()));
+    stages(&job, features, log)
 }
 
 /// Run every enabled stage.
 pub fn run(job: &RunJob) -> Result<RunSummary, WorkflowError> {
     clean_stale(&job.dir());
-    let mut seconds = Vec::new();
-    let t = std::time::Instant::now();
-    let features = crate::pipeline::run(
-        crate::pipeline::StreamJob::Features,
-        job.inputs,
-        job.dir().features().path(),
-        job.config,
-        &job.stream_options(),
-    )?;
-    seconds.push(("features".to_string(), t.elapsed().as_secs_f64()));
-    stages(job, features, seconds)
+    let mut log = StageLog::default();
+    let features = log.time("features", || {
+        crate::pipeline::run(
+            crate::pipeline::StreamJob::Features,
+            job.inputs,
+            job.dir().features().path(),
+            job.config,
+            &job.stream_options(),
+        )
+    })?;
+    stages(job, features, log)
 }
 
-/// The whole-batch stages after the features, in their order: trend, SOM, truth, report,
-/// run.json.
+/// The whole-batch stages on feature tables already written (a run's, a merge's, or a
+/// benchmark's), in their order: trend, SOM (training or the given map, classification,
+/// damage profile with evolution and location), truth, report, run.json. Each stage's time
+/// and peak memory go into `log` and the summary.
+pub fn analyse(
+    job: &RunJob,
+    features: crate::pipeline::RunReport,
+    log: StageLog,
+) -> Result<RunSummary, WorkflowError> {
+    stages(job, features, log)
+}
+
 fn stages(
     job: &RunJob,
     features: crate::pipeline::RunReport,
-    mut seconds: Vec<(String, f64)>,
+    mut log: StageLog,
 ) -> Result<RunSummary, WorkflowError> {
     let cfg = job.config;
     let dir = job.dir();
@@ -208,21 +217,22 @@ fn stages(
     let (mut trend, mut trend_plots) = (None, Vec::new());
     if cfg.trend.enabled {
         job.go_on()?;
-        let t = std::time::Instant::now();
-        let (rep, plots) = trend_stage(cfg, &feats, &dir.trend())?;
+        let (rep, plots) = log.time("trend", || trend_stage(cfg, &feats, &dir.trend()))?;
         trend = Some(rep);
         trend_plots = plots;
-        seconds.push(("trend".to_string(), t.elapsed().as_secs_f64()));
     }
 
     let mut som = None;
     if cfg.som.enabled {
         job.go_on()?;
-        let t = std::time::Instant::now();
-        som = Some(som_stage(job, &feats, &features.events_path)?);
-        seconds.push(("som".to_string(), t.elapsed().as_secs_f64()));
+        som = Some(som_stage(job, &feats, &features.events_path, &mut log)?);
     }
-    let (truth, sources) = truth::scores(job.truth, som.as_ref(), &features, cfg)?;
+    let (truth, sources) = match job.truth {
+        Some(_) => log.time("truth", || {
+            truth::scores(job.truth, som.as_ref(), &features, cfg)
+        })?,
+        None => (None, None),
+    };
     let mut summary = RunSummary {
         out: job.out.to_path_buf(),
         inputs: job.inputs.to_vec(),
@@ -233,17 +243,22 @@ fn stages(
         truth,
         sources,
         config: cfg.clone(),
-        seconds,
+        seconds: Vec::new(),
+        peak_rss: Vec::new(),
     };
     if cfg.report.enabled {
         job.go_on()?;
-        let t = std::time::Instant::now();
-        let g = gather(&summary)?;
-        crate::report::write(&summary, &g, &dir.report_html())?;
-        summary
-            .seconds
-            .push(("report".to_string(), t.elapsed().as_secs_f64()));
+        // The report shows the stages before it; its own time goes into run.json.
+        summary.seconds = log.seconds.clone();
+        summary.peak_rss = log.peak_rss.clone();
+        log.time("report", || -> Result<(), WorkflowError> {
+            let g = gather(&summary)?;
+            crate::report::write(&summary, &g, &dir.report_html())?;
+            Ok(())
+        })?;
     }
+    summary.seconds = log.seconds;
+    summary.peak_rss = log.peak_rss;
     write_run_json(&summary)?;
     Ok(summary)
 }
@@ -270,4 +285,5 @@ use pictures::gather;
 pub use runfile::rebuild_report;
 use runfile::write_run_json;
 pub use schema::{table_schema, TABLES};
+pub use stages::StageLog;
 use stages::{som_stage, trend_stage};

@@ -55,15 +55,10 @@ type LabelCounts = (
 fn count_labels(path: &Path, column: &str, per: usize) -> Result<LabelCounts, WorkflowError> {
     let t = TableScan::open(path)?;
     t.require(&["experiment", "channel", "hit", column], "")?;
-    let sel = vec![
-        polars::prelude::col("experiment"),
-        polars::prelude::col("channel"),
-        polars::prelude::col("hit"),
-        polars::prelude::col(column),
-    ];
+    let sel = ["experiment", "channel", "hit", column];
     let mut counts: BTreeMap<(String, String), usize> = BTreeMap::new();
     let mut choice = crate::report::GalleryChoice::new(per);
-    for batch in t.batches(sel) {
+    for batch in t.batches(&sel) {
         let (_, df) = batch?;
         let keys = t.hit_keys(&df)?;
         let labels = t.strings(&df, column)?;

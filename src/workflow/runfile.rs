@@ -13,6 +13,9 @@ struct RunFile {
     /// The effective pipeline definition (canonical TOML).
     config: String,
     seconds: Vec<(String, f64)>,
+    /// Each stage's peak resident memory, bytes (absent in older run folders).
+    #[serde(default)]
+    peak_rss: Vec<(String, u64)>,
     som_trained_on: Option<String>,
     som_training_rows: Option<usize>,
 }
@@ -24,6 +27,7 @@ pub(super) fn write_run_json(s: &RunSummary) -> Result<(), WorkflowError> {
         truth: s.truth.as_ref().map(|t| t.path.clone()),
         config: s.config.to_toml(),
         seconds: s.seconds.clone(),
+        peak_rss: s.peak_rss.clone(),
         som_trained_on: s.som.as_ref().map(|m| m.trained_on.clone()),
         som_training_rows: s.som.as_ref().map(|m| m.training_rows),
     };
@@ -110,6 +114,7 @@ pub fn rebuild_report(dir: &Path) -> Result<PathBuf, WorkflowError> {
         sources,
         config,
         seconds: f.seconds,
+        peak_rss: f.peak_rss,
     };
     let out = run.report_html();
     let g = gather(&summary)?;

@@ -9,7 +9,6 @@ use crate::plot::sources::LocatedSource;
 use crate::som::layout::ClassifyDir;
 use crate::som::profile::{ProfileRow, ProfileSummary};
 use crate::store::spill::{Dec, Enc, Sorter, Spill};
-use polars::prelude::col;
 
 /// A profile row as a source of its experiment's evolution, in the order the evolution
 /// reads them: by time (null last), hit, then the profile's own order.
@@ -308,16 +307,10 @@ pub(super) fn location_stage(
         return Ok(Vec::new());
     }
     let ev = TableScan::open(events)?;
-    let sel = vec![
-        col("experiment"),
-        col("event"),
-        col("x_m"),
-        col("y_m"),
-        col("zone"),
-    ];
+    let sel = ["experiment", "event", "x_m", "y_m", "zone"];
     let mut located: Sorter<Located> = Sorter::new(som_dir.path());
     let mut seq = 0u64;
-    for batch in ev.batches(sel) {
+    for batch in ev.batches(&sel) {
         let (_, df) = batch?;
         let exps = ev.strings(&df, "experiment")?;
         let numbers = ev.f64s(&df, "event")?;

@@ -48,11 +48,57 @@ pub(super) fn som_stage(
     job: &RunJob,
     feats: &[PathBuf],
     events: &Path,
+    log: &mut StageLog,
 ) -> Result<SomStage, WorkflowError> {
-    use crate::som::tables::{classify_tables, train, TrainOptions, TrainingSet};
+    use crate::som::tables::classify_tables;
     let cfg = job.config;
     let run = job.dir();
     let som_dir = run.som();
+    let model_dir = run.som_model();
+    let (model, trained_on) = if cfg.som.model.is_empty() {
+        log.time("som training", || train_stage(job, feats))?
+    } else {
+        // A given map: copied into the run (its model folder), so the run stays whole.
+        log.time("som model", || -> Result<_, WorkflowError> {
+            let m = crate::som::tables::load_model(Path::new(&cfg.som.model))?;
+            crate::som::tables::save_model(&m, model_dir.path(), None)?;
+            Ok((m, format!("the given map {}", cfg.som.model)))
+        })?
+    };
+    let confusion = log.time("classification", || -> Result<_, WorkflowError> {
+        let confusion = classify_tables(
+            &model,
+            feats,
+            Some(&cfg.som.label),
+            som_dir.path(),
+            crate::store::SourceRows::of(cfg),
+            cfg.som.read_erroneous,
+        )?;
+        crate::plot::u_matrix_png(&som_dir.u_matrix(), &model.som)?;
+        crate::plot::hit_maps_png(&som_dir.hit_maps(), &model.som, &confusion.hits)?;
+        Ok(confusion)
+    })?;
+    let trained = Trained {
+        model_dir: model_dir.path().to_path_buf(),
+        trained_on,
+        training_rows: model.composition.values().map(|(_, r)| r).sum(),
+        u_matrix: Some(som_dir.u_matrix()),
+        hit_maps: Some(som_dir.hit_maps()),
+    };
+    log.time("damage profile", || {
+        classified_stage(cfg, confusion, &feats[0], events, &som_dir, trained)
+    })
+}
+
+/// Train the run's map as `[som] train_on` says: on a reference library (built from the
+/// embedded definition unless one is named) or on the run's own labelled hits.
+fn train_stage(
+    job: &RunJob,
+    feats: &[PathBuf],
+) -> Result<(crate::som::tables::Model, String), WorkflowError> {
+    use crate::som::tables::{train, TrainOptions, TrainingSet};
+    let cfg = job.config;
+    let run = job.dir();
     let (train_paths, label, fraction, trained_on) = if cfg.som.train_on == TrainOn::Reference {
         let lib = if cfg.som.reference_library.is_empty() {
             let f = crate::sim::reference::ReferenceFile::default_library();
@@ -116,28 +162,34 @@ pub(super) fn som_stage(
         sources: crate::store::SourceRows::of(cfg),
         ..Default::default()
     };
-    let model_dir = run.som_model();
-    let model = train(&train_paths, model_dir.path(), &o)?;
-    let confusion = classify_tables(
-        &model,
-        feats,
-        Some(&cfg.som.label),
-        som_dir.path(),
-        crate::store::SourceRows::of(cfg),
-        cfg.som.read_erroneous,
-    )?;
-    let u = som_dir.u_matrix();
-    crate::plot::u_matrix_png(&u, &model.som)?;
-    let hm = som_dir.hit_maps();
-    crate::plot::hit_maps_png(&hm, &model.som, &confusion.hits)?;
-    let trained = Trained {
-        model_dir: model_dir.path().to_path_buf(),
-        trained_on,
-        training_rows: model.composition.values().map(|(_, r)| r).sum(),
-        u_matrix: Some(u),
-        hit_maps: Some(hm),
-    };
-    classified_stage(cfg, confusion, &feats[0], events, &som_dir, trained)
+    let model = train(&train_paths, run.som_model().path(), &o)?;
+    Ok((model, trained_on))
+}
+
+/// Each stage's wall time and peak resident memory, in the order the stages ran: the
+/// terminal's "stages:" line, the report's footer, `run.json`, and `aepipe bench analysis`.
+#[derive(Debug, Clone, Default)]
+pub struct StageLog {
+    pub seconds: Vec<(String, f64)>,
+    /// Peak RSS during the stage, bytes (the kernel's mark reset at its start; absent off
+    /// Linux).
+    pub peak_rss: Vec<(String, u64)>,
+}
+
+impl StageLog {
+    /// Run one stage and record it.
+    pub fn time<T>(&mut self, name: &str, f: impl FnOnce() -> T) -> T {
+        crate::util::release_freed_memory();
+        crate::util::reset_peak_rss();
+        let t = std::time::Instant::now();
+        let out = f();
+        self.seconds
+            .push((name.to_string(), t.elapsed().as_secs_f64()));
+        if let Some(b) = crate::util::peak_rss_bytes() {
+            self.peak_rss.push((name.to_string(), b));
+        }
+        out
+    }
 }
 
 /// What is known of a trained map when its classification is summed up.

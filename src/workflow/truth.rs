@@ -39,11 +39,10 @@ fn push_labels(
     column: &str,
     from: u8,
 ) -> Result<(), WorkflowError> {
-    use polars::prelude::col;
     let t = TableScan::open(path)?;
     t.require(&["experiment", "channel", "hit", column], "")?;
-    let sel = vec![col("experiment"), col("channel"), col("hit"), col(column)];
-    for batch in t.batches(sel) {
+    let sel = ["experiment", "channel", "hit", column];
+    for batch in t.batches(&sel) {
         let (_, df) = batch?;
         let keys = t.hit_keys(&df)?;
         let labels = t.strings(&df, column)?;

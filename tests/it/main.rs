@@ -17,6 +17,7 @@ mod hits;
 mod pipeline;
 mod real_data;
 mod resume;
+mod scale;
 mod shard;
 mod sim;
 mod som;

@@ -33,21 +33,9 @@ impl BenchError {
     }
 }
 
-/// Peak resident set size of this process so far (VmHWM), bytes; `None` off Linux.
-pub fn peak_rss_bytes() -> Option<u64> {
-    let s = std::fs::read_to_string("/proc/self/status").ok()?;
-    let line = s.lines().find(|l| l.starts_with("VmHWM:"))?;
-    let kb: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
-    Some(kb * 1024)
-}
+pub mod analysis;
 
-/// Current resident set size (VmRSS), bytes.
-pub fn rss_bytes() -> Option<u64> {
-    let s = std::fs::read_to_string("/proc/self/status").ok()?;
-    let line = s.lines().find(|l| l.starts_with("VmRSS:"))?;
-    let kb: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
-    Some(kb * 1024)
-}
+pub use crate::util::{peak_rss_bytes, rss_bytes};
 
 /// What the streaming benchmark feeds the pipeline.
 #[derive(Debug, Clone, Copy, PartialEq)]
