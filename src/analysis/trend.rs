@@ -370,9 +370,12 @@ pub fn trends(s: &TrendSeries, columns: &[String], sel: &Selection, alpha: f64) 
         .collect()
 }
 
-/// What `aepipe trend` produced.
+/// What `aepipe trend` produced. Every row is in `trend.parquet`; only the significant ones
+/// are kept here (what the terminal, the report and the summary show): a study of thousands
+/// of series holds a few hundred bytes per series, not its whole table.
 pub struct TrendReport {
-    pub rows: Vec<TrendRow>,
+    /// The significant rows, in the series' order.
+    pub significant: Vec<TrendRow>,
     pub selections: Vec<Selection>,
     pub columns: Vec<String>,
     pub table_path: PathBuf,
@@ -740,7 +743,7 @@ pub fn run_trend_with<E: From<TrendError> + From<StoreError>>(
         for t in &group {
             w.push(table.row(t.clone()))?;
         }
-        rows.extend(group);
+        rows.extend(group.into_iter().filter(|r| r.significant));
         selections.push(sel);
     }
     w.finish()?;
@@ -761,7 +764,7 @@ pub fn run_trend_with<E: From<TrendError> + From<StoreError>>(
     )
     .map_err(|e| TrendError::Usage(e.to_string()))?;
     Ok(TrendReport {
-        rows,
+        significant: rows,
         selections,
         columns,
         table_path,
@@ -771,6 +774,7 @@ pub fn run_trend_with<E: From<TrendError> + From<StoreError>>(
 /// The terminal table of the significant rows, like Table 4.3 (window, m, c, r, p).
 pub fn format_table(rep: &TrendReport) -> String {
     let mut s = String::new();
+    let mut next = 0;
     for sel in &rep.selections {
         s.push_str(&format!(
             "{} ch{}: {} of {} hits used ({}){}\n",
@@ -784,11 +788,15 @@ pub fn format_table(rep: &TrendReport) -> String {
                 .map(|n| format!("\n  note: {n}"))
                 .unwrap_or_default()
         ));
-        let sig: Vec<&TrendRow> = rep
-            .rows
-            .iter()
-            .filter(|r| r.experiment == sel.experiment && r.channel == sel.channel && r.significant)
-            .collect();
+        // The significant rows are in the selections' order: this series' are the next ones.
+        let mut sig: Vec<&TrendRow> = Vec::new();
+        while let Some(r) = rep.significant.get(next) {
+            if (r.experiment.as_str(), r.channel) != (sel.experiment.as_str(), sel.channel) {
+                break;
+            }
+            sig.push(r);
+            next += 1;
+        }
         if sig.is_empty() {
             s.push_str("  no significant trend\n\n");
             continue;

@@ -465,7 +465,7 @@ fn trend_section(h: &mut String, s: &RunSummary) {
             );
         }
         h.push_str("<table><tr><th class=l>experiment</th><th class=l>frequency window</th><th>m</th><th>c</th><th>r</th><th>p</th><th>n</th></tr>");
-        for r in t.rows.iter().filter(|r| r.significant) {
+        for r in &t.significant {
             if let Some(f) = &r.fit {
                 let _ = write!(
                     h,

@@ -2,6 +2,20 @@
 
 use super::*;
 
+/// Series (experiment × channel) the terminal gives a line each; a study of more says how
+/// many more and where they are.
+const SERIES_LINES: usize = 12;
+
+fn more(l: &mut Vec<String>, n: usize, table: &Path) {
+    if n > SERIES_LINES {
+        l.push(format!(
+            "  … and {} more series (all in {})",
+            n - SERIES_LINES,
+            table.display()
+        ));
+    }
+}
+
 /// Terminal lines: the headline numbers.
 pub fn headline(s: &RunSummary) -> Vec<String> {
     let mut l = Vec::new();
@@ -11,13 +25,24 @@ pub fn headline(s: &RunSummary) -> Vec<String> {
         st.records_read, st.rows, st.rejects
     ));
     if let Some(t) = &s.trend {
-        for sel in &t.selections {
+        for sel in t.selections.iter().take(SERIES_LINES) {
             l.push(format!(
                 "trend {} ch{}: {} of {} hits used ({})",
                 sel.experiment, sel.channel, sel.hits_used, sel.hits_total, sel.cutoff
             ));
         }
-        for r in t.rows.iter().filter(|r| r.significant) {
+        more(&mut l, t.selections.len(), &t.table_path);
+        let shown: std::collections::BTreeSet<(&str, i32)> = t
+            .selections
+            .iter()
+            .take(SERIES_LINES)
+            .map(|s| (s.experiment.as_str(), s.channel))
+            .collect();
+        for r in t
+            .significant
+            .iter()
+            .filter(|r| shown.contains(&(r.experiment.as_str(), r.channel)))
+        {
             if let Some(f) = &r.fit {
                 l.push(format!(
                     "  {:<16} r = {:+.2}  p = {:.1e}  slope {:+.2e}",
@@ -42,7 +67,8 @@ pub fn headline(s: &RunSummary) -> Vec<String> {
                 .collect::<Vec<_>>()
                 .join(", ")
         ));
-        l.extend(m.profile.iter().map(|p| p.line()));
+        l.extend(m.profile.iter().take(SERIES_LINES).map(|p| p.line()));
+        more(&mut l, m.profile.len(), &m.profile_table);
         if let Some(a) = m.confusion.accuracy() {
             l.push(format!(
                 "agreement with the ch. 4.7 criteria labels: {}/{} = {:.1} %",
@@ -111,9 +137,8 @@ pub fn summary_json(s: &RunSummary) -> serde_json::Value {
         }
     }
     let trend = s.trend.as_ref().map(|t| {
-        t.rows
+        t.significant
             .iter()
-            .filter(|r| r.significant)
             .map(|r| {
                 json!({
                     "experiment": r.experiment, "channel": r.channel, "column": r.column,

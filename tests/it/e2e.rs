@@ -167,7 +167,12 @@ fn run_classifies_against_truth_finds_the_trend_and_writes_a_report_a_browser_re
     .unwrap();
     // The designed shift (ch. 4.5.5): 200–300 kHz rising, 700–800 kHz falling, p < 0.01.
     let t = s.trend.as_ref().unwrap();
-    let row = |c: &str| t.rows.iter().find(|r| r.column == c).unwrap();
+    let row = |c: &str| {
+        t.significant
+            .iter()
+            .find(|r| r.column == c)
+            .unwrap_or_else(|| panic!("{c} is not significant: {:?}", t.significant))
+    };
     let (lo, hi) = (row("pr_200_300khz"), row("pr_700_800khz"));
     assert!(lo.significant && lo.fit.unwrap().r > 0.0, "{:?}", lo.fit);
     assert!(hi.significant && hi.fit.unwrap().r < 0.0, "{:?}", hi.fit);
