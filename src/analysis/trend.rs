@@ -682,18 +682,20 @@ pub fn run_trend(
     out_dir: &Path,
     opts: &TrendOptions,
 ) -> Result<TrendReport, TrendError> {
-    run_trend_with(inputs, out_dir, opts, 0, |_| Ok::<(), TrendError>(()))
+    run_trend_with(inputs, out_dir, opts, 0, 0, |_| Ok::<(), TrendError>(()))
 }
 
-/// [`run_trend`], calling `picture` with each series' Fig. 4.18 data (its steepest
-/// `max_lines` significant columns) while the series is at hand: the stage streams, so the
-/// points are not kept for later. The rows are read a batch at a time and sorted in
-/// bounded memory; the fits take three passes over each series.
+/// [`run_trend`], calling `picture` with the Fig. 4.18 data (the steepest `max_lines`
+/// significant columns) of the first `pictures` series that have significant columns,
+/// while each is at hand: the stage streams, so the points are not kept for later. The
+/// rows are read a batch at a time and sorted in bounded memory; the fits take three
+/// passes over each series.
 pub fn run_trend_with<E: From<TrendError> + From<StoreError>>(
     inputs: &[PathBuf],
     out_dir: &Path,
     opts: &TrendOptions,
     max_lines: usize,
+    pictures: usize,
     mut picture_of: impl FnMut(&TrendPicture) -> Result<(), E>,
 ) -> Result<TrendReport, E> {
     if !(opts.alpha > 0.0 && opts.alpha < 1.0) {
@@ -720,6 +722,7 @@ pub fn run_trend_with<E: From<TrendError> + From<StoreError>>(
     let mut w = TableWriter::create(&table_path, table.schema(), &meta, 4096)?;
     let mut rows = Vec::new();
     let mut selections = Vec::new();
+    let mut drawn = 0usize;
     for ((experiment, channel), span) in sorted.groups(|r| (r.experiment.clone(), r.channel))? {
         let sel = select_from(
             &experiment,
@@ -735,9 +738,10 @@ pub fn run_trend_with<E: From<TrendError> + From<StoreError>>(
             sorted.span_iter(span).collect::<Result<Vec<_>, _>>()?;
         }
         let group = trends_sorted(&sorted, span, &columns, &sel, opts.alpha)?;
-        if max_lines > 0 {
+        if max_lines > 0 && drawn < pictures {
             if let Some(p) = picture(&sorted, span, &columns, &sel, &group, max_lines)? {
                 picture_of(&p)?;
+                drawn += 1;
             }
         }
         for t in &group {

@@ -392,7 +392,7 @@ fn trend(
     };
     let mut plots = Vec::new();
     let lines = if no_plots { 0 } else { 4 };
-    let rep = trend::run_trend_with(features, out, &opts, lines, |pic| {
+    let rep = trend::run_trend_with(features, out, &opts, lines, usize::MAX, |pic| {
         let sel = pic.selection;
         let png = trend::TrendDir::new(out).png(&sel.experiment, sel.channel);
         crate::plot::trend_png(&png, pic)?;

@@ -309,6 +309,22 @@ impl Spill for EventRow {
     }
 }
 
+/// A features row's key, sorted to find a key the table repeats.
+#[derive(Debug, Clone, PartialEq, Eq, PartialOrd, Ord)]
+struct Key(HitKey);
+
+impl Spill for Key {
+    fn encode(&self, out: &mut Vec<u8>) {
+        Enc(out).str(&self.0 .0).i32(self.0 .1).i64(self.0 .2);
+    }
+    fn decode(b: &mut Dec<'_>) -> Option<Self> {
+        Some(Key((b.str()?, b.i32()?, b.i64()?)))
+    }
+    fn mem_bytes(&self) -> usize {
+        std::mem::size_of::<Self>() + self.0 .0.len()
+    }
+}
+
 /// The classification's (key, class) rows, read a batch at a time in file order.
 struct ClassStream {
     t: TableScan,
@@ -334,13 +350,15 @@ impl ClassStream {
                 return Ok(None);
             };
             let sel = ["experiment", "channel", "hit", "som_label"];
-            let df = self.t.read_batch(&span, &sel)?;
-            let keys = self.t.hit_keys(&df)?;
-            let vals = self.t.strings(&df, "som_label")?;
-            self.ready.extend(
-                keys.into_iter()
-                    .zip(vals.into_iter().map(Option::unwrap_or_default)),
-            );
+            for b in self.t.span_reader(&span, &sel)? {
+                let (_, df) = b?;
+                let keys = self.t.hit_keys(&df)?;
+                let vals = self.t.strings(&df, "som_label")?;
+                self.ready.extend(
+                    keys.into_iter()
+                        .zip(vals.into_iter().map(Option::unwrap_or_default)),
+                );
+            }
         }
         Ok(self.ready.front())
     }
@@ -368,7 +386,7 @@ pub struct Profile {
 /// the two are joined as they stream. Rows are read a batch at a time and sorted into their
 /// series within a memory budget, spilling under `spill_dir`.
 pub fn open(features: &Path, classification: &Path, spill_dir: &Path) -> Result<Profile, SomError> {
-    let serr = |e: crate::store::StoreError| SomError::Data(e.to_string());
+    let serr = SomError::Store;
     let t = TableScan::open(features).map_err(serr)?;
     t.require(
         &[
@@ -403,6 +421,8 @@ pub fn open(features: &Path, classification: &Path, spill_dir: &Path) -> Result<
     let mut classes = ClassStream::open(classification).map_err(serr)?;
     let mut series: Sorter<Rec> = Sorter::new(spill_dir);
     let mut events: Sorter<EventRow> = Sorter::new(spill_dir);
+    // The join below pairs the two tables' rows by key in order, which needs each key once.
+    let mut keys_seen: Sorter<Key> = Sorter::new(spill_dir);
     let mut seq = 0u64;
     for batch in t.batches(&sel) {
         let (_, df) = batch.map_err(serr)?;
@@ -420,6 +440,7 @@ pub fn open(features: &Path, classification: &Path, spill_dir: &Path) -> Result<
         let load = t.f64s(&df, "load_n").map_err(serr)?;
         let ext = t.f64s(&df, "extension_m").map_err(serr)?;
         for (i, k) in keys.into_iter().enumerate() {
+            keys_seen.push(Key(k.clone()))?;
             let class = classes.take_if(&k).map_err(serr)?;
             let event_no = event[i].map(|e| e as i64);
             let rec = class.map(|class| Rec {
@@ -469,6 +490,20 @@ pub fn open(features: &Path, classification: &Path, spill_dir: &Path) -> Result<
     }
     // One pass over the events' rows in order: each event's run, counted, then its
     // classified rows (a few hits an event) into the series.
+    let mut last: Option<Key> = None;
+    for k in keys_seen.finish()?.iter() {
+        let k = k?;
+        if last.as_ref() == Some(&k) {
+            return Err(SomError::Data(format!(
+                "{}: hit ({}, {}, {}) is there twice; the damage profile needs each hit once",
+                features.display(),
+                k.0 .0,
+                k.0 .1,
+                k.0 .2
+            )));
+        }
+        last = Some(k);
+    }
     let events = events.finish()?;
     let mut run: Vec<EventRow> = Vec::new();
     let flush = |run: &mut Vec<EventRow>, series: &mut Sorter<Rec>| -> Result<(), SomError> {
@@ -519,7 +554,7 @@ impl Profile {
         mut row: impl FnMut(&ProfileRow) -> Result<(), E>,
     ) -> Result<ProfileSummary, E> {
         let ((experiment, channel), span) = &self.groups[g];
-        let serr = |e: crate::store::StoreError| SomError::Data(e.to_string());
+        let serr = SomError::Store;
         // The first largest finite load, and where it is.
         let mut peak: Option<(u64, f64, Option<f64>)> = None;
         for (pos, r) in self.sorted.span_iter(*span).enumerate() {

@@ -385,7 +385,8 @@ impl Default for TrainOptions {
 /// The tables are read a batch at a time, three times: the usable rows' labels (the draw
 /// needs only those), the drawn rows' features (the training set, `fraction` of the rows),
 /// and, to calibrate, every labelled row once more, voting as it passes. Memory holds the
-/// training set and a few bytes per row for the draw, never the tables.
+/// training set and ~30 bytes per row for the draw (a label id, the shuffled indices),
+/// never the tables.
 pub fn train(paths: &[PathBuf], out: &Path, o: &TrainOptions) -> Result<Model, SomError> {
     // Pass 1: every usable row's label, interned.
     let mut names: Vec<String> = Vec::new();

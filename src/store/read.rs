@@ -136,17 +136,20 @@ impl TableScan {
         self.meta.metadata().file_metadata().num_rows().max(0) as usize
     }
 
-    /// The named columns, a batch of whole row groups (about [`BATCH_ROWS`] rows of the
-    /// file) at a time, in file order, the row filter applied within each batch: the rows
-    /// of [`TableScan::select`] of those columns, in bounded memory. Each item also gives
-    /// the file row of the batch's first row.
+    /// The named columns, a batch at a time (whole row groups up to about [`BATCH_ROWS`]
+    /// rows, and never more than that: a larger row group is read in slices), in file
+    /// order, the row filter applied within each batch: the rows of [`TableScan::select`]
+    /// of those columns, in bounded memory. Each item also gives the file row of the
+    /// batch's first row.
     pub fn batches<'a>(
         &'a self,
         columns: &'a [&'a str],
     ) -> impl Iterator<Item = Result<(usize, DataFrame), StoreError>> + 'a {
-        self.batch_spans().into_iter().map(move |span| {
-            self.read_batch(&span, columns)
-                .map(|df| (span.first_row, df))
+        self.batch_spans().into_iter().flat_map(move |span| {
+            match self.span_reader(&span, columns) {
+                Ok(r) => Box::new(r) as Box<dyn Iterator<Item = _>>,
+                Err(e) => Box::new(std::iter::once(Err(e))),
+            }
         })
     }
 
@@ -179,9 +182,14 @@ impl TableScan {
         spans
     }
 
-    /// One batch: the named columns of its row groups, as a Polars frame (the arrow arrays
-    /// handed over without a copy), the row filter applied.
-    pub fn read_batch(&self, span: &BatchSpan, columns: &[&str]) -> Result<DataFrame, StoreError> {
+    /// One span's batches (one, or slices of a row group larger than [`BATCH_ROWS`]):
+    /// the named columns as Polars frames (the arrow arrays handed over without a copy),
+    /// the row filter applied, each with its first file row.
+    pub fn span_reader(
+        &self,
+        span: &BatchSpan,
+        columns: &[&str],
+    ) -> Result<impl Iterator<Item = Result<(usize, DataFrame), StoreError>> + '_, StoreError> {
         use parquet::arrow::arrow_reader::ParquetRecordBatchReaderBuilder;
         use parquet::arrow::ProjectionMask;
         let e = |m: &dyn std::fmt::Display| read_err(&self.path, m);
@@ -204,15 +212,26 @@ impl TableScan {
         let reader = ParquetRecordBatchReaderBuilder::new_with_metadata(file, self.meta.clone())
             .with_row_groups(span.groups.clone().collect())
             .with_projection(mask)
-            .with_batch_size(span.rows.max(1))
+            .with_batch_size(span.rows.clamp(1, BATCH_ROWS))
             .build()
             .map_err(|x| e(&x))?;
-        let batches = reader.collect::<Result<Vec<_>, _>>().map_err(|x| e(&x))?;
-        let df = to_polars(&batches, span.rows).map_err(|x| e(&x))?;
-        match &self.filter {
-            Some(f) => df.lazy().filter(f.clone()).collect().map_err(|x| e(&x)),
-            None => Ok(df),
-        }
+        let mut first = span.first_row;
+        Ok(reader.map(move |b| {
+            let b = b.map_err(|x| read_err(&self.path, x))?;
+            let at = first;
+            first += b.num_rows();
+            let df = to_polars(std::slice::from_ref(&b), b.num_rows())
+                .map_err(|x| read_err(&self.path, x))?;
+            let df = match &self.filter {
+                Some(f) => df
+                    .lazy()
+                    .filter(f.clone())
+                    .collect()
+                    .map_err(|x| read_err(&self.path, x))?,
+                None => df,
+            };
+            Ok((at, df))
+        }))
     }
 
     /// Only the rows that count as sources ([`SourceRows`]); a table without the event

@@ -155,10 +155,13 @@ fn corrupt(p: &Path) -> StoreError {
 pub struct SpillDir(PathBuf);
 
 impl SpillDir {
-    /// A new folder `.spill-<pid>-<n>` in `parent` (beside the outputs: the same disk).
+    /// A new folder `.spill-<pid>-<n>` in `parent` (beside the outputs: the same disk). The
+    /// folders a killed earlier process left there (its pid no longer running) go first:
+    /// only a clean exit drops them.
     pub fn new(parent: &Path) -> Result<SpillDir, StoreError> {
         static N: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
         let n = N.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        remove_stale(parent);
         let p = parent.join(format!(".spill-{}-{n}", std::process::id()));
         let _ = std::fs::remove_dir_all(&p);
         std::fs::create_dir_all(&p).map_err(|e| io_err(&p, e))?;
@@ -174,6 +177,34 @@ impl Drop for SpillDir {
         let _ = std::fs::remove_dir_all(&self.0);
     }
 }
+
+/// Remove `.spill-<pid>-*` folders in `parent` whose process is gone (Linux: no
+/// `/proc/<pid>`; elsewhere nothing is removed).
+fn remove_stale(parent: &Path) {
+    if !Path::new("/proc/self").exists() {
+        return;
+    }
+    let Ok(rd) = std::fs::read_dir(parent) else {
+        return;
+    };
+    for e in rd.flatten() {
+        let name = e.file_name().to_string_lossy().to_string();
+        let Some(pid) = name
+            .strip_prefix(".spill-")
+            .and_then(|r| r.split('-').next())
+            .and_then(|p| p.parse::<u32>().ok())
+        else {
+            continue;
+        };
+        if pid != std::process::id() && !Path::new(&format!("/proc/{pid}")).exists() {
+            let _ = std::fs::remove_dir_all(e.path());
+        }
+    }
+}
+
+/// Runs merged at once, at most: more are merged in levels (a run open costs a file handle
+/// and a read buffer).
+const MAX_FAN_IN: usize = 64;
 
 /// Writes length-prefixed records.
 struct RunWriter {
@@ -316,37 +347,58 @@ impl<T: Spill> Sorter<T> {
             self.spill()?;
         }
         let dir = self.dir.take().expect("runs were spilled");
-        let mut readers: Vec<RunReader> = self
-            .runs
-            .iter()
-            .map(|(p, n)| RunReader::open(p, 0, *n))
-            .collect::<Result<_, _>>()?;
-        let mut heap = BinaryHeap::new();
-        for (k, r) in readers.iter_mut().enumerate() {
-            if let Some(t) = r.next::<T>() {
-                heap.push(Reverse((t?, k)));
+        let mut runs = std::mem::take(&mut self.runs);
+        let mut level = 0;
+        while runs.len() > MAX_FAN_IN {
+            let mut next = Vec::new();
+            for (k, group) in runs.chunks(MAX_FAN_IN).enumerate() {
+                next.push(merge_runs::<T>(
+                    group,
+                    dir.file(&format!("merge-{level}-{k}")),
+                )?);
             }
+            runs = next;
+            level += 1;
         }
-        let mut w = RunWriter::create(dir.file("sorted"))?;
-        let mut len = 0u64;
-        while let Some(Reverse((t, k))) = heap.pop() {
-            w.put(&t)?;
-            len += 1;
-            if let Some(next) = readers[k].next::<T>() {
-                heap.push(Reverse((next?, k)));
-            }
-        }
-        let path = w.finish()?;
-        drop(readers);
-        for (p, _) in &self.runs {
-            let _ = std::fs::remove_file(p);
-        }
+        let (path, len) = merge_runs::<T>(&runs, dir.file("sorted"))?;
         Ok(Sorted::File {
             path,
             len,
             _dir: dir,
         })
     }
+}
+
+/// Merge sorted runs into one at `out` (k-way, by a heap), removing the runs.
+fn merge_runs<T: Spill>(
+    runs: &[(PathBuf, u64)],
+    out: PathBuf,
+) -> Result<(PathBuf, u64), StoreError> {
+    let mut readers: Vec<RunReader> = runs
+        .iter()
+        .map(|(p, n)| RunReader::open(p, 0, *n))
+        .collect::<Result<_, _>>()?;
+    let mut heap = BinaryHeap::new();
+    for (k, r) in readers.iter_mut().enumerate() {
+        if let Some(t) = r.next::<T>() {
+            heap.push(Reverse((t?, k)));
+        }
+    }
+    let mut w = RunWriter::create(out)?;
+    let mut len = 0u64;
+    while let Some(Reverse((t, k))) = heap.pop() {
+        w.put(&t)?;
+        len += 1;
+        if let Some(next) = readers[k].next::<T>() {
+            heap.push(Reverse((next?, k)));
+        }
+    }
+    let path = w.finish()?;
+    drop(readers);
+    for (p, _) in runs {
+        let _ = std::fs::remove_file(p);
+    }
+    Ok((path, len))
 }
 
 /// Sorted records, readable as often as needed.
@@ -485,7 +537,8 @@ mod tests {
         let input = records(20_000);
         let mut want = input.clone();
         want.sort();
-        for budget in [usize::MAX, 100_000, 5_000] {
+        // The last budget makes more than MAX_FAN_IN runs: a merge in levels.
+        for budget in [usize::MAX, 100_000, 5_000, 500] {
             let mut s = Sorter::with_budget(&dir, budget);
             for r in input.iter().cloned() {
                 s.push(r).unwrap();
@@ -511,6 +564,16 @@ mod tests {
         // The spill folders are gone with their sorters.
         let left: Vec<_> = std::fs::read_dir(&dir).unwrap().collect();
         assert!(left.is_empty(), "{left:?}");
+        // A folder a killed process left (its pid not running) goes with the next sorter's;
+        // one of a live process (ours) stays.
+        let stale = dir.join(".spill-4194305-0");
+        let live = dir.join(format!(".spill-{}-999", std::process::id()));
+        std::fs::create_dir_all(&stale).unwrap();
+        std::fs::create_dir_all(&live).unwrap();
+        let d = SpillDir::new(&dir).unwrap();
+        assert!(!stale.exists() && live.exists());
+        drop(d);
+        std::fs::remove_dir_all(&live).unwrap();
         std::fs::remove_dir_all(&dir).unwrap();
     }
 }

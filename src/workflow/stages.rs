@@ -21,17 +21,15 @@ pub(super) fn trend_stage(
     };
     let mut plots = Vec::new();
     let figures = cfg.report.series_figures;
-    let rep = crate::analysis::trend::run_trend_with(feats, dir.path(), &opts, 4, |pic| {
-        if plots.len() >= figures {
-            return Ok(());
-        }
-        let sel = pic.selection;
-        let png = dir.png(&sel.experiment, sel.channel);
-        // A picture that cannot be written fails the stage (exit 3), it is not skipped quietly.
-        crate::plot::trend_png(&png, pic)?;
-        plots.push((format!("{} ch{}", sel.experiment, sel.channel), png));
-        Ok::<(), WorkflowError>(())
-    })?;
+    let rep =
+        crate::analysis::trend::run_trend_with(feats, dir.path(), &opts, 4, figures, |pic| {
+            let sel = pic.selection;
+            let png = dir.png(&sel.experiment, sel.channel);
+            // A picture that cannot be written fails the stage (exit 3), it is not skipped quietly.
+            crate::plot::trend_png(&png, pic)?;
+            plots.push((format!("{} ch{}", sel.experiment, sel.channel), png));
+            Ok::<(), WorkflowError>(())
+        })?;
     Ok((rep, plots))
 }
 

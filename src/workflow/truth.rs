@@ -2,12 +2,14 @@
 
 use super::*;
 
-/// A hit's key and a label, sortable by the key (then by which table it came from).
+/// A hit's key and a label, sortable by the key, then by which table it came from and its
+/// row there (a key a table repeats keeps its file order).
 #[derive(Debug, Clone, PartialEq, Eq, PartialOrd, Ord)]
 struct Keyed {
     key: HitKey,
     /// 0: the truth's mechanism, 1: the SOM's class.
     from: u8,
+    seq: u64,
     label: String,
 }
 
@@ -18,12 +20,14 @@ impl crate::store::spill::Spill for Keyed {
             .i32(self.key.1)
             .i64(self.key.2)
             .u8(self.from)
+            .u64(self.seq)
             .str(&self.label);
     }
     fn decode(b: &mut crate::store::spill::Dec<'_>) -> Option<Self> {
         Some(Keyed {
             key: (b.str()?, b.i32()?, b.i64()?),
             from: b.u8()?,
+            seq: b.u64()?,
             label: b.str()?,
         })
     }
@@ -42,6 +46,7 @@ fn push_labels(
     let t = TableScan::open(path)?;
     t.require(&["experiment", "channel", "hit", column], "")?;
     let sel = ["experiment", "channel", "hit", column];
+    let mut seq = 0u64;
     for batch in t.batches(&sel) {
         let (_, df) = batch?;
         let keys = t.hit_keys(&df)?;
@@ -50,8 +55,10 @@ fn push_labels(
             sorter.push(Keyed {
                 key,
                 from,
+                seq,
                 label: l.unwrap_or_default(),
             })?;
+            seq += 1;
         }
     }
     Ok(())
