@@ -19,7 +19,8 @@ def simulate(scenario: str | PathLike, **params: float) -> pl.DataFrame:
 
     ``scenario`` is a built-in name (``mesh3x3-bond-failure``, ``structure2x1-fibre-failure``,
     …) or the path of a model file (the thesis's Appendix-A sections, or TOML); ``params``
-    override the scenario's values as ``aepipe simulate --param KEY=VALUE`` does.
+    override the scenario's values as ``aepipe simulate --param KEY=VALUE`` does (a key the
+    scenario does not read is a :class:`SimError` naming it and the keys it reads).
 
     >>> w = aepipe.simulate("structure2x1-fibre-failure", point=7)   # doctest: +SKIP
     >>> aepipe.features(w["samples_v"].to_list()[0], sample_rate_hz=w["sample_rate_hz"][0])  # doctest: +SKIP

@@ -28,6 +28,9 @@ def test_simulate_equals_the_command_lines_waveforms(tmp_path: Path) -> None:
     # A model file is a scenario too (Appendix-A sections or TOML).
     with pytest.raises(aepipe.SimError, match="unknown scenario"):
         aepipe.simulate("no-such-scenario")
+    # A parameter the scenario does not read is a typo, refused by name.
+    with pytest.raises(aepipe.SimError, match="no parameter pint"):
+        aepipe.simulate("structure2x1-fibre-failure", pint=7)
 
 
 def test_reference_library_equals_the_command_lines(tmp_path: Path) -> None:

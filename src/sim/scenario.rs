@@ -19,14 +19,36 @@ pub const NAMES: &[&str] = &[
 #[derive(Debug, Clone, Default)]
 pub struct Params(pub Vec<(String, f64)>);
 
+thread_local! {
+    /// The keys [`Params::get`] and [`Params::has`] were asked for while [`build`] runs on
+    /// this thread: a key given but never asked for is a typo, reported by name.
+    static ASKED: std::cell::RefCell<Option<std::collections::BTreeSet<String>>> =
+        const { std::cell::RefCell::new(None) };
+}
+
+fn asked(key: &str) {
+    ASKED.with(|a| {
+        if let Some(s) = a.borrow_mut().as_mut() {
+            s.insert(key.to_string());
+        }
+    });
+}
+
 impl Params {
     pub fn get(&self, key: &str, default: f64) -> f64 {
+        asked(key);
         self.0
             .iter()
             .rev()
             .find(|(k, _)| k == key)
             .map(|(_, v)| *v)
             .unwrap_or(default)
+    }
+
+    /// Whether `key` was given.
+    pub fn has(&self, key: &str) -> bool {
+        asked(key);
+        self.0.iter().any(|(k, _)| k == key)
     }
 
     /// The parameters as a JSON object (sorted keys; a repeated key keeps its last value),
@@ -76,6 +98,26 @@ pub const FIBRE_RHO: f64 = 1500.0;
 /// Build a scenario by name. `params` overrides its defaults; the keys each one reads are
 /// listed in the README.
 pub fn build(name: &str, p: &Params) -> Result<ModelFile, SimError> {
+    ASKED.with(|a| *a.borrow_mut() = Some(Default::default()));
+    let built = build_asked(name, p);
+    let asked = ASKED.with(|a| a.borrow_mut().take()).unwrap_or_default();
+    let m = built?;
+    let unknown: Vec<&str> =
+        p.0.iter()
+            .map(|(k, _)| k.as_str())
+            .filter(|k| !asked.contains(*k))
+            .collect();
+    if !unknown.is_empty() {
+        return Err(SimError::Model(format!(
+            "scenario {name:?} has no parameter {}; it reads {}",
+            unknown.join(", "),
+            asked.into_iter().collect::<Vec<_>>().join(", ")
+        )));
+    }
+    Ok(m)
+}
+
+fn build_asked(name: &str, p: &Params) -> Result<ModelFile, SimError> {
     let solver = match p.get("solver", -1.0) as i64 {
         0 => Some(Solver::ExplicitEuler),
         1 => Some(Solver::Rk4),
@@ -101,13 +143,13 @@ pub fn build(name: &str, p: &Params) -> Result<ModelFile, SimError> {
     if let Some(s) = solver {
         m.system.solver = s;
     }
-    if p.0.iter().any(|(k, _)| k == "dt") {
+    if p.has("dt") {
         m.system.dt = p.get("dt", m.system.dt);
     }
-    if p.0.iter().any(|(k, _)| k == "damping") {
+    if p.has("damping") {
         m.system.damping = p.get("damping", m.system.damping);
     }
-    if p.0.iter().any(|(k, _)| k == "iterations") {
+    if p.has("iterations") {
         m.system.iterations = p.get("iterations", 0.0) as usize;
     }
     if p.get("grid", 1.0) == 0.0 {
@@ -571,4 +613,37 @@ fn structure2x1(p: &Params) -> Result<ModelFile, SimError> {
         grid: Some(paper_grid()),
         sensors: vec![SensorSpec { i: 125, j: 100 }, SensorSpec { i: 100, j: 125 }],
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_parameter_no_scenario_reads_is_refused_by_name() {
+        let p = |kv: &[(&str, f64)]| Params(kv.iter().map(|(k, v)| (k.to_string(), *v)).collect());
+        // Every key the scenarios read is accepted …
+        assert!(build(
+            "structure2x1-fibre-failure",
+            &p(&[("point", 7.0), ("iterations", 10.0)])
+        )
+        .is_ok());
+        assert!(build(
+            "mesh3x3-bond-failure",
+            &p(&[("kink", 5e-6), ("t2", -1.0), ("grid", 0.0)])
+        )
+        .is_ok());
+        // … a typo is named, with what the scenario does read.
+        let e = build("structure2x1-fibre-failure", &p(&[("pint", 7.0)])).unwrap_err();
+        let m = e.to_string();
+        assert!(
+            m.contains("no parameter pint") && m.contains("point"),
+            "{m}"
+        );
+        // A key one scenario reads is still unknown to another.
+        let e = build("sho", &p(&[("kink", 1.0)])).unwrap_err();
+        assert!(e.to_string().contains("no parameter kink"), "{e}");
+        // The recorder is off outside build.
+        assert!(ASKED.with(|a| a.borrow().is_none()));
+    }
 }
