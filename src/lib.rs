@@ -24,6 +24,7 @@
 //! - [`workflow`]: `aepipe run`: the stages in order, the run folder, report rebuilds.
 //! - [`demo`]: the demo on data it makes itself.
 //! - [`bench`]: benchmarks against the peers.
+//! - [`live`]: `aepipe watch`: a running test followed, classified and committed exactly once.
 //! - [`cli`]: the command line (feature `cli`, on by default; the library builds without it).
 
 pub mod analysis;
@@ -37,6 +38,7 @@ pub mod events;
 pub mod features;
 pub mod ingest;
 pub mod inspect;
+pub mod live;
 pub mod model;
 pub mod pipeline;
 pub mod plot;

@@ -131,6 +131,14 @@ pub fn dispatch(cli: Cli) -> Result<Outcome> {
             tables_only,
         } => merge(&dir, out, truth.as_deref(), threads, tables_only),
         Cmd::Report { run_dir } => report(&run_dir),
+        Cmd::Watch {
+            inputs,
+            out,
+            config,
+            model,
+            until_idle,
+            threads,
+        } => watch(&inputs, &out, config.as_deref(), model, until_idle, threads),
         Cmd::SynthExperiment {
             out,
             hits,
@@ -257,6 +265,64 @@ fn run(
             }
         }
         crate::workflow::RunOutcome::Shard(r) => print::shard_run(&r),
+    }
+    Ok(Outcome::Success)
+}
+
+/// Set by SIGINT/SIGTERM: `aepipe watch` flushes what it has read and exits 0.
+static STOP: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(false);
+
+extern "C" fn on_stop_signal(_: libc::c_int) {
+    // Only an atomic store: async-signal-safe.
+    STOP.store(true, std::sync::atomic::Ordering::Relaxed);
+}
+
+fn watch(
+    inputs: &[PathBuf],
+    out: &Path,
+    config: Option<&Path>,
+    model: Option<PathBuf>,
+    until_idle: Option<f64>,
+    threads: usize,
+) -> Result<Outcome> {
+    if until_idle.is_some_and(|s| !(s.is_finite() && s >= 0.0)) {
+        return Err(UsageError("--until-idle must be a number of seconds ≥ 0".into()).into());
+    }
+    let cfg = load_config(config)?;
+    // SAFETY: the handler only stores to an atomic; installed before any worker thread.
+    unsafe {
+        libc::signal(
+            libc::SIGINT,
+            on_stop_signal as *const () as libc::sighandler_t,
+        );
+        libc::signal(
+            libc::SIGTERM,
+            on_stop_signal as *const () as libc::sighandler_t,
+        );
+    }
+    let o = crate::live::WatchOptions {
+        until_idle_s: until_idle,
+        offline_at_end: true,
+        threads,
+        model,
+    };
+    let s = crate::live::watch(&cfg, inputs, out, &o, &STOP, |l| println!("{l}"))?;
+    println!(
+        "watched: {} hits, {} rows, {} rejects in {} flushes{}",
+        s.state.hits,
+        s.state.rows,
+        s.state.rejects,
+        s.state.flushes,
+        if s.stopped_by_signal {
+            " (stopped by a signal; run the same command to continue)"
+        } else {
+            ""
+        }
+    );
+    if let Some(r) = &s.last {
+        for l in crate::workflow::headline(r) {
+            println!("{l}");
+        }
     }
     Ok(Outcome::Success)
 }
@@ -594,6 +660,25 @@ fn bench(which: BenchCmd) -> Result<Outcome> {
                 threads,
             )?;
             print::analysis_bench(&b);
+        }
+        BenchCmd::Watch {
+            rate,
+            seconds,
+            burst,
+            threads,
+            out,
+        } => {
+            let r = crate::live::bench::watch_bench(
+                &crate::live::bench::WatchBench {
+                    rate,
+                    seconds,
+                    burst,
+                    threads,
+                },
+                &out,
+                |l| println!("{l}"),
+            )?;
+            print::watch_bench(&r);
         }
     }
     Ok(Outcome::Success)

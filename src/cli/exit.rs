@@ -13,6 +13,7 @@ use crate::analysis::trend::TrendError;
 use crate::bench::BenchError;
 use crate::config::ConfigError;
 use crate::ingest::IngestError;
+use crate::live::WatchError;
 use crate::pipeline::{MergeError, PipelineError};
 use crate::plot::PlotError;
 use crate::report::ReportError;
@@ -73,6 +74,7 @@ pub fn exit_code(e: &anyhow::Error) -> u8 {
         PlotError,
         ReportError,
         BenchError,
+        WatchError,
         IoAt,
     );
     FAILED

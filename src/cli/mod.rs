@@ -238,6 +238,32 @@ pub enum Cmd {
         #[arg(long)]
         tables_only: bool,
     },
+    /// Follow a test while it runs: new files in the inputs (one hit per file: each file
+    /// once its size is stable; a whole recording once all its files are) are read,
+    /// featured and classified every `[live] flush_s`, written as Hive parts in OUT
+    /// (OUT/features/experiment=ID/part-N.parquet, hits, rejects, classification) and
+    /// committed, exactly once across a kill and restart; OUT/live.html reloads itself.
+    /// Ctrl-C (or SIGTERM) flushes and exits 0
+    Watch {
+        /// Files or folders the acquisition writes into
+        #[arg(required = true)]
+        inputs: Vec<PathBuf>,
+        #[arg(long)]
+        out: PathBuf,
+        /// Pipeline definition (the defaults without)
+        #[arg(long)]
+        config: Option<PathBuf>,
+        /// The map to classify with (an `aepipe som train` folder); without it `[som]
+        /// model`, else a map trained on the configured reference library at start
+        #[arg(long)]
+        model: Option<PathBuf>,
+        /// End after this many seconds without new data, then run the finished files as
+        /// `aepipe run` does into OUT/final
+        #[arg(long)]
+        until_idle: Option<f64>,
+        #[arg(long, default_value_t = 0)]
+        threads: usize,
+    },
     /// Write RUN_DIR/report.html again from a finished `aepipe run` folder
     Report { run_dir: PathBuf },
     /// Make a synthetic experiment and run the pipeline on it (the README's first command)
@@ -422,6 +448,24 @@ pub enum BenchCmd {
         threads: usize,
         /// Where to write the study's run folder (OUT/run) and the base
         #[arg(long, default_value = "target/bench-analysis")]
+        out: PathBuf,
+    },
+    /// `aepipe watch` following a folder that receives WAV hits at a steady rate and then a
+    /// burst: each hit's lag from its file's last write to its row committed, median and p99
+    Watch {
+        /// Hits per second of the steady phase
+        #[arg(long, default_value_t = 500.0)]
+        rate: f64,
+        /// Seconds of the steady phase
+        #[arg(long, default_value_t = 20.0)]
+        seconds: f64,
+        /// Hits written as fast as the disk takes them after it (the final break)
+        #[arg(long, default_value_t = 20_000)]
+        burst: usize,
+        #[arg(long, default_value_t = 0)]
+        threads: usize,
+        /// Where the acquisition and the watcher's folder go (removed first)
+        #[arg(long, default_value = "target/bench-watch")]
         out: PathBuf,
     },
 }

@@ -239,3 +239,23 @@ pub fn analysis_bench(b: &crate::bench::analysis::AnalysisBench) {
         println!("peak RSS of the stages: {:.0} MB", peak as f64 / 1e6);
     }
 }
+
+/// `aepipe bench watch`.
+pub fn watch_bench(r: &crate::live::bench::WatchBenchResult) {
+    println!(
+        "steady phase: {} hits written at {:.0} hits/s; lag file written → row committed: \
+         median {:.2} s, p99 {:.2} s, max {:.2} s",
+        r.steady.hits, r.steady_rate, r.steady.median_s, r.steady.p99_s, r.steady.max_s
+    );
+    println!(
+        "burst: {} hits written in {:.2} s; lag median {:.2} s, p99 {:.2} s, max {:.2} s; \
+         last row committed {:.2} s after the last write",
+        r.burst.hits,
+        r.burst_write_s,
+        r.burst.median_s,
+        r.burst.p99_s,
+        r.burst.max_s,
+        r.burst_drain_s
+    );
+    println!("{} hits committed in {} flushes", r.committed, r.flushes);
+}

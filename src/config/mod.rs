@@ -142,6 +142,31 @@ pub struct PipelineConfig {
     pub report: ReportConfig,
     /// The test machine's own load file beside the AE files.
     pub load: LoadConfig,
+    /// `aepipe watch`: how a running test is followed.
+    pub live: LiveConfig,
+}
+
+/// `[live]`: how `aepipe watch` follows a test while it runs.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct LiveConfig {
+    /// Seconds between flushes: the new rows are written as Parquet parts and committed.
+    pub flush_s: f64,
+    /// A file is read once its size and modification time have not changed for this long
+    /// (an acquisition still writing it would otherwise be read half-written).
+    pub settle_s: f64,
+    /// Seconds between looks at the inputs.
+    pub poll_s: f64,
+}
+
+impl Default for LiveConfig {
+    fn default() -> Self {
+        LiveConfig {
+            flush_s: 2.0,
+            settle_s: 1.0,
+            poll_s: 0.25,
+        }
+    }
 }
 
 /// A column of a delimited file: its header name (surrounding spaces trimmed) or its
@@ -850,6 +875,24 @@ impl PipelineConfig {
         }
         sources::check(&self.onset, &self.events, &self.location)?;
         sources::check_evolution(&self.evolution)?;
+        let l = &self.live;
+        for (v, name) in [
+            (l.flush_s, "live.flush_s"),
+            (l.settle_s, "live.settle_s"),
+            (l.poll_s, "live.poll_s"),
+        ] {
+            if !(v.is_finite() && (0.0..=3600.0).contains(&v)) {
+                return Err(ConfigError::Invalid(format!(
+                    "{name} must be 0–3600 seconds, got {v}"
+                )));
+            }
+        }
+        if l.poll_s <= 0.0 {
+            return Err(ConfigError::Invalid(format!(
+                "live.poll_s must be above 0 seconds, got {}",
+                l.poll_s
+            )));
+        }
         let m = &self.ingest.mistras;
         for (k, v) in &m.chid_sizes {
             if k.trim().parse::<u8>().map_or(true, |c| c == 0) || *v > 4096 {

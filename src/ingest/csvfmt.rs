@@ -232,8 +232,9 @@ pub fn open_per_hit(src: &Source, cfg: &IngestConfig) -> Box<dyn Iterator<Item =
     let experiment = src.id.clone();
     let cfg = cfg.clone();
     let files = src.files.clone();
+    let first_hit = src.first_hit;
     Box::new(files.into_iter().enumerate().map(move |(i, p)| {
-        let hit = i as u64 + 1;
+        let hit = first_hit + i as u64 + 1;
         match read_per_hit(&p, &cfg) {
             Ok((samples, rate, pre)) => Item::Record(AeRecord {
                 kind: crate::model::RecordKind::Hit,

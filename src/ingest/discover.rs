@@ -375,18 +375,21 @@ fn group(kinds: Vec<(PathBuf, Kind)>, d: &mut Discovery) {
                 format: Format::Parquet,
                 files: vec![p],
                 companions: vec![],
+                first_hit: 0,
             }),
             Kind::WaveExplorer => d.sources.push(Source {
                 id: stem(&p),
                 format: Format::WaveExplorer,
                 files: vec![p],
                 companions: vec![],
+                first_hit: 0,
             }),
             Kind::CsvLong => d.sources.push(Source {
                 id: stem(&p),
                 format: Format::CsvLong,
                 files: vec![p],
                 companions: vec![],
+                first_hit: 0,
             }),
             Kind::Wav => groups.entry((parent, Format::Wav)).or_default().push(p),
             Kind::CsvPerHit => groups
@@ -425,6 +428,7 @@ fn group(kinds: Vec<(PathBuf, Kind)>, d: &mut Discovery) {
                     format: Format::Vallen,
                     files: vec![tra],
                     companions,
+                    first_hit: 0,
                 })
             }
             // A .pridb alone: its hits' waveforms are missing. The reader turns each hit
@@ -437,6 +441,7 @@ fn group(kinds: Vec<(PathBuf, Kind)>, d: &mut Discovery) {
                     format: Format::Vallen,
                     files: vec![],
                     companions,
+                    first_hit: 0,
                 })
             }
             (None, None) => {}
@@ -449,6 +454,7 @@ fn group(kinds: Vec<(PathBuf, Kind)>, d: &mut Discovery) {
             format: Format::Mistras,
             files,
             companions: vec![],
+            first_hit: 0,
         });
     }
     let mut used_logs = vec![false; logs.len()];
@@ -485,6 +491,7 @@ fn group(kinds: Vec<(PathBuf, Kind)>, d: &mut Discovery) {
             format,
             files: members,
             companions,
+            first_hit: 0,
         });
     }
     for (i, l) in logs.into_iter().enumerate() {

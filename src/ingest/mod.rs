@@ -110,6 +110,10 @@ pub struct Source {
     pub files: Vec<PathBuf>,
     /// Companion files: Vallen `.pridb`, AEwin hit list and machine log.
     pub companions: Vec<PathBuf>,
+    /// Hits before the first of `files` in a one-hit-per-file source (WAV, CSV per hit,
+    /// plain text): its files are hits `first_hit + 1 …`. 0 for a whole source; a watcher
+    /// reading a folder's new files sets it to the files it read before.
+    pub first_hit: u64,
 }
 
 impl Source {

@@ -50,8 +50,9 @@ pub fn open(src: &Source, cfg: &IngestConfig) -> Box<dyn Iterator<Item = Item> +
     let pre = cfg.pretrigger_samples;
     let gain = gain_factor(cfg.gain_db);
     let files = src.files.clone();
+    let first_hit = src.first_hit;
     Box::new(files.into_iter().enumerate().map(move |(i, p)| {
-        let hit = i as u64 + 1;
+        let hit = first_hit + i as u64 + 1;
         match read_values(&p) {
             Ok(v) => Item::Record(AeRecord {
                 kind: crate::model::RecordKind::Hit,

@@ -51,8 +51,9 @@ pub fn open(src: &Source, cfg: &IngestConfig) -> Box<dyn Iterator<Item = Item> +
     let pre = cfg.pretrigger_samples;
     let max_samples = cfg.max_samples_per_record;
     let files = src.files.clone();
+    let first_hit = src.first_hit;
     Box::new(files.into_iter().enumerate().flat_map(move |(i, p)| {
-        let hit = i as u64 + 1;
+        let hit = first_hit + i as u64 + 1;
         let items: Vec<Item> = match read_wav(&p, max_samples) {
             Ok((rate, chans)) => chans
                 .into_iter()

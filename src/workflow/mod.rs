@@ -193,6 +193,20 @@ pub fn run(job: &RunJob) -> Result<RunSummary, WorkflowError> {
     stages(job, features, log)
 }
 
+/// The map `[som] train_on = "reference"` trains (on the configured or embedded reference
+/// library, in `job.out`), without a test's hits: what `aepipe watch` classifies with while
+/// a test runs.
+pub fn train_reference_map(
+    job: &RunJob,
+) -> Result<(crate::som::tables::Model, String), WorkflowError> {
+    if job.config.som.train_on != crate::config::TrainOn::Reference {
+        return Err(WorkflowError::Config(crate::config::ConfigError::Invalid(
+            "som.train_on is not \"reference\"".into(),
+        )));
+    }
+    stages::train_stage(job, &[])
+}
+
 /// The whole-batch stages on feature tables already written (a run's, a merge's, or a
 /// benchmark's), in their order: trend, SOM (training or the given map, classification,
 /// damage profile with evolution and location), truth, report, run.json. Each stage's time

@@ -90,7 +90,7 @@ pub(super) fn som_stage(
 
 /// Train the run's map as `[som] train_on` says: on a reference library (built from the
 /// embedded definition unless one is named) or on the run's own labelled hits.
-fn train_stage(
+pub(super) fn train_stage(
     job: &RunJob,
     feats: &[PathBuf],
 ) -> Result<(crate::som::tables::Model, String), WorkflowError> {

@@ -248,7 +248,7 @@ fn every_import_points_down_the_readmes_direction() {
     let mut planted = g.clone();
     planted.get_mut("store").unwrap().insert("pipeline".into());
     planted.get_mut("som").unwrap().insert("analysis".into());
-    planted.insert("live".into(), ["model".to_string()].into());
+    planted.insert("gallery".into(), ["model".to_string()].into());
     let found = against_direction(&planted, &tiers);
     assert_eq!(found.len(), 3, "{found:?}");
     assert!(

@@ -14,6 +14,7 @@ mod exit_codes;
 mod fidelity;
 mod formats;
 mod hits;
+mod live;
 mod pipeline;
 mod real_data;
 mod resume;

@@ -1,0 +1,193 @@
+//! `aepipe bench watch`: an acquisition written at a steady rate and then in a burst while
+//! `aepipe watch` follows it in the same process; the lag of every hit from its file's last
+//! write to the moment its row is committed (the part's write time), median and p99, for
+//! the steady phase and the burst apart.
+
+use super::{WatchError, WatchOptions};
+use crate::config::ValidConfig;
+use std::path::Path;
+use std::sync::atomic::AtomicBool;
+use std::time::{Duration, Instant, SystemTime};
+
+/// What was asked of the benchmark.
+#[derive(Debug, Clone)]
+pub struct WatchBench {
+    /// Hits per second in the steady phase.
+    pub rate: f64,
+    /// Seconds of the steady phase.
+    pub seconds: f64,
+    /// Hits written as fast as the disk takes them after it (the final break).
+    pub burst: usize,
+    pub threads: usize,
+}
+
+/// Lags of one phase, seconds.
+#[derive(Debug, Clone, Default)]
+pub struct Lags {
+    pub hits: usize,
+    pub median_s: f64,
+    pub p99_s: f64,
+    pub max_s: f64,
+}
+
+/// The benchmark's result.
+#[derive(Debug, Clone)]
+pub struct WatchBenchResult {
+    pub steady: Lags,
+    pub burst: Lags,
+    /// Seconds the writer took to write the burst.
+    pub burst_write_s: f64,
+    /// Hits per second the writer reached in the steady phase.
+    pub steady_rate: f64,
+    pub committed: u64,
+    pub flushes: u32,
+    /// Seconds from the burst's last write to its last row committed.
+    pub burst_drain_s: f64,
+}
+
+fn lags(mut v: Vec<f64>) -> Lags {
+    if v.is_empty() {
+        return Lags::default();
+    }
+    v.sort_by(f64::total_cmp);
+    let q = |p: f64| v[((v.len() - 1) as f64 * p).round() as usize];
+    Lags {
+        hits: v.len(),
+        median_s: q(0.5),
+        p99_s: q(0.99),
+        max_s: *v.last().unwrap(),
+    }
+}
+
+/// Run the benchmark in `out` (removed first).
+pub fn watch_bench(
+    b: &WatchBench,
+    out: &Path,
+    mut say: impl FnMut(&str),
+) -> Result<WatchBenchResult, WatchError> {
+    let _ = std::fs::remove_dir_all(out);
+    let data = out.join("acquisition").join("test-1");
+    std::fs::create_dir_all(&data).map_err(|e| crate::util::IoAt::new(&data, e))?;
+    let watch_dir = out.join("watch");
+    let cfg = ValidConfig::default()
+        .with(|c| {
+            c.ingest.pretrigger_samples = 500;
+            c.report.enabled = false;
+        })
+        .map_err(crate::workflow::WorkflowError::Config)?;
+    // 256 distinct synthetic hits (4 096 samples), cycled: the writer must not be the
+    // bottleneck.
+    let e = crate::synth::Experiment::new("test-1", 256, 11);
+    let protos: Vec<(u32, Vec<f32>)> = e
+        .records()
+        .map(|r| (r.sample_rate_hz as u32, r.samples))
+        .collect();
+    let steady_n = (b.rate * b.seconds).round() as usize;
+    let stop = AtomicBool::new(false);
+    let ready = AtomicBool::new(false);
+    let o = WatchOptions {
+        until_idle_s: Some(3.0),
+        offline_at_end: false,
+        threads: b.threads,
+        model: None,
+    };
+    let (summary, writes) = std::thread::scope(|s| {
+        let writer = s.spawn(|| -> Result<(f64, f64), WatchError> {
+            while !ready.load(std::sync::atomic::Ordering::Relaxed) {
+                std::thread::sleep(Duration::from_millis(20));
+            }
+            let write = |i: usize| -> Result<(), WatchError> {
+                let (fs, x) = &protos[i % protos.len()];
+                let f = data.join(format!("hit_{:06}.wav", i + 1));
+                crate::ingest::wavfmt::write_wav_f32(&f, *fs, x).map_err(|e| {
+                    crate::util::IoAt::new(&f, std::io::Error::other(e.to_string()))
+                })?;
+                Ok(())
+            };
+            let t0 = Instant::now();
+            for i in 0..steady_n {
+                let due = Duration::from_secs_f64(i as f64 / b.rate);
+                if let Some(w) = due.checked_sub(t0.elapsed()) {
+                    std::thread::sleep(w);
+                }
+                write(i)?;
+            }
+            let steady_rate = steady_n as f64 / t0.elapsed().as_secs_f64().max(1e-9);
+            let t1 = Instant::now();
+            for i in steady_n..steady_n + b.burst {
+                write(i)?;
+            }
+            Ok((steady_rate, t1.elapsed().as_secs_f64()))
+        });
+        let summary = super::watch(&cfg, std::slice::from_ref(&data), &watch_dir, &o, &stop, |l| {
+            ready.store(true, std::sync::atomic::Ordering::Relaxed);
+            say(l)
+        });
+        (summary, writer.join().expect("writer thread"))
+    });
+    let summary = summary?;
+    let (steady_rate, burst_write_s) = writes?;
+    // Each hit's lag: its part's write time − its file's last write.
+    let mut steady = Vec::new();
+    let mut burst = Vec::new();
+    let mut last_commit: Option<SystemTime> = None;
+    let mut burst_last_write: Option<SystemTime> = None;
+    let features = watch_dir.join("features");
+    for exp in std::fs::read_dir(&features)
+        .map_err(|e| crate::util::IoAt::new(&features, e))?
+        .flatten()
+    {
+        for part in std::fs::read_dir(exp.path())
+            .into_iter()
+            .flatten()
+            .flatten()
+        {
+            let committed = part
+                .metadata()
+                .and_then(|m| m.modified())
+                .map_err(|e| crate::util::IoAt::new(&part.path(), e))?;
+            let (_, _, batches) = crate::store::read_parquet(&part.path())?;
+            for rb in batches {
+                let Some(col) = rb.column_by_name("source_file") else {
+                    continue;
+                };
+                let files = arrow::array::AsArray::as_string::<i32>(col.as_ref());
+                let hits = rb
+                    .column_by_name("hit")
+                    .expect("features have a hit column");
+                let hits = arrow::array::AsArray::as_primitive::<arrow::datatypes::Int64Type>(
+                    hits.as_ref(),
+                );
+                for r in 0..rb.num_rows() {
+                    let written = std::fs::metadata(files.value(r))
+                        .and_then(|m| m.modified())
+                        .map_err(|e| crate::util::IoAt::new(Path::new(files.value(r)), e))?;
+                    let lag = committed
+                        .duration_since(written)
+                        .map_or(0.0, |d| d.as_secs_f64());
+                    if hits.value(r) as usize > steady_n {
+                        burst.push(lag);
+                        last_commit = Some(last_commit.map_or(committed, |c| c.max(committed)));
+                        burst_last_write =
+                            Some(burst_last_write.map_or(written, |c| c.max(written)));
+                    } else {
+                        steady.push(lag);
+                    }
+                }
+            }
+        }
+    }
+    let burst_drain_s = match (last_commit, burst_last_write) {
+        (Some(c), Some(w)) => c.duration_since(w).map_or(0.0, |d| d.as_secs_f64()),
+        _ => 0.0,
+    };
+    Ok(WatchBenchResult {
+        steady: lags(steady),
+        burst: lags(burst),
+        burst_write_s,
+        steady_rate,
+        committed: summary.state.hits,
+        flushes: summary.state.flushes,
+        burst_drain_s,
+    })
+}

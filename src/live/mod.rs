@@ -1,0 +1,440 @@
+//! `aepipe watch`: follow a test while it runs. Acquisition software that writes one file
+//! per hit into a folder (WAV, CSV per hit, plain text) has each new file read once it has
+//! stopped changing; a whole recording (a Vallen pair, a MISTRAS chain, a WaveExplorer or
+//! long-CSV file, a Parquet table) is read once all its files have. Every `flush_s` the new
+//! rows (features, hits, rejects, parametric, markers, and each hit's SOM class) are
+//! written as Parquet parts in the Hive layout the shards use
+//! (`DIR/<table>/experiment=<id>/part-N.parquet`), readable at any moment as one dataset,
+//! and what has been read is committed with them (`DIR/watch/state.json`, written last and
+//! atomically): a watcher killed at any point and started again with the same arguments
+//! removes the parts of the flush it did not commit and reads on from the last commit, so
+//! every hit is a row exactly once. `DIR/live.html` is rewritten at each flush.
+//!
+//! When the test ends (`until_idle_s` without new data) the finished files are run as
+//! `aepipe run` would (`DIR/final`): the final tables are the offline run's, byte for byte.
+//! The live rows are provisional in one way only: events and location are built there, on
+//! the whole experiment.
+
+pub mod bench;
+mod follow;
+mod page;
+mod state;
+
+use crate::config::ValidConfig;
+use crate::pipeline::{PartTable, StreamDir, StreamJob, StreamOptions};
+use crate::som::tables::Model;
+use crate::util::HasKind;
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::{Duration, Instant, SystemTime};
+
+pub use state::State;
+
+/// Why watching failed.
+#[derive(Debug, thiserror::Error)]
+pub enum WatchError {
+    /// The folder holds another watcher's state (another configuration), or the state
+    /// cannot be read.
+    #[error("{path}: {message}")]
+    State { path: String, message: String },
+    /// A map is needed and cannot be had (train_on = "criteria" needs the finished test).
+    #[error("{0}")]
+    Map(String),
+    #[error(transparent)]
+    Pipeline(#[from] crate::pipeline::PipelineError),
+    #[error(transparent)]
+    Store(#[from] crate::store::StoreError),
+    #[error(transparent)]
+    Som(#[from] crate::som::SomError),
+    #[error(transparent)]
+    Plot(#[from] crate::plot::PlotError),
+    #[error(transparent)]
+    Workflow(#[from] crate::workflow::WorkflowError),
+    #[error(transparent)]
+    Io(#[from] crate::util::IoAt),
+}
+
+impl HasKind for WatchError {
+    fn kind(&self) -> crate::util::ErrorKind {
+        use crate::util::ErrorKind;
+        match self {
+            WatchError::State { .. } | WatchError::Map(_) => ErrorKind::Usage,
+            WatchError::Pipeline(e) => e.kind(),
+            WatchError::Store(e) => e.kind(),
+            WatchError::Som(e) => e.kind(),
+            WatchError::Plot(e) => e.kind(),
+            WatchError::Workflow(e) => e.kind(),
+            WatchError::Io(_) => ErrorKind::Failed,
+        }
+    }
+}
+
+/// How `aepipe watch` follows its inputs (its timings are `[live]`).
+#[derive(Debug, Clone, Default)]
+pub struct WatchOptions {
+    /// End when nothing new has come for this long…
+    pub until_idle_s: Option<f64>,
+    /// …then run the finished files as `aepipe run` does (`DIR/final`; the CLI always
+    /// does, the lag benchmark does not).
+    pub offline_at_end: bool,
+    pub threads: usize,
+    /// The map to classify with (else `[som] model`, else one trained on the configured
+    /// reference library at start).
+    pub model: Option<PathBuf>,
+}
+
+/// One flush, as the terminal prints it.
+#[derive(Debug, Clone, Default)]
+pub struct Flush {
+    pub number: u32,
+    /// New hits and rows in this flush, and in all.
+    pub hits: u64,
+    pub rows: u64,
+    pub rejects: u64,
+    pub total_hits: u64,
+    /// Hits per second over this flush's reading and computing.
+    pub hits_per_s: f64,
+    /// SOM class → new rows.
+    pub classes: BTreeMap<String, u64>,
+    /// Seconds from the newest file's last write to the commit, the longest in the flush.
+    pub lag_s: f64,
+}
+
+impl Flush {
+    pub fn line(&self) -> String {
+        let classes = if self.classes.is_empty() {
+            String::new()
+        } else {
+            format!(
+                " · {}",
+                self.classes
+                    .iter()
+                    .map(|(k, v)| format!("{k} {v}"))
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            )
+        };
+        format!(
+            "flush {}: +{} hits ({} in all), {} rows, {} rejects, {:.0} hits/s{classes}, lag {:.1} s",
+            self.number,
+            self.hits,
+            self.total_hits,
+            self.rows,
+            self.rejects,
+            self.hits_per_s,
+            self.lag_s
+        )
+    }
+}
+
+/// What a watch did.
+pub struct WatchSummary {
+    pub state: State,
+    /// The offline run of the finished files (with `until_idle_s`).
+    pub last: Option<crate::workflow::RunSummary>,
+    pub stopped_by_signal: bool,
+}
+
+/// The watcher's folders.
+pub struct WatchDir(PathBuf);
+
+impl WatchDir {
+    pub fn new(p: impl Into<PathBuf>) -> WatchDir {
+        WatchDir(p.into())
+    }
+    pub fn path(&self) -> &Path {
+        &self.0
+    }
+    /// The Hive dataset of the streamed tables.
+    pub fn tables(&self) -> StreamDir {
+        StreamDir::new(&self.0)
+    }
+    /// `DIR/classification/experiment=<id>/part-N.parquet`.
+    pub fn classification_part(&self, experiment: &str, k: u32) -> PathBuf {
+        crate::store::shard::hive_file(&self.0, "classification", experiment, k)
+    }
+    pub fn state(&self) -> PathBuf {
+        self.0.join("watch").join("state.json")
+    }
+    fn scratch(&self) -> PathBuf {
+        self.0.join("watch").join("flush")
+    }
+    pub fn map(&self) -> PathBuf {
+        self.0.join("watch").join("map")
+    }
+    pub fn live_html(&self) -> PathBuf {
+        self.0.join("live.html")
+    }
+    pub fn live_dir(&self) -> PathBuf {
+        self.0.join("watch").join("live")
+    }
+    /// The offline run of the finished files.
+    pub fn last(&self) -> PathBuf {
+        self.0.join("final")
+    }
+}
+
+/// The tables a flush writes a part of.
+const TABLES: [PartTable; 5] = [
+    PartTable::Main,
+    PartTable::Hits,
+    PartTable::Rejects,
+    PartTable::Parametric,
+    PartTable::Markers,
+];
+
+/// The map the watcher classifies with.
+fn the_map(
+    cfg: &ValidConfig,
+    o: &WatchOptions,
+    dir: &WatchDir,
+    inputs: &[PathBuf],
+) -> Result<Option<Model>, WatchError> {
+    let given = o
+        .model
+        .clone()
+        .or_else(|| (!cfg.som.model.is_empty()).then(|| PathBuf::from(&cfg.som.model)));
+    if let Some(p) = given {
+        return Ok(Some(crate::som::tables::load_model(&p)?));
+    }
+    if !cfg.som.enabled {
+        return Ok(None);
+    }
+    if cfg.som.train_on != crate::config::TrainOn::Reference {
+        return Err(WatchError::Map(
+            "[som] train_on = \"criteria\" trains on the finished test's own hits: give a map \
+             (--model DIR, or [som] model) to classify while it runs"
+                .into(),
+        ));
+    }
+    let model_dir = dir.map();
+    if model_dir.join("model.json").is_file() {
+        return Ok(Some(crate::som::tables::load_model(&model_dir)?));
+    }
+    let job = crate::workflow::RunJob {
+        config: cfg,
+        inputs,
+        out: &dir.path().join("watch").join("reference-run"),
+        truth: None,
+        threads: o.threads,
+        progress: false,
+        resume: false,
+        shard: None,
+        control: None,
+    };
+    let (model, _) = crate::workflow::train_reference_map(&job)?;
+    crate::som::tables::save_model(&model, &model_dir, None)?;
+    Ok(Some(model))
+}
+
+/// Follow `inputs` into `out` until `stop` is set (SIGINT, SIGTERM) or, with
+/// `until_idle_s`, until nothing new has come for that long; `say` gets each flush's line.
+pub fn watch(
+    cfg: &ValidConfig,
+    inputs: &[PathBuf],
+    out: &Path,
+    o: &WatchOptions,
+    stop: &AtomicBool,
+    mut say: impl FnMut(&str),
+) -> Result<WatchSummary, WatchError> {
+    let dir = WatchDir::new(out);
+    std::fs::create_dir_all(dir.path().join("watch"))
+        .map_err(|e| crate::util::IoAt::new(dir.path(), e))?;
+    let mut state = State::recover(&dir, cfg)?;
+    let model = the_map(cfg, o, &dir, inputs)?;
+    let mut follower = follow::Follower::new(cfg.live.settle_s);
+    let mut page = page::Page::new(&state);
+    page.write(&dir, &state, None, cfg)?;
+    say(&format!(
+        "watching {} input(s) into {} ({} hits committed before; live page {})",
+        inputs.len(),
+        dir.path().display(),
+        state.hits,
+        dir.live_html().display()
+    ));
+    let mut pending: Vec<follow::Pending> = Vec::new();
+    let mut last_flush = Instant::now();
+    let mut last_new = Instant::now();
+    let mut stopped_by_signal = false;
+    loop {
+        let signalled = stop.load(Ordering::Relaxed);
+        if !signalled {
+            let new = follower.poll(inputs, cfg, &state);
+            if !new.is_empty() {
+                last_new = Instant::now();
+            }
+            for p in new {
+                if !pending.iter().any(|q| q.same_files(&p)) {
+                    pending.push(p);
+                }
+            }
+        }
+        let idle = o
+            .until_idle_s
+            .is_some_and(|s| last_new.elapsed() >= Duration::from_secs_f64(s));
+        let due = last_flush.elapsed() >= Duration::from_secs_f64(cfg.live.flush_s);
+        if !pending.is_empty() && (due || signalled || idle) {
+            let batch = std::mem::take(&mut pending);
+            let f = flush(cfg, &dir, &mut state, &model, batch, o.threads)?;
+            page.add(&f, &state);
+            page.write(&dir, &state, Some(&f), cfg)?;
+            say(&f.line());
+            last_flush = Instant::now();
+        }
+        if signalled {
+            stopped_by_signal = true;
+            break;
+        }
+        if idle && pending.is_empty() {
+            break;
+        }
+        std::thread::sleep(Duration::from_secs_f64(cfg.live.poll_s));
+    }
+    let last = if o.until_idle_s.is_some() && o.offline_at_end && !stopped_by_signal {
+        say(&format!(
+            "idle: running the finished files as aepipe run does into {}",
+            dir.last().display()
+        ));
+        let mut final_cfg = cfg.clone();
+        // The run `aepipe run` would do: with the given map if one was given (as `[som]
+        // model`), else training its own as the configuration says.
+        if let Some(m) = &o.model {
+            final_cfg = final_cfg
+                .with(|c| c.som.model = m.display().to_string())
+                .map_err(crate::workflow::WorkflowError::Config)?;
+        }
+        Some(crate::workflow::run(&crate::workflow::RunJob {
+            config: &final_cfg,
+            inputs,
+            out: &dir.last(),
+            truth: None,
+            threads: o.threads,
+            progress: false,
+            resume: false,
+            shard: None,
+            control: None,
+        })?)
+    } else {
+        None
+    };
+    Ok(WatchSummary {
+        state,
+        last,
+        stopped_by_signal,
+    })
+}
+
+/// Read the pending sources, write their rows as the next parts and commit.
+fn flush(
+    cfg: &ValidConfig,
+    dir: &WatchDir,
+    state: &mut State,
+    model: &Option<Model>,
+    batch: Vec<follow::Pending>,
+    threads: usize,
+) -> Result<Flush, WatchError> {
+    let t0 = Instant::now();
+    let mut f = Flush {
+        number: state.flushes + 1,
+        ..Default::default()
+    };
+    // One part per experiment, in id order.
+    let mut by_exp: BTreeMap<String, Vec<follow::Pending>> = BTreeMap::new();
+    for p in batch {
+        by_exp.entry(p.source.id.clone()).or_default().push(p);
+    }
+    let scratch = dir.scratch();
+    let mut newest_write: Option<SystemTime> = None;
+    for (experiment, sources) in &by_exp {
+        let _ = std::fs::remove_dir_all(&scratch);
+        std::fs::create_dir_all(&scratch).map_err(|e| crate::util::IoAt::new(&scratch, e))?;
+        let items = sources
+            .iter()
+            .flat_map(|p| crate::ingest::open(&p.source, cfg))
+            .collect::<Vec<_>>()
+            .into_iter();
+        let st = crate::pipeline::stream(
+            items,
+            StreamJob::Features,
+            &scratch,
+            cfg,
+            &StreamOptions {
+                threads,
+                progress: false,
+                resume: false,
+                shard: None,
+                control: None,
+            },
+        )?;
+        let k = state.parts;
+        let stream = StreamDir::new(&scratch);
+        let tables = dir.tables();
+        for t in TABLES {
+            let from = stream.table(t, StreamJob::Features);
+            let to = tables.hive_file(t, StreamJob::Features, experiment, k);
+            move_into(&from, &to)?;
+        }
+        if let Some(m) = model {
+            let features = tables.hive_file(PartTable::Main, StreamJob::Features, experiment, k);
+            let cls_dir = scratch.join("som");
+            match crate::som::tables::classify_tables(
+                m,
+                std::slice::from_ref(&features),
+                Some(&cfg.som.label),
+                &cls_dir,
+                crate::store::SourceRows::of(cfg),
+                cfg.som.read_erroneous,
+            ) {
+                Ok(conf) => {
+                    for ((class, _), n) in &conf.counts {
+                        *f.classes.entry(class.clone()).or_default() += *n as u64;
+                    }
+                    move_into(
+                        &crate::som::layout::ClassifyDir::new(&cls_dir).classification(),
+                        &dir.classification_part(experiment, k),
+                    )?;
+                }
+                // A part whose rows are all unusable for the map (flat records): no
+                // classification part.
+                Err(crate::som::SomError::Data(_)) => {}
+                Err(e) => return Err(e.into()),
+            }
+        }
+        state.parts += 1;
+        f.hits += st.hits;
+        f.rows += st.rows;
+        f.rejects += st.rejects;
+        for p in sources {
+            state.mark(p);
+            if let Some(w) = p.written {
+                newest_write = Some(newest_write.map_or(w, |n: SystemTime| n.max(w)));
+            }
+        }
+    }
+    let _ = std::fs::remove_dir_all(&scratch);
+    state.flushes += 1;
+    state.hits += f.hits;
+    state.rows += f.rows;
+    state.rejects += f.rejects;
+    for (k, v) in &f.classes {
+        *state.classes.entry(k.clone()).or_default() += v;
+    }
+    state.commit(dir)?;
+    f.total_hits = state.hits;
+    f.hits_per_s = f.hits as f64 / t0.elapsed().as_secs_f64().max(1e-9);
+    f.lag_s = newest_write
+        .and_then(|w| SystemTime::now().duration_since(w).ok())
+        .map_or(0.0, |d| d.as_secs_f64());
+    Ok(f)
+}
+
+/// Rename a finished table into its Hive place (the same disk: the scratch folder is in
+/// `DIR`).
+fn move_into(from: &Path, to: &Path) -> Result<(), WatchError> {
+    if let Some(d) = to.parent() {
+        std::fs::create_dir_all(d).map_err(|e| crate::util::IoAt::new(d, e))?;
+    }
+    std::fs::rename(from, to).map_err(|e| crate::util::IoAt::new(to, e))?;
+    Ok(())
+}
