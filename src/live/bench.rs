@@ -119,10 +119,17 @@ pub fn watch_bench(
             }
             Ok((steady_rate, t1.elapsed().as_secs_f64()))
         });
-        let summary = super::watch(&cfg, std::slice::from_ref(&data), &watch_dir, &o, &stop, |l| {
-            ready.store(true, std::sync::atomic::Ordering::Relaxed);
-            say(l)
-        });
+        let summary = super::watch(
+            &cfg,
+            std::slice::from_ref(&data),
+            &watch_dir,
+            &o,
+            &stop,
+            |l| {
+                ready.store(true, std::sync::atomic::Ordering::Relaxed);
+                say(l)
+            },
+        );
         (summary, writer.join().expect("writer thread"))
     });
     let summary = summary?;

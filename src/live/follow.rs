@@ -39,8 +39,11 @@ struct Seen {
 pub struct Follower {
     settle: Duration,
     seen: HashMap<PathBuf, Seen>,
-    /// Files already handed out in this process (not yet committed).
+    /// Files handed out: committed before (loaded from the state once per source) or in
+    /// this process.
     handed: std::collections::HashSet<PathBuf>,
+    /// Sources whose committed files are in `handed`.
+    loaded: std::collections::HashSet<String>,
 }
 
 /// Whether a format stores one hit per file.
@@ -54,6 +57,7 @@ impl Follower {
             settle: Duration::from_secs_f64(settle_s.max(0.0)),
             seen: HashMap::new(),
             handed: Default::default(),
+            loaded: Default::default(),
         }
     }
 
@@ -66,18 +70,18 @@ impl Follower {
         for s in d.sources {
             let read = state.sources.get(&s.id);
             if per_hit(s.format) {
-                let done: std::collections::HashSet<&str> = read
-                    .map(|r| r.files.iter().map(String::as_str).collect())
-                    .unwrap_or_default();
-                let mut first_hit = read.map_or(0, |r| r.files.len() as u64);
-                // Files handed out but not yet committed count as read.
+                // Files committed before this process started count as handed out: one set
+                // looked up by path, not rebuilt at each look.
+                if self.loaded.insert(s.id.clone()) {
+                    if let Some(r) = read {
+                        self.handed.extend(r.files.iter().map(PathBuf::from));
+                    }
+                }
+                let mut first_hit = 0;
                 let mut new = Vec::new();
                 let mut newest = None;
                 let mut held = false;
                 for f in &s.files {
-                    if done.contains(f.display().to_string().as_str()) {
-                        continue;
-                    }
                     if self.handed.contains(f) {
                         first_hit += 1;
                         continue;
@@ -98,6 +102,7 @@ impl Follower {
                     continue;
                 }
                 for f in &new {
+                    self.seen.remove(f);
                     self.handed.insert(f.clone());
                 }
                 out.push(Pending {
@@ -125,6 +130,7 @@ impl Follower {
                     continue;
                 }
                 for f in s.all_files() {
+                    self.seen.remove(f);
                     self.handed.insert(f.clone());
                 }
                 out.push(Pending {

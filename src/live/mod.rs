@@ -276,8 +276,10 @@ pub fn watch(
         let due = last_flush.elapsed() >= Duration::from_secs_f64(cfg.live.flush_s);
         if !pending.is_empty() && (due || signalled || idle) {
             let batch = std::mem::take(&mut pending);
+            let last_hit = batch.iter().rev().find(|p| p.per_hit).cloned();
             let f = flush(cfg, &dir, &mut state, &model, batch, o.threads)?;
-            page.add(&f, &state);
+            let cwt = last_hit.and_then(|p| page::draw_latest(&dir, cfg, &p, f.number));
+            page.add(&f, &state, cwt);
             page.write(&dir, &state, Some(&f), cfg)?;
             say(&f.line());
             last_flush = Instant::now();

@@ -17,6 +17,46 @@ pub struct Page {
     /// (seconds since the watch started, hits in all, class → rows in all).
     points: Vec<(f64, u64, BTreeMap<String, u64>)>,
     lines: Vec<String>,
+    /// The latest hits' CWT pictures (relative to DIR), newest first.
+    cwts: Vec<(String, String)>,
+}
+
+/// CWT pictures the page shows (the latest hits'), and the files they rotate through.
+const CWTS: usize = 3;
+
+/// The CWT picture of the last hit of a one-hit-per-file source, windowed on its burst as
+/// the report's gallery is: (picture, caption), or `None` when it cannot be read or drawn
+/// (the page then keeps the earlier ones).
+pub fn draw_latest(
+    dir: &WatchDir,
+    cfg: &ValidConfig,
+    p: &super::follow::Pending,
+    slot: u32,
+) -> Option<(String, String)> {
+    let last = p.source.files.last()?.clone();
+    let src = crate::ingest::Source {
+        first_hit: p.source.first_hit + p.source.files.len() as u64 - 1,
+        files: vec![last],
+        ..p.source.clone()
+    };
+    let r = crate::ingest::open(&src, cfg).find_map(|it| match it {
+        crate::model::Item::Record(r) => Some(r),
+        _ => None,
+    })?;
+    crate::features::validate(&r, cfg).ok()?;
+    let mut ex = crate::features::FeatureExtractor::new(cfg);
+    let a = ex.analyse(&r);
+    let (freqs, power) = ex.full_cwt(&r);
+    let fs = r.sample_rate_hz;
+    let at = a.hit.first_crossing.unwrap_or(r.pretrigger as usize);
+    let from = at.saturating_sub((10e-6 * fs).round() as usize);
+    let to = at + (90e-6 * fs).round() as usize;
+    let rel = format!("watch/live/latest-{}.png", slot as usize % CWTS);
+    let png = dir.path().join(&rel);
+    std::fs::create_dir_all(png.parent()?).ok()?;
+    let title = format!("{} — {}", r.id(), a.label);
+    crate::plot::cwt_window_png(&png, &r, &freqs, power.view(), &title, from..to).ok()?;
+    Some((rel, title))
 }
 
 impl Page {
@@ -25,10 +65,16 @@ impl Page {
             start: Instant::now(),
             points: vec![(0.0, state.hits, state.classes.clone())],
             lines: Vec::new(),
+            cwts: Vec::new(),
         }
     }
 
-    pub fn add(&mut self, f: &Flush, state: &State) {
+    pub fn add(&mut self, f: &Flush, state: &State, cwt: Option<(String, String)>) {
+        if let Some(c) = cwt {
+            self.cwts.retain(|(p, _)| *p != c.0);
+            self.cwts.insert(0, c);
+            self.cwts.truncate(CWTS);
+        }
         self.points.push((
             self.start.elapsed().as_secs_f64(),
             state.hits,
@@ -83,6 +129,22 @@ impl Page {
             h.push_str("</table>");
         }
         h.push_str(&self.svg(state));
+        if !self.cwts.is_empty() {
+            h.push_str("<h2>The latest hits</h2>");
+            for (png, caption) in &self.cwts {
+                // The flush number in the query: a browser does not show a cached picture
+                // of the same name.
+                let _ = write!(
+                    h,
+                    "<figure><img src=\"{}?{}\" width=\"550\" alt=\"{}\">\
+                     <figcaption>{}</figcaption></figure>",
+                    escape(png),
+                    state.flushes,
+                    escape(caption),
+                    escape(caption)
+                );
+            }
+        }
         h.push_str("<h2>Flushes</h2>");
         for l in self.lines.iter().rev() {
             let _ = write!(h, "<div class=\"line\">{}</div>", escape(l));

@@ -339,6 +339,39 @@ fn simulator_and_workflow_commands_fail_with_the_right_code() {
             &f.blocked(),
         ],
     );
+    // watch: a bad --until-idle, a wrong [live] value, an unknown key (1); an output it
+    // cannot create (3)
+    expect(
+        1,
+        &["watch", &data, "--out", &f.p("w"), "--until-idle", "-1"],
+    );
+    std::fs::write(f.t.path().join("live.toml"), "[live]\npoll_s = 0\n").unwrap();
+    expect(
+        1,
+        &[
+            "watch",
+            &data,
+            "--out",
+            &f.p("w"),
+            "--config",
+            &f.p("live.toml"),
+        ],
+    );
+    expect(
+        1,
+        &[
+            "watch",
+            &data,
+            "--out",
+            &f.p("w"),
+            "--config",
+            &f.p("bad.toml"),
+        ],
+    );
+    expect(
+        3,
+        &["watch", &data, "--out", &f.blocked(), "--until-idle", "0"],
+    );
     // demo: bad flag (1), unwritable output (3)
     expect(1, &["demo", "--hits", "many"]);
     expect(3, &["demo", "--out", &f.blocked()]);
