@@ -459,7 +459,8 @@ pub enum BenchCmd {
         /// Seconds of the steady phase
         #[arg(long, default_value_t = 20.0)]
         seconds: f64,
-        /// Hits written as fast as the disk takes them after it (the final break)
+        /// Hits arriving at once after it (the final break): written beforehand beside the
+        /// folder and moved in, each stamped with its arrival
         #[arg(long, default_value_t = 20_000)]
         burst: usize,
         #[arg(long, default_value_t = 0)]

@@ -248,7 +248,7 @@ pub fn watch_bench(r: &crate::live::bench::WatchBenchResult) {
         r.steady.hits, r.steady_rate, r.steady.median_s, r.steady.p99_s, r.steady.max_s
     );
     println!(
-        "burst: {} hits written in {:.2} s; lag median {:.2} s, p99 {:.2} s, max {:.2} s; \
+        "burst: {} hits arrived in {:.2} s; lag median {:.2} s, p99 {:.2} s, max {:.2} s; \
          last row committed {:.2} s after the last write",
         r.burst.hits,
         r.burst_write_s,

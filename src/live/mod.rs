@@ -257,6 +257,7 @@ pub fn watch(
     let mut last_flush = Instant::now();
     let mut last_new = Instant::now();
     let mut stopped_by_signal = false;
+    let mut backlog = false;
     loop {
         let signalled = stop.load(Ordering::Relaxed);
         if !signalled {
@@ -274,8 +275,12 @@ pub fn watch(
             .until_idle_s
             .is_some_and(|s| last_new.elapsed() >= Duration::from_secs_f64(s));
         let due = last_flush.elapsed() >= Duration::from_secs_f64(cfg.live.flush_s);
-        if !pending.is_empty() && (due || signalled || idle) {
-            let batch = std::mem::take(&mut pending);
+        if !pending.is_empty() && (due || signalled || idle || backlog) {
+            // A burst is committed in slices: the hits that came first are readable
+            // first, and a flush holds a bounded number of records.
+            let (batch, rest) = take_files(std::mem::take(&mut pending), FLUSH_FILES);
+            pending = rest;
+            backlog = !pending.is_empty();
             let last_hit = batch.iter().rev().find(|p| p.per_hit).cloned();
             let f = flush(cfg, &dir, &mut state, &model, batch, o.threads)?;
             let cwt = last_hit.and_then(|p| page::draw_latest(&dir, cfg, &p, f.number));
@@ -284,9 +289,12 @@ pub fn watch(
             say(&f.line());
             last_flush = Instant::now();
         }
-        if signalled {
+        if signalled && pending.is_empty() {
             stopped_by_signal = true;
             break;
+        }
+        if backlog {
+            continue;
         }
         if idle && pending.is_empty() {
             break;
@@ -327,6 +335,40 @@ pub fn watch(
     })
 }
 
+/// One-hit-per-file records in one flush at most: a burst of 20 000 files is committed in
+/// slices, each readable as soon as it is done.
+const FLUSH_FILES: usize = 2000;
+
+/// The first pending sources up to `limit` files (a one-hit-per-file source split, its hit
+/// numbers carried on), and the rest.
+fn take_files(
+    pending: Vec<follow::Pending>,
+    limit: usize,
+) -> (Vec<follow::Pending>, Vec<follow::Pending>) {
+    let mut take = Vec::new();
+    let mut rest = Vec::new();
+    let mut n = 0;
+    for mut p in pending {
+        if n >= limit {
+            rest.push(p);
+            continue;
+        }
+        if p.per_hit && n + p.source.files.len() > limit {
+            let tail = p.source.files.split_off(limit - n);
+            let mut r = p.clone();
+            r.source.first_hit = p.source.first_hit + p.source.files.len() as u64;
+            r.source.files = tail;
+            n = limit;
+            take.push(p);
+            rest.push(r);
+            continue;
+        }
+        n += p.source.files.len().max(1);
+        take.push(p);
+    }
+    (take, rest)
+}
+
 /// Read the pending sources, write their rows as the next parts and commit.
 fn flush(
     cfg: &ValidConfig,
@@ -353,9 +395,7 @@ fn flush(
         std::fs::create_dir_all(&scratch).map_err(|e| crate::util::IoAt::new(&scratch, e))?;
         let items = sources
             .iter()
-            .flat_map(|p| crate::ingest::open(&p.source, cfg))
-            .collect::<Vec<_>>()
-            .into_iter();
+            .flat_map(|p| crate::ingest::open(&p.source, cfg));
         let st = crate::pipeline::stream(
             items,
             StreamJob::Features,
