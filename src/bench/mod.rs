@@ -151,13 +151,7 @@ pub fn stream_point(
         StreamJob::Features,
         out_dir,
         &cfg,
-        &StreamOptions {
-            threads,
-            progress: false,
-            resume: false,
-            shard: None,
-            control: None,
-        },
+        &StreamOptions::with_threads(threads),
     )?;
     Ok(StreamPoint {
         hits,

@@ -401,13 +401,7 @@ fn flush(
             StreamJob::Features,
             &scratch,
             cfg,
-            &StreamOptions {
-                threads,
-                progress: false,
-                resume: false,
-                shard: None,
-                control: None,
-            },
+            &StreamOptions::with_threads(threads),
         )?;
         let k = state.parts;
         let stream = StreamDir::new(&scratch);

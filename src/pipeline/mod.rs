@@ -88,6 +88,20 @@ pub struct StreamOptions {
     pub control: Option<std::sync::Arc<crate::util::JobControl>>,
 }
 
+impl StreamOptions {
+    /// A plain stream on `threads` workers (0 = all cores): no progress bar, resume, shard
+    /// or caller's control.
+    pub fn with_threads(threads: usize) -> StreamOptions {
+        StreamOptions {
+            threads,
+            progress: false,
+            resume: false,
+            shard: None,
+            control: None,
+        }
+    }
+}
+
 impl Default for StreamOptions {
     fn default() -> Self {
         StreamOptions {

@@ -346,28 +346,10 @@ fn simulator_and_workflow_commands_fail_with_the_right_code() {
         &["watch", &data, "--out", &f.p("w"), "--until-idle", "-1"],
     );
     std::fs::write(f.t.path().join("live.toml"), "[live]\npoll_s = 0\n").unwrap();
-    expect(
-        1,
-        &[
-            "watch",
-            &data,
-            "--out",
-            &f.p("w"),
-            "--config",
-            &f.p("live.toml"),
-        ],
-    );
-    expect(
-        1,
-        &[
-            "watch",
-            &data,
-            "--out",
-            &f.p("w"),
-            "--config",
-            &f.p("bad.toml"),
-        ],
-    );
+    for cfg in ["live.toml", "bad.toml"] {
+        let args = ["watch", &data, "--out", &f.p("w"), "--config", &f.p(cfg)];
+        expect(1, &args);
+    }
     expect(
         3,
         &["watch", &data, "--out", &f.blocked(), "--until-idle", "0"],
