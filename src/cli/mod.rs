@@ -248,6 +248,8 @@ pub enum Cmd {
         /// Files or folders the acquisition writes into
         #[arg(required = true)]
         inputs: Vec<PathBuf>,
+        /// The watcher's folder: the Hive parts, live.html, watch/state.json, and at the
+        /// end final/ (the same command again continues it)
         #[arg(long)]
         out: PathBuf,
         /// Pipeline definition (the defaults without)
