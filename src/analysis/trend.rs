@@ -165,37 +165,7 @@ pub fn read_series(
             ": not an aepipe features table",
         )
         .map_err(read)?;
-        if columns.is_empty() {
-            columns = t
-                .column_names()
-                .into_iter()
-                .filter(|n| n.starts_with("pr_"))
-                .collect();
-            if columns.is_empty() {
-                return Err(TrendError::Read {
-                    path: p.display().to_string(),
-                    message: "no pr_* power-ratio columns; name the columns to test with --columns"
-                        .into(),
-                });
-            }
-        }
-        for c in &columns {
-            match t.dtype(c) {
-                None => {
-                    return Err(TrendError::Read {
-                        path: p.display().to_string(),
-                        message: format!("no column {c}"),
-                    })
-                }
-                Some(dt) if !dt.is_primitive_numeric() => {
-                    return Err(TrendError::Read {
-                        path: p.display().to_string(),
-                        message: format!("column {c} is {dt}, not a number"),
-                    })
-                }
-                _ => {}
-            }
-        }
+        columns = tested_columns(&t, p, &columns)?;
         let mut sel = vec![
             col("experiment"),
             col("channel"),

@@ -252,13 +252,7 @@ pub fn merge(
         t_hash: 0.0,
         t_stream: shards.iter().map(|m| m.payload.seconds).sum(),
     };
-    let opts = StreamOptions {
-        threads,
-        progress: false,
-        resume: false,
-        shard: None,
-        control: None,
-    };
+    let opts = StreamOptions::with_threads(threads);
     let r = assemble(
         job,
         &StreamDir::new(out_dir),

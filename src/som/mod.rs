@@ -279,18 +279,20 @@ impl Votes {
     /// Each node's winning label (`None`: no row reached it); ties go to the label that
     /// sorts first.
     fn winners(&self) -> Vec<Option<String>> {
-        self.votes
-            .iter()
-            .map(|v| {
-                v.iter()
-                    .fold(None, |m: Option<(&String, f64)>, (l, &c)| match m {
-                        Some((_, mc)) if mc >= c => m,
-                        _ => Some((l, c)),
-                    })
-                    .map(|(l, _)| l.clone())
-            })
-            .collect()
+        self.votes.iter().map(winner).collect()
     }
+}
+
+/// The label with the most votes (`None`: no votes); a tie goes to the label that sorts
+/// first.
+fn winner<K: AsRef<str>>(votes: &std::collections::BTreeMap<K, f64>) -> Option<String> {
+    votes
+        .iter()
+        .fold(None, |m: Option<(&K, f64)>, (l, &c)| match m {
+            Some((_, mc)) if mc >= c => m,
+            _ => Some((l, c)),
+        })
+        .map(|(l, _)| l.as_ref().to_string())
 }
 
 /// The hot loops of training. Each sum runs in 8 fixed lanes, so the compiler can keep them
@@ -705,17 +707,7 @@ impl Som {
         for (x, l) in data.chunks(self.dim).zip(labels) {
             *votes[self.bmu(x).0].entry(l.as_str()).or_default() += weight(l);
         }
-        Ok(votes
-            .iter()
-            .map(|v| {
-                v.iter()
-                    .fold(None, |m: Option<(&str, f64)>, (l, &c)| match m {
-                        Some((_, mc)) if mc >= c => m,
-                        _ => Some((l, c)),
-                    })
-                    .map(|(l, _)| l.to_string())
-            })
-            .collect())
+        Ok(votes.iter().map(winner).collect())
     }
 
     /// Label nodes by majority vote of the labelled inputs mapped to them (ties: the label

@@ -115,11 +115,8 @@ pub(super) fn train_stage(
             run.reference_features().path(),
             &lib_cfg,
             &StreamOptions {
-                threads: job.threads,
-                progress: false,
-                resume: false,
-                shard: None,
                 control: job.control.clone(),
+                ..StreamOptions::with_threads(job.threads)
             },
         )?;
         (

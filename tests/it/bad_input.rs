@@ -108,13 +108,7 @@ fn each_bad_input_becomes_a_clear_reject_and_good_hits_are_all_written() {
         &[d.clone(), unknown.clone(), t.path().join("missing_folder")],
         &out,
         &aepipe::config::ValidConfig::default(),
-        &StreamOptions {
-            threads: 2,
-            progress: false,
-            resume: false,
-            shard: None,
-            control: None,
-        },
+        &StreamOptions::with_threads(2),
     )
     .unwrap();
     let rej = Rejects::read(&r.rejects_path);
@@ -340,13 +334,7 @@ fn an_experiment_id_never_writes_outside_the_output_folder() {
         StreamJob::Features,
         &f,
         &aepipe::config::ValidConfig::default(),
-        &StreamOptions {
-            threads: 2,
-            progress: false,
-            resume: false,
-            shard: None,
-            control: None,
-        },
+        &StreamOptions::with_threads(2),
     )
     .unwrap();
     let out = t.path().join("a/b/trend");

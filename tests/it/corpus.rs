@@ -686,13 +686,7 @@ fn recordings(batch: &Path) -> Vec<Case> {
                 aepipe::pipeline::StreamJob::Waveforms,
                 &tmp,
                 &aepipe::config::ValidConfig::default(),
-                &aepipe::pipeline::StreamOptions {
-                    threads: 1,
-                    progress: false,
-                    resume: false,
-                    shard: None,
-                    control: None,
-                },
+                &aepipe::pipeline::StreamOptions::with_threads(1),
             )
             .unwrap();
             std::fs::rename(tmp.join("waveforms.parquet"), &f).unwrap();

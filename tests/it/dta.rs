@@ -109,13 +109,7 @@ fn the_real_dta_gives_the_hits_and_samples_mistrasdta_gives() {
         &[file],
         t.path(),
         &aepipe::config::ValidConfig::default(),
-        &StreamOptions {
-            threads: 2,
-            progress: false,
-            resume: false,
-            shard: None,
-            control: None,
-        },
+        &StreamOptions::with_threads(2),
     )
     .unwrap();
     let c = &run.stats.by_experiment["210527-CH1-15"];
@@ -326,13 +320,7 @@ fn written_dta_files_four_channels_a_chain_and_bad_endings() {
         &[dir, alone],
         &t.path().join("out"),
         &aepipe::config::ValidConfig::default(),
-        &StreamOptions {
-            threads: 2,
-            progress: false,
-            resume: false,
-            shard: None,
-            control: None,
-        },
+        &StreamOptions::with_threads(2),
     )
     .unwrap();
     let x = &r.stats.by_experiment["X"];

@@ -11,13 +11,7 @@ use arrow::datatypes::{Float64Type, Int32Type, Int64Type};
 use std::path::{Path, PathBuf};
 
 fn opts() -> StreamOptions {
-    StreamOptions {
-        threads: 2,
-        progress: false,
-        resume: false,
-        shard: None,
-        control: None,
-    }
+    StreamOptions::with_threads(2)
 }
 
 /// One event as read back: time, channels, close reason, hit numbers, x, y, lucy, status.

@@ -9,13 +9,7 @@ use std::collections::BTreeMap;
 use std::path::Path;
 
 fn opts() -> StreamOptions {
-    StreamOptions {
-        threads: 2,
-        progress: false,
-        resume: false,
-        shard: None,
-        control: None,
-    }
+    StreamOptions::with_threads(2)
 }
 
 /// Column `name` of every row.

@@ -122,13 +122,7 @@ pub fn synthetic_features(
         &[data],
         &dir.join("f"),
         cfg,
-        &aepipe::pipeline::StreamOptions {
-            threads,
-            progress: false,
-            resume: false,
-            shard: None,
-            control: None,
-        },
+        &aepipe::pipeline::StreamOptions::with_threads(threads),
     )
     .unwrap()
     .table_path

@@ -9,13 +9,7 @@ use aepipe::synth::Experiment;
 use std::path::{Path, PathBuf};
 
 fn opts(threads: usize) -> StreamOptions {
-    StreamOptions {
-        threads,
-        progress: false,
-        resume: false,
-        shard: None,
-        control: None,
-    }
+    StreamOptions::with_threads(threads)
 }
 
 /// A synthetic Vallen experiment written with aepipe's writer.

@@ -265,13 +265,7 @@ fn hit_features_agree_with_vallenae() {
         &[real.join("vallen")],
         t.path(),
         &aepipe::config::ValidConfig::default(),
-        &StreamOptions {
-            threads: 2,
-            progress: false,
-            resume: false,
-            shard: None,
-            control: None,
-        },
+        &StreamOptions::with_threads(2),
     )
     .unwrap();
     let (names, rows) = crate::table_rows(&r.table_path);

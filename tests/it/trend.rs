@@ -98,13 +98,7 @@ fn designed_trend_is_found_with_the_right_signs_end_to_end() {
         &[data],
         &t.path().join("f"),
         &cfg,
-        &StreamOptions {
-            threads: 2,
-            progress: false,
-            resume: false,
-            shard: None,
-            control: None,
-        },
+        &StreamOptions::with_threads(2),
     )
     .unwrap();
     let rep = run_trend(

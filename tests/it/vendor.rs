@@ -12,13 +12,7 @@ use aepipe::pipeline::{run, Manifest, StreamJob, StreamOptions};
 use std::path::{Path, PathBuf};
 
 fn opts() -> StreamOptions {
-    StreamOptions {
-        threads: 2,
-        progress: false,
-        resume: false,
-        shard: None,
-        control: None,
-    }
+    StreamOptions::with_threads(2)
 }
 
 fn ticks(t_s: f64) -> [u8; 6] {
