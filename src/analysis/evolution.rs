@@ -20,7 +20,7 @@
 //! from distributed micro-damage, the classic precursor of final failure.
 
 use crate::config::EvolutionConfig;
-use crate::store::{ColType, ColumnSpec, HitKey, Table, TableWriter, Value};
+use crate::store::{ColType, ColumnSpec, HitKey, Table, Value};
 
 /// One source of a series, in time order: the row that stands for it (an event's first hit,
 /// or a hit) and what it contributes.
@@ -281,24 +281,6 @@ pub fn evolution_table() -> Table<EvolutionRow> {
             .nullable(),
             |r| Value::F64(r.ib_value),
         )
-}
-
-/// Write `evolution.parquet` with the run's configuration hash.
-pub fn write(
-    path: &std::path::Path,
-    rows: &[EvolutionRow],
-    config_sha256: &str,
-) -> Result<u64, crate::store::StoreError> {
-    let meta = [(
-        "aepipe.config_sha256".to_string(),
-        config_sha256.to_string(),
-    )];
-    let table = evolution_table();
-    let mut w = TableWriter::create(path, table.schema(), &meta, 65_536)?;
-    for r in rows {
-        w.push(table.row(r.clone()))?;
-    }
-    w.finish()
 }
 
 #[cfg(test)]

@@ -246,20 +246,8 @@ pub struct Gathered {
     pub manifest: String,
 }
 
-/// The first `per` hits of each class, in key order: the gallery's choice.
-pub fn choose_gallery(
-    labels: &BTreeMap<HitKey, String>,
-    per: usize,
-) -> BTreeMap<String, Vec<HitKey>> {
-    let mut g = GalleryChoice::new(per);
-    for (k, c) in labels {
-        g.offer(k, c);
-    }
-    g.chosen()
-}
-
-/// [`choose_gallery`] as the hits stream by in any order: each class keeps the `per`
-/// smallest keys it has seen (a bounded max-heap), so memory holds `per` keys a class.
+/// The gallery's choice, the first `per` hits of each class in key order, made as the hits
+/// stream by in any order: each class keeps the `per` smallest keys it has seen (a bounded max-heap), so memory holds `per` keys a class.
 #[derive(Debug, Clone)]
 pub struct GalleryChoice {
     per: usize,
@@ -653,11 +641,12 @@ mod tests {
     #[test]
     fn gallery_takes_the_first_hits_of_each_class() {
         let k = |h: i64| ("e".to_string(), 1, h);
-        let labels: BTreeMap<HitKey, String> = [(k(3), "b"), (k(1), "a"), (k(2), "b"), (k(4), "b")]
-            .into_iter()
-            .map(|(k, v)| (k, v.to_string()))
-            .collect();
-        let c = choose_gallery(&labels, 2);
+        // Offered out of key order, as the classification streams them.
+        let mut g = GalleryChoice::new(2);
+        for (key, class) in [(k(3), "b"), (k(1), "a"), (k(4), "b"), (k(2), "b")] {
+            g.offer(&key, class);
+        }
+        let c = g.chosen();
         assert_eq!(c["a"], vec![k(1)]);
         assert_eq!(c["b"], vec![k(2), k(3)]);
     }

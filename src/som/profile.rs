@@ -5,7 +5,7 @@
 use super::SomError;
 use crate::model::Mechanism;
 use crate::store::spill::{Dec, Enc, Sorted, Sorter, Span, Spill};
-use crate::store::{ColType, ColumnSpec, HitKey, StoreError, Table, TableScan, TableWriter, Value};
+use crate::store::{ColType, ColumnSpec, HitKey, StoreError, Table, TableScan, Value};
 use std::collections::BTreeMap;
 use std::path::Path;
 
@@ -608,39 +608,4 @@ impl Profile {
         }
         Ok(summary)
     }
-}
-
-/// Every row and summary of the profile at once (small tables, tests).
-pub fn build(
-    features: &Path,
-    classification: &Path,
-    spill_dir: &Path,
-) -> Result<(Vec<ProfileRow>, Vec<ProfileSummary>), SomError> {
-    let p = open(features, classification, spill_dir)?;
-    let (mut rows, mut summaries) = (Vec::new(), Vec::new());
-    for g in 0..p.groups.len() {
-        summaries.push(p.emit(g, |r| {
-            rows.push(r.clone());
-            Ok::<(), SomError>(())
-        })?);
-    }
-    Ok((rows, summaries))
-}
-
-/// Write `DIR/damage_profile.parquet`, with the run's configuration hash as every table's.
-pub fn write(path: &Path, rows: &[ProfileRow], config_sha256: &str) -> Result<u64, SomError> {
-    let werr = |e: crate::store::StoreError| SomError::Write {
-        path: path.display().to_string(),
-        message: e.to_string(),
-    };
-    let meta = [(
-        "aepipe.config_sha256".to_string(),
-        config_sha256.to_string(),
-    )];
-    let table = profile_table();
-    let mut w = TableWriter::create(path, table.schema(), &meta, 65_536).map_err(werr)?;
-    for r in rows {
-        w.push(table.row(r.clone())).map_err(werr)?;
-    }
-    w.finish().map_err(werr)
 }

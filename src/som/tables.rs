@@ -6,7 +6,7 @@ use super::{Init, Som, SomError, SomParams};
 use crate::config::ReadErroneous;
 use crate::model::Mechanism;
 use crate::store::{ColType, ColumnSpec, HitKey, SourceRows, Table, TableScan, TableWriter, Value};
-use ndarray::{Array2, ArrayView2, Axis};
+use ndarray::{Array2, ArrayView2};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
@@ -64,47 +64,7 @@ fn werr(p: &Path, m: impl std::fmt::Display) -> SomError {
 /// `features.parquet`'s time-domain quality column, and its alias when read.
 const QUALITY: &str = "quality_fault";
 
-/// Read `columns` (a fixed-size list such as `tf_bins` expands to its elements; numeric
-/// scalars give one dimension each) and the optional label column, through the store's
-/// table reader: every usable row at once (for a training set or a small table; whole-batch
-/// stages use [`for_each_input`]).
-pub fn read_inputs(
-    paths: &[PathBuf],
-    columns: &[String],
-    label: Option<&str>,
-    sources: SourceRows,
-) -> Result<SomInput, SomError> {
-    let (mut keys, mut labels, mut blocks, mut skipped) = (Vec::new(), Vec::new(), Vec::new(), 0);
-    let mut quality = Vec::new();
-    for_each_input(paths, columns, label, sources, |b| {
-        keys.extend(b.keys);
-        labels.extend(b.labels);
-        quality.extend(b.quality);
-        skipped += b.skipped;
-        blocks.push(b.data);
-        Ok(())
-    })?;
-    if keys.is_empty() {
-        return Err(SomError::Data(
-            "no usable rows in the feature tables".into(),
-        ));
-    }
-    let views: Vec<_> = blocks
-        .iter()
-        .filter(|b| b.nrows() > 0)
-        .map(|b| b.view())
-        .collect();
-    let data = ndarray::concatenate(Axis(0), &views).map_err(|e| SomError::Data(e.to_string()))?;
-    Ok(SomInput {
-        keys,
-        data,
-        labels,
-        quality,
-        skipped,
-    })
-}
-
-/// [`read_inputs`] a batch at a time ([`crate::store::read::BATCH_ROWS`] rows of a file):
+/// The usable rows of the tables a batch at a time ([`crate::store::read::BATCH_ROWS`] rows of a file):
 /// `f` gets each batch's usable rows, in file order, so memory does not grow with the
 /// table. Every batch has the same dimension (else an error naming the file).
 pub fn for_each_input(
@@ -232,16 +192,8 @@ impl Default for TrainingSet {
 /// Class → (distinct hits drawn, rows in the training set).
 pub type Composition = BTreeMap<String, (usize, usize)>;
 
-/// Indices of the training rows (with repeats when balanced) and the composition.
-pub fn draw_training(
-    inp: &SomInput,
-    ts: &TrainingSet,
-) -> Result<(Vec<usize>, Composition), SomError> {
-    let labels: Vec<Option<&str>> = inp.labels.iter().map(|l| l.as_deref()).collect();
-    draw_training_of(&labels, ts)
-}
-
-/// [`draw_training`] from the usable rows' labels alone (in row order): a table's training
+/// Indices of the training rows (with repeats when balanced) and the composition, from the
+/// usable rows' labels alone (in row order): a table's training
 /// set is drawn without holding its features.
 pub fn draw_training_of(
     labels: &[Option<&str>],

@@ -353,35 +353,10 @@ impl TableScan {
         Ok((0..c.len()).map(|i| c.get(i)).collect())
     }
 
-    /// Every row's key and the string in `column` (empty for null).
-    pub fn keyed_strings(&self, column: &str) -> Result<Vec<(HitKey, String)>, StoreError> {
-        self.require(&["experiment", "channel", "hit", column], "")?;
-        let df = self.select(vec![
-            col("experiment"),
-            col("channel"),
-            col("hit"),
-            col(column),
-        ])?;
-        let keys = self.hit_keys(&df)?;
-        let vals = self.strings(&df, column)?;
-        Ok(keys
-            .into_iter()
-            .zip(vals)
-            .map(|(k, v)| (k, v.unwrap_or_default()))
-            .collect())
-    }
-
-    /// The numeric feature matrix of `columns` (a fixed-size list such as `tf_bins` gives its
-    /// elements, a numeric scalar one dimension), one row per hit, as f64. Rows where a
-    /// value is null or not finite are left out; the mask says which rows are kept.
-    pub fn matrix(&self, columns: &[String]) -> Result<(Array2<f64>, Vec<bool>), StoreError> {
-        let names: Vec<&str> = columns.iter().map(String::as_str).collect();
-        self.require(&names, "")?;
-        let df = self.select(columns.iter().map(|c| col(c.as_str())).collect())?;
-        self.matrix_of(&df, columns)
-    }
-
-    /// [`TableScan::matrix`] of a frame (a batch) that selected `columns`.
+    /// The numeric feature matrix of `columns` in a frame (a batch) that selected them (a
+    /// fixed-size list such as `tf_bins` gives its elements, a numeric scalar one
+    /// dimension), one row per hit, as f64. Rows where a value is null or not finite are
+    /// left out; the mask says which rows are kept.
     pub fn matrix_of(
         &self,
         df: &DataFrame,
