@@ -85,6 +85,13 @@ impl Format {
         )
     }
 
+    /// One-hit-per-file formats whose hit number is the file's place in its folder (an AEwin
+    /// file carries its own in its name): a source of only some of its files numbers them
+    /// on from [`Source::first_hit`].
+    pub fn numbered_by_place(self) -> bool {
+        matches!(self, Format::Wav | Format::CsvPerHit | Format::Text)
+    }
+
     pub fn as_str(self) -> &'static str {
         match self {
             Format::Vallen => "vallen",

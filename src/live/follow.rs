@@ -3,8 +3,8 @@
 
 use super::state::State;
 use crate::config::ValidConfig;
-use crate::ingest::{Format, Source};
-use std::collections::HashMap;
+use crate::ingest::Source;
+use std::collections::{HashMap, HashSet};
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant, SystemTime};
 
@@ -13,18 +13,14 @@ use std::time::{Duration, Instant, SystemTime};
 pub struct Pending {
     /// For a one-hit-per-file source only its new files, numbered on from `first_hit`.
     pub source: Source,
-    /// The source is one hit per file (else a whole recording).
-    pub per_hit: bool,
     /// The newest modification time of its files (for the lag).
     pub written: Option<SystemTime>,
 }
 
 impl Pending {
-    /// Whether `other` reads the same files (it was found again before a flush).
-    pub fn same_files(&self, other: &Pending) -> bool {
-        self.source.id == other.source.id
-            && self.source.files == other.source.files
-            && self.source.companions == other.source.companions
+    /// The source is one hit per file, numbered by place (else a whole recording).
+    pub fn per_hit(&self) -> bool {
+        self.source.format.numbered_by_place()
     }
 }
 
@@ -39,58 +35,55 @@ struct Seen {
 pub struct Follower {
     settle: Duration,
     seen: HashMap<PathBuf, Seen>,
-    /// Files handed out: committed before (loaded from the state once per source) or in
-    /// this process.
-    handed: std::collections::HashSet<PathBuf>,
-    /// Sources whose committed files are in `handed`.
-    loaded: std::collections::HashSet<String>,
-}
-
-/// Whether a format stores one hit per file.
-pub fn per_hit(f: Format) -> bool {
-    matches!(f, Format::Wav | Format::CsvPerHit | Format::Text)
+    /// One-hit-per-file sources' files handed out: committed before this process started
+    /// (from the state) or since.
+    handed: HashSet<PathBuf>,
+    /// Per one-hit-per-file source, the hit number its next file gets (one more than the
+    /// files handed out: a committed file removed from the folder does not free its number).
+    next_hit: HashMap<String, u64>,
+    /// Whole recordings handed out (committed before, or since).
+    whole: HashSet<String>,
 }
 
 impl Follower {
-    pub fn new(settle_s: f64) -> Follower {
-        Follower {
+    /// A follower that goes on from what `state` committed.
+    pub fn new(settle_s: f64, state: &State) -> Follower {
+        let mut f = Follower {
             settle: Duration::from_secs_f64(settle_s.max(0.0)),
             seen: HashMap::new(),
-            handed: Default::default(),
-            loaded: Default::default(),
+            handed: HashSet::new(),
+            next_hit: HashMap::new(),
+            whole: HashSet::new(),
+        };
+        for (id, r) in &state.sources {
+            if r.whole {
+                f.whole.insert(id.clone());
+            }
+            f.handed.extend(r.files.iter().map(PathBuf::from));
+            f.next_hit.insert(id.clone(), r.files.len() as u64);
         }
+        f
     }
 
     /// Look at the inputs; the sources (or, one hit per file, the files) that are new and
     /// settled, in discovery's order.
-    pub fn poll(&mut self, inputs: &[PathBuf], cfg: &ValidConfig, state: &State) -> Vec<Pending> {
+    pub fn poll(&mut self, inputs: &[PathBuf], cfg: &ValidConfig) -> Vec<Pending> {
         let d = crate::ingest::discover(inputs, &cfg.ingest);
         let now = Instant::now();
         let mut out = Vec::new();
         for s in d.sources {
-            let read = state.sources.get(&s.id);
-            if per_hit(s.format) {
-                // Files committed before this process started count as handed out: one set
-                // looked up by path, not rebuilt at each look.
-                if self.loaded.insert(s.id.clone()) {
-                    if let Some(r) = read {
-                        self.handed.extend(r.files.iter().map(PathBuf::from));
-                    }
-                }
-                let mut first_hit = 0;
+            if s.format.numbered_by_place() {
                 let mut new = Vec::new();
                 let mut newest = None;
                 let mut held = false;
                 for f in &s.files {
                     if self.handed.contains(f) {
-                        first_hit += 1;
                         continue;
                     }
                     // Every file is looked at (its settle clock starts now), but they are
                     // taken in order: the first one still changing holds back the ones
                     // after it (their hit numbers follow it).
-                    let settled = self.settled(f, now);
-                    match settled {
+                    match self.settled(f, now) {
                         Some(w) if !held => {
                             newest = newest.max(w);
                             new.push(f.clone());
@@ -105,17 +98,19 @@ impl Follower {
                     self.seen.remove(f);
                     self.handed.insert(f.clone());
                 }
+                let next = self.next_hit.entry(s.id.clone()).or_insert(0);
+                let first_hit = *next;
+                *next += new.len() as u64;
                 out.push(Pending {
                     source: Source {
                         files: new,
                         first_hit,
                         ..s
                     },
-                    per_hit: true,
                     written: newest,
                 });
             } else {
-                if read.is_some_and(|r| r.whole) || s.all_files().any(|f| self.handed.contains(f)) {
+                if self.whole.contains(&s.id) {
                     continue;
                 }
                 let mut newest = None;
@@ -131,11 +126,10 @@ impl Follower {
                 }
                 for f in s.all_files() {
                     self.seen.remove(f);
-                    self.handed.insert(f.clone());
                 }
+                self.whole.insert(s.id.clone());
                 out.push(Pending {
                     source: s,
-                    per_hit: false,
                     written: newest,
                 });
             }

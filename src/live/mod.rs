@@ -79,8 +79,8 @@ pub struct WatchOptions {
     /// does, the lag benchmark does not).
     pub offline_at_end: bool,
     pub threads: usize,
-    /// The map to classify with (else `[som] model`, else one trained on the configured
-    /// reference library at start).
+    /// The map to classify with, as `[som] model` (over the configuration's); without
+    /// either, one trained on the configured reference library at start.
     pub model: Option<PathBuf>,
 }
 
@@ -150,6 +150,15 @@ impl WatchDir {
     pub fn tables(&self) -> StreamDir {
         StreamDir::new(&self.0)
     }
+    /// The folders of the watcher's Hive tables (the only ones a restart cleans).
+    pub fn table_dirs(&self) -> Vec<PathBuf> {
+        let tables = self.tables();
+        TABLES
+            .iter()
+            .map(|&t| tables.hive_dir(t, StreamJob::Features))
+            .chain([self.0.join("classification")])
+            .collect()
+    }
     /// `DIR/classification/experiment=<id>/part-N.parquet`.
     pub fn classification_part(&self, experiment: &str, k: u32) -> PathBuf {
         crate::store::shard::hive_file(&self.0, "classification", experiment, k)
@@ -187,16 +196,14 @@ const TABLES: [PartTable; 5] = [
 /// The map the watcher classifies with.
 fn the_map(
     cfg: &ValidConfig,
-    o: &WatchOptions,
+    threads: usize,
     dir: &WatchDir,
     inputs: &[PathBuf],
 ) -> Result<Option<Model>, WatchError> {
-    let given = o
-        .model
-        .clone()
-        .or_else(|| (!cfg.som.model.is_empty()).then(|| PathBuf::from(&cfg.som.model)));
-    if let Some(p) = given {
-        return Ok(Some(crate::som::tables::load_model(&p)?));
+    if !cfg.som.model.is_empty() {
+        return Ok(Some(crate::som::tables::load_model(Path::new(
+            &cfg.som.model,
+        ))?));
     }
     if !cfg.som.enabled {
         return Ok(None);
@@ -217,7 +224,7 @@ fn the_map(
         inputs,
         out: &dir.path().join("watch").join("reference-run"),
         truth: None,
-        threads: o.threads,
+        threads,
         progress: false,
         resume: false,
         shard: None,
@@ -238,12 +245,25 @@ pub fn watch(
     stop: &AtomicBool,
     mut say: impl FnMut(&str),
 ) -> Result<WatchSummary, WatchError> {
+    // A given map is `[som] model`: the state's hash covers it (a restart with another map
+    // is refused) and the final run uses it as `aepipe run` would.
+    let with_model;
+    let cfg = match &o.model {
+        Some(m) => {
+            with_model = cfg
+                .clone()
+                .with(|c| c.som.model = m.display().to_string())
+                .map_err(crate::workflow::WorkflowError::Config)?;
+            &with_model
+        }
+        None => cfg,
+    };
     let dir = WatchDir::new(out);
     std::fs::create_dir_all(dir.path().join("watch"))
         .map_err(|e| crate::util::IoAt::new(dir.path(), e))?;
     let mut state = State::recover(&dir, cfg)?;
-    let model = the_map(cfg, o, &dir, inputs)?;
-    let mut follower = follow::Follower::new(cfg.live.settle_s);
+    let model = the_map(cfg, o.threads, &dir, inputs)?;
+    let mut follower = follow::Follower::new(cfg.live.settle_s, &state);
     let mut page = page::Page::new(&state);
     page.write(&dir, &state, None, cfg)?;
     say(&format!(
@@ -260,16 +280,14 @@ pub fn watch(
     let mut backlog = false;
     loop {
         let signalled = stop.load(Ordering::Relaxed);
-        if !signalled {
-            let new = follower.poll(inputs, cfg, &state);
+        // Between the slices of a backlog the inputs are not looked at again: what is
+        // pending is flushed first.
+        if !signalled && !backlog {
+            let new = follower.poll(inputs, cfg);
             if !new.is_empty() {
                 last_new = Instant::now();
             }
-            for p in new {
-                if !pending.iter().any(|q| q.same_files(&p)) {
-                    pending.push(p);
-                }
-            }
+            pending.extend(new);
         }
         let idle = o
             .until_idle_s
@@ -281,7 +299,7 @@ pub fn watch(
             let (batch, rest) = take_files(std::mem::take(&mut pending), FLUSH_FILES);
             pending = rest;
             backlog = !pending.is_empty();
-            let last_hit = batch.iter().rev().find(|p| p.per_hit).cloned();
+            let last_hit = batch.iter().rev().find(|p| p.per_hit()).cloned();
             let f = flush(cfg, &dir, &mut state, &model, batch, o.threads)?;
             let cwt = last_hit.and_then(|p| page::draw_latest(&dir, cfg, &p, f.number));
             page.add(&f, &state, cwt);
@@ -306,16 +324,8 @@ pub fn watch(
             "idle: running the finished files as aepipe run does into {}",
             dir.last().display()
         ));
-        let mut final_cfg = cfg.clone();
-        // The run `aepipe run` would do: with the given map if one was given (as `[som]
-        // model`), else training its own as the configuration says.
-        if let Some(m) = &o.model {
-            final_cfg = final_cfg
-                .with(|c| c.som.model = m.display().to_string())
-                .map_err(crate::workflow::WorkflowError::Config)?;
-        }
         Some(crate::workflow::run(&crate::workflow::RunJob {
-            config: &final_cfg,
+            config: cfg,
             inputs,
             out: &dir.last(),
             truth: None,
@@ -353,7 +363,7 @@ fn take_files(
             rest.push(p);
             continue;
         }
-        if p.per_hit && n + p.source.files.len() > limit {
+        if p.per_hit() && n + p.source.files.len() > limit {
             let tail = p.source.files.split_off(limit - n);
             let mut r = p.clone();
             r.source.first_hit = p.source.first_hit + p.source.files.len() as u64;

@@ -4,6 +4,7 @@
 
 use super::{Flush, State, WatchDir, WatchError};
 use crate::config::ValidConfig;
+use crate::report::esc;
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
 use std::time::Instant;
@@ -44,18 +45,11 @@ pub fn draw_latest(
         _ => None,
     })?;
     crate::features::validate(&r, cfg).ok()?;
-    let mut ex = crate::features::FeatureExtractor::new(cfg);
-    let a = ex.analyse(&r);
-    let (freqs, power) = ex.full_cwt(&r);
-    let fs = r.sample_rate_hz;
-    let at = a.hit.first_crossing.unwrap_or(r.pretrigger as usize);
-    let from = at.saturating_sub((10e-6 * fs).round() as usize);
-    let to = at + (90e-6 * fs).round() as usize;
     let rel = format!("watch/live/latest-{}.png", slot as usize % CWTS);
     let png = dir.path().join(&rel);
     std::fs::create_dir_all(png.parent()?).ok()?;
-    let title = format!("{} — {}", r.id(), a.label);
-    crate::plot::cwt_window_png(&png, &r, &freqs, power.view(), &title, from..to).ok()?;
+    let mut ex = crate::features::FeatureExtractor::new(cfg);
+    let title = crate::workflow::burst_picture(&mut ex, &r, &png, None).ok()?;
     Some((rel, title))
 }
 
@@ -122,7 +116,7 @@ impl Page {
                 let _ = write!(
                     h,
                     "<tr><th>{}</th><td>{n}</td><td>{:.1} %</td></tr>",
-                    escape(c),
+                    esc(c),
                     100.0 * *n as f64 / total.max(1) as f64
                 );
             }
@@ -138,16 +132,16 @@ impl Page {
                     h,
                     "<figure><img src=\"{}?{}\" width=\"550\" alt=\"{}\">\
                      <figcaption>{}</figcaption></figure>",
-                    escape(png),
+                    esc(png),
                     state.flushes,
-                    escape(caption),
-                    escape(caption)
+                    esc(caption),
+                    esc(caption)
                 );
             }
         }
         h.push_str("<h2>Flushes</h2>");
         for l in self.lines.iter().rev() {
-            let _ = write!(h, "<div class=\"line\">{}</div>", escape(l));
+            let _ = write!(h, "<div class=\"line\">{}</div>", esc(l));
         }
         let _ = write!(
             h,
@@ -155,8 +149,8 @@ impl Page {
              <code>rejects/</code>, <code>classification/</code> in {} \
              (e.g. <code>pl.scan_parquet(\"{}/features/**/*.parquet\")</code>).</p>\
              </body></html>",
-            escape(&dir.path().display().to_string()),
-            escape(&dir.path().display().to_string())
+            esc(&dir.path().display().to_string()),
+            esc(&dir.path().display().to_string())
         );
         crate::util::write_atomic(&dir.live_html(), h.as_bytes())?;
         Ok(())
@@ -216,17 +210,10 @@ impl Page {
                 path.join(" "),
                 w - pad + 4.0 - 120.0,
                 pad + 14.0 * (i as f64 + 1.0),
-                escape(name)
+                esc(name)
             );
         }
         s.push_str("</svg>");
         s
     }
-}
-
-fn escape(s: &str) -> String {
-    s.replace('&', "&amp;")
-        .replace('<', "&lt;")
-        .replace('>', "&gt;")
-        .replace('"', "&quot;")
 }

@@ -6,7 +6,7 @@ use super::{WatchDir, WatchError};
 use crate::config::ValidConfig;
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
-use std::path::Path;
+use std::path::PathBuf;
 
 /// The watcher's committed position (`DIR/watch/state.json`).
 #[derive(Debug, Clone, Default, Serialize, Deserialize)]
@@ -31,7 +31,7 @@ pub struct State {
 #[derive(Debug, Clone, Default, Serialize, Deserialize, PartialEq, Eq)]
 pub struct SourceState {
     /// A one-hit-per-file source: the files read, in reading order (the next file is hit
-    /// `files.len() + 1`).
+    /// `files.len() + 1`, even if some of these have left the folder).
     pub files: Vec<String>,
     /// A whole recording: read.
     pub whole: bool,
@@ -65,14 +65,17 @@ impl State {
             },
             Err(e) => return Err(crate::util::IoAt::new(&path, e).into()),
         };
-        remove_parts_from(dir.path(), state.parts)?;
+        remove_parts_from(&dir.table_dirs(), state.parts)?;
+        // Temporary files of a killed watcher's atomic writes (state, page).
+        crate::store::clean_stale_tmp(dir.path());
+        crate::store::clean_stale_tmp(&dir.path().join("watch"));
         Ok(state)
     }
 
     /// Record a source's files as read (committed by the next [`State::commit`]).
     pub fn mark(&mut self, p: &Pending) {
         let s = self.sources.entry(p.source.id.clone()).or_default();
-        if p.per_hit {
+        if p.per_hit() {
             s.files
                 .extend(p.source.files.iter().map(|f| f.display().to_string()));
         } else {
@@ -88,14 +91,11 @@ impl State {
     }
 }
 
-/// Remove every `<table>/experiment=*/part-N.parquet` with `N >= from` under `out`: what
-/// a watcher killed between writing its parts and committing left.
-fn remove_parts_from(out: &Path, from: u32) -> Result<(), WatchError> {
-    let Ok(tables) = std::fs::read_dir(out) else {
-        return Ok(());
-    };
-    for t in tables.flatten() {
-        let Ok(exps) = std::fs::read_dir(t.path()) else {
+/// Remove every `<table>/experiment=*/part-N.parquet` with `N >= from` in the watcher's
+/// table folders: what a watcher killed between writing its parts and committing left.
+fn remove_parts_from(tables: &[PathBuf], from: u32) -> Result<(), WatchError> {
+    for t in tables {
+        let Ok(exps) = std::fs::read_dir(t) else {
             continue;
         };
         for e in exps.flatten() {
@@ -142,6 +142,11 @@ mod tests {
                 files.push((p, k));
             }
         }
+        // Another dataset in the same folder (not a table the watcher writes) is not its to
+        // clean.
+        let foreign = crate::store::shard::hive_file(&root, "shardrun", "a", 5);
+        std::fs::create_dir_all(foreign.parent().unwrap()).unwrap();
+        std::fs::write(&foreign, b"x").unwrap();
         std::fs::create_dir_all(root.join("watch")).unwrap();
         let s = State {
             config_sha256: cfg.hash(),
@@ -154,6 +159,7 @@ mod tests {
         for (p, k) in &files {
             assert_eq!(p.is_file(), *k < 2, "{}", p.display());
         }
+        assert!(foreign.is_file(), "another dataset's part was removed");
         // Another configuration is refused, not mixed in.
         let other = cfg.with(|c| c.live.flush_s = 5.0).unwrap();
         assert!(State::recover(&dir, &other).is_err());

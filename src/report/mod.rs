@@ -286,7 +286,8 @@ impl GalleryChoice {
     }
 }
 
-fn esc(s: &str) -> String {
+/// Text made safe inside HTML (element content and quoted attributes).
+pub fn esc(s: &str) -> String {
     s.replace('&', "&amp;")
         .replace('<', "&lt;")
         .replace('>', "&gt;")

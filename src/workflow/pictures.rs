@@ -106,27 +106,38 @@ fn draw_gallery(
             if !want.contains(&key) || crate::features::validate(&r, cfg).is_err() {
                 continue;
             }
-            let a = ex.analyse(&r);
-            let (freqs, power) = ex.full_cwt(&r);
             let png = run.gallery_png(&key);
             let full = run.gallery_full_png(&key);
-            let title = format!("{} — {}", r.id(), a.label);
-            // The thumbnail shows the burst as the thesis's Appendix B figures do: from
-            // 10 µs before the first threshold crossing (the trigger without one) to 90 µs
-            // after it; the whole record is a click away.
-            let fs = r.sample_rate_hz;
-            let at = a.hit.first_crossing.unwrap_or(r.pretrigger as usize);
-            let from = at.saturating_sub((GALLERY_BEFORE_S * fs).round() as usize);
-            let to = at + (GALLERY_AFTER_S * fs).round() as usize;
-            let drawn =
-                crate::plot::cwt_window_png(&png, &r, &freqs, power.view(), &title, from..to)
-                    .and_then(|_| crate::plot::cwt_png(&full, &r, &freqs, power.view(), &title));
-            if drawn.is_ok() {
+            if burst_picture(&mut ex, &r, &png, Some(&full)).is_ok() {
                 out.insert(key, (png, full));
             }
         }
     }
     out
+}
+
+/// Analyse a (valid) record and draw its CWT into `png` as the gallery's thumbnail shows a
+/// burst, as the thesis's Appendix B figures do: from 10 µs before the first threshold
+/// crossing (the trigger without one) to 90 µs after it; and the whole record into `full`
+/// if given. Returns the picture's title (the hit and its ch. 4.7 criteria label).
+pub fn burst_picture(
+    ex: &mut crate::features::FeatureExtractor,
+    r: &crate::model::AeRecord,
+    png: &std::path::Path,
+    full: Option<&std::path::Path>,
+) -> Result<String, crate::plot::PlotError> {
+    let a = ex.analyse(r);
+    let (freqs, power) = ex.full_cwt(r);
+    let title = format!("{} — {}", r.id(), a.label);
+    let fs = r.sample_rate_hz;
+    let at = a.hit.first_crossing.unwrap_or(r.pretrigger as usize);
+    let from = at.saturating_sub((GALLERY_BEFORE_S * fs).round() as usize);
+    let to = at + (GALLERY_AFTER_S * fs).round() as usize;
+    crate::plot::cwt_window_png(png, r, &freqs, power.view(), &title, from..to)?;
+    if let Some(full) = full {
+        crate::plot::cwt_png(full, r, &freqs, power.view(), &title)?;
+    }
+    Ok(title)
 }
 
 /// Find a hit in the inputs, analyse it and draw it: the `aepipe cwt` command. Returns a

@@ -4,7 +4,7 @@
 //! each hit's live SOM class equal to the offline run's, and its final tables byte-identical
 //! to an `aepipe run` of the finished folder.
 
-use super::{aepipe, table_rows, TempDir};
+use super::{aepipe, files, table_rows, TempDir};
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command};
@@ -45,22 +45,10 @@ fn wait_for(mut c: Child, limit: Duration) -> (Option<i32>, String) {
     }
 }
 
-/// Every Parquet part of a Hive table folder (`DIR/<table>/experiment=*/part-*.parquet`).
-fn parts(dir: &Path) -> Vec<PathBuf> {
-    let mut v = Vec::new();
-    for e in std::fs::read_dir(dir).into_iter().flatten().flatten() {
-        for p in std::fs::read_dir(e.path()).into_iter().flatten().flatten() {
-            v.push(p.path());
-        }
-    }
-    v.sort();
-    v
-}
-
-/// Rows of several tables with one header, keyed by (experiment, channel, hit).
 /// Rows by (experiment, channel, hit).
 type Keyed = BTreeMap<(String, String, String), Vec<Vec<String>>>;
 
+/// Rows of several tables with one header, keyed by (experiment, channel, hit).
 fn keyed_rows(files: &[PathBuf]) -> (Vec<String>, Keyed) {
     let mut names = Vec::new();
     let mut rows: BTreeMap<_, Vec<Vec<String>>> = BTreeMap::new();
@@ -82,26 +70,10 @@ fn keyed_rows(files: &[PathBuf]) -> (Vec<String>, Keyed) {
 }
 
 fn find(dir: &Path, name: &str) -> PathBuf {
-    for e in walk(dir) {
-        if e.file_name().is_some_and(|n| n == name) {
-            return e;
-        }
-    }
-    panic!("no {name} under {}", dir.display());
-}
-
-fn walk(dir: &Path) -> Vec<PathBuf> {
-    let mut v = Vec::new();
-    for e in std::fs::read_dir(dir).into_iter().flatten().flatten() {
-        let p = e.path();
-        if p.is_dir() {
-            v.extend(walk(&p));
-        } else {
-            v.push(p);
-        }
-    }
-    v.sort();
-    v
+    files(dir)
+        .into_iter()
+        .find(|e| e.file_name().is_some_and(|n| n == name))
+        .unwrap_or_else(|| panic!("no {name} under {}", dir.display()))
 }
 
 #[test]
@@ -216,7 +188,7 @@ fn watch_a_folder_of_wav_hits_killed_and_restarted_exactly_once() {
     assert!(said.contains("watched: 240 hits"), "{said}");
 
     // Every hit a row exactly once, across the kill.
-    let (names, live) = keyed_rows(&parts(&out.join("features")));
+    let (names, live) = keyed_rows(&files(&out.join("features")));
     assert_eq!(live.len(), HITS, "distinct hits in the live parts");
     let dups: Vec<_> = live.iter().filter(|(_, v)| v.len() != 1).collect();
     assert!(
@@ -226,7 +198,7 @@ fn watch_a_folder_of_wav_hits_killed_and_restarted_exactly_once() {
     );
     let hits: BTreeSet<u64> = live.keys().map(|k| k.2.parse().unwrap()).collect();
     assert_eq!(hits, (1..=HITS as u64).collect(), "hit numbers 1..{HITS}");
-    let (_, live_hits) = keyed_rows(&parts(&out.join("hits")));
+    let (_, live_hits) = keyed_rows(&files(&out.join("hits")));
     assert_eq!(live_hits.len(), HITS);
 
     // The live rows are the offline run's, column by column.
@@ -240,7 +212,7 @@ fn watch_a_folder_of_wav_hits_killed_and_restarted_exactly_once() {
 
     // Each hit's live SOM class is the offline run's (the same map: trained on the same
     // reference library with the same seed).
-    let (cn, live_cls) = keyed_rows(&parts(&out.join("classification")));
+    let (cn, live_cls) = keyed_rows(&files(&out.join("classification")));
     let (_, fin_cls) = keyed_rows(&[find(&out.join("final"), "classification.parquet")]);
     assert!(!live_cls.is_empty());
     assert_eq!(live_cls.len(), fin_cls.len(), "classified hits");

@@ -150,6 +150,27 @@ pub fn table_rows(path: &Path) -> (Vec<String>, Vec<Vec<String>>) {
     (names, rows)
 }
 
+/// Every file below `dir`, sorted.
+pub fn files(dir: &Path) -> Vec<PathBuf> {
+    let mut out = Vec::new();
+    let mut stack = vec![dir.to_path_buf()];
+    while let Some(d) = stack.pop() {
+        let Ok(rd) = std::fs::read_dir(&d) else {
+            continue;
+        };
+        for e in rd.flatten() {
+            let p = e.path();
+            if p.is_dir() {
+                stack.push(p);
+            } else {
+                out.push(p);
+            }
+        }
+    }
+    out.sort();
+    out
+}
+
 /// Records of all sources found under `inputs`, with the default configuration.
 pub fn read_all(
     inputs: &[PathBuf],

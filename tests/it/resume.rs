@@ -2,9 +2,9 @@
 //! a table a reader accepts that is incomplete, and a resumed run ends with the same tables,
 //! byte for byte, as a run that was never interrupted.
 
-use crate::TempDir;
+use crate::{files, TempDir};
 use aepipe::util::Rng;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
@@ -74,26 +74,6 @@ fn run_killed(args: &[String], after: Duration) -> bool {
     c.kill().unwrap(); // SIGKILL on Unix
     c.wait().unwrap();
     true
-}
-
-fn files(dir: &Path) -> Vec<PathBuf> {
-    let mut out = Vec::new();
-    let mut stack = vec![dir.to_path_buf()];
-    while let Some(d) = stack.pop() {
-        let Ok(rd) = std::fs::read_dir(&d) else {
-            continue;
-        };
-        for e in rd.flatten() {
-            let p = e.path();
-            if p.is_dir() {
-                stack.push(p);
-            } else {
-                out.push(p);
-            }
-        }
-    }
-    out.sort();
-    out
 }
 
 /// Every table and JSON file a reader would open after a kill is whole: Parquet files read to
