@@ -593,6 +593,11 @@ pub struct TrendPicture<'a> {
 /// Points drawn per line of a trend picture, at most.
 pub const MAX_PLOT_POINTS: usize = 20_000;
 
+/// The stride that keeps `n` points within [`MAX_PLOT_POINTS`] (every m-th one drawn).
+pub fn thin_every(n: usize) -> usize {
+    n.div_ceil(MAX_PLOT_POINTS).max(1)
+}
+
 /// The steepest significant rows of one series, at most `max_lines`, steepest first.
 pub fn drawn_rows(rows: &[TrendRow], max_lines: usize) -> Vec<&TrendRow> {
     let mut sig: Vec<&TrendRow> = rows.iter().filter(|r| r.significant).collect();
@@ -619,7 +624,7 @@ fn picture<'a>(
         return Ok(None);
     }
     let k = sel.hits_used;
-    let every = k.div_ceil(MAX_PLOT_POINTS).max(1);
+    let every = thin_every(k);
     let ci: Vec<usize> = drawn
         .iter()
         .map(|r| columns.iter().position(|c| c == &r.column).expect("tested"))

@@ -9,7 +9,6 @@
 //! `aepipe merge` runs them, and each stage's time and peak resident memory are printed.
 
 use super::BenchError;
-use crate::store::StoreError;
 use arrow::array::{
     Array, ArrayRef, Float64Array, Int64Array, ListArray, RecordBatch, StringArray,
 };
@@ -30,13 +29,9 @@ pub struct AnalysisBench {
     pub out: PathBuf,
 }
 
-fn run_err(e: impl std::fmt::Display) -> BenchError {
-    BenchError::Run(e.to_string())
-}
-
 /// A table read whole (the base run's are small).
 fn read_all(path: &Path) -> Result<(SchemaRef, Vec<RecordBatch>), BenchError> {
-    let (schema, _, batches) = crate::store::read_parquet(path).map_err(run_err)?;
+    let (schema, _, batches) = crate::store::read_parquet(path).map_err(BenchError::run)?;
     Ok((schema, batches))
 }
 
@@ -63,7 +58,7 @@ fn shifted(batch: &RecordBatch, s: &Shift) -> Result<RecordBatch, BenchError> {
                 let a = c
                     .as_any()
                     .downcast_ref::<Float64Array>()
-                    .ok_or_else(|| run_err("time_s is not float64"))?;
+                    .ok_or_else(|| BenchError::run("time_s is not float64"))?;
                 Arc::new(
                     a.iter()
                         .map(|v| v.map(|v| v + s.time_s))
@@ -75,33 +70,33 @@ fn shifted(batch: &RecordBatch, s: &Shift) -> Result<RecordBatch, BenchError> {
                 let l = c
                     .as_any()
                     .downcast_ref::<ListArray>()
-                    .ok_or_else(|| run_err("hits is not a list"))?;
+                    .ok_or_else(|| BenchError::run("hits is not a list"))?;
                 let values = add_i64(l.values(), s.hit)?;
                 Arc::new(
                     ListArray::try_new(
                         match l.data_type() {
                             arrow::datatypes::DataType::List(f) => f.clone(),
-                            _ => return Err(run_err("hits is not a list")),
+                            _ => return Err(BenchError::run("hits is not a list")),
                         },
                         l.offsets().clone(),
                         values,
                         l.nulls().cloned(),
                     )
-                    .map_err(run_err)?,
+                    .map_err(BenchError::run)?,
                 )
             }
             _ => c.clone(),
         };
         cols.push(new);
     }
-    RecordBatch::try_new(schema, cols).map_err(run_err)
+    RecordBatch::try_new(schema, cols).map_err(BenchError::run)
 }
 
 fn add_i64(c: &ArrayRef, d: i64) -> Result<ArrayRef, BenchError> {
     let a = c
         .as_any()
         .downcast_ref::<Int64Array>()
-        .ok_or_else(|| run_err("not int64"))?;
+        .ok_or_else(|| BenchError::run("not int64"))?;
     Ok(Arc::new(
         a.iter().map(|v| v.map(|v| v + d)).collect::<Int64Array>(),
     ))
@@ -132,9 +127,8 @@ fn repeat_table(
     rows: Option<u64>,
     row_group_rows: usize,
 ) -> Result<u64, BenchError> {
-    let (schema, batches) = read_all(base)?;
-    let file = std::fs::File::create(out).map_err(run_err)?;
-    let (_, kv, _) = crate::store::open_parquet(base, 1).map_err(run_err)?;
+    let (schema, kv, batches) = crate::store::read_parquet(base).map_err(BenchError::run)?;
+    let file = std::fs::File::create(out).map_err(BenchError::run)?;
     let props = parquet::file::properties::WriterProperties::builder()
         .set_compression(parquet::basic::Compression::SNAPPY)
         .set_max_row_group_row_count(Some(row_group_rows))
@@ -145,7 +139,7 @@ fn repeat_table(
         ))
         .build();
     let mut w = ArrowWriter::try_new(std::io::BufWriter::new(file), schema, Some(props))
-        .map_err(run_err)?;
+        .map_err(BenchError::run)?;
     let mut written = 0u64;
     'outer: for s in reps {
         for b in &batches {
@@ -160,10 +154,10 @@ fn repeat_table(
                 }
             }
             written += b.num_rows() as u64;
-            w.write(&b).map_err(run_err)?;
+            w.write(&b).map_err(BenchError::run)?;
         }
     }
-    w.close().map_err(run_err)?;
+    w.close().map_err(BenchError::run)?;
     Ok(written)
 }
 
@@ -192,7 +186,7 @@ fn base_run(base: Option<&Path>, out: &Path, threads: usize) -> Result<PathBuf, 
         return Ok(root);
     }
     let id = "synthetic_notched_paper";
-    crate::synth::synth_experiment(&root, id, 651, 2026, None, false).map_err(run_err)?;
+    crate::synth::synth_experiment(&root, id, 651, 2026, None, false).map_err(BenchError::run)?;
     let cfg = crate::synth::demo_config();
     let data = root.join("data");
     crate::workflow::run(&crate::workflow::RunJob {
@@ -206,7 +200,7 @@ fn base_run(base: Option<&Path>, out: &Path, threads: usize) -> Result<PathBuf, 
         shard: None,
         control: None,
     })
-    .map_err(run_err)?;
+    .map_err(BenchError::run)?;
     Ok(root)
 }
 
@@ -222,7 +216,7 @@ pub fn analysis(
     if rows == 0 {
         return Err(BenchError::Run("--rows must be ≥ 1".into()));
     }
-    std::fs::create_dir_all(out).map_err(run_err)?;
+    std::fs::create_dir_all(out).map_err(BenchError::run)?;
     let base = base_run(base, out, threads)?;
     let bfeat = base.join("run/features");
     let (_, fb) = read_all(&bfeat.join("features.parquet"))?;
@@ -266,7 +260,7 @@ pub fn analysis(
     let run = out.join("run");
     let _ = std::fs::remove_dir_all(&run);
     let fdir = run.join("features");
-    std::fs::create_dir_all(&fdir).map_err(run_err)?;
+    std::fs::create_dir_all(&fdir).map_err(BenchError::run)?;
     let rg = crate::synth::demo_config().pipeline.row_group_rows;
     let mut log = crate::workflow::StageLog::default();
     let written = log.time("write features", || -> Result<u64, BenchError> {
@@ -286,9 +280,10 @@ pub fn analysis(
         )?;
         for t in ["hits", "rejects", "parametric", "markers"] {
             let f = format!("{t}.parquet");
-            std::fs::copy(bfeat.join(&f), fdir.join(&f)).map_err(run_err)?;
+            std::fs::copy(bfeat.join(&f), fdir.join(&f)).map_err(BenchError::run)?;
         }
-        std::fs::copy(bfeat.join("manifest.json"), fdir.join("manifest.json")).map_err(run_err)?;
+        std::fs::copy(bfeat.join("manifest.json"), fdir.join("manifest.json"))
+            .map_err(BenchError::run)?;
         Ok(n)
     })?;
     let features = crate::pipeline::RunReport {
@@ -311,7 +306,7 @@ pub fn analysis(
     let model = base.join("run/som/model");
     let cfg = crate::synth::demo_config()
         .with(|c| c.som.model = model.display().to_string())
-        .map_err(run_err)?;
+        .map_err(BenchError::run)?;
     let data = base.join("data");
     let summary = crate::workflow::analyse(
         &crate::workflow::RunJob {
@@ -328,12 +323,7 @@ pub fn analysis(
         features,
         log,
     )
-    .map_err(|e| match e {
-        crate::workflow::WorkflowError::Store(StoreError::Io { path, source }) => {
-            BenchError::Run(format!("{path}: {source}"))
-        }
-        other => run_err(other),
-    })?;
+    .map_err(BenchError::run)?;
     let stages = summary
         .seconds
         .iter()

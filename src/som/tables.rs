@@ -82,10 +82,8 @@ pub fn for_each_input(
         t.require(&need, "").map_err(serr)?;
         let names: Vec<&str> = columns.iter().map(String::as_str).collect();
         t.require(&names, "").map_err(serr)?;
-        // The label may be any column, a key column included (`--label experiment`): it is
-        // read under its own alias, as text, so it never clashes with the key columns.
         // The label may be any column, a key column included (`--label experiment`), read as
-        // text; a column named twice is read once.
+        // text; a column named twice is read once (the batch reader selects each name once).
         let mut sel: Vec<&str> = vec!["experiment", "channel", "hit"];
         sel.extend(label);
         let has_quality = t.dtype(QUALITY).is_some();
@@ -93,8 +91,6 @@ pub fn for_each_input(
             sel.push(QUALITY);
         }
         sel.extend(columns.iter().map(String::as_str));
-        sel.sort_unstable();
-        sel.dedup();
         for batch in t.batches(&sel) {
             let (_, df) = batch.map_err(serr)?;
             let k = t.hit_keys(&df).map_err(serr)?;

@@ -197,11 +197,7 @@ impl TableScan {
         if self.filter.is_some() {
             names.extend(["event_first", "zone"]);
         }
-        for n in &names {
-            if self.schema.get(n).is_none() {
-                return Err(e(&format!("no column {n}")));
-            }
-        }
+        self.require(&names, "")?;
         names.sort_unstable();
         names.dedup();
         let file = std::fs::File::open(&self.path).map_err(|x| e(&x))?;
@@ -220,8 +216,7 @@ impl TableScan {
             let b = b.map_err(|x| read_err(&self.path, x))?;
             let at = first;
             first += b.num_rows();
-            let df = to_polars(std::slice::from_ref(&b), b.num_rows())
-                .map_err(|x| read_err(&self.path, x))?;
+            let df = to_polars(&b).map_err(|x| read_err(&self.path, x))?;
             let df = match &self.filter {
                 Some(f) => df
                     .lazy()
@@ -425,41 +420,34 @@ impl TableScan {
     }
 }
 
-/// arrow-rs batches (one schema) as a Polars frame: each column's arrays cross by the Arrow
+/// An arrow-rs batch as a Polars frame: each column's array crosses by the Arrow
 /// C Data Interface, which both implement, so the buffers are shared, not copied.
-fn to_polars(batches: &[arrow::array::RecordBatch], rows: usize) -> Result<DataFrame, String> {
-    let Some(first) = batches.first() else {
-        return Ok(DataFrame::empty());
-    };
-    let schema = first.schema();
+fn to_polars(batch: &arrow::array::RecordBatch) -> Result<DataFrame, String> {
+    let schema = batch.schema();
     let mut cols: Vec<Column> = Vec::with_capacity(schema.fields().len());
     for (k, f) in schema.fields().iter().enumerate() {
-        let mut chunks: Vec<Box<dyn polars_arrow::array::Array>> = Vec::new();
-        for b in batches {
-            let data = b.column(k).to_data();
-            let (array, ffi_schema) =
-                arrow::ffi::to_ffi(&data).map_err(|x| format!("{}: {x}", f.name()))?;
-            // SAFETY: arrow-rs's FFI_ArrowArray / FFI_ArrowSchema and polars-arrow's
-            // ArrowArray / ArrowSchema are both the C Data Interface's #[repr(C)] structs
-            // (same fields, same order). The schema is only read here and released by
-            // arrow-rs when dropped; the array is moved into Polars, which calls its
-            // release callback when the chunk is dropped (arrow-rs's Drop never runs on it).
-            let chunk = unsafe {
-                let s = &*(&ffi_schema as *const arrow::ffi::FFI_ArrowSchema
-                    as *const polars_arrow::ffi::ArrowSchema);
-                let field = polars_arrow::ffi::import_field_from_c(s)
-                    .map_err(|x| format!("{}: {x}", f.name()))?;
-                let a: polars_arrow::ffi::ArrowArray = std::mem::transmute(array);
-                polars_arrow::ffi::import_array_from_c(a, field.dtype)
-                    .map_err(|x| format!("{}: {x}", f.name()))?
-            };
-            chunks.push(chunk);
-        }
-        let s = Series::from_arrow_chunks(f.name().as_str().into(), chunks)
+        let data = batch.column(k).to_data();
+        let (array, ffi_schema) =
+            arrow::ffi::to_ffi(&data).map_err(|x| format!("{}: {x}", f.name()))?;
+        // SAFETY: arrow-rs's FFI_ArrowArray / FFI_ArrowSchema and polars-arrow's
+        // ArrowArray / ArrowSchema are both the C Data Interface's #[repr(C)] structs
+        // (same fields, same order). The schema is only read here and released by
+        // arrow-rs when dropped; the array is moved into Polars, which calls its
+        // release callback when the chunk is dropped (arrow-rs's Drop never runs on it).
+        let chunk = unsafe {
+            let s = &*(&ffi_schema as *const arrow::ffi::FFI_ArrowSchema
+                as *const polars_arrow::ffi::ArrowSchema);
+            let field = polars_arrow::ffi::import_field_from_c(s)
+                .map_err(|x| format!("{}: {x}", f.name()))?;
+            let a: polars_arrow::ffi::ArrowArray = std::mem::transmute(array);
+            polars_arrow::ffi::import_array_from_c(a, field.dtype)
+                .map_err(|x| format!("{}: {x}", f.name()))?
+        };
+        let s = Series::from_arrow_chunks(f.name().as_str().into(), vec![chunk])
             .map_err(|x| format!("{}: {x}", f.name()))?;
         cols.push(s.into());
     }
-    DataFrame::new(rows, cols).map_err(|x| x.to_string())
+    DataFrame::new(batch.num_rows(), cols).map_err(|x| x.to_string())
 }
 
 /// The Polars schema of an arrow-rs schema (each field through the C Data Interface, as the

@@ -2,9 +2,9 @@
 //! experiment) and where the classified events are (a location picture per experiment).
 //! Both take what the damage profile emits, sorted on disk as it passes (bounded memory).
 
-use super::stages::thin_every;
 use super::*;
 use crate::analysis::evolution::{EvolutionParams, EvolutionRow, Series, Source};
+use crate::analysis::trend::thin_every;
 use crate::plot::sources::LocatedSource;
 use crate::som::layout::ClassifyDir;
 use crate::som::profile::{ProfileRow, ProfileSummary};

@@ -227,15 +227,6 @@ pub(super) fn classified_stage(
     })
 }
 
-/// Points a picture draws of one series, at most: a longer series draws every m-th row
-/// (and its last), and the picture says so.
-pub(crate) const MAX_PLOT_POINTS: usize = crate::analysis::trend::MAX_PLOT_POINTS;
-
-/// The stride that keeps `n` rows within [`MAX_PLOT_POINTS`].
-pub(super) fn thin_every(n: usize) -> usize {
-    n.div_ceil(MAX_PLOT_POINTS).max(1)
-}
-
 /// The damage profile of a classified run into `som_dir`: `damage_profile.parquet` and a
 /// Fig. 6.1 picture per experiment × channel (the first `[report] series_figures`); then
 /// the damage evolution and the location pictures (`super::sources`). Streams: the profile
@@ -270,7 +261,7 @@ pub(super) fn profile_stage(
     for (g, (experiment, channel)) in series.iter().enumerate() {
         let n = prof.len(g) as usize;
         let draw = g < figures;
-        let every = thin_every(n);
+        let every = crate::analysis::trend::thin_every(n);
         let mut drawn: Vec<(usize, ProfileRow)> = Vec::new();
         let mut i = 0usize;
         let summary = prof.emit(g, |r| {
