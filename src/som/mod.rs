@@ -279,20 +279,18 @@ impl Votes {
     /// Each node's winning label (`None`: no row reached it); ties go to the label that
     /// sorts first.
     fn winners(&self) -> Vec<Option<String>> {
-        self.votes.iter().map(winner).collect()
+        self.votes
+            .iter()
+            .map(|v| {
+                v.iter()
+                    .fold(None, |m: Option<(&String, f64)>, (l, &c)| match m {
+                        Some((_, mc)) if mc >= c => m,
+                        _ => Some((l, c)),
+                    })
+                    .map(|(l, _)| l.clone())
+            })
+            .collect()
     }
-}
-
-/// The label with the most votes (`None`: no votes); a tie goes to the label that sorts
-/// first.
-fn winner<K: AsRef<str>>(votes: &std::collections::BTreeMap<K, f64>) -> Option<String> {
-    votes
-        .iter()
-        .fold(None, |m: Option<(&K, f64)>, (l, &c)| match m {
-            Some((_, mc)) if mc >= c => m,
-            _ => Some((l, c)),
-        })
-        .map(|(l, _)| l.as_ref().to_string())
 }
 
 /// The hot loops of training. Each sum runs in 8 fixed lanes, so the compiler can keep them
@@ -685,14 +683,14 @@ impl Som {
         Array2::from_shape_vec((self.rows, self.cols), u).expect("rows × cols")
     }
 
-    /// Each node's winning label among the labelled inputs mapped to it (`None`: it won
-    /// none), every input voting `weight(its label)`; ties go to the label that sorts first.
-    fn vote(
+    /// The votes of labelled inputs for the nodes they map to, each input of class c voting
+    /// 1 / `sizes[c]` (1 for a class `sizes` does not name).
+    fn votes(
         &self,
         data: ArrayView2<f64>,
         labels: &[String],
-        weight: impl Fn(&str) -> f64,
-    ) -> Result<Vec<Option<String>>, SomError> {
+        sizes: std::collections::BTreeMap<String, usize>,
+    ) -> Result<Votes, SomError> {
         let data = data.as_standard_layout();
         let data = data.as_slice().expect("standard layout");
         if data.len() / self.dim != labels.len() {
@@ -702,12 +700,11 @@ impl Som {
                 labels.len()
             )));
         }
-        let mut votes: Vec<std::collections::BTreeMap<&str, f64>> =
-            vec![Default::default(); self.nodes()];
+        let mut votes = Votes::new(self, sizes);
         for (x, l) in data.chunks(self.dim).zip(labels) {
-            *votes[self.bmu(x).0].entry(l.as_str()).or_default() += weight(l);
+            votes.add(self, x, l);
         }
-        Ok(votes.iter().map(winner).collect())
+        Ok(votes)
     }
 
     /// Label nodes by majority vote of the labelled inputs mapped to them (ties: the label
@@ -718,7 +715,7 @@ impl Som {
         data: ArrayView2<f64>,
         labels: &[String],
     ) -> Result<(), SomError> {
-        let voted = self.vote(data, labels, |_| 1.0)?;
+        let voted = self.votes(data, labels, Default::default())?.winners();
         if voted.iter().all(Option::is_none) {
             return Err(SomError::Data("no labelled input".into()));
         }
@@ -758,19 +755,7 @@ impl Som {
         for l in labels {
             *sizes.entry(l.clone()).or_default() += 1;
         }
-        let data = data.as_standard_layout();
-        let data = data.as_slice().expect("standard layout");
-        if data.len() / self.dim != labels.len() {
-            return Err(SomError::Data(format!(
-                "{} inputs but {} labels",
-                data.len() / self.dim,
-                labels.len()
-            )));
-        }
-        let mut votes = Votes::new(self, sizes);
-        for (x, l) in data.chunks(self.dim).zip(labels) {
-            votes.add(self, x, l);
-        }
+        let votes = self.votes(data, labels, sizes)?;
         self.relabel_with(votes)
     }
 
