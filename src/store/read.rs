@@ -348,6 +348,26 @@ impl TableScan {
         Ok((0..c.len()).map(|i| c.get(i)).collect())
     }
 
+    /// `f` gets every row's key and the string in `column` (empty for null), in file
+    /// order, a batch at a time.
+    pub fn for_each_keyed_string<E: From<StoreError>>(
+        &self,
+        column: &str,
+        mut f: impl FnMut(HitKey, String) -> Result<(), E>,
+    ) -> Result<(), E> {
+        let sel = ["experiment", "channel", "hit", column];
+        self.require(&sel, "")?;
+        for batch in self.batches(&sel) {
+            let (_, df) = batch?;
+            let keys = self.hit_keys(&df)?;
+            let strings = self.strings(&df, column)?;
+            for (k, s) in keys.into_iter().zip(strings) {
+                f(k, s.unwrap_or_default())?;
+            }
+        }
+        Ok(())
+    }
+
     /// The numeric feature matrix of `columns` in a frame (a batch) that selected them (a
     /// fixed-size list such as `tf_bins` gives its elements, a numeric scalar one
     /// dimension), one row per hit, as f64. Rows where a value is null or not finite are

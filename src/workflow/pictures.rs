@@ -53,26 +53,13 @@ type LabelCounts = (
 /// Hits per (experiment, label) of a table's label column (null as ""), and the gallery's
 /// choice among them, a batch at a time.
 fn count_labels(path: &Path, column: &str, per: usize) -> Result<LabelCounts, WorkflowError> {
-    let t = TableScan::open(path)?;
-    t.require(&["experiment", "channel", "hit", column], "")?;
-    let sel = ["experiment", "channel", "hit", column];
     let mut counts: BTreeMap<(String, String), usize> = BTreeMap::new();
     let mut choice = crate::report::GalleryChoice::new(per);
-    for batch in t.batches(&sel) {
-        let (_, df) = batch?;
-        let keys = t.hit_keys(&df)?;
-        let labels = t.strings(&df, column)?;
-        for (k, l) in keys.iter().zip(labels) {
-            let l = l.unwrap_or_default();
-            choice.offer(k, &l);
-            match counts.get_mut(&(k.0.clone(), l.clone())) {
-                Some(n) => *n += 1,
-                None => {
-                    counts.insert((k.0.clone(), l), 1);
-                }
-            }
-        }
-    }
+    TableScan::open(path)?.for_each_keyed_string(column, |k, l| {
+        choice.offer(&k, &l);
+        *counts.entry((k.0, l)).or_insert(0) += 1;
+        Ok::<(), WorkflowError>(())
+    })?;
     Ok((counts, choice))
 }
 

@@ -126,7 +126,8 @@ impl EvolutionInput {
 /// `evolution.parquet` from the damage profile's rows (the classified sources; an
 /// experiment's channels' series merge into one by time) and one picture per experiment
 /// (the first `[report] series_figures`). Each experiment is read 1 + C times from the
-/// sorted rows: `all`, then each of its C classes in name order.
+/// sorted rows: `all` (which also finds its classes), then each of its C classes in name
+/// order.
 pub(super) fn evolution_stage(
     cfg: &ValidConfig,
     input: EvolutionInput,
@@ -145,23 +146,27 @@ pub(super) fn evolution_stage(
         .into_iter()
         .enumerate()
     {
-        let mut classes: Vec<String> = Vec::new();
-        for r in sorted.span_iter(span) {
-            let r = r?;
-            if let Err(at) = classes.binary_search(&r.class) {
-                classes.insert(at, r.class);
-            }
-        }
         let draw = k < cfg.report.series_figures;
         let every = thin_every(span.len as usize);
         let mut drawn: Vec<EvolutionRow> = Vec::new();
-        for class in std::iter::once("all").chain(classes.iter().map(String::as_str)) {
+        // `all` first; its pass also finds the classes, each then read in name order.
+        let mut todo: Vec<String> = vec!["all".into()];
+        let mut classes: Vec<String> = Vec::new();
+        let mut next = 0;
+        while next < todo.len() {
+            let class = todo[next].as_str();
+            let all = next == 0;
+            next += 1;
             let mut series = Series::new(&exp, class, &p);
             let mut i = 0usize;
             let mut last = None;
             for r in sorted.span_iter(span) {
                 let r = r?;
-                if class != "all" && r.class != class {
+                if all {
+                    if let Err(at) = classes.binary_search(&r.class) {
+                        classes.insert(at, r.class.clone());
+                    }
+                } else if r.class != class {
                     continue;
                 }
                 let row = series.step(&r.source());
@@ -178,6 +183,9 @@ pub(super) fn evolution_stage(
             }
             // Each drawn series ends at its last row (its totals are in the legend).
             drawn.extend(last);
+            if all {
+                todo.append(&mut classes);
+            }
         }
         if draw {
             let peak = summaries

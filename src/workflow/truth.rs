@@ -43,25 +43,17 @@ fn push_labels(
     column: &str,
     from: u8,
 ) -> Result<(), WorkflowError> {
-    let t = TableScan::open(path)?;
-    t.require(&["experiment", "channel", "hit", column], "")?;
-    let sel = ["experiment", "channel", "hit", column];
     let mut seq = 0u64;
-    for batch in t.batches(&sel) {
-        let (_, df) = batch?;
-        let keys = t.hit_keys(&df)?;
-        let labels = t.strings(&df, column)?;
-        for (key, l) in keys.into_iter().zip(labels) {
-            sorter.push(Keyed {
-                key,
-                from,
-                seq,
-                label: l.unwrap_or_default(),
-            })?;
-            seq += 1;
-        }
-    }
-    Ok(())
+    TableScan::open(path)?.for_each_keyed_string(column, |key, label| {
+        sorter.push(Keyed {
+            key,
+            from,
+            seq,
+            label,
+        })?;
+        seq += 1;
+        Ok::<(), WorkflowError>(())
+    })
 }
 
 /// Compare the SOM classes with `truth.parquet`: both sorted by hit on disk and joined.
