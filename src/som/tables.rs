@@ -279,6 +279,13 @@ impl Scaling {
             *v = (*v - self.mean[k % self.mean.len()]) / self.std[k % self.std.len()];
         }
     }
+
+    /// [`Scaling::apply`] to every row of a matrix (in standard layout).
+    pub fn apply_rows(&self, data: &mut Array2<f64>) {
+        for mut x in data.rows_mut() {
+            self.apply(x.as_slice_mut().expect("standard layout"));
+        }
+    }
 }
 
 /// Everything saved in `MODEL_DIR/model.json`.
@@ -392,9 +399,7 @@ pub fn train(paths: &[PathBuf], out: &Path, o: &TrainOptions) -> Result<Model, S
         .collect();
     let scaling = o.standardise.then(|| Scaling::fit(data.view()));
     if let Some(s) = &scaling {
-        data.rows_mut()
-            .into_iter()
-            .for_each(|mut x| s.apply(x.as_slice_mut().expect("standard layout")));
+        s.apply_rows(&mut data);
     }
     let params = SomParams {
         rows: o.rows,

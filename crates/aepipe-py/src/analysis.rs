@@ -37,10 +37,9 @@ pub fn trend(
     let out = dir.path().to_path_buf();
     let table = py.detach(|| -> Result<_, aepipe::analysis::trend::TrendError> {
         let rep = run_trend(&paths, &out, &opts)?;
-        Ok(aepipe::store::read_parquet(&rep.table_path)?)
+        Ok(ArrowStream::read(&rep.table_path)?)
     });
-    let (schema, _, batches) = table.map_err(errors::trend)?;
-    Ok(ArrowStream::new(schema, batches))
+    table.map_err(errors::trend)
 }
 
 /// Best-matching nodes and their distances, one each per row.
@@ -70,9 +69,7 @@ fn scaled(model: &Model, x: &PyReadonlyArray2<'_, f64>) -> PyResult<ndarray::Arr
         )));
     }
     if let Some(s) = &model.scaling {
-        for mut r in a.rows_mut() {
-            s.apply(r.as_slice_mut().expect("standard layout"));
-        }
+        s.apply_rows(&mut a);
     }
     Ok(a)
 }
@@ -122,9 +119,7 @@ pub fn som_fit(
     .map_err(errors::som)?;
     let scaling = standardise.then(|| Scaling::fit(data.view()));
     if let Some(s) = &scaling {
-        for mut r in data.rows_mut() {
-            s.apply(r.as_slice_mut().expect("standard layout"));
-        }
+        s.apply_rows(&mut data);
     }
     let model = py.detach(move || -> Result<Model, aepipe::som::SomError> {
         let mut som = Som::fit(&params, data.view())?;

@@ -49,13 +49,9 @@ pub fn features_of_paths(
             ..Default::default()
         };
         let report = aepipe::pipeline::run(StreamJob::Features, &paths, &out, &cfg, &opts)?;
-        let read = |p: &std::path::Path| -> Result<ArrowStream, aepipe::store::StoreError> {
-            let (schema, _, b) = aepipe::store::read_parquet(p)?;
-            Ok(ArrowStream::new(schema, b))
-        };
         Ok::<_, aepipe::pipeline::PipelineError>((
-            read(&report.table_path)?,
-            read(&report.rejects_path)?,
+            ArrowStream::read(&report.table_path)?,
+            ArrowStream::read(&report.rejects_path)?,
         ))
     })?;
     drop(dir);
@@ -93,10 +89,7 @@ pub fn features_of_signals(
                 time_s: None,
                 sample_rate_hz,
                 pretrigger: pretrigger_samples,
-                samples: match a.as_slice() {
-                    Ok(s) => s.to_vec(),
-                    Err(_) => a.as_array().iter().copied().collect(),
-                },
+                samples: owned_samples(a),
                 load_n: None,
                 extension_m: None,
                 label: None,

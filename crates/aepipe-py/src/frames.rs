@@ -20,6 +20,12 @@ impl ArrowStream {
             table: Some((schema, batches)),
         }
     }
+
+    /// A Parquet table read whole.
+    pub fn read(path: &std::path::Path) -> Result<ArrowStream, aepipe::store::StoreError> {
+        let (schema, _, batches) = aepipe::store::read_parquet(path)?;
+        Ok(ArrowStream::new(schema, batches))
+    }
 }
 
 #[pymethods]

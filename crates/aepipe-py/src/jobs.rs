@@ -9,11 +9,6 @@ use aepipe::sim::{scenario::Params, SimError, SimJob, SimOptions};
 use pyo3::prelude::*;
 use std::path::PathBuf;
 
-fn read_table(p: &std::path::Path) -> Result<ArrowStream, aepipe::store::StoreError> {
-    let (schema, _, b) = aepipe::store::read_parquet(p)?;
-    Ok(ArrowStream::new(schema, b))
-}
-
 /// One simulation (a scenario by name, or a model file: Appendix-A sections or TOML):
 /// `waveforms.parquet`'s rows, one per sensor, and the lines `aepipe simulate` prints.
 #[pyfunction]
@@ -43,7 +38,7 @@ pub fn simulate(
                 "the model has no acoustic grid or sensors: it records no waveforms".into(),
             ));
         }
-        let t = read_table(&wf).map_err(|e| SimError::Io(e.to_string()))?;
+        let t = ArrowStream::read(&wf).map_err(|e| SimError::Io(e.to_string()))?;
         Ok((t, lines))
     })?;
     drop(dir);
@@ -69,7 +64,8 @@ pub fn reference_library(
     let done = control::run(py, progress.then_some("simulations"), move |c| {
         aepipe::util::with_threads(threads.unwrap_or(0), || {
             build_library_controlled(&f.reference, &out, None, false, Some(&c))?;
-            read_table(&LibraryDir::new(&out).waveforms()).map_err(|e| SimError::Io(e.to_string()))
+            ArrowStream::read(&LibraryDir::new(&out).waveforms())
+                .map_err(|e| SimError::Io(e.to_string()))
         })
     })?;
     drop(dir);
