@@ -40,15 +40,14 @@ pub fn run_demo(
         .collect();
     let truth = root.join("truth.parquet");
     let run = crate::workflow::run(&crate::workflow::RunJob {
-        config: &cfg,
-        inputs: std::slice::from_ref(&data_dir),
-        out: &root.join("run"),
         truth: Some(&truth),
-        threads,
         progress: true,
-        resume: false,
-        shard: None,
-        control: None,
+        ..crate::workflow::RunJob::new(
+            &cfg,
+            std::slice::from_ref(&data_dir),
+            &root.join("run"),
+            threads,
+        )
     })?;
     Ok(DemoResult {
         data_dir,

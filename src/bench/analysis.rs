@@ -189,17 +189,12 @@ fn base_run(base: Option<&Path>, out: &Path, threads: usize) -> Result<PathBuf, 
     crate::synth::synth_experiment(&root, id, 651, 2026, None, false).map_err(BenchError::run)?;
     let cfg = crate::synth::demo_config();
     let data = root.join("data");
-    crate::workflow::run(&crate::workflow::RunJob {
-        config: &cfg,
-        inputs: std::slice::from_ref(&data),
-        out: &root.join("run"),
-        truth: None,
+    crate::workflow::run(&crate::workflow::RunJob::new(
+        &cfg,
+        std::slice::from_ref(&data),
+        &root.join("run"),
         threads,
-        progress: false,
-        resume: false,
-        shard: None,
-        control: None,
-    })
+    ))
     .map_err(BenchError::run)?;
     Ok(root)
 }
@@ -309,17 +304,7 @@ pub fn analysis(
         .map_err(BenchError::run)?;
     let data = base.join("data");
     let summary = crate::workflow::analyse(
-        &crate::workflow::RunJob {
-            config: &cfg,
-            inputs: std::slice::from_ref(&data),
-            out: &run,
-            truth: None,
-            threads,
-            progress: false,
-            resume: false,
-            shard: None,
-            control: None,
-        },
+        &crate::workflow::RunJob::new(&cfg, std::slice::from_ref(&data), &run, threads),
         features,
         log,
     )

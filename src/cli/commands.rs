@@ -242,15 +242,11 @@ fn run(
         cfg = cfg.with(|c| c.som.label = l)?;
     }
     let outcome = crate::workflow::run_or_shard(&crate::workflow::RunJob {
-        config: &cfg,
-        inputs: &inputs,
-        out,
         truth,
-        threads,
         progress: true,
         resume,
         shard,
-        control: None,
+        ..crate::workflow::RunJob::new(&cfg, &inputs, out, threads)
     })?;
     match outcome {
         crate::workflow::RunOutcome::Whole(s) => {

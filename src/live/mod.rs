@@ -219,17 +219,8 @@ fn the_map(
     if model_dir.join("model.json").is_file() {
         return Ok(Some(crate::som::tables::load_model(&model_dir)?));
     }
-    let job = crate::workflow::RunJob {
-        config: cfg,
-        inputs,
-        out: &dir.path().join("watch").join("reference-run"),
-        truth: None,
-        threads,
-        progress: false,
-        resume: false,
-        shard: None,
-        control: None,
-    };
+    let reference_run = dir.path().join("watch").join("reference-run");
+    let job = crate::workflow::RunJob::new(cfg, inputs, &reference_run, threads);
     let (model, _) = crate::workflow::train_reference_map(&job)?;
     crate::som::tables::save_model(&model, &model_dir, None)?;
     Ok(Some(model))
@@ -324,17 +315,12 @@ pub fn watch(
             "idle: running the finished files as aepipe run does into {}",
             dir.last().display()
         ));
-        Some(crate::workflow::run(&crate::workflow::RunJob {
-            config: cfg,
+        Some(crate::workflow::run(&crate::workflow::RunJob::new(
+            cfg,
             inputs,
-            out: &dir.last(),
-            truth: None,
-            threads: o.threads,
-            progress: false,
-            resume: false,
-            shard: None,
-            control: None,
-        })?)
+            &dir.last(),
+            o.threads,
+        ))?)
     } else {
         None
     };

@@ -86,6 +86,30 @@ pub struct RunJob<'a> {
     pub control: Option<std::sync::Arc<crate::util::JobControl>>,
 }
 
+impl<'a> RunJob<'a> {
+    /// A run of `inputs` into `out` with `config` on `threads` workers (0 = all cores):
+    /// no truth, progress bar, resume, shard or caller's control (set those by struct
+    /// update).
+    pub fn new(
+        config: &'a ValidConfig,
+        inputs: &'a [PathBuf],
+        out: &'a Path,
+        threads: usize,
+    ) -> RunJob<'a> {
+        RunJob {
+            config,
+            inputs,
+            out,
+            truth: None,
+            threads,
+            progress: false,
+            resume: false,
+            shard: None,
+            control: None,
+        }
+    }
+}
+
 impl RunJob<'_> {
     /// The run's folder.
     pub fn dir(&self) -> RunDir {
@@ -161,15 +185,9 @@ pub fn merge(
         Some(crate::pipeline::StreamJob::Features),
     )?;
     let job = RunJob {
-        config: &cfg,
-        inputs: &inputs,
-        out,
         truth,
-        threads,
         progress,
-        resume: false,
-        shard: None,
-        control: None,
+        ..RunJob::new(&cfg, &inputs, out, threads)
     };
     let mut log = StageLog::default();
     log.seconds

@@ -154,15 +154,8 @@ fn run_classifies_against_truth_finds_the_trend_and_writes_a_report_a_browser_re
     let cfg = cfg.check().unwrap();
     let out = d.path().join("run");
     let s = aepipe::workflow::run(&aepipe::workflow::RunJob {
-        config: &cfg,
-        inputs: &[d.path().join("data")],
-        out: &out,
         truth: Some(&d.path().join("truth.parquet")),
-        threads: 2,
-        progress: false,
-        resume: false,
-        shard: None,
-        control: None,
+        ..aepipe::workflow::RunJob::new(&cfg, &[d.path().join("data")], &out, 2)
     })
     .unwrap();
     // The designed shift (ch. 4.5.5): 200–300 kHz rising, 700–800 kHz falling, p < 0.01.
@@ -224,17 +217,12 @@ fn run_classifies_against_truth_finds_the_trend_and_writes_a_report_a_browser_re
             c.report.enabled = false;
         })
         .unwrap();
-    let c = aepipe::workflow::run(&aepipe::workflow::RunJob {
-        config: &crit,
-        inputs: &[d.path().join("data")],
-        out: &d.path().join("run-criteria"),
-        truth: None,
-        threads: 2,
-        progress: false,
-        resume: false,
-        shard: None,
-        control: None,
-    })
+    let c = aepipe::workflow::run(&aepipe::workflow::RunJob::new(
+        &crit,
+        &[d.path().join("data")],
+        &d.path().join("run-criteria"),
+        2,
+    ))
     .unwrap();
     let m = c.som.as_ref().unwrap();
     assert!(m.trained_on.contains("criteria labels"), "{}", m.trained_on);

@@ -89,15 +89,9 @@ pub fn run(
     let cfg = PipelineConfig::from_file(&config).map_err(errors::config)?;
     let done = control::run(py, progress.then_some("records"), move |c| {
         let job = aepipe::workflow::RunJob {
-            config: &cfg,
-            inputs: &inputs,
-            out: &out,
             truth: truth.as_deref(),
-            threads: threads.unwrap_or(0),
-            progress: false,
-            resume: false,
-            shard: None,
             control: Some(c),
+            ..aepipe::workflow::RunJob::new(&cfg, &inputs, &out, threads.unwrap_or(0))
         };
         aepipe::workflow::run(&job).map(|s| aepipe::workflow::summary_json(&s).to_string())
     })?;
