@@ -113,27 +113,8 @@ pub fn ib_value(m: &[f64], alpha1: f64, alpha2: f64) -> Option<f64> {
     Some(((lo as f64).log10() - (hi as f64).log10()) / ((alpha1 + alpha2) * sigma))
 }
 
-/// The series of one experiment: `all` first, then each class in name order; each in the
-/// sources' order. The windows hold the last `window` sources with an amplitude; a row's
-/// b- and Ib-value are null until its series has that many.
-pub fn evolve(experiment: &str, sources: &[Source], p: &EvolutionParams) -> Vec<EvolutionRow> {
-    let mut classes: Vec<&str> = sources.iter().map(|s| s.class.as_str()).collect();
-    classes.sort_unstable();
-    classes.dedup();
-    let mut out = Vec::new();
-    for class in std::iter::once("all").chain(classes) {
-        let mut series = Series::new(experiment, class, p);
-        for s in sources
-            .iter()
-            .filter(|s| class == "all" || s.class == class)
-        {
-            out.push(series.step(s));
-        }
-    }
-    out
-}
-
-/// One series of [`evolve`] as its sources stream by (`all`, or one class's): the running
+/// One series of an experiment's evolution (`all` first, then each class in name order;
+/// each in the sources' order) as its sources stream by (`all`, or one class's): the running
 /// sums and the window of the last magnitudes.
 pub struct Series<'a> {
     experiment: &'a str,
@@ -287,6 +268,26 @@ pub fn evolution_table() -> Table<EvolutionRow> {
 mod tests {
     use super::*;
     use crate::util::Rng;
+
+    /// The whole evolution of one experiment at once, as the workflow streams it: `all` first, then each class in name order; each in the
+    /// sources' order. The windows hold the last `window` sources with an amplitude; a row's
+    /// b- and Ib-value are null until its series has that many.
+    fn evolve(experiment: &str, sources: &[Source], p: &EvolutionParams) -> Vec<EvolutionRow> {
+        let mut classes: Vec<&str> = sources.iter().map(|s| s.class.as_str()).collect();
+        classes.sort_unstable();
+        classes.dedup();
+        let mut out = Vec::new();
+        for class in std::iter::once("all").chain(classes) {
+            let mut series = Series::new(experiment, class, p);
+            for s in sources
+                .iter()
+                .filter(|s| class == "all" || s.class == class)
+            {
+                out.push(series.step(s));
+            }
+        }
+        out
+    }
 
     /// Magnitudes above `m_c` with a Gutenberg–Richter law of slope `b`: M − M_c is
     /// exponential with rate b·ln 10.
