@@ -83,12 +83,25 @@ pub fn hinkley(x: &[f32], alpha: f64, s: &mut PickScratch) -> Option<usize> {
     hinkley_loaded(x.len(), alpha, &s.sq)
 }
 
+/// Hinkley's trend term: the record's energy over α·n (`sq` the cumulative squares, n > 0).
+#[inline]
+fn hinkley_trend(n: usize, alpha: f64, sq: &[f64]) -> f64 {
+    sq[n - 1] / (alpha * n as f64)
+}
+
+/// Hinkley's S[i] from the cumulative energy at i, with the index rounded through f32 as
+/// vallenae's float32 arange does.
+#[inline]
+fn hinkley_value(i: usize, e: f64, trend: f64) -> f64 {
+    e - (i as f32) as f64 * trend
+}
+
 fn hinkley_loaded(n: usize, alpha: f64, sq: &[f64]) -> Option<usize> {
     if n == 0 {
         return None;
     }
-    let trend = sq[n - 1] / (alpha * n as f64);
-    let value = |i: usize, e: f64| e - (i as f32) as f64 * trend;
+    let trend = hinkley_trend(n, alpha, sq);
+    let value = |i: usize, e: f64| hinkley_value(i, e, trend);
     if !trend.is_finite() {
         // Not a record the feature path lets through: numpy's argmin the plain way.
         let (mut best, mut best_v) = (0, f64::INFINITY);
@@ -386,16 +399,12 @@ unsafe fn ratios_avx2(x: &[f32], win: usize, sq: &[f64], out: &mut [[f32; 2]]) {
     ratios_generic(x, win, sq, out)
 }
 
-/// ER and MER picks: the values in a vectorised pass, then numpy's argmax of each.
-fn ratios_loaded(
-    x: &[f32],
-    win: usize,
-    sq: &[f64],
-    buf: &mut Vec<[f32; 2]>,
-) -> (Option<usize>, Option<usize>) {
+/// ER and MER of samples win..n−win into `buf` (one pass, AVX2 where the CPU has it);
+/// `false` (and `buf` untouched) when the record is too short for the window.
+fn fill_ratios(x: &[f32], win: usize, sq: &[f64], buf: &mut Vec<[f32; 2]>) -> bool {
     let n = x.len();
     if win == 0 || n <= 2 * win {
-        return (None, None);
+        return false;
     }
     buf.clear();
     buf.resize(n - 2 * win, [0.0; 2]);
@@ -408,6 +417,19 @@ fn ratios_loaded(
     }
     #[cfg(not(target_arch = "x86_64"))]
     ratios_generic(x, win, sq, buf);
+    true
+}
+
+/// ER and MER picks: the values in a vectorised pass, then numpy's argmax of each.
+fn ratios_loaded(
+    x: &[f32],
+    win: usize,
+    sq: &[f64],
+    buf: &mut Vec<[f32; 2]>,
+) -> (Option<usize>, Option<usize>) {
+    if !fill_ratios(x, win, sq, buf) {
+        return (None, None);
+    }
     let at = |k: Option<usize>| Some(k.map_or(0, |k| k + win));
     (
         at(numpy_argmax(buf.len(), |k| buf[k][0])),
@@ -430,11 +452,11 @@ pub mod function {
         if n == 0 {
             return;
         }
-        let trend = s.sq[n - 1] / (alpha * n as f64);
+        let trend = hinkley_trend(n, alpha, &s.sq);
         out.extend(
             s.sq.iter()
                 .enumerate()
-                .map(|(i, &e)| e - (i as f32) as f64 * trend),
+                .map(|(i, &e)| hinkley_value(i, e, trend)),
         );
     }
 
@@ -463,9 +485,7 @@ pub mod function {
             return;
         }
         s.load_squares(x);
-        s.ratios.clear();
-        s.ratios.resize(n - 2 * win, [0.0; 2]);
-        ratios_generic(x, win, &s.sq, &mut s.ratios);
+        fill_ratios(x, win, &s.sq, &mut s.ratios);
         for (k, [v, m]) in s.ratios.iter().enumerate() {
             er[k + win] = *v;
             mer[k + win] = *m;
