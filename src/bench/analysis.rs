@@ -281,23 +281,16 @@ pub fn analysis(
             .map_err(BenchError::run)?;
         Ok(n)
     })?;
-    let features = crate::pipeline::RunReport {
-        stats: crate::pipeline::StreamStats {
+    let features = crate::pipeline::RunReport::of_tables(
+        &crate::pipeline::StreamDir::new(&fdir),
+        crate::pipeline::StreamJob::Features,
+        crate::pipeline::StreamStats {
             records_read: written,
             hits: written,
             rows: written,
             ..Default::default()
         },
-        table_path: fdir.join("features.parquet"),
-        hits_path: fdir.join("hits.parquet"),
-        rejects_path: fdir.join("rejects.parquet"),
-        parametric_path: fdir.join("parametric.parquet"),
-        markers_path: fdir.join("markers.parquet"),
-        events_path: fdir.join("events.parquet"),
-        manifest_path: fdir.join("manifest.json"),
-        sources: vec![],
-        skipped: vec![],
-    };
+    );
     let model = base.join("run/som/model");
     let cfg = crate::synth::demo_config()
         .with(|c| c.som.model = model.display().to_string())
@@ -310,16 +303,9 @@ pub fn analysis(
     )
     .map_err(BenchError::run)?;
     let stages = summary
-        .seconds
-        .iter()
-        .map(|(k, s)| {
-            let rss = summary
-                .peak_rss
-                .iter()
-                .find(|(n, _)| n == k)
-                .map(|(_, b)| *b);
-            (k.clone(), *s, rss)
-        })
+        .stages()
+        .into_iter()
+        .map(|(k, s, rss)| (k.to_string(), s, rss))
         .collect();
     Ok(AnalysisBench {
         rows: written,

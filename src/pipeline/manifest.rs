@@ -333,15 +333,9 @@ pub(crate) fn assemble(
     let text = serde_json::to_string_pretty(&manifest).expect("manifest serialises");
     write_atomic(&manifest_path, text.as_bytes())?;
     Ok(RunReport {
-        stats,
-        table_path: out_dir.table(PartTable::Main, job),
-        hits_path: out_dir.table(PartTable::Hits, job),
-        rejects_path: out_dir.table(PartTable::Rejects, job),
-        parametric_path: out_dir.table(PartTable::Parametric, job),
-        markers_path: out_dir.table(PartTable::Markers, job),
-        events_path: out_dir.table(PartTable::Events, job),
         manifest_path,
         sources: p.sources,
         skipped: p.skipped,
+        ..RunReport::of_tables(out_dir, job, stats)
     })
 }

@@ -129,6 +129,25 @@ pub struct RunReport {
     pub skipped: Vec<(PathBuf, String)>,
 }
 
+impl RunReport {
+    /// The whole-batch tables and manifest of a stream folder, with `stats` (no sources
+    /// or skipped files listed).
+    pub fn of_tables(dir: &StreamDir, job: StreamJob, stats: StreamStats) -> RunReport {
+        RunReport {
+            stats,
+            table_path: dir.table(PartTable::Main, job),
+            hits_path: dir.table(PartTable::Hits, job),
+            rejects_path: dir.table(PartTable::Rejects, job),
+            parametric_path: dir.table(PartTable::Parametric, job),
+            markers_path: dir.table(PartTable::Markers, job),
+            events_path: dir.table(PartTable::Events, job),
+            manifest_path: dir.manifest(),
+            sources: vec![],
+            skipped: vec![],
+        }
+    }
+}
+
 /// Discover, read, transform and write: the whole `aepipe features` / `aepipe waveforms` job.
 ///
 /// Each experiment is streamed into its own part folder (`OUT/parts/<id>-<hash>/`: the

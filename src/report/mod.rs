@@ -51,6 +51,19 @@ pub struct RunSummary {
     pub peak_rss: Vec<(String, u64)>,
 }
 
+impl RunSummary {
+    /// Each stage in order: its name, seconds and peak RSS (bytes, if measured).
+    pub fn stages(&self) -> Vec<(&str, f64, Option<u64>)> {
+        self.seconds
+            .iter()
+            .map(|(k, v)| {
+                let rss = self.peak_rss.iter().find(|(n, _)| n == k).map(|(_, b)| *b);
+                (k.as_str(), *v, rss)
+            })
+            .collect()
+    }
+}
+
 /// The SOM stage of a run.
 pub struct SomStage {
     pub model_dir: PathBuf,
@@ -610,10 +623,10 @@ fn gallery_section(h: &mut String, g: &Gallery) {
 
 /// "features 0.4 s (75 MB), trend 0.1 s (40 MB), …": each stage's time and peak memory.
 pub fn stage_line(s: &RunSummary) -> String {
-    s.seconds
-        .iter()
-        .map(|(k, v)| match s.peak_rss.iter().find(|(n, _)| n == k) {
-            Some((_, b)) => format!("{k} {v:.1} s ({:.0} MB)", *b as f64 / 1e6),
+    s.stages()
+        .into_iter()
+        .map(|(k, v, rss)| match rss {
+            Some(b) => format!("{k} {v:.1} s ({:.0} MB)", b as f64 / 1e6),
             None => format!("{k} {v:.1} s"),
         })
         .collect::<Vec<_>>()

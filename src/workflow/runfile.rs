@@ -2,7 +2,6 @@
 
 use super::stages::{classified_stage, trend_stage, Trained};
 use super::*;
-use crate::pipeline::PartTable;
 
 /// `RUN_DIR/run.json`: what `aepipe report` needs besides the run's tables.
 #[derive(serde::Serialize, serde::Deserialize)]
@@ -53,18 +52,7 @@ pub fn rebuild_report(dir: &Path) -> Result<PathBuf, WorkflowError> {
     let mp = fdir.manifest();
     let m = crate::pipeline::Manifest::read(&mp).map_err(|e| input_err(&mp, e))?;
     let job = crate::pipeline::StreamJob::Features;
-    let features = RunReport {
-        stats: m.stats(),
-        table_path: fdir.table(PartTable::Main, job),
-        hits_path: fdir.table(PartTable::Hits, job),
-        rejects_path: fdir.table(PartTable::Rejects, job),
-        parametric_path: fdir.table(PartTable::Parametric, job),
-        markers_path: fdir.table(PartTable::Markers, job),
-        events_path: fdir.table(PartTable::Events, job),
-        manifest_path: mp,
-        sources: vec![],
-        skipped: vec![],
-    };
+    let features = RunReport::of_tables(&fdir, job, m.stats());
     let feats = vec![features.table_path.clone()];
     let (mut trend, mut trend_plots) = (None, Vec::new());
     if config.trend.enabled && run.trend().path().is_dir() {
