@@ -6,8 +6,15 @@ import os
 import warnings
 from typing import Sequence, Union
 
+import numpy as np
+
 PathLike = Union[str, "os.PathLike[str]"]
 Paths = Union[PathLike, Sequence[PathLike]]
+
+
+def f32_1d(arr: object) -> np.ndarray:
+    """One signal as a contiguous 1-D float32 array (the samples' type in aepipe's core)."""
+    return np.ascontiguousarray(np.asarray(arr).ravel(), dtype=np.float32)
 
 
 def paths_arg(paths: Paths) -> list[str]:

@@ -9,7 +9,7 @@ import numpy as np
 import polars as pl
 
 from . import _aepipe
-from ._common import Paths, PathLike, config_arg, is_paths, paths_arg
+from ._common import Paths, PathLike, config_arg, f32_1d, is_paths, paths_arg
 
 Signals = Union[np.ndarray, Sequence[np.ndarray]]
 
@@ -50,7 +50,7 @@ def features(
                 raise ValueError(f"expected a 2-D array of signals, got {data.ndim}-D")
             rows = list(np.ascontiguousarray(data, dtype=np.float32))
         else:
-            rows = [np.ascontiguousarray(np.asarray(r).ravel(), dtype=np.float32) for r in data]
+            rows = [f32_1d(r) for r in data]
             if not rows:
                 raise ValueError("no signals given")
         stream = _aepipe.features_of_signals(
@@ -90,6 +90,6 @@ def cwt(
     >>> p.shape, round(float(np.sqrt(p[0, 2048])), 2)
     ((2, 4096), 0.3)
     """
-    a = np.ascontiguousarray(np.asarray(x).ravel(), dtype=np.float32)
+    a = f32_1d(x)
     f = None if freqs_hz is None else [float(v) for v in np.asarray(freqs_hz).ravel()]
     return _aepipe.cwt(a, float(sample_rate_hz), f, float(fwhm_periods), bool(power))

@@ -18,12 +18,9 @@ from __future__ import annotations
 import numpy as np
 
 from . import _aepipe
+from ._common import f32_1d
 
 __all__ = ["aic", "energy_ratio", "hinkley", "modified_energy_ratio"]
-
-
-def _f32(arr: np.ndarray) -> np.ndarray:
-    return np.ascontiguousarray(np.asarray(arr).ravel(), dtype=np.float32)
 
 
 def hinkley(arr: np.ndarray, alpha: float = 5) -> tuple[np.ndarray, int]:
@@ -32,7 +29,7 @@ def hinkley(arr: np.ndarray, alpha: float = 5) -> tuple[np.ndarray, int]:
 
     >>> vals, i = pickers.hinkley(x, alpha=5)   # doctest: +SKIP
     """
-    return _aepipe.pick_hinkley(_f32(arr), float(alpha))
+    return _aepipe.pick_hinkley(f32_1d(arr), float(alpha))
 
 
 def aic(arr: np.ndarray) -> tuple[np.ndarray, int]:
@@ -41,7 +38,7 @@ def aic(arr: np.ndarray) -> tuple[np.ndarray, int]:
 
     >>> vals, i = pickers.aic(x)                # doctest: +SKIP
     """
-    return _aepipe.pick_aic(_f32(arr))
+    return _aepipe.pick_aic(f32_1d(arr))
 
 
 def energy_ratio(arr: np.ndarray, win_len: int = 100) -> tuple[np.ndarray, int]:
@@ -50,7 +47,7 @@ def energy_ratio(arr: np.ndarray, win_len: int = 100) -> tuple[np.ndarray, int]:
 
     >>> vals, i = pickers.energy_ratio(x, win_len=100)   # doctest: +SKIP
     """
-    return _aepipe.pick_energy_ratio(_f32(arr), int(win_len), False)
+    return _aepipe.pick_energy_ratio(f32_1d(arr), int(win_len), False)
 
 
 def modified_energy_ratio(arr: np.ndarray, win_len: int = 100) -> tuple[np.ndarray, int]:
@@ -59,4 +56,4 @@ def modified_energy_ratio(arr: np.ndarray, win_len: int = 100) -> tuple[np.ndarr
 
     >>> vals, i = pickers.modified_energy_ratio(x)       # doctest: +SKIP
     """
-    return _aepipe.pick_energy_ratio(_f32(arr), int(win_len), True)
+    return _aepipe.pick_energy_ratio(f32_1d(arr), int(win_len), True)
