@@ -96,6 +96,20 @@ pub struct Reject {
     pub record_type: RecordType,
 }
 
+impl Reject {
+    /// A record (its transient) that a stage refused: `ch<channel> hit <hit>` of its file.
+    pub fn of_record(r: &AeRecord, stage: Stage, reason: String) -> Reject {
+        Reject {
+            record_type: RecordType::Transient,
+            experiment: r.experiment.clone(),
+            source_file: r.source_file.clone(),
+            record_id: format!("ch{} hit {}", r.channel, r.hit),
+            stage,
+            reason,
+        }
+    }
+}
+
 /// The kinds of record a recording holds, for the accounting of what was read and where it
 /// went (`manifest.json` `counts.by_experiment.*.records`, `rejects.parquet` `record_type`).
 #[derive(

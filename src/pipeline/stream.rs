@@ -80,17 +80,6 @@ impl<T> Drop for Checkout<'_, T> {
     }
 }
 
-fn record_reject(r: &crate::model::AeRecord, stage: Stage, reason: String) -> Reject {
-    Reject {
-        record_type: crate::model::RecordType::Transient,
-        experiment: r.experiment.clone(),
-        source_file: r.source_file.clone(),
-        record_id: format!("ch{} hit {}", r.channel, r.hit),
-        stage,
-        reason,
-    }
-}
-
 fn process(
     job: StreamJob,
     ex: &mut FeatureExtractor,
@@ -102,7 +91,7 @@ fn process(
         other => return Out::Item(other),
     };
     if let Err(e) = validate(&rec, ex.config()) {
-        return Out::Item(Item::Reject(record_reject(
+        return Out::Item(Item::Reject(Reject::of_record(
             &rec,
             Stage::Validate,
             e.to_string(),
@@ -125,7 +114,7 @@ fn process(
                         .unwrap_or_default();
                     // The extractor may be mid-update: replace it.
                     *ex = FeatureExtractor::new(ex.config());
-                    Out::Item(Item::Reject(record_reject(
+                    Out::Item(Item::Reject(Reject::of_record(
                         &rec,
                         Stage::Features,
                         format!("internal error (please report): {msg}"),

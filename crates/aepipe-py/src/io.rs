@@ -181,14 +181,11 @@ pub fn read_hits(
 fn checked(r: AeRecord, cfg: &ValidConfig) -> Result<AeRecord, Reject> {
     match aepipe::features::validate(&r, cfg) {
         Ok(()) => Ok(r),
-        Err(e) => Err(Reject {
-            record_type: RecordType::Transient,
-            experiment: r.experiment.clone(),
-            source_file: r.source_file.clone(),
-            record_id: format!("ch{} hit {}", r.channel, r.hit),
-            stage: aepipe::model::Stage::Validate,
-            reason: e.to_string(),
-        }),
+        Err(e) => Err(Reject::of_record(
+            &r,
+            aepipe::model::Stage::Validate,
+            e.to_string(),
+        )),
     }
 }
 
