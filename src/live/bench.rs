@@ -94,23 +94,22 @@ pub fn watch_bench(
         threads: b.threads,
         model: None,
     };
+    let write_to = |dir: &Path, i: usize| -> Result<(), WatchError> {
+        let (fs, x) = &protos[i % protos.len()];
+        let f = dir.join(format!("hit_{:06}.wav", i + 1));
+        crate::ingest::wavfmt::write_wav_f32(&f, *fs, x)
+            .map_err(|e| crate::util::IoAt::new(&f, std::io::Error::other(e.to_string())))?;
+        Ok(())
+    };
+    // The burst's files are made beforehand beside the folder, before the watcher starts
+    // (its idle clock must not run out while they are written), and moved in at once, each
+    // stamped with the moment it arrives: 20 000 hits in about a second is more than a
+    // disk takes written from scratch while the watcher works on the other core.
+    for i in steady_n..steady_n + b.burst {
+        write_to(&staging, i)?;
+    }
     let (summary, writes) = std::thread::scope(|s| {
         let writer = s.spawn(|| -> Result<(f64, f64), WatchError> {
-            let write_to = |dir: &Path, i: usize| -> Result<(), WatchError> {
-                let (fs, x) = &protos[i % protos.len()];
-                let f = dir.join(format!("hit_{:06}.wav", i + 1));
-                crate::ingest::wavfmt::write_wav_f32(&f, *fs, x).map_err(|e| {
-                    crate::util::IoAt::new(&f, std::io::Error::other(e.to_string()))
-                })?;
-                Ok(())
-            };
-            // The burst's files are made beforehand beside the folder (while the watcher
-            // trains its map) and moved in at once, each stamped with the moment it
-            // arrives: 20 000 hits in about a second is more than a disk takes written
-            // from scratch while the watcher works on the other core.
-            for i in steady_n..steady_n + b.burst {
-                write_to(&staging, i)?;
-            }
             while !ready.load(std::sync::atomic::Ordering::Relaxed) {
                 std::thread::sleep(Duration::from_millis(20));
             }
