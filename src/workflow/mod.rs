@@ -192,7 +192,7 @@ pub fn merge(
     let mut log = StageLog::default();
     log.seconds
         .push(("merge".to_string(), t.elapsed().as_secs_f64()));
-    stages(&job, features, log)
+    analyse(&job, features, log)
 }
 
 /// Run every enabled stage.
@@ -208,7 +208,7 @@ pub fn run(job: &RunJob) -> Result<RunSummary, WorkflowError> {
             &job.stream_options(),
         )
     })?;
-    stages(job, features, log)
+    analyse(job, features, log)
 }
 
 /// The map `[som] train_on = "reference"` trains (on the configured or embedded reference
@@ -230,14 +230,6 @@ pub fn train_reference_map(
 /// damage profile with evolution and location), truth, report, run.json. Each stage's time
 /// and peak memory go into `log` and the summary.
 pub fn analyse(
-    job: &RunJob,
-    features: crate::pipeline::RunReport,
-    log: StageLog,
-) -> Result<RunSummary, WorkflowError> {
-    stages(job, features, log)
-}
-
-fn stages(
     job: &RunJob,
     features: crate::pipeline::RunReport,
     mut log: StageLog,
