@@ -157,6 +157,11 @@ pub struct LiveConfig {
     pub settle_s: f64,
     /// Seconds between looks at the inputs.
     pub poll_s: f64,
+    /// A hit of a Vallen pair still being written waits this long for its transient (the
+    /// acquisition writes it to the `.tradb` a little after the hit) and for the parametric
+    /// row after it (its load); then it is read as the offline reader would read it (a hit
+    /// without its transient is a reject row).
+    pub transient_wait_s: f64,
 }
 
 impl Default for LiveConfig {
@@ -165,6 +170,7 @@ impl Default for LiveConfig {
             flush_s: 2.0,
             settle_s: 1.0,
             poll_s: 0.25,
+            transient_wait_s: 5.0,
         }
     }
 }
@@ -880,6 +886,7 @@ impl PipelineConfig {
             (l.flush_s, "live.flush_s"),
             (l.settle_s, "live.settle_s"),
             (l.poll_s, "live.poll_s"),
+            (l.transient_wait_s, "live.transient_wait_s"),
         ] {
             if !(v.is_finite() && (0.0..=3600.0).contains(&v)) {
                 return Err(ConfigError::Invalid(format!(

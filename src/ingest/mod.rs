@@ -223,8 +223,32 @@ pub fn open(src: &Source, cfg: &PipelineConfig) -> Box<dyn Iterator<Item = Item>
 /// [`open`] without the load file: what the recording itself holds.
 pub fn open_recording(src: &Source, cfg: &IngestConfig) -> Box<dyn Iterator<Item = Item> + Send> {
     let (s, c) = (src.clone(), cfg.clone());
+    guarded(src, Box::new(move || open_format(&s, &c)))
+}
+
+/// One window of a Vallen pair still being written (`aepipe watch`): its rows as [`open`]
+/// gives them for those sets.
+pub fn open_window(
+    src: &Source,
+    w: &vallen::tail::Window,
+    cfg: &PipelineConfig,
+) -> Box<dyn Iterator<Item = Item> + Send> {
+    let (w, c) = (w.clone(), cfg.ingest.clone());
+    loadfile::attach(
+        guarded(src, Box::new(move || vallen::tail::read(&w, &c))),
+        src,
+        &cfg.load,
+    )
+}
+
+/// A reader opened on first use, a panic in it a reject row (the rest of the source
+/// unread); every transient also a hit when the format has no hit list.
+fn guarded(
+    src: &Source,
+    open: Box<dyn FnOnce() -> Items + Send>,
+) -> Box<dyn Iterator<Item = Item> + Send> {
     let items: Box<dyn Iterator<Item = Item> + Send> = Box::new(Guarded {
-        open: Some(Box::new(move || open_format(&s, &c))),
+        open: Some(open),
         inner: None,
         experiment: src.id.clone(),
         file: src

@@ -1,9 +1,11 @@
 //! Which files are ready: discovery run again at each look, a file taken once its size
-//! and modification time have stayed the same for `settle_s`.
+//! and modification time have stayed the same for `settle_s`; a Vallen pair followed
+//! while it grows, by `SetID` ([`crate::ingest::vallen::tail`]).
 
 use super::state::State;
 use crate::config::ValidConfig;
-use crate::ingest::Source;
+use crate::ingest::vallen::tail::{Position, Tail, Window};
+use crate::ingest::{Format, Source};
 use std::collections::{HashMap, HashSet};
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant, SystemTime};
@@ -15,13 +17,28 @@ pub struct Pending {
     pub source: Source,
     /// The newest modification time of its files (for the lag).
     pub written: Option<SystemTime>,
+    /// For a Vallen pair still being written, the sets to read (else all of the source).
+    pub window: Option<Window>,
 }
 
 impl Pending {
     /// The source is one hit per file, numbered by place (else a whole recording).
     pub fn per_hit(&self) -> bool {
-        self.source.format.numbered_by_place()
+        self.window.is_none() && self.source.format.numbered_by_place()
     }
+
+    /// How many records it is, about: its files, or its window's hits.
+    pub fn weight(&self) -> usize {
+        match &self.window {
+            Some(w) => w.weight(),
+            None => self.source.files.len().max(1),
+        }
+    }
+}
+
+/// A Vallen source with its `.pridb`: followed while it grows.
+fn grows(s: &Source) -> bool {
+    s.format == Format::Vallen && s.has_hit_list()
 }
 
 /// A file as last seen: its size and modification time, and since when they have been so.
@@ -43,6 +60,9 @@ pub struct Follower {
     next_hit: HashMap<String, u64>,
     /// Whole recordings handed out (committed before, or since).
     whole: HashSet<String>,
+    /// Growing Vallen pairs: where the committed state left them, and their readers.
+    positions: HashMap<String, Position>,
+    tails: HashMap<String, Tail>,
 }
 
 impl Follower {
@@ -54,10 +74,15 @@ impl Follower {
             handed: HashSet::new(),
             next_hit: HashMap::new(),
             whole: HashSet::new(),
+            positions: HashMap::new(),
+            tails: HashMap::new(),
         };
         for (id, r) in &state.sources {
             if r.whole {
                 f.whole.insert(id.clone());
+            }
+            if let Some(p) = r.vallen {
+                f.positions.insert(id.clone(), p);
             }
             f.handed.extend(r.files.iter().map(PathBuf::from));
             f.next_hit.insert(id.clone(), r.files.len() as u64);
@@ -108,9 +133,13 @@ impl Follower {
                         ..s
                     },
                     written: newest,
+                    window: None,
                 });
             } else {
                 if self.whole.contains(&s.id) {
+                    continue;
+                }
+                if grows(&s) && self.follow(&s, cfg, &mut out) {
                     continue;
                 }
                 let mut newest = None;
@@ -131,10 +160,51 @@ impl Follower {
                 out.push(Pending {
                     source: s,
                     written: newest,
+                    window: None,
                 });
             }
         }
         out
+    }
+
+    /// The ready windows of a growing Vallen pair; false when it cannot be followed (its
+    /// `.pridb` is not a database yet, or never will be: then, once its files have settled,
+    /// it is read whole, and the offline reader says what is wrong with it).
+    fn follow(&mut self, s: &Source, cfg: &ValidConfig, out: &mut Vec<Pending>) -> bool {
+        let tail = match self.tails.entry(s.id.clone()) {
+            std::collections::hash_map::Entry::Occupied(e) => e.into_mut(),
+            std::collections::hash_map::Entry::Vacant(e) => {
+                let from = self.positions.get(&s.id).copied();
+                match Tail::open(s, from.unwrap_or_default(), &cfg.ingest) {
+                    Ok(t) => e.insert(t),
+                    // A pair read in part before is never read whole (that would read its
+                    // first part twice): it is tried again at the next look.
+                    Err(_) => return from.is_some(),
+                }
+            }
+        };
+        let l = &cfg.live;
+        // A look that fails (a lock held past the busy wait, a file being replaced) is
+        // tried again at the next one, from where this reader stands.
+        let Ok(windows) = tail.look(
+            Duration::from_secs_f64(l.transient_wait_s),
+            self.settle,
+            super::FLUSH_FILES,
+            &cfg.ingest,
+        ) else {
+            return true;
+        };
+        let written = s
+            .all_files()
+            .flat_map(|f| [f.to_path_buf(), wal(f)])
+            .filter_map(|f| std::fs::metadata(f).and_then(|m| m.modified()).ok())
+            .max();
+        out.extend(windows.into_iter().map(|w| Pending {
+            source: s.clone(),
+            written,
+            window: Some(w),
+        }));
+        true
     }
 
     /// The file's modification time if its size and time have not changed for the settle
@@ -156,4 +226,11 @@ impl Follower {
         }
         (now.duration_since(e.since) >= self.settle).then_some(modified)
     }
+}
+
+/// The write-ahead log beside a SQLite database (where a WAL-mode writer's new rows are).
+fn wal(db: &Path) -> PathBuf {
+    let mut name = db.as_os_str().to_owned();
+    name.push("-wal");
+    PathBuf::from(name)
 }

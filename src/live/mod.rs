@@ -359,7 +359,7 @@ fn take_files(
             rest.push(r);
             continue;
         }
-        n += p.source.files.len().max(1);
+        n += p.weight();
         take.push(p);
     }
     (take, rest)
@@ -389,9 +389,10 @@ fn flush(
     for (experiment, sources) in &by_exp {
         let _ = std::fs::remove_dir_all(&scratch);
         std::fs::create_dir_all(&scratch).map_err(|e| crate::util::IoAt::new(&scratch, e))?;
-        let items = sources
-            .iter()
-            .flat_map(|p| crate::ingest::open(&p.source, cfg));
+        let items = sources.iter().flat_map(|p| match &p.window {
+            Some(w) => crate::ingest::open_window(&p.source, w, cfg),
+            None => crate::ingest::open(&p.source, cfg),
+        });
         let st = crate::pipeline::stream(
             items,
             StreamJob::Features,

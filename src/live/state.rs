@@ -35,6 +35,9 @@ pub struct SourceState {
     pub files: Vec<String>,
     /// A whole recording: read.
     pub whole: bool,
+    /// A Vallen pair followed while it grows: how far it has been read.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub vallen: Option<crate::ingest::vallen::tail::Position>,
 }
 
 impl State {
@@ -75,7 +78,9 @@ impl State {
     /// Record a source's files as read (committed by the next [`State::commit`]).
     pub fn mark(&mut self, p: &Pending) {
         let s = self.sources.entry(p.source.id.clone()).or_default();
-        if p.per_hit() {
+        if let Some(w) = &p.window {
+            s.vallen = Some(w.end);
+        } else if p.per_hit() {
             s.files
                 .extend(p.source.files.iter().map(|f| f.display().to_string()));
         } else {

@@ -483,18 +483,7 @@ fn open_with(
                 .collect();
             m.sort_unstable();
             m.into_iter()
-                .map(|(a, t, c, _)| Reject {
-                    record_type: crate::model::RecordType::Transient,
-                    experiment: experiment.clone(),
-                    source_file: pridb_name.clone(),
-                    record_id: if a > 1 {
-                        format!("TRAI {t} ch{c} acquisition {a}")
-                    } else {
-                        format!("TRAI {t} ch{c}")
-                    },
-                    stage: Stage::Read,
-                    reason: format!("hit on channel {c} has no transient: {why}"),
-                })
+                .map(|(a, t, c, _)| missing_reject(&experiment, &pridb_name, (a, t, c), why))
                 .collect()
         };
     let offsets = TraiOffsets::new(&info.acq_max_trai);
@@ -618,6 +607,22 @@ fn open_with(
     Box::new(first.into_iter().chain(r))
 }
 
+/// The reject of a hit (acquisition, TRAI, channel) whose transient is not there.
+fn missing_reject(experiment: &str, pridb: &str, (a, t, c): (u32, i64, i64), why: &str) -> Reject {
+    Reject {
+        record_type: crate::model::RecordType::Transient,
+        experiment: experiment.to_string(),
+        source_file: pridb.to_string(),
+        record_id: if a > 1 {
+            format!("TRAI {t} ch{c} acquisition {a}")
+        } else {
+            format!("TRAI {t} ch{c}")
+        },
+        stage: Stage::Read,
+        reason: format!("hit on channel {c} has no transient: {why}"),
+    }
+}
+
 /// (SetID, Time, Chan, TRAI) of every transient of a `.tradb`, in storage order.
 #[allow(clippy::type_complexity)]
 fn list_transients(tradb: &Path) -> Result<(Connection, Vec<(i64, i64, i64, i64)>), IngestError> {
@@ -670,8 +675,9 @@ fn transient_keys(
 
 mod pridb;
 mod sets;
+pub mod tail;
 pub mod vaex;
 mod write;
 use pridb::HitRows;
 pub use pridb::{read_pridb, PriInfo, TraiOffsets};
-pub use write::{write_pair, HitToWrite};
+pub use write::{write_pair, HitToWrite, Journal, PairWriter};

@@ -157,10 +157,28 @@ pub fn read_pridb(path: &Path, cfg: &IngestConfig) -> Result<PriInfo, IngestErro
         }
     }
     info.acq_max_trai.push(max_trai);
-    let v = &cfg.vallen;
-    info.load = parametric_series(&conn, &cols, &v.load_param, tb, v.load_n_per_mv);
-    info.extension = parametric_series(&conn, &cols, &v.extension_param, tb, v.extension_m_per_mv);
+    (info.load, info.extension) = load_series(&conn, &cols, tb, cfg);
     Ok(info)
+}
+
+/// The configured load and extension series of a `.pridb` (`cols`: its `ae_data` columns).
+pub(super) fn load_series(
+    conn: &Connection,
+    cols: &[String],
+    time_base: f64,
+    cfg: &IngestConfig,
+) -> (TimeSeries, TimeSeries) {
+    let v = &cfg.vallen;
+    (
+        parametric_series(conn, cols, &v.load_param, time_base, v.load_n_per_mv),
+        parametric_series(
+            conn,
+            cols,
+            &v.extension_param,
+            time_base,
+            v.extension_m_per_mv,
+        ),
+    )
 }
 
 /// The hit rows of a `.pridb`, read in chunks of 1 024 sets (bounded memory).
@@ -170,12 +188,25 @@ pub(super) struct HitRows {
     pub(super) path: String,
     time_base: f64,
     last_setid: i64,
+    /// The last set to read (a watcher reads a growing file in windows).
+    upto: i64,
     number: u64,
     done: bool,
 }
 
 impl HitRows {
     pub(super) fn open(path: &Path, time_base: f64) -> Result<HitRows, IngestError> {
+        HitRows::window(path, time_base, i64::MIN, i64::MAX, 0)
+    }
+
+    /// The hits with `after < SetID <= upto`, numbered on from `numbered`.
+    pub(super) fn window(
+        path: &Path,
+        time_base: f64,
+        after: i64,
+        upto: i64,
+        numbered: u64,
+    ) -> Result<HitRows, IngestError> {
         let conn = open_ro(path)?;
         let view = columns(&conn, "view_ae_data");
         // The view applies the file's own scaling (ae_params, ae_fieldinfo); a column the
@@ -197,13 +228,13 @@ impl HitRows {
         let sql = if view.is_empty() {
             format!(
                 "SELECT d.SetID, d.Time, d.Chan, NULL, NULL, NULL, NULL, NULL, NULL, NULL, NULL, d.TRAI, {status} \
-                 FROM ae_data d WHERE d.SetType = 2 AND d.SetID > ?1 ORDER BY d.SetID LIMIT 1024"
+                 FROM ae_data d WHERE d.SetType = 2 AND d.SetID > ?1 AND d.SetID <= ?2 ORDER BY d.SetID LIMIT 1024"
             )
         } else {
             format!(
                 "SELECT d.SetID, d.Time, d.Chan, {}, {}, {}, {}, {}, {}, {}, {}, d.TRAI, {status} \
                  FROM ae_data d JOIN view_ae_data v ON v.SetID = d.SetID \
-                 WHERE d.SetType = 2 AND d.SetID > ?1 ORDER BY d.SetID LIMIT 1024",
+                 WHERE d.SetType = 2 AND d.SetID > ?1 AND d.SetID <= ?2 ORDER BY d.SetID LIMIT 1024",
                 pick("Thr"),
                 pick("Amp"),
                 pick("RiseT"),
@@ -219,8 +250,9 @@ impl HitRows {
             sql,
             path: path.display().to_string(),
             time_base,
-            last_setid: i64::MIN,
-            number: 0,
+            last_setid: after,
+            upto,
+            number: numbered,
             done: false,
         })
     }
@@ -236,7 +268,7 @@ impl HitRows {
             .map_err(|e| e.to_string())?;
         let db = |uv: Option<f64>| uv.filter(|v| *v > 0.0).map(|v| db_ae(v * 1e-6));
         let rows: Vec<_> = st
-            .query_map([self.last_setid], |r| {
+            .query_map([self.last_setid, self.upto], |r| {
                 Ok((
                     r.get::<_, i64>(0)?,
                     r.get::<_, Option<i64>>(1)?.unwrap_or(0),

@@ -1,6 +1,7 @@
-//! The `.pridb` sets that are not hits: markers (`SetType` 4–6: label, date/time, section),
-//! parametric rows (1) and status rows (3), read in chunks of 1 024 sets (bounded memory),
-//! and the count of every set type for the manifest's accounting.
+//! The `.pridb` sets that are not hits: markers (`SetType` 4–6: label, date/time, section)
+//! and status rows (3), numbered together in file order, and parametric rows (1), read in
+//! chunks of 1 024 sets (bounded memory); and the count of every set type for the
+//! manifest's accounting.
 
 use super::{columns, open_ro};
 use crate::config::VallenConfig;
@@ -36,12 +37,34 @@ pub fn set_counts(conn: &Connection) -> BTreeMap<RecordType, u64> {
     out
 }
 
+/// The sets to read, `after < SetID <= upto`, and the marker (with status) and parametric
+/// rows before them.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct SetWindow {
+    pub after: i64,
+    pub upto: i64,
+    pub marker_rows: u64,
+    pub parametric_rows: u64,
+}
+
+impl Default for SetWindow {
+    /// Every set of the file.
+    fn default() -> Self {
+        SetWindow {
+            after: i64::MIN,
+            upto: i64::MAX,
+            marker_rows: 0,
+            parametric_rows: 0,
+        }
+    }
+}
+
 /// Which kind of set a chunk reads.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum Stage {
+    /// Markers and status rows, in file order.
     Markers,
     Parametric,
-    Status,
     Done,
 }
 
@@ -53,11 +76,13 @@ pub struct SetRows {
     time_base: f64,
     stage: Stage,
     last: i64,
+    /// The window read: `after < SetID <= upto` (all of them offline).
+    after: i64,
+    upto: i64,
     markers_sql: String,
     parametric_sql: String,
     /// Names of the parametric inputs, in the order of `parametric_sql`'s columns.
     inputs: Vec<String>,
-    status_sql: String,
     cfg: VallenConfig,
     marker_rows: u64,
     parametric_rows: u64,
@@ -70,6 +95,17 @@ impl SetRows {
         time_base: f64,
         cfg: &VallenConfig,
     ) -> Result<SetRows, IngestError> {
+        SetRows::window(path, experiment, time_base, cfg, &SetWindow::default())
+    }
+
+    /// The sets of one window of a growing file, their rows numbered on from the window's.
+    pub fn window(
+        path: &Path,
+        experiment: &str,
+        time_base: f64,
+        cfg: &VallenConfig,
+        w: &SetWindow,
+    ) -> Result<SetRows, IngestError> {
         let conn = open_ro(path)?;
         let cols = columns(&conn, "ae_data");
         let has = |c: &str| cols.iter().any(|x| x == c);
@@ -79,16 +115,6 @@ impl SetRows {
             } else {
                 "NULL".into()
             }
-        };
-        let markers_sql = if columns(&conn, "ae_markers").is_empty() {
-            "SELECT d.SetID, d.SetType, d.Time, NULL, NULL FROM ae_data d \
-             WHERE d.SetType IN (4, 5, 6) AND d.SetID > ?1 ORDER BY d.SetID LIMIT 1024"
-                .to_string()
-        } else {
-            "SELECT d.SetID, d.SetType, d.Time, m.Number, m.Data FROM ae_data d \
-             LEFT JOIN ae_markers m ON m.SetID = d.SetID \
-             WHERE d.SetType IN (4, 5, 6) AND d.SetID > ?1 ORDER BY d.SetID LIMIT 1024"
-                .to_string()
         };
         let params = columns(&conn, "ae_params");
         let inputs: Vec<String> = cols
@@ -109,14 +135,15 @@ impl SetRows {
         let parametric_sql = format!(
             "SELECT d.SetID, d.Time, {}, {}, {}{}{} FROM ae_data d \
              LEFT JOIN ae_params p ON p.ID = d.ParamID \
-             WHERE d.SetType = 1 AND d.SetID > ?1 ORDER BY d.SetID LIMIT 1024",
+             WHERE d.SetType = 1 AND d.SetID > ?1 AND d.SetID <= ?2 ORDER BY d.SetID LIMIT 1024",
             raw("Status"),
             raw("PCTD"),
             raw("PCTA"),
             if pa.is_empty() { "" } else { ", " },
             pa.join(", ")
         );
-        // Status rows: the file's own scaling (view_ae_data), as for hits.
+        // Markers with their number and text, status rows with the file's own scaling
+        // (view_ae_data, as for hits), in one pass so that `row` is the order in the file.
         let view = columns(&conn, "view_ae_data");
         let pick = |c: &str| {
             if view.iter().any(|v| v == c) {
@@ -125,40 +152,46 @@ impl SetRows {
                 "NULL".to_string()
             }
         };
-        let status_sql = if view.is_empty() {
-            format!(
-                "SELECT d.SetID, d.Time, {}, {}, NULL, NULL, NULL, NULL FROM ae_data d \
-                 WHERE d.SetType = 3 AND d.SetID > ?1 ORDER BY d.SetID LIMIT 1024",
-                raw("Chan"),
-                raw("Status")
-            )
+        let (mark_cols, mark_join) = if columns(&conn, "ae_markers").is_empty() {
+            ("NULL, NULL", "")
         } else {
-            format!(
-                "SELECT d.SetID, d.Time, {}, {}, {}, {}, {}, {} FROM ae_data d \
-                 JOIN view_ae_data v ON v.SetID = d.SetID \
-                 WHERE d.SetType = 3 AND d.SetID > ?1 ORDER BY d.SetID LIMIT 1024",
-                raw("Chan"),
-                raw("Status"),
-                pick("Thr"),
-                pick("Eny"),
-                pick("SS"),
-                pick("RMS"),
+            (
+                "m.Number, m.Data",
+                "LEFT JOIN ae_markers m ON m.SetID = d.SetID",
             )
         };
+        let view_join = if view.is_empty() {
+            ""
+        } else {
+            "LEFT JOIN view_ae_data v ON v.SetID = d.SetID"
+        };
+        let markers_sql = format!(
+            "SELECT d.SetID, d.SetType, d.Time, {mark_cols}, {}, {}, {}, {}, {}, {} FROM ae_data d \
+             {mark_join} {view_join} \
+             WHERE d.SetType IN (3, 4, 5, 6) AND d.SetID > ?1 AND d.SetID <= ?2 \
+             ORDER BY d.SetID LIMIT 1024",
+            raw("Chan"),
+            raw("Status"),
+            pick("Thr"),
+            pick("Eny"),
+            pick("SS"),
+            pick("RMS"),
+        );
         Ok(SetRows {
             conn,
             experiment: experiment.to_string(),
             path: path.display().to_string(),
             time_base,
             stage: Stage::Markers,
-            last: i64::MIN,
+            last: w.after,
+            after: w.after,
+            upto: w.upto,
             markers_sql,
             parametric_sql,
             inputs,
-            status_sql,
             cfg: cfg.clone(),
-            marker_rows: 0,
-            parametric_rows: 0,
+            marker_rows: w.marker_rows,
+            parametric_rows: w.parametric_rows,
         })
     }
 
@@ -173,15 +206,13 @@ impl SetRows {
                 Stage::Done => return Ok(vec![]),
                 Stage::Markers => self.markers()?,
                 Stage::Parametric => self.parametric()?,
-                Stage::Status => self.status()?,
             };
             if out.len() < 1024 {
                 self.stage = match self.stage {
                     Stage::Markers => Stage::Parametric,
-                    Stage::Parametric => Stage::Status,
                     _ => Stage::Done,
                 };
-                self.last = i64::MIN;
+                self.last = self.after;
             }
             if !out.is_empty() {
                 return Ok(out);
@@ -199,37 +230,67 @@ impl SetRows {
             .prepare_cached(&self.markers_sql)
             .map_err(|e| e.to_string())?;
         #[allow(clippy::type_complexity)]
-        let rows: Vec<(i64, i64, Option<i64>, Option<i64>, Option<String>)> = st
-            .query_map([self.last], |r| {
+        let rows: Vec<(
+            i64,
+            i64,
+            Option<i64>,
+            Option<i64>,
+            Option<String>,
+            Option<i64>,
+            Option<i64>,
+            [Option<f64>; 4],
+        )> = st
+            .query_map([self.last, self.upto], |r| {
                 Ok((
                     r.get(0)?,
                     r.get::<_, Option<i64>>(1)?.unwrap_or(0),
                     r.get(2)?,
                     r.get(3)?,
                     r.get(4)?,
+                    r.get(5)?,
+                    r.get(6)?,
+                    [r.get(7)?, r.get(8)?, r.get(9)?, r.get(10)?],
                 ))
             })
             .and_then(|it| it.collect())
             .map_err(|e| e.to_string())?;
         drop(st);
         let mut out = Vec::with_capacity(rows.len());
-        for (setid, ty, time, number, data) in rows {
+        for (setid, ty, time, number, data, chan, status, [thr, eny, ss, rms]) in rows {
             self.last = setid;
             self.marker_rows += 1;
-            out.push(Item::Marker(Box::new(MarkerRow {
-                experiment: self.experiment.clone(),
-                row: self.marker_rows,
-                time_s: self.seconds(time),
-                kind: match ty {
-                    4 => MarkerKind::Label,
-                    5 => MarkerKind::Datetime,
-                    _ => MarkerKind::Section,
-                },
-                number,
-                text: data,
-                source_file: self.path.clone(),
-                ..Default::default()
-            })));
+            let row = if ty == 3 {
+                MarkerRow {
+                    experiment: self.experiment.clone(),
+                    row: self.marker_rows,
+                    time_s: self.seconds(time),
+                    kind: MarkerKind::Status,
+                    channel: chan.map(|c| c.max(0) as u32),
+                    threshold_db: thr.filter(|v| *v > 0.0).map(|v| db_ae(v * 1e-6)),
+                    energy_eu: eny,
+                    rms_v: rms.map(|v| v * 1e-6),
+                    signal_strength_vs: ss.map(|v| v * 1e-9),
+                    flags: status,
+                    source_file: self.path.clone(),
+                    ..Default::default()
+                }
+            } else {
+                MarkerRow {
+                    experiment: self.experiment.clone(),
+                    row: self.marker_rows,
+                    time_s: self.seconds(time),
+                    kind: match ty {
+                        4 => MarkerKind::Label,
+                        5 => MarkerKind::Datetime,
+                        _ => MarkerKind::Section,
+                    },
+                    number,
+                    text: data,
+                    source_file: self.path.clone(),
+                    ..Default::default()
+                }
+            };
+            out.push(Item::Marker(Box::new(row)));
         }
         Ok(out)
     }
@@ -242,7 +303,7 @@ impl SetRows {
             .map_err(|e| e.to_string())?;
         #[allow(clippy::type_complexity)]
         let rows: Vec<(i64, Option<i64>, [Option<i64>; 3], Vec<Option<f64>>)> = st
-            .query_map([self.last], |r| {
+            .query_map([self.last, self.upto], |r| {
                 let mut v = Vec::with_capacity(n_in);
                 for k in 0..n_in {
                     v.push(r.get::<_, Option<f64>>(5 + k)?);
@@ -285,47 +346,6 @@ impl SetRows {
                 extra: (!extra.is_empty()).then(|| serde_json::Value::Object(extra).to_string()),
                 source: ParametricSource::Vallen,
                 source_file: self.path.clone(),
-            })));
-        }
-        Ok(out)
-    }
-
-    fn status(&mut self) -> Result<Vec<Item>, String> {
-        let mut st = self
-            .conn
-            .prepare_cached(&self.status_sql)
-            .map_err(|e| e.to_string())?;
-        #[allow(clippy::type_complexity)]
-        let rows: Vec<(i64, Option<i64>, Option<i64>, Option<i64>, [Option<f64>; 4])> = st
-            .query_map([self.last], |r| {
-                Ok((
-                    r.get(0)?,
-                    r.get(1)?,
-                    r.get(2)?,
-                    r.get(3)?,
-                    [r.get(4)?, r.get(5)?, r.get(6)?, r.get(7)?],
-                ))
-            })
-            .and_then(|it| it.collect())
-            .map_err(|e| e.to_string())?;
-        drop(st);
-        let mut out = Vec::with_capacity(rows.len());
-        for (setid, time, chan, status, [thr, eny, ss, rms]) in rows {
-            self.last = setid;
-            self.marker_rows += 1;
-            out.push(Item::Marker(Box::new(MarkerRow {
-                experiment: self.experiment.clone(),
-                row: self.marker_rows,
-                time_s: self.seconds(time),
-                kind: MarkerKind::Status,
-                channel: chan.map(|c| c.max(0) as u32),
-                threshold_db: thr.filter(|v| *v > 0.0).map(|v| db_ae(v * 1e-6)),
-                energy_eu: eny,
-                rms_v: rms.map(|v| v * 1e-6),
-                signal_strength_vs: ss.map(|v| v * 1e-9),
-                flags: status,
-                source_file: self.path.clone(),
-                ..Default::default()
             })));
         }
         Ok(out)

@@ -1,0 +1,761 @@
+//! A Vallen `.pridb`/`.tradb` pair that the acquisition is still writing, read in windows
+//! of sets (`aepipe watch`).
+//!
+//! New sets are found by `SetID` (integers only, in chunks; each query is its own short
+//! read transaction, so a writer in rollback-journal mode is never held up for longer than
+//! one chunk, and one in WAL mode not at all). A window is the run of sets from the last
+//! one handed out up to the last *ready* hit: its transient is in the `.tradb` (the
+//! acquisition writes it a little after the hit) and a parametric row at or after its time
+//! is in the `.pridb` (so that its load is interpolated as the offline reader does), or it
+//! has waited `wait` for them, after which it is accounted as the offline reader accounts
+//! it (a hit without its transient is a reject row). A window is read by the offline
+//! reader itself ([`super::Reader`]) over those sets only, its hits and rows numbered on
+//! from the window before: a window's rows are the offline reader's rows.
+//!
+//! A transient that no hit links to is read as a standalone transient once the `.tradb`
+//! has gone past it (a later transient of a hit was handed out) or the pair has stopped
+//! growing for `settle`.
+//!
+//! What the window's rows depend on is decided by the sets up to its end: the committed
+//! [`Position`] is enough to start again after a kill.
+
+use super::pridb::{HitRows, PriInfo, TraiOffsets};
+use super::sets::{SetRows, SetWindow};
+use super::{columns, missing_reject, open_ro, time_base, Reader};
+use crate::config::IngestConfig;
+use crate::ingest::{file_err, IngestError, Source, TimeSeries};
+use crate::model::{Item, Reject};
+use rusqlite::Connection;
+use serde::{Deserialize, Serialize};
+use std::collections::{BTreeMap, HashMap, HashSet, VecDeque};
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+/// Where the reading of a growing pair stands: what has been handed out (and, once
+/// committed, what a restarted watcher goes on from).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct Position {
+    /// The last `.pridb` set read.
+    pub pridb_set: i64,
+    /// The last `.tradb` record read as a standalone transient (0: none).
+    pub tradb_set: i64,
+    /// Hits, marker and status rows, parametric rows read (the next window numbers on).
+    pub hits: u64,
+    pub marker_rows: u64,
+    pub parametric_rows: u64,
+}
+
+/// (TRAI, channel, time in ticks): how a hit names its transient.
+type Key = (i64, i64, i64);
+
+/// A `.pridb` set not yet handed out.
+struct Set {
+    setid: i64,
+    set_type: i64,
+    time: i64,
+    chan: i64,
+    trai: i64,
+    acquisition: u32,
+    seen: Instant,
+}
+
+/// A `.tradb` record not yet handed out.
+struct Arrived {
+    key: Key,
+    /// Its number when no hit links it (the `.tradb`'s own TRAI restarts).
+    own_number: u64,
+}
+
+/// A transient of a window: (channel, number, `.tradb` SetID, TRAI), the reader's key.
+type TransientKey = (i64, u64, i64, i64);
+
+/// One window of a growing pair: what [`read`] turns into the offline reader's rows.
+#[derive(Debug, Clone)]
+pub struct Window {
+    experiment: String,
+    pridb: PathBuf,
+    tradb: PathBuf,
+    sets: SetWindow,
+    /// Hits before the window.
+    first_hit: u64,
+    transients: Vec<TransientKey>,
+    /// The window's hits' transients: key → acquisition.
+    link: HashMap<Key, u32>,
+    missing: Vec<Reject>,
+    acq_starts: Vec<i64>,
+    offsets: TraiOffsets,
+    load: Arc<(TimeSeries, TimeSeries)>,
+    pridb_time_base: f64,
+    tradb_time_base: f64,
+    max_samples: u64,
+    /// Hits (`.pridb` hit rows) and transients in the window.
+    pub hits: u64,
+    /// Where the reading stands after this window.
+    pub end: Position,
+}
+
+impl Window {
+    /// Hits and standalone transients: how much reading the window is.
+    pub fn weight(&self) -> usize {
+        (self.hits as usize).max(self.transients.len()).max(1)
+    }
+}
+
+/// The acquisitions seen so far (what [`super::read_pridb`] finds in one pass).
+#[derive(Default)]
+struct Acquisitions {
+    seen_hit: bool,
+    marker_pending: bool,
+    max_trai: i64,
+    starts: Vec<i64>,
+    /// Largest TRAI of each finished acquisition.
+    max_trai_done: Vec<i64>,
+}
+
+impl Acquisitions {
+    /// The acquisition of the set (a section-start marker or a TRAI that does not rise
+    /// begins one).
+    fn add(&mut self, setid: i64, set_type: i64, trai: i64) -> u32 {
+        match set_type {
+            6 => self.marker_pending = true,
+            2 => {
+                let restart = trai > 0 && trai <= self.max_trai;
+                if self.seen_hit && (self.marker_pending || restart) {
+                    self.starts.push(setid);
+                    self.max_trai_done.push(self.max_trai);
+                    self.max_trai = 0;
+                }
+                self.marker_pending = false;
+                self.seen_hit = true;
+                if trai > 0 {
+                    self.max_trai = self.max_trai.max(trai);
+                }
+            }
+            _ => {}
+        }
+        self.starts.len() as u32 + 1
+    }
+}
+
+/// How many rows one look reads at most from each file (the rest at the next look).
+const SCAN_ROWS: i64 = 100_000;
+
+/// Follows one growing pair.
+pub struct Tail {
+    experiment: String,
+    pridb_path: PathBuf,
+    tradb_path: PathBuf,
+    pridb: Connection,
+    tradb: Option<Connection>,
+    pridb_time_base: f64,
+    tradb_time_base: f64,
+    /// `ae_data` has the configured load/extension columns: a hit waits for a parametric
+    /// row at or after its time.
+    scan_sql: String,
+    needs_load: bool,
+    handed: Position,
+    scanned_pridb: i64,
+    scanned_tradb: i64,
+    acquisitions: Acquisitions,
+    queue: VecDeque<Set>,
+    /// Every hit's transient key seen, and whether the hit has been handed out.
+    linked: HashMap<Key, bool>,
+    /// `.tradb` records not handed out, by SetID.
+    arrived: BTreeMap<i64, Arrived>,
+    by_key: HashMap<Key, i64>,
+    /// The `.tradb`'s own acquisitions (TRAI restarts), for standalone numbers.
+    own_offset: i64,
+    own_max: i64,
+    /// The last `.tradb` record of a hit handed out.
+    tradb_reached: i64,
+    /// Time in ticks of the last parametric row holding the configured inputs.
+    load_until: Option<i64>,
+    grew: Instant,
+}
+
+impl Tail {
+    /// Start following `src` (a Vallen source with its `.pridb`) from `from` (what a
+    /// watcher committed; the default for a new one).
+    pub fn open(src: &Source, from: Position, cfg: &IngestConfig) -> Result<Tail, IngestError> {
+        let pridb_path = src
+            .companions
+            .first()
+            .cloned()
+            .ok_or_else(|| file_err(Path::new(&src.id), "no .pridb to follow"))?;
+        let tradb_path = src.files.first().cloned().unwrap_or_default();
+        let pridb = open_live(&pridb_path)?;
+        let cols = columns(&pridb, "ae_data");
+        if cols.is_empty() {
+            return Err(file_err(&pridb_path, "no ae_data table (yet)"));
+        }
+        let v = &cfg.vallen;
+        let params: Vec<&String> = [&v.load_param, &v.extension_param]
+            .into_iter()
+            .filter(|p| !p.is_empty() && cols.iter().any(|c| c == *p))
+            .collect();
+        let has_load = if params.is_empty() {
+            "0".to_string()
+        } else {
+            params
+                .iter()
+                .map(|p| format!("{p} IS NOT NULL"))
+                .collect::<Vec<_>>()
+                .join(" AND ")
+        };
+        let scan_sql = format!(
+            "SELECT SetID, SetType, Time, Chan, TRAI, {has_load} FROM ae_data \
+             WHERE SetID > ?1 ORDER BY SetID LIMIT {SCAN_ROWS}"
+        );
+        let pridb_time_base = time_base(&pridb, "ae_globalinfo");
+        let (tradb, tradb_time_base) = match open_live(&tradb_path) {
+            Ok(c) if !columns(&c, "tr_data").is_empty() => {
+                let tb = time_base(&c, "tr_globalinfo");
+                (Some(c), tb)
+            }
+            _ => (None, 1e7),
+        };
+        Ok(Tail {
+            experiment: src.id.clone(),
+            pridb_path,
+            tradb_path,
+            pridb,
+            tradb,
+            pridb_time_base,
+            tradb_time_base,
+            scan_sql,
+            needs_load: !params.is_empty(),
+            handed: from,
+            scanned_pridb: i64::MIN,
+            scanned_tradb: i64::MIN,
+            acquisitions: Acquisitions::default(),
+            queue: VecDeque::new(),
+            linked: HashMap::new(),
+            arrived: BTreeMap::new(),
+            by_key: HashMap::new(),
+            own_offset: 0,
+            own_max: 0,
+            tradb_reached: i64::MIN,
+            load_until: None,
+            grew: Instant::now(),
+        })
+    }
+
+    /// Read what is new in the files and hand out the windows that are ready, each of at
+    /// most `max_hits` hits. `wait`: how long a hit waits for its transient and load;
+    /// `settle`: how long the pair must not grow before a transient no hit links to is
+    /// read as standalone.
+    pub fn look(
+        &mut self,
+        wait: Duration,
+        settle: Duration,
+        max_hits: usize,
+        cfg: &IngestConfig,
+    ) -> Result<Vec<Window>, IngestError> {
+        let now = Instant::now();
+        let grew = self.scan_pridb(now)? | self.scan_tradb()?;
+        if grew {
+            self.grew = now;
+        }
+        // The sets that are ready, in windows.
+        let mut windows: Vec<Window> = Vec::new();
+        let mut load: Option<Arc<(TimeSeries, TimeSeries)>> = None;
+        while let Some(s) = self.queue.front() {
+            if s.set_type == 2 && !self.ready(s, now, wait) {
+                break;
+            }
+            let w_full = windows
+                .last()
+                .is_none_or(|w| w.hits as usize >= max_hits.max(1));
+            if w_full {
+                let load = load
+                    .get_or_insert_with(|| Arc::new(read_load(&self.pridb, cfg)))
+                    .clone();
+                windows.push(self.window(load, cfg));
+            }
+            let s = self.queue.pop_front().expect("front");
+            let w = windows.last_mut().expect("one");
+            self.take(s, w);
+        }
+        // Transients no hit links to, once the .tradb has gone past them (or the pair
+        // stopped growing with nothing waiting).
+        let quiet = self.queue.is_empty() && now.duration_since(self.grew) >= settle;
+        let standalone: Vec<i64> = self
+            .arrived
+            .iter()
+            .filter(|(&set, a)| {
+                (quiet || set < self.tradb_reached) && !self.linked.contains_key(&a.key)
+            })
+            .map(|(&set, _)| set)
+            .collect();
+        if !standalone.is_empty() {
+            if windows.is_empty() {
+                let load = Arc::new(read_load(&self.pridb, cfg));
+                windows.push(self.window(load, cfg));
+            }
+            let w = windows.last_mut().expect("one");
+            for set in standalone {
+                let a = self.arrived.remove(&set).expect("listed");
+                self.by_key.remove(&a.key);
+                w.transients.push((a.key.1, a.own_number, set, a.key.0));
+                self.handed.tradb_set = self.handed.tradb_set.max(set);
+            }
+            w.end = self.handed;
+        }
+        for w in &mut windows {
+            w.transients.sort_unstable();
+        }
+        Ok(windows)
+    }
+
+    /// Whether a hit can be read as the offline reader would read it.
+    fn ready(&self, s: &Set, now: Instant, wait: Duration) -> bool {
+        if now.duration_since(s.seen) >= wait {
+            return true;
+        }
+        let transient = s.trai <= 0 || self.by_key.contains_key(&(s.trai, s.chan, s.time));
+        let load = !self.needs_load || self.load_until.is_some_and(|t| t >= s.time);
+        transient && load
+    }
+
+    /// A new window starting after what was handed out.
+    fn window(&self, load: Arc<(TimeSeries, TimeSeries)>, cfg: &IngestConfig) -> Window {
+        let mut max_trai = self.acquisitions.max_trai_done.clone();
+        max_trai.push(self.acquisitions.max_trai);
+        Window {
+            experiment: self.experiment.clone(),
+            pridb: self.pridb_path.clone(),
+            tradb: self.tradb_path.clone(),
+            sets: SetWindow {
+                after: self.handed.pridb_set,
+                upto: self.handed.pridb_set,
+                marker_rows: self.handed.marker_rows,
+                parametric_rows: self.handed.parametric_rows,
+            },
+            first_hit: self.handed.hits,
+            transients: Vec::new(),
+            link: HashMap::new(),
+            missing: Vec::new(),
+            acq_starts: self.acquisitions.starts.clone(),
+            offsets: TraiOffsets::new(&max_trai),
+            load,
+            pridb_time_base: self.pridb_time_base,
+            tradb_time_base: self.tradb_time_base,
+            max_samples: cfg.max_samples_per_record,
+            hits: 0,
+            end: self.handed,
+        }
+    }
+
+    /// Hand the set out in `w`.
+    fn take(&mut self, s: Set, w: &mut Window) {
+        match s.set_type {
+            1 => self.handed.parametric_rows += 1,
+            2 => {
+                self.handed.hits += 1;
+                w.hits += 1;
+                if s.trai > 0 {
+                    let key = (s.trai, s.chan, s.time);
+                    self.linked.insert(key, true);
+                    match self.by_key.remove(&key) {
+                        Some(set) => {
+                            self.arrived.remove(&set);
+                            self.tradb_reached = self.tradb_reached.max(set);
+                            w.link.insert(key, s.acquisition);
+                            w.transients.push((
+                                s.chan,
+                                w.offsets.number(s.acquisition, s.trai),
+                                set,
+                                s.trai,
+                            ));
+                        }
+                        None => w.missing.push(missing_reject(
+                            &self.experiment,
+                            &self.pridb_path.display().to_string(),
+                            (s.acquisition, s.trai, s.chan),
+                            if self.tradb.is_some() {
+                                "it is not in the .tradb"
+                            } else {
+                                "no .tradb beside the .pridb"
+                            },
+                        )),
+                    }
+                }
+            }
+            3..=6 => self.handed.marker_rows += 1,
+            _ => {}
+        }
+        self.handed.pridb_set = s.setid;
+        w.sets.upto = s.setid;
+        w.end = self.handed;
+    }
+
+    /// New `.pridb` sets; true if there were any.
+    fn scan_pridb(&mut self, now: Instant) -> Result<bool, IngestError> {
+        let rows = {
+            let mut st = self
+                .pridb
+                .prepare_cached(&self.scan_sql)
+                .map_err(|e| file_err(&self.pridb_path, format!("cannot list sets: {e}")))?;
+            let rows: Vec<(i64, i64, i64, i64, i64, bool)> = st
+                .query_map([self.scanned_pridb], |r| {
+                    Ok((
+                        r.get(0)?,
+                        r.get::<_, Option<i64>>(1)?.unwrap_or(0),
+                        r.get::<_, Option<i64>>(2)?.unwrap_or(0),
+                        r.get::<_, Option<i64>>(3)?.unwrap_or(0),
+                        r.get::<_, Option<i64>>(4)?.unwrap_or(0),
+                        r.get::<_, Option<bool>>(5)?.unwrap_or(false),
+                    ))
+                })
+                .and_then(|it| it.collect::<Result<Vec<_>, _>>())
+                .map_err(|e| file_err(&self.pridb_path, format!("cannot list sets: {e}")))?;
+            rows
+        };
+        let grew = !rows.is_empty();
+        for (setid, set_type, time, chan, trai, has_load) in rows {
+            self.scanned_pridb = setid;
+            let acquisition = self.acquisitions.add(setid, set_type, trai);
+            if set_type == 1 && has_load {
+                self.load_until = Some(self.load_until.map_or(time, |t| t.max(time)));
+            }
+            let committed = setid <= self.handed.pridb_set;
+            if set_type == 2 && trai > 0 {
+                self.linked.insert((trai, chan, time), committed);
+            }
+            if !committed {
+                self.queue.push_back(Set {
+                    setid,
+                    set_type,
+                    time,
+                    chan,
+                    trai,
+                    acquisition,
+                    seen: now,
+                });
+            }
+        }
+        Ok(grew)
+    }
+
+    /// New `.tradb` records; true if there were any.
+    fn scan_tradb(&mut self) -> Result<bool, IngestError> {
+        if self.tradb.is_none() {
+            // The acquisition may create the .tradb after the .pridb.
+            match open_live(&self.tradb_path) {
+                Ok(c) if !columns(&c, "tr_data").is_empty() => {
+                    self.tradb_time_base = time_base(&c, "tr_globalinfo");
+                    self.tradb = Some(c);
+                }
+                _ => return Ok(false),
+            }
+        }
+        let conn = self.tradb.as_ref().expect("opened");
+        let rows: Vec<(i64, i64, i64, i64)> = {
+            let mut st = conn
+                .prepare_cached(&format!(
+                    "SELECT SetID, Time, Chan, TRAI FROM tr_data WHERE SetID > ?1 \
+                     ORDER BY SetID LIMIT {SCAN_ROWS}"
+                ))
+                .map_err(|e| file_err(&self.tradb_path, format!("cannot list records: {e}")))?;
+            let rows = st
+                .query_map([self.scanned_tradb], |r| {
+                    Ok((
+                        r.get(0)?,
+                        r.get::<_, Option<i64>>(1)?.unwrap_or(0),
+                        r.get::<_, Option<i64>>(2)?.unwrap_or(0),
+                        r.get::<_, Option<i64>>(3)?.unwrap_or(0),
+                    ))
+                })
+                .and_then(|it| it.collect::<Result<Vec<_>, _>>())
+                .map_err(|e| file_err(&self.tradb_path, format!("cannot list records: {e}")))?;
+            rows
+        };
+        let grew = !rows.is_empty();
+        for (setid, time, chan, trai) in rows {
+            self.scanned_tradb = setid;
+            // The .tradb's own acquisitions, as `transient_keys` numbers them.
+            if trai > 0 && trai <= self.own_max {
+                self.own_offset += self.own_max;
+                self.own_max = 0;
+            }
+            self.own_max = self.own_max.max(trai);
+            let key = (trai, chan, time);
+            match self.linked.get(&key) {
+                // Its hit was handed out (with it, or without it after the wait).
+                Some(true) => {
+                    self.tradb_reached = self.tradb_reached.max(setid);
+                    continue;
+                }
+                // Read as standalone before.
+                None if setid <= self.handed.tradb_set => continue,
+                _ => {}
+            }
+            self.by_key.insert(key, setid);
+            self.arrived.insert(
+                setid,
+                Arrived {
+                    key,
+                    own_number: (trai + self.own_offset).max(0) as u64,
+                },
+            );
+        }
+        Ok(grew)
+    }
+}
+
+/// A read-only connection to a database another process writes: a lock it meets waits a
+/// little instead of failing the look.
+fn open_live(path: &Path) -> Result<Connection, IngestError> {
+    let c = open_ro(path)?;
+    c.busy_timeout(Duration::from_millis(250))
+        .map_err(|e| file_err(path, e.to_string()))?;
+    Ok(c)
+}
+
+/// The load and extension series of everything the `.pridb` holds now.
+fn read_load(conn: &Connection, cfg: &IngestConfig) -> (TimeSeries, TimeSeries) {
+    super::pridb::load_series(
+        conn,
+        &columns(conn, "ae_data"),
+        time_base(conn, "ae_globalinfo"),
+        cfg,
+    )
+}
+
+/// The rows of one window, as the offline reader gives them for its sets.
+pub fn read(w: &Window, cfg: &IngestConfig) -> Box<dyn Iterator<Item = Item> + Send> {
+    let mut first: Vec<Item> = Vec::new();
+    let file_reject = |p: &Path, reason: String| {
+        Item::Reject(Reject {
+            record_type: crate::model::RecordType::File,
+            experiment: w.experiment.clone(),
+            source_file: p.display().to_string(),
+            record_id: String::new(),
+            stage: crate::model::Stage::Read,
+            reason,
+        })
+    };
+    let (mut hits, mut sets) = (None, None);
+    if w.sets.upto > w.sets.after {
+        match HitRows::window(
+            &w.pridb,
+            w.pridb_time_base,
+            w.sets.after,
+            w.sets.upto,
+            w.first_hit,
+        ) {
+            Ok(h) => hits = Some(h),
+            Err(e) => first.push(file_reject(&w.pridb, format!("hits ignored: {e}"))),
+        }
+        match SetRows::window(
+            &w.pridb,
+            &w.experiment,
+            w.pridb_time_base,
+            &cfg.vallen,
+            &w.sets,
+        ) {
+            Ok(s) => sets = Some(s),
+            Err(e) => first.push(file_reject(
+                &w.pridb,
+                format!("parametric, status and marker rows ignored: {e}"),
+            )),
+        }
+    }
+    let mut keys: VecDeque<TransientKey> = w.transients.iter().copied().collect();
+    let mut tail: VecDeque<Reject> = w.missing.iter().cloned().collect();
+    let conn = if keys.is_empty() {
+        None
+    } else {
+        match open_ro(&w.tradb) {
+            Ok(c) => Some(c),
+            Err(e) => {
+                // As the offline reader: every transient promised is a reject saying why.
+                first.push(file_reject(&w.tradb, e.to_string()));
+                for (chan, _, _, trai) in keys.drain(..) {
+                    if let Some((&(t, c, _), &a)) =
+                        w.link.iter().find(|(k, _)| k.0 == trai && k.1 == chan)
+                    {
+                        tail.push_back(missing_reject(
+                            &w.experiment,
+                            &w.pridb.display().to_string(),
+                            (a, t, c),
+                            "the .tradb cannot be read",
+                        ));
+                    }
+                }
+                None
+            }
+        }
+    };
+    let (load, extension) = (*w.load).clone();
+    let info = PriInfo {
+        acq_starts: w.acq_starts.clone(),
+        link: w.link.clone(),
+        load,
+        extension,
+        time_base: w.pridb_time_base,
+        ..Default::default()
+    };
+    Box::new(first.into_iter().chain(Reader {
+        experiment: w.experiment.clone(),
+        hits,
+        sets,
+        has_pridb: true,
+        last: VecDeque::new(),
+        pending_hits: VecDeque::new(),
+        tradb: w.tradb.clone(),
+        conn,
+        time_base: w.tradb_time_base,
+        keys,
+        have: w.link.keys().copied().collect::<HashSet<Key>>(),
+        offsets: w.offsets.clone(),
+        info,
+        tail,
+        max_samples: w.max_samples,
+        trf: HashMap::new(),
+    }))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::ingest::vallen::{HitToWrite, Journal, PairWriter};
+
+    fn describe(items: impl IntoIterator<Item = Item>) -> Vec<String> {
+        let mut v: Vec<String> = items
+            .into_iter()
+            .filter(|i| !matches!(i, Item::Setup(_) | Item::Tally(_)))
+            .map(|i| format!("{i:?}"))
+            .collect();
+        v.sort();
+        v
+    }
+
+    /// A pair written in steps (WAL, the writer's connection open throughout): hits, their
+    /// transients one step later, parametric rows, status rows, a restart of the recording,
+    /// a hit without a transient index and one whose transient never comes. Read in
+    /// windows, with the reader dropped once and opened again from its last window's end
+    /// (a watcher killed after a commit), the windows' rows are the offline reader's on
+    /// the finished pair, each once.
+    #[test]
+    fn windows_of_a_growing_pair_are_the_offline_rows() {
+        let dir = std::env::temp_dir().join(format!("aepipe-tail-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        let base = dir.join("t");
+        let w = PairWriter::create(&base, 1e-3, 1e-4, Journal::Wal).unwrap();
+        let (pridb, tradb) = w.paths();
+        let src = Source {
+            id: "t".into(),
+            format: crate::ingest::Format::Vallen,
+            files: vec![tradb],
+            companions: vec![pridb],
+            first_hit: 0,
+        };
+        let mut cfg = IngestConfig::default();
+        cfg.vallen.load_param = "PA0".into();
+        let e = crate::synth::Experiment::new("t", 36, 5);
+        let recs: Vec<_> = e.records().collect();
+        let hit = |k: usize| {
+            let r = &recs[k];
+            // Acquisition 2 from hit 24 on: TRAI starts again (its clock goes on: the
+            // parametric series is one across acquisitions, offline as live).
+            let (trai, t0) = if k < 24 { (k + 1, 0.0) } else { (k - 23, 0.0) };
+            HitToWrite {
+                channel: 1 + (k % 2) as u32,
+                trai: if k == 7 { 0 } else { trai as u64 },
+                time_s: t0 + 0.05 * (k + 1) as f64,
+                sample_rate_hz: r.sample_rate_hz,
+                pretrigger: r.pretrigger,
+                samples_v: &r.samples,
+                restart: false,
+                transient: k != 7 && k != 13,
+            }
+        };
+        let long = Duration::from_secs(3600);
+        let mut tail = Tail::open(&src, Position::default(), &cfg).unwrap();
+        // Nothing is there yet.
+        assert!(tail.look(long, long, 5, &cfg).unwrap().is_empty());
+        let mut got = Vec::new();
+        let mut last_end = Position::default();
+        let take = |ws: Vec<Window>, got: &mut Vec<Item>, last_end: &mut Position| {
+            for w in ws {
+                assert!(w.hits <= 5, "a window of {} hits", w.hits);
+                *last_end = w.end;
+                got.extend(read(&w, &cfg));
+            }
+        };
+        for step in 0..6 {
+            let hits: Vec<usize> = (step * 6..step * 6 + 6).collect();
+            w.batch(|w| {
+                if step == 4 {
+                    w.section(2)?;
+                }
+                for &k in &hits {
+                    let h = hit(k);
+                    w.parametric(h.time_s - 0.01, k as f64, 0.0)?;
+                    w.hit(&h)?;
+                }
+                w.status(0.05 * (step * 6 + 6) as f64, 1, 1e-5)?;
+                Ok(())
+            })
+            .unwrap();
+            // A hit waits for its transient and for the parametric row after it.
+            take(
+                tail.look(long, long, 5, &cfg).unwrap(),
+                &mut got,
+                &mut last_end,
+            );
+            assert!(
+                last_end.hits <= (step * 6) as u64,
+                "step {step}: a hit read before its transient was written"
+            );
+            w.batch(|w| {
+                for &k in &hits {
+                    let h = hit(k);
+                    if h.transient {
+                        w.transient(&h)?;
+                    }
+                }
+                Ok(())
+            })
+            .unwrap();
+            if step == 2 {
+                // Killed after committing its last window: the next reader goes on from
+                // there.
+                tail = Tail::open(&src, last_end, &cfg).unwrap();
+            }
+            let ws = tail.look(long, long, 5, &cfg).unwrap();
+            // Hit 13's transient never comes: it (and every hit after it) waits.
+            take(ws, &mut got, &mut last_end);
+            // The step's last hit waits for the parametric row after it (its load).
+            assert!(
+                last_end.hits < (step * 6 + 6) as u64,
+                "step {step}: a hit read before its load could be interpolated"
+            );
+            if step >= 2 {
+                assert_eq!(last_end.hits, 13, "hit 14 read before hit 13's wait ended");
+            } else {
+                assert_eq!(last_end.hits, (step * 6 + 5) as u64);
+            }
+        }
+        // The wait ends: the rest is read, hit 13 as the offline reader accounts for it.
+        let ws = tail.look(Duration::ZERO, Duration::ZERO, 5, &cfg).unwrap();
+        take(ws, &mut got, &mut last_end);
+        assert!(tail
+            .look(Duration::ZERO, Duration::ZERO, 5, &cfg)
+            .unwrap()
+            .is_empty());
+        assert_eq!(last_end.hits, 36);
+        drop(w);
+        let offline = describe(super::super::open(&src, &cfg));
+        let live = describe(got);
+        assert_eq!(live.len(), offline.len(), "rows in the windows and offline");
+        for (a, b) in live.iter().zip(&offline) {
+            assert_eq!(a, b);
+        }
+        assert!(offline.iter().any(|r| r.contains("has no transient")));
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+}
