@@ -167,6 +167,11 @@ impl Follower {
         out
     }
 
+    /// A growing pair holds sets or transients it has seen but not handed out yet.
+    pub fn waiting(&self) -> bool {
+        self.tails.values().any(Tail::waiting)
+    }
+
     /// The ready windows of a growing Vallen pair; false when it cannot be followed (its
     /// `.pridb` is not a database yet, or never will be: then, once its files have settled,
     /// it is read whole, and the offline reader says what is wrong with it).

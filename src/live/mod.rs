@@ -280,9 +280,11 @@ pub fn watch(
             }
             pending.extend(new);
         }
+        // Not idle while a growing pair holds hits waiting for their transients.
         let idle = o
             .until_idle_s
-            .is_some_and(|s| last_new.elapsed() >= Duration::from_secs_f64(s));
+            .is_some_and(|s| last_new.elapsed() >= Duration::from_secs_f64(s))
+            && !follower.waiting();
         let due = last_flush.elapsed() >= Duration::from_secs_f64(cfg.live.flush_s);
         if !pending.is_empty() && (due || signalled || idle || backlog) {
             // A burst is committed in slices: the hits that came first are readable

@@ -276,3 +276,270 @@ fn watch_refuses_a_folder_written_with_other_settings() {
     assert_eq!(code, 1, "a usage error: {err}");
     assert!(err.contains("another configuration"), "{err}");
 }
+
+/// Rows of several tables keyed by one column (parametric and marker rows by `row`).
+fn rows_by(files: &[PathBuf], key: &str) -> BTreeMap<(String, String), Vec<Vec<String>>> {
+    let mut out: BTreeMap<_, Vec<Vec<String>>> = BTreeMap::new();
+    for f in files {
+        let (n, r) = table_rows(f);
+        let (e, k) = (
+            n.iter().position(|x| x == "experiment").unwrap(),
+            n.iter().position(|x| x == key).unwrap(),
+        );
+        for row in r {
+            out.entry((row[e].clone(), row[k].clone()))
+                .or_default()
+                .push(row);
+        }
+    }
+    out
+}
+
+const PAIR_HITS: usize = 2400;
+
+/// The acquisition of a Vallen pair as AMSY-6 writes it (rollback journal): a hit row every
+/// ~5 ms in small transactions, its transient ~100 ms later, a parametric row (the load)
+/// every 10 hits, a status row per channel every second; every 300th hit has no transient
+/// index and hit 1 000's transient never comes.
+fn write_growing_pair(base: &Path) {
+    use aepipe::ingest::vallen::{HitToWrite, Journal, PairWriter};
+    let e = aepipe::synth::Experiment::new("strip-9", PAIR_HITS, 9);
+    let recs: Vec<_> = e.records().collect();
+    let hit = |k: usize| HitToWrite {
+        channel: 1 + (k % 2) as u32,
+        trai: if k % 300 == 299 { 0 } else { k as u64 + 1 },
+        time_s: 0.01 + 0.005 * k as f64,
+        sample_rate_hz: recs[k].sample_rate_hz,
+        pretrigger: recs[k].pretrigger,
+        samples_v: &recs[k].samples,
+        restart: false,
+        transient: k % 300 != 299 && k != 999,
+    };
+    let w = PairWriter::create(base, 1e-3, 1e-4, Journal::Delete).unwrap();
+    let t0 = Instant::now();
+    let mut transients: std::collections::VecDeque<(Instant, usize)> = Default::default();
+    let mut next_status = 0.0;
+    for chunk in (0..PAIR_HITS).collect::<Vec<_>>().chunks(5) {
+        w.batch(|w| {
+            for &k in chunk {
+                let h = hit(k);
+                if k % 10 == 0 {
+                    w.parametric(h.time_s - 0.001, 0.1 * k as f64, 0.0)?;
+                }
+                w.hit(&h)?;
+                if h.time_s >= next_status {
+                    w.status(h.time_s, 1, 2e-5)?;
+                    w.status(h.time_s, 2, 2e-5)?;
+                    next_status += 1.0;
+                }
+                transients.push_back((Instant::now() + Duration::from_millis(100), k));
+            }
+            Ok(())
+        })
+        .unwrap();
+        let now = Instant::now();
+        w.batch(|w| {
+            while transients.front().is_some_and(|(at, _)| *at <= now) {
+                let h = hit(transients.pop_front().unwrap().1);
+                if h.transient {
+                    w.transient(&h)?;
+                }
+            }
+            Ok(())
+        })
+        .unwrap();
+        std::thread::sleep(Duration::from_millis(15));
+    }
+    std::thread::sleep(Duration::from_millis(100));
+    w.batch(|w| {
+        for (_, k) in transients.drain(..) {
+            let h = hit(k);
+            if h.transient {
+                w.transient(&h)?;
+            }
+        }
+        // The acquisition's last parametric row, after the last hit.
+        w.parametric(0.02 + 0.005 * PAIR_HITS as f64, 0.1 * PAIR_HITS as f64, 0.0)
+    })
+    .unwrap();
+    eprintln!("writer: {PAIR_HITS} hits in {:?}", t0.elapsed());
+}
+
+/// `aepipe watch` follows a Vallen pair while the acquisition appends to it (a few hundred
+/// hits/s, transients a little after their hits, parametric and status rows), is killed
+/// with SIGKILL once at a random point and started again: every hit a row exactly once,
+/// the live rows (hits, features, rejects, parametric, markers) equal to the offline
+/// run's, the final tables byte-identical to `aepipe run` of the finished pair.
+#[test]
+fn watch_a_growing_vallen_pair_killed_and_restarted_exactly_once() {
+    let t = TempDir::new("live-vallen");
+    let data = t.path().join("acq");
+    std::fs::create_dir_all(&data).unwrap();
+    let out = t.path().join("watch");
+    let cfg = t.path().join("live.toml");
+    std::fs::write(
+        &cfg,
+        "[ingest.vallen]\nload_param = \"PA0\"\nload_n_per_mv = 1.0\n\
+         [live]\nflush_s = 0.5\nsettle_s = 0.3\npoll_s = 0.05\ntransient_wait_s = 3\n",
+    )
+    .unwrap();
+    let page = out.join("live.html");
+    let base = data.join("strip-9");
+    let writer = std::thread::spawn(move || {
+        let t0 = Instant::now();
+        while !page.is_file() {
+            assert!(
+                t0.elapsed() < Duration::from_secs(180),
+                "the watcher never got ready"
+            );
+            std::thread::sleep(Duration::from_millis(20));
+        }
+        write_growing_pair(&base);
+    });
+    let nanos = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .unwrap()
+        .subsec_nanos();
+    let delay = Duration::from_millis(u64::from(nanos % 3000));
+    eprintln!("vallen watch test: SIGKILL {delay:?} after the first commit");
+    let mut first = start_watch(&data, &out, &cfg);
+    let state = out.join("watch").join("state.json");
+    let t0 = Instant::now();
+    while !state.is_file() {
+        assert!(
+            t0.elapsed() < Duration::from_secs(180),
+            "no commit within 180 s"
+        );
+        if let Some(s) = first.try_wait().unwrap() {
+            panic!("aepipe watch ended early: {s}");
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    std::thread::sleep(delay);
+    first.kill().unwrap(); // SIGKILL
+    first.wait().unwrap();
+    let before: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&state).unwrap()).unwrap();
+    eprintln!(
+        "killed with {} hits committed, at {}",
+        before["hits"], before["sources"]["strip-9"]["vallen"]
+    );
+    let again = start_watch(&data, &out, &cfg);
+    writer.join().unwrap();
+    let (code, said) = wait_for(again, Duration::from_secs(300));
+    eprintln!("{said}");
+    assert_eq!(code, Some(0), "{said}");
+
+    // Every hit a row exactly once across the kill; every transient a features row once.
+    let (_, live_hits) = keyed_rows(&files(&out.join("hits")));
+    assert_eq!(
+        live_hits.len(),
+        PAIR_HITS,
+        "distinct hits in the live parts"
+    );
+    assert!(
+        live_hits.values().all(|v| v.len() == 1),
+        "a hit written twice"
+    );
+    let numbers: BTreeSet<u64> = live_hits.keys().map(|k| k.2.parse().unwrap()).collect();
+    assert_eq!(numbers, (1..=PAIR_HITS as u64).collect());
+    let (names, live) = keyed_rows(&files(&out.join("features")));
+    let with_transient = PAIR_HITS - PAIR_HITS / 300 - 1;
+    assert_eq!(
+        live.len(),
+        with_transient,
+        "distinct transients in the live parts"
+    );
+    assert!(
+        live.values().all(|v| v.len() == 1),
+        "a transient written twice"
+    );
+
+    // The live rows are the offline run's, but for the events columns: two channels make
+    // the final run build events (it needs the whole test); live rows say "not built".
+    let last = out.join("final");
+    let (fnames, fin) = keyed_rows(&[find(&last, "features.parquet")]);
+    assert_eq!(fnames, names);
+    assert_eq!(fin.len(), live.len());
+    let same_but_events = |names: &[String], live: &[Vec<String>], fin: &[Vec<String>], k| {
+        assert_eq!(live.len(), fin.len());
+        let mut built = 0;
+        for (c, n) in names.iter().enumerate() {
+            if ["event", "event_first", "zone"].contains(&n.as_str()) {
+                assert_eq!(live[0][c], "", "{n} of {k:?} in a live row");
+                built += usize::from(!fin[0][c].is_empty());
+            } else {
+                assert_eq!(live[0][c], fin[0][c], "{n} of {k:?}: live and final");
+            }
+        }
+        built
+    };
+    let mut in_events = 0;
+    for (k, v) in &live {
+        in_events += same_but_events(&names, v, &fin[k], k);
+    }
+    assert!(in_events > 0, "the final run built events");
+    let (hnames, fin_hits) = keyed_rows(&[find(&last, "hits.parquet")]);
+    for (k, v) in &live_hits {
+        same_but_events(&hnames, v, &fin_hits[k], k);
+    }
+    for (table, key) in [("parametric", "row"), ("markers", "row")] {
+        let live = rows_by(&files(&out.join(table)), key);
+        let fin = rows_by(&[find(&last, &format!("{table}.parquet"))], key);
+        assert!(!fin.is_empty(), "{table}: the pair holds some");
+        assert_eq!(live, fin, "{table}: live rows and final rows");
+    }
+    let (_, live_rejects) = table_rows_of(&files(&out.join("rejects")));
+    let missing: Vec<_> = live_rejects
+        .iter()
+        .filter(|r| r.iter().any(|c| c.contains("has no transient")))
+        .collect();
+    assert_eq!(
+        missing.len(),
+        1,
+        "hit 1 000's missing transient, once: {missing:?}"
+    );
+    assert!(
+        missing[0].iter().any(|c| c == "TRAI 1000 ch2"),
+        "{missing:?}"
+    );
+
+    // The final tables are an offline `aepipe run`'s, byte for byte.
+    let offline = t.path().join("offline");
+    let (code, _, err) = aepipe(&[
+        "run",
+        "--config",
+        cfg.to_str().unwrap(),
+        data.to_str().unwrap(),
+        "--out",
+        offline.to_str().unwrap(),
+    ]);
+    assert_eq!(code, 0, "{err}");
+    for name in [
+        "features.parquet",
+        "hits.parquet",
+        "rejects.parquet",
+        "parametric.parquet",
+        "markers.parquet",
+        "classification.parquet",
+    ] {
+        let a = std::fs::read(find(&last, name)).unwrap();
+        let b = std::fs::read(find(&offline, name)).unwrap();
+        assert!(
+            a == b,
+            "{name}: the watcher's final table differs from aepipe run's"
+        );
+    }
+}
+
+/// All rows of several tables with one header.
+fn table_rows_of(files: &[PathBuf]) -> (Vec<String>, Vec<Vec<String>>) {
+    let mut names = Vec::new();
+    let mut rows = Vec::new();
+    for f in files {
+        let (n, r) = table_rows(f);
+        names = n;
+        rows.extend(r);
+    }
+    (names, rows)
+}

@@ -308,6 +308,16 @@ impl Tail {
         Ok(windows)
     }
 
+    /// Sets or transients are read but not yet handed out (waiting for a transient, a
+    /// load or the pair to settle): the test is not idle.
+    pub fn waiting(&self) -> bool {
+        !self.queue.is_empty()
+            || self
+                .arrived
+                .values()
+                .any(|a| !self.linked.contains_key(&a.key))
+    }
+
     /// Whether a hit can be read as the offline reader would read it.
     fn ready(&self, s: &Set, now: Instant, wait: Duration) -> bool {
         if now.duration_since(s.seen) >= wait {
