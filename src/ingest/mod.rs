@@ -241,6 +241,16 @@ pub fn open_window(
     )
 }
 
+/// Items already read from a recording (a growing MISTRAS chain, `aepipe watch`), with the
+/// test machine's load file as [`open`] applies it.
+pub fn with_load_file(
+    items: Box<dyn Iterator<Item = Item> + Send>,
+    src: &Source,
+    cfg: &PipelineConfig,
+) -> Box<dyn Iterator<Item = Item> + Send> {
+    loadfile::attach(items, src, &cfg.load)
+}
+
 /// A reader opened on first use, a panic in it a reject row (the rest of the source
 /// unread); every transient also a hit when the format has no hit list.
 fn guarded(

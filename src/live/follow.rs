@@ -4,10 +4,13 @@
 
 use super::state::State;
 use crate::config::ValidConfig;
+use crate::ingest::dta::tail::{DtaTail, Position as DtaPosition};
 use crate::ingest::vallen::tail::{Position, Tail, Window};
 use crate::ingest::{Format, Source};
+use crate::model::Item;
 use std::collections::{HashMap, HashSet};
 use std::path::{Path, PathBuf};
+use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant, SystemTime};
 
 /// Sources to read at the next flush.
@@ -17,20 +20,35 @@ pub struct Pending {
     pub source: Source,
     /// The newest modification time of its files (for the lag).
     pub written: Option<SystemTime>,
-    /// For a Vallen pair still being written, the sets to read (else all of the source).
-    pub window: Option<Window>,
+    /// Part of a recording still being written (else all of the source, or its new files).
+    pub part: Option<Part>,
+}
+
+/// Part of a recording still being written.
+#[derive(Debug, Clone)]
+pub enum Part {
+    /// The sets of a Vallen pair to read.
+    Vallen(Box<Window>),
+    /// What a MISTRAS chain held past the last look: the reader's items (read at the look:
+    /// the reader's state goes on from message to message), and where it stands after them.
+    Dta {
+        items: Arc<Mutex<Vec<Item>>>,
+        records: usize,
+        end: DtaPosition,
+    },
 }
 
 impl Pending {
     /// The source is one hit per file, numbered by place (else a whole recording).
     pub fn per_hit(&self) -> bool {
-        self.window.is_none() && self.source.format.numbered_by_place()
+        self.part.is_none() && self.source.format.numbered_by_place()
     }
 
-    /// How many records it is, about: its files, or its window's hits.
+    /// How many records it is, about: its files, or its part's hits.
     pub fn weight(&self) -> usize {
-        match &self.window {
-            Some(w) => w.weight(),
+        match &self.part {
+            Some(Part::Vallen(w)) => w.weight(),
+            Some(Part::Dta { records, .. }) => (*records).max(1),
             None => self.source.files.len().max(1),
         }
     }
@@ -63,6 +81,9 @@ pub struct Follower {
     /// Growing Vallen pairs: where the committed state left them, and their readers.
     positions: HashMap<String, Position>,
     tails: HashMap<String, Tail>,
+    /// Growing MISTRAS chains, likewise.
+    dta_positions: HashMap<String, DtaPosition>,
+    dtas: HashMap<String, DtaTail>,
 }
 
 impl Follower {
@@ -76,6 +97,8 @@ impl Follower {
             whole: HashSet::new(),
             positions: HashMap::new(),
             tails: HashMap::new(),
+            dta_positions: HashMap::new(),
+            dtas: HashMap::new(),
         };
         for (id, r) in &state.sources {
             if r.whole {
@@ -84,6 +107,9 @@ impl Follower {
             if let Some(p) = r.vallen {
                 f.positions.insert(id.clone(), p);
             }
+            if let Some(p) = &r.dta {
+                f.dta_positions.insert(id.clone(), p.clone());
+            }
             f.handed.extend(r.files.iter().map(PathBuf::from));
             f.next_hit.insert(id.clone(), r.files.len() as u64);
         }
@@ -91,8 +117,9 @@ impl Follower {
     }
 
     /// Look at the inputs; the sources (or, one hit per file, the files) that are new and
-    /// settled, in discovery's order.
-    pub fn poll(&mut self, inputs: &[PathBuf], cfg: &ValidConfig) -> Vec<Pending> {
+    /// settled, in discovery's order. A growing MISTRAS chain is read at the look, about
+    /// `room` records of it at most (what the next flush has room for).
+    pub fn poll(&mut self, inputs: &[PathBuf], cfg: &ValidConfig, room: usize) -> Vec<Pending> {
         let d = crate::ingest::discover(inputs, &cfg.ingest);
         let now = Instant::now();
         let mut out = Vec::new();
@@ -133,13 +160,16 @@ impl Follower {
                         ..s
                     },
                     written: newest,
-                    window: None,
+                    part: None,
                 });
             } else {
                 if self.whole.contains(&s.id) {
                     continue;
                 }
                 if grows(&s) && self.follow(&s, cfg, &mut out) {
+                    continue;
+                }
+                if s.format == Format::Mistras && self.follow_dta(&s, cfg, room, &mut out) {
                     continue;
                 }
                 let mut newest = None;
@@ -160,7 +190,7 @@ impl Follower {
                 out.push(Pending {
                     source: s,
                     written: newest,
-                    window: None,
+                    part: None,
                 });
             }
         }
@@ -169,7 +199,7 @@ impl Follower {
 
     /// A growing pair holds sets or transients it has seen but not handed out yet.
     pub fn waiting(&self) -> bool {
-        self.tails.values().any(Tail::waiting)
+        self.tails.values().any(Tail::waiting) || self.dtas.values().any(DtaTail::waiting)
     }
 
     /// The ready windows of a growing Vallen pair; false when it cannot be followed (its
@@ -207,8 +237,54 @@ impl Follower {
         out.extend(windows.into_iter().map(|w| Pending {
             source: s.clone(),
             written,
-            window: Some(w),
+            part: Some(Part::Vallen(Box::new(w))),
         }));
+        true
+    }
+
+    /// What a growing MISTRAS chain holds past the last look; false when it cannot be
+    /// followed (never read before: it is then read whole once settled).
+    fn follow_dta(
+        &mut self,
+        s: &Source,
+        cfg: &ValidConfig,
+        room: usize,
+        out: &mut Vec<Pending>,
+    ) -> bool {
+        let tail = match self.dtas.entry(s.id.clone()) {
+            std::collections::hash_map::Entry::Occupied(e) => e.into_mut(),
+            std::collections::hash_map::Entry::Vacant(e) => {
+                let from = self.dta_positions.get(&s.id).cloned();
+                match DtaTail::open(s, &from.clone().unwrap_or_default(), &cfg.ingest) {
+                    Ok(t) => e.insert(t),
+                    Err(_) => return from.is_some(),
+                }
+            }
+        };
+        let wait = Duration::from_secs_f64(cfg.live.transient_wait_s);
+        let Ok((items, end)) = tail.look(&s.files, wait, room) else {
+            return true;
+        };
+        if items.is_empty() {
+            return true;
+        }
+        let records = items
+            .iter()
+            .filter(|i| matches!(i, Item::Record(_) | Item::Hit(_)))
+            .count();
+        let written = s
+            .all_files()
+            .filter_map(|f| std::fs::metadata(f).and_then(|m| m.modified()).ok())
+            .max();
+        out.push(Pending {
+            source: s.clone(),
+            written,
+            part: Some(Part::Dta {
+                items: Arc::new(Mutex::new(items)),
+                records,
+                end,
+            }),
+        });
         true
     }
 

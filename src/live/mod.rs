@@ -274,7 +274,8 @@ pub fn watch(
         // Between the slices of a backlog the inputs are not looked at again: what is
         // pending is flushed first.
         if !signalled && !backlog {
-            let new = follower.poll(inputs, cfg);
+            let room = FLUSH_FILES.saturating_sub(pending.iter().map(|p| p.weight()).sum());
+            let new = follower.poll(inputs, cfg, room);
             if !new.is_empty() {
                 last_new = Instant::now();
             }
@@ -286,7 +287,9 @@ pub fn watch(
             .is_some_and(|s| last_new.elapsed() >= Duration::from_secs_f64(s))
             && !follower.waiting();
         let due = last_flush.elapsed() >= Duration::from_secs_f64(cfg.live.flush_s);
-        if !pending.is_empty() && (due || signalled || idle || backlog) {
+        // A full slice is not kept waiting for the flush time (a burst).
+        let full = pending.iter().map(|p| p.weight()).sum::<usize>() >= FLUSH_FILES;
+        if !pending.is_empty() && (due || signalled || idle || backlog || full) {
             // A burst is committed in slices: the hits that came first are readable
             // first, and a flush holds a bounded number of records.
             let (batch, rest) = take_files(std::mem::take(&mut pending), FLUSH_FILES);
@@ -391,8 +394,12 @@ fn flush(
     for (experiment, sources) in &by_exp {
         let _ = std::fs::remove_dir_all(&scratch);
         std::fs::create_dir_all(&scratch).map_err(|e| crate::util::IoAt::new(&scratch, e))?;
-        let items = sources.iter().flat_map(|p| match &p.window {
-            Some(w) => crate::ingest::open_window(&p.source, w, cfg),
+        let items = sources.iter().flat_map(|p| match &p.part {
+            Some(follow::Part::Vallen(w)) => crate::ingest::open_window(&p.source, w, cfg),
+            Some(follow::Part::Dta { items, .. }) => {
+                let items = std::mem::take(&mut *items.lock().expect("not poisoned"));
+                crate::ingest::with_load_file(Box::new(items.into_iter()), &p.source, cfg)
+            }
             None => crate::ingest::open(&p.source, cfg),
         });
         let st = crate::pipeline::stream(

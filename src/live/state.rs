@@ -1,7 +1,7 @@
 //! What a watcher has read and written, committed after each flush's parts: the one
 //! record that makes a restart exactly-once.
 
-use super::follow::Pending;
+use super::follow::{Part, Pending};
 use super::{WatchDir, WatchError};
 use crate::config::ValidConfig;
 use serde::{Deserialize, Serialize};
@@ -38,6 +38,9 @@ pub struct SourceState {
     /// A Vallen pair followed while it grows: how far it has been read.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub vallen: Option<crate::ingest::vallen::tail::Position>,
+    /// A MISTRAS chain followed while it grows: how far it has been read.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub dta: Option<crate::ingest::dta::tail::Position>,
 }
 
 impl State {
@@ -78,8 +81,11 @@ impl State {
     /// Record a source's files as read (committed by the next [`State::commit`]).
     pub fn mark(&mut self, p: &Pending) {
         let s = self.sources.entry(p.source.id.clone()).or_default();
-        if let Some(w) = &p.window {
-            s.vallen = Some(w.end);
+        if let Some(part) = &p.part {
+            match part {
+                Part::Vallen(w) => s.vallen = Some(w.end),
+                Part::Dta { end, .. } => s.dta = Some(end.clone()),
+            }
         } else if p.per_hit() {
             s.files
                 .extend(p.source.files.iter().map(|f| f.display().to_string()));

@@ -144,7 +144,7 @@ const CHIDS: [u8; 6] = [1, 3, 5, 6, 21, 23];
 
 /// Product, start time and hardware setup: the CHID list, each channel's gain (unless
 /// `gains` is false) and waveform hardware (10 MHz, 128 pretrigger samples).
-fn setup(channels: &[(u8, u8)], gains: bool) -> Vec<u8> {
+pub(crate) fn setup(channels: &[(u8, u8)], gains: bool) -> Vec<u8> {
     let mut f = msg(41, &[200, 0, b'T', b'E', b'S', b'T', b'\r', b'\n']);
     f.extend(msg(99, b"Thu May 27 10:53:54 2021\n\0"));
     let mut body = vec![103, 0];
@@ -180,7 +180,7 @@ fn setup(channels: &[(u8, u8)], gains: bool) -> Vec<u8> {
 }
 
 /// A hit: rise 10 µs, counts, duration 100 µs, amplitude, absolute energy, centroid.
-fn hit(t: f64, ch: u8, amp: u8, counts: u16) -> Vec<u8> {
+pub(crate) fn hit(t: f64, ch: u8, amp: u8, counts: u16) -> Vec<u8> {
     let mut b = ticks(t).to_vec();
     b.push(ch);
     b.extend(10u16.to_le_bytes());
@@ -192,7 +192,7 @@ fn hit(t: f64, ch: u8, amp: u8, counts: u16) -> Vec<u8> {
     msg(1, &b)
 }
 
-fn wave(t: f64, ch: u8, counts: &[i16]) -> Vec<u8> {
+pub(crate) fn wave(t: f64, ch: u8, counts: &[i16]) -> Vec<u8> {
     let mut b = vec![1];
     b.extend(ticks(t));
     b.push(ch);
@@ -203,7 +203,7 @@ fn wave(t: f64, ch: u8, counts: &[i16]) -> Vec<u8> {
     msg(173, &b)
 }
 
-fn counts(k: i16) -> Vec<i16> {
+pub(crate) fn counts(k: i16) -> Vec<i16> {
     (0..1024)
         .map(|i| ((i % 37) as i16 - 18) * (k + 1))
         .collect()
@@ -332,4 +332,162 @@ fn written_dta_files_four_channels_a_chain_and_bad_endings() {
         "{}",
         m["notes"]
     );
+}
+
+/// Items as comparable text (the setup and tally, said once per file or chain, apart).
+fn described(items: impl IntoIterator<Item = aepipe::model::Item>) -> Vec<String> {
+    use aepipe::model::Item;
+    let mut v: Vec<String> = items
+        .into_iter()
+        .filter(|i| !matches!(i, Item::Setup(_) | Item::Tally(_) | Item::Note(_)))
+        .map(|i| format!("{i:?}"))
+        .collect();
+    v.sort();
+    v
+}
+
+/// Append `bytes` to `path` in pieces of `piece` bytes (cut anywhere, messages included),
+/// calling `look` after each.
+fn append_in_pieces(path: &Path, bytes: &[u8], piece: usize, mut look: impl FnMut()) {
+    use std::io::Write;
+    for c in bytes.chunks(piece) {
+        let mut f = std::fs::OpenOptions::new()
+            .create(true)
+            .append(true)
+            .open(path)
+            .unwrap();
+        f.write_all(c).unwrap();
+        drop(f);
+        look();
+    }
+}
+
+/// A `.DTA` chain read while it is written — the real file appended in pieces cut inside
+/// messages, then a written chain whose first file ends in a cut message and whose second
+/// appears later — with the reader dropped once and opened again from its last position
+/// (a watcher killed after a commit): the items are the offline reader's on the finished
+/// files, each once.
+#[test]
+fn a_growing_dta_chain_read_in_pieces_gives_the_offline_items() {
+    use aepipe::ingest::dta::tail::{DtaTail, Position};
+    use aepipe::ingest::{Format, Source};
+    use std::time::Duration;
+    let cfg = aepipe::config::IngestConfig::default();
+    let long = Duration::from_secs(3600);
+    let t = TempDir::new("dta-tail");
+
+    // The real file, 773 306 bytes, in pieces of 7 919.
+    let Some(real) = super::real_data("a_growing_dta_chain_read_in_pieces_gives_the_offline_items")
+    else {
+        return;
+    };
+    let bytes = std::fs::read(real.join("mistras_dta/210527-CH1-15.DTA")).unwrap();
+    let g = t.path().join("real");
+    std::fs::create_dir_all(&g).unwrap();
+    let path = g.join("210527-CH1-15.DTA");
+    let src = Source {
+        id: "210527-CH1-15".into(),
+        format: Format::Mistras,
+        files: vec![path.clone()],
+        companions: vec![],
+        first_hit: 0,
+    };
+    let mut got = Vec::new();
+    let mut tail: Option<DtaTail> = None;
+    let mut last = Position::default();
+    let mut looks = 0;
+    append_in_pieces(&path, &bytes, 7919, || {
+        looks += 1;
+        let t = tail.get_or_insert_with(|| DtaTail::open(&src, &last, &cfg).unwrap());
+        let (items, at) = t.look(&src.files, long, 3).unwrap();
+        got.extend(items);
+        last = at;
+        // Killed once, after committing what it had.
+        if looks == 40 {
+            tail = None;
+        }
+    });
+    let mut t2 = tail.unwrap_or_else(|| DtaTail::open(&src, &last, &cfg).unwrap());
+    loop {
+        let (items, _) = t2.look(&src.files, Duration::ZERO, 3).unwrap();
+        if items.is_empty() {
+            break;
+        }
+        got.extend(items);
+    }
+    let live = described(got);
+    let offline = described(aepipe::ingest::dta::open(&src, &cfg));
+    let n = |p: &str| live.iter().filter(|r| r.starts_with(p)).count();
+    assert_eq!(
+        (n("Hit("), n("Record(")),
+        (8, 8),
+        "8 hits and their 8 waveforms"
+    );
+    assert!(n("Parametric(") > 10_000, "the time-driven rows");
+    assert_eq!(live, offline);
+
+    // A written chain: X.DTA ends in a cut waveform (a reject once X__2.DTA exists); hits
+    // wait for their waveforms across looks.
+    let w = t.path().join("chain");
+    std::fs::create_dir_all(&w).unwrap();
+    let chans = [(1u8, 0u8), (2, 20)];
+    let mut a = setup(&chans, true);
+    for k in 0..40 {
+        let (tk, ch) = (1.0 + k as f64 * 0.01, 1 + (k % 2) as u8);
+        if k % 3 == 0 {
+            a.extend(wave(tk, ch, &counts(k as i16)));
+            a.extend(hit(tk, ch, 60, 5));
+        } else {
+            a.extend(hit(tk, ch, 61, 6));
+            if k != 17 {
+                a.extend(wave(tk, ch, &counts(k as i16)));
+            }
+        }
+    }
+    let cut = wave(2.0, 1, &counts(3));
+    a.extend(&cut[..cut.len() / 3]);
+    let mut b = msg(8, &[0; 8]);
+    b.extend(setup(&chans, true));
+    for k in 0..30 {
+        let (tk, ch) = (3.0 + k as f64 * 0.01, 1 + (k % 2) as u8);
+        b.extend(hit(tk, ch, 62, 7));
+        b.extend(wave(tk, ch, &counts(k as i16)));
+    }
+    let files = [w.join("X.DTA"), w.join("X__2.DTA")];
+    let chain = Source {
+        id: "X".into(),
+        format: Format::Mistras,
+        files: files.to_vec(),
+        companions: vec![],
+        first_hit: 0,
+    };
+    let mut tail = DtaTail::open(&chain, &Position::default(), &cfg).unwrap();
+    let mut got = Vec::new();
+    append_in_pieces(&files[0], &a, 1000, || {
+        got.extend(tail.look(&files[..1], long, 5).unwrap().0);
+    });
+    // X.DTA alone: its cut end waits (it may still be written).
+    assert!(!described(got.clone())
+        .iter()
+        .any(|r| r.contains("past the end")));
+    let at = tail.look(&files[..1], long, 5).unwrap().1;
+    let mut tail = DtaTail::open(&chain, &at, &cfg).unwrap();
+    append_in_pieces(&files[1], &b, 1500, || {
+        got.extend(tail.look(&files, long, 5).unwrap().0);
+    });
+    loop {
+        let (items, _) = tail.look(&files, Duration::ZERO, 5).unwrap();
+        if items.is_empty() {
+            break;
+        }
+        got.extend(items);
+    }
+    let live = described(got);
+    let offline = described(aepipe::ingest::dta::open(&chain, &cfg));
+    assert!(
+        offline.iter().any(|r| r.contains("past the end")),
+        "the cut waveform's reject"
+    );
+    assert_eq!(live.len(), offline.len());
+    assert_eq!(live, offline);
 }

@@ -543,3 +543,184 @@ fn table_rows_of(files: &[PathBuf]) -> (Vec<String>, Vec<Vec<String>>) {
     }
     (names, rows)
 }
+
+const DTA_HITS: usize = 1200;
+
+/// A MISTRAS acquisition: a `.DTA` appended in pieces cut anywhere (inside messages), a hit
+/// and its waveform per ~5 ms on two channels, hit 500 without a waveform, and a new chain
+/// file (`X__2.DTA`, the setup again) from hit 700 on.
+fn write_growing_dta(dir: &Path) {
+    use super::dta::{hit, msg, setup, wave};
+    use std::io::Write;
+    let e = aepipe::synth::Experiment::new("X", DTA_HITS, 11);
+    let chans = [(1u8, 0u8), (2, 0)];
+    // Volts → counts at 0 dB: 10 V full scale over 32 768 counts.
+    let counts = |v: &[f32]| -> Vec<i16> {
+        v.iter()
+            .map(|x| (*x as f64 * 3276.8).round().clamp(-32768.0, 32767.0) as i16)
+            .collect()
+    };
+    let mut file = dir.join("X.DTA");
+    let mut pending = setup(&chans, true);
+    let append = |path: &Path, bytes: &[u8]| {
+        let mut f = std::fs::OpenOptions::new()
+            .create(true)
+            .append(true)
+            .open(path)
+            .unwrap();
+        f.write_all(bytes).unwrap();
+    };
+    let t0 = Instant::now();
+    for (k, r) in e.records().enumerate() {
+        if k == 700 {
+            append(&file, &pending);
+            pending = msg(8, &[0; 8]);
+            pending.extend(setup(&chans, true));
+            file = dir.join("X__2.DTA");
+        }
+        let (t, ch) = (1.0 + 0.005 * k as f64, 1 + (k % 2) as u8);
+        pending.extend(hit(t, ch, 60 + (k % 20) as u8, 5));
+        if k != 500 {
+            // The setup's 128 pretrigger samples (the synthetic record has 500).
+            let skip = (r.pretrigger as usize).saturating_sub(128);
+            pending.extend(wave(t, ch, &counts(&r.samples[skip..])));
+        }
+        if k % 5 == 4 {
+            // All but a cut piece of the last message; the rest with the next hits.
+            let cut = pending.len() - 100;
+            append(&file, &pending[..cut]);
+            pending.drain(..cut);
+            std::thread::sleep(Duration::from_millis(15));
+        }
+    }
+    append(&file, &pending);
+    eprintln!("writer: {DTA_HITS} hits in {:?}", t0.elapsed());
+}
+
+/// `aepipe watch` follows a MISTRAS chain while the acquisition appends to it (pieces cut
+/// inside messages, a new chain file midway), is killed with SIGKILL once at a random point
+/// and started again: every hit a row exactly once, the live rows equal to the offline
+/// run's, the final tables byte-identical to `aepipe run` of the finished chain.
+#[test]
+fn watch_a_growing_dta_chain_killed_and_restarted_exactly_once() {
+    let t = TempDir::new("live-dta");
+    let data = t.path().join("acq");
+    std::fs::create_dir_all(&data).unwrap();
+    let out = t.path().join("watch");
+    let cfg = t.path().join("live.toml");
+    std::fs::write(
+        &cfg,
+        "[live]\nflush_s = 0.5\nsettle_s = 0.3\npoll_s = 0.05\ntransient_wait_s = 3\n",
+    )
+    .unwrap();
+    let page = out.join("live.html");
+    let dir = data.clone();
+    let writer = std::thread::spawn(move || {
+        let t0 = Instant::now();
+        while !page.is_file() {
+            assert!(
+                t0.elapsed() < Duration::from_secs(180),
+                "the watcher never got ready"
+            );
+            std::thread::sleep(Duration::from_millis(20));
+        }
+        write_growing_dta(&dir);
+    });
+    let nanos = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .unwrap()
+        .subsec_nanos();
+    let delay = Duration::from_millis(u64::from(nanos % 3000));
+    eprintln!("dta watch test: SIGKILL {delay:?} after the first commit");
+    let mut first = start_watch(&data, &out, &cfg);
+    let state = out.join("watch").join("state.json");
+    let t0 = Instant::now();
+    while !state.is_file() {
+        assert!(
+            t0.elapsed() < Duration::from_secs(180),
+            "no commit within 180 s"
+        );
+        if let Some(s) = first.try_wait().unwrap() {
+            panic!("aepipe watch ended early: {s}");
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    std::thread::sleep(delay);
+    first.kill().unwrap(); // SIGKILL
+    first.wait().unwrap();
+    let before: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&state).unwrap()).unwrap();
+    eprintln!(
+        "killed with {} hits committed, at {}",
+        before["hits"], before["sources"]["X"]["dta"]
+    );
+    let again = start_watch(&data, &out, &cfg);
+    writer.join().unwrap();
+    let (code, said) = wait_for(again, Duration::from_secs(300));
+    eprintln!("{said}");
+    assert_eq!(code, Some(0), "{said}");
+
+    let (hnames, live_hits) = keyed_rows(&files(&out.join("hits")));
+    assert_eq!(live_hits.len(), DTA_HITS, "distinct hits in the live parts");
+    assert!(
+        live_hits.values().all(|v| v.len() == 1),
+        "a hit written twice"
+    );
+    let numbers: BTreeSet<u64> = live_hits.keys().map(|k| k.2.parse().unwrap()).collect();
+    assert_eq!(numbers, (1..=DTA_HITS as u64).collect());
+    let (names, live) = keyed_rows(&files(&out.join("features")));
+    assert_eq!(
+        live.len(),
+        DTA_HITS - 1,
+        "distinct waveforms in the live parts"
+    );
+    assert!(
+        live.values().all(|v| v.len() == 1),
+        "a waveform written twice"
+    );
+
+    // The live rows are the offline run's (the events columns apart: built in the final
+    // run only).
+    let last = out.join("final");
+    let (fnames, fin) = keyed_rows(&[find(&last, "features.parquet")]);
+    assert_eq!(fnames, names);
+    let (_, fin_hits) = keyed_rows(&[find(&last, "hits.parquet")]);
+    let same =
+        |names: &[String], a: &[Vec<String>], b: &[Vec<String>], k: &(String, String, String)| {
+            for (c, n) in names.iter().enumerate() {
+                if !["event", "event_first", "zone"].contains(&n.as_str()) {
+                    assert_eq!(a[0][c], b[0][c], "{n} of {k:?}: live and final");
+                }
+            }
+        };
+    for (k, v) in &live {
+        same(&names, v, &fin[k], k);
+    }
+    for (k, v) in &live_hits {
+        same(&hnames, v, &fin_hits[k], k);
+    }
+
+    let offline = t.path().join("offline");
+    let (code, _, err) = aepipe(&[
+        "run",
+        "--config",
+        cfg.to_str().unwrap(),
+        data.to_str().unwrap(),
+        "--out",
+        offline.to_str().unwrap(),
+    ]);
+    assert_eq!(code, 0, "{err}");
+    for name in [
+        "features.parquet",
+        "hits.parquet",
+        "rejects.parquet",
+        "classification.parquet",
+    ] {
+        let a = std::fs::read(find(&last, name)).unwrap();
+        let b = std::fs::read(find(&offline, name)).unwrap();
+        assert!(
+            a == b,
+            "{name}: the watcher's final table differs from aepipe run's"
+        );
+    }
+}

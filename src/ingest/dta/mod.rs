@@ -88,6 +88,10 @@ struct DtaSource {
     counted: BTreeMap<(String, String), u64>,
     /// Messages read, by type, over the chain.
     read: BTreeMap<RecordType, u64>,
+    /// A chain still being written ([`tail`]): a file is opened empty and grown by the
+    /// follower, and its end is the end of the file only once `seal` is set.
+    live: bool,
+    seal: bool,
 }
 
 /// The record type a message stands for, if it carries a record.
@@ -141,6 +145,7 @@ impl DtaSource {
             let name = p.display().to_string();
             match std::fs::File::open(&p).and_then(|f| Ok((f.metadata()?.len(), f))) {
                 Ok((len, f)) => {
+                    let len = if self.live { 0 } else { len };
                     let mut r = MessageReader::new(std::io::BufReader::new(f), len);
                     r.setup = std::mem::take(&mut self.setup);
                     r.setup.size_overrides = self.cfg.size_overrides();
@@ -553,7 +558,10 @@ impl DtaSource {
         };
         let file = file.clone();
         match r.next_message() {
+            // A file still being written: what it holds so far is read.
+            None if self.live && !self.seal => false,
             None => {
+                self.seal = false;
                 if let Some((f, r)) = self.current.take() {
                     if r.setup.continued && !r.setup.have_hit_definition {
                         self.note_once(
@@ -660,9 +668,13 @@ impl Iterator for DtaSource {
 
 /// Open a MISTRAS source: its files as one chain, in chain order.
 pub fn open(src: &Source, cfg: &IngestConfig) -> Box<dyn Iterator<Item = Item> + Send> {
+    Box::new(open_source(src, cfg))
+}
+
+fn open_source(src: &Source, cfg: &IngestConfig) -> DtaSource {
     let mut files = src.files.clone();
     files.sort_by_key(|p| chain_key(p).1);
-    Box::new(DtaSource {
+    DtaSource {
         experiment: src.id.clone(),
         files: files.into(),
         cfg: cfg.mistras.clone(),
@@ -679,5 +691,9 @@ pub fn open(src: &Source, cfg: &IngestConfig) -> Box<dyn Iterator<Item = Item> +
         said: BTreeSet::new(),
         counted: BTreeMap::new(),
         read: BTreeMap::new(),
-    })
+        live: false,
+        seal: false,
+    }
 }
+
+pub mod tail;

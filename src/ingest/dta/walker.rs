@@ -225,6 +225,15 @@ impl<R: Read> MessageReader<R> {
         self.offset
     }
 
+    /// `more` bytes were appended to the file (a recording still being written): read on
+    /// into them. The caller hands out whole messages only.
+    pub fn grow(&mut self, more: u64) {
+        if more > 0 {
+            self.left += more;
+            self.done = false;
+        }
+    }
+
     /// The next message that carries a record (setup messages are absorbed into
     /// [`Self::setup`], others skipped by their length).
     pub fn next_message(&mut self) -> Option<Result<Message, DtaError>> {
