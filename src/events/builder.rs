@@ -93,6 +93,22 @@ pub struct Event {
 }
 
 impl Event {
+    /// An event closed at the end of a part of the hits: the reason the next hit (time,
+    /// channel) gives it, as [`EventBuilder::process`] would.
+    pub fn close_by(&mut self, time_s: f64, channel: u32, p: &Params) {
+        if self.close != CloseReason::EndOfStream || p.role(channel) == ChannelRole::Unused {
+            return;
+        }
+        let (first, last) = (self.hits[0].time_s, self.hits[self.hits.len() - 1].time_s);
+        if time_s - first > p.dt1x_max_s {
+            self.close = CloseReason::Dt1xExpired;
+        } else if time_s - last > p.dtnx_max_s {
+            self.close = CloseReason::DtnxExpired;
+        } else if !p.allow_duplicates && self.hits.iter().any(|h| h.channel == channel) {
+            self.close = CloseReason::DuplicateChannel;
+        }
+    }
+
     pub fn time_s(&self) -> f64 {
         self.hits[0].time_s
     }

@@ -21,7 +21,7 @@ pub mod table;
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 
-pub use part::{run_part, PartTables};
+pub use part::{run_part, run_part_after, PartTables};
 pub use table::{events_table, EventRow};
 
 #[derive(Debug, thiserror::Error)]

@@ -33,6 +33,21 @@ fn opt_i64(v: Option<f64>) -> Option<i64> {
 
 /// Run the events step on one part.
 pub fn run_part(p: &PartTables, cfg: &ValidConfig) -> Result<EventsSummary, EventsError> {
+    run_part_after(p, cfg, 0, &mut BTreeSet::new(), None)
+}
+
+/// Run the events step on one part of an experiment read in parts (`aepipe watch`), cut
+/// where no event can span the cut: its events are numbered on from `events_before`, and
+/// the setup (whether events are built at all) counts the channels of the parts before
+/// (`channels`, which this part's are added to); `next_hit` (time, channel), the hit after
+/// the part if one is known, closes its last event as it will in the whole experiment.
+pub fn run_part_after(
+    p: &PartTables,
+    cfg: &ValidConfig,
+    events_before: u64,
+    channels: &mut BTreeSet<u32>,
+    next_hit: Option<(f64, u32)>,
+) -> Result<EventsSummary, EventsError> {
     let store = |e| EventsError::Store(Box::new(e));
     // The hits: key, time, status and the link to their transient.
     let h = TableScan::open(p.hits).map_err(store)?;
@@ -105,12 +120,12 @@ pub fn run_part(p: &PartTables, cfg: &ValidConfig) -> Result<EventsSummary, Even
         },
         None => None,
     };
-    let channels: BTreeSet<u32> = ch.iter().copied().collect();
+    channels.extend(ch.iter().copied());
     let s: Setup = setup::resolve(
         &cfg.events,
         &cfg.location,
         vaex.as_ref().map(|(p, v)| (p.as_str(), v)),
-        &channels,
+        channels,
     );
     let use_picker = cfg.onset.picker != Picker::None && feats.is_some();
     let mut summary = EventsSummary::new(p.experiment, &s, use_picker, n as u64);
@@ -143,7 +158,10 @@ pub fn run_part(p: &PartTables, cfg: &ValidConfig) -> Result<EventsSummary, Even
             status: status[i],
         })
         .collect();
-    let (events, fates) = builder::build(&input, &s.params).expect("sorted by time above");
+    let (mut events, fates) = builder::build(&input, &s.params).expect("sorted by time above");
+    if let (Some((t, c)), Some(e)) = (next_hit, events.last_mut()) {
+        e.close_by(t, c, &s.params);
+    }
 
     // Per hit row: event (1-based), whether it opened it, and the zone.
     let mut ev_of: Vec<Option<i64>> = vec![None; n];
@@ -174,7 +192,7 @@ pub fn run_part(p: &PartTables, cfg: &ValidConfig) -> Result<EventsSummary, Even
         time[i].unwrap_or(f64::NAN)
     };
     for (k, e) in events.iter().enumerate() {
-        let number = k as i64 + 1;
+        let number = events_before as i64 + k as i64 + 1;
         let t0 = e.time_s();
         for (j, hh) in e.hits.iter().enumerate() {
             ev_of[hh.index] = Some(number);

@@ -35,7 +35,18 @@ pub enum Part {
         items: Arc<Mutex<Vec<Item>>>,
         records: usize,
         end: DtaPosition,
+        next_hit: Option<(f64, u32)>,
     },
+}
+
+impl Part {
+    /// The hit after the part (time, channel), when it ends before a known one.
+    pub fn next_hit(&self) -> Option<(f64, u32)> {
+        match self {
+            Part::Vallen(w) => w.next_hit,
+            Part::Dta { next_hit, .. } => *next_hit,
+        }
+    }
 }
 
 impl Pending {
@@ -84,6 +95,32 @@ pub struct Follower {
     /// Growing MISTRAS chains, likewise.
     dta_positions: HashMap<String, DtaPosition>,
     dtas: HashMap<String, DtaTail>,
+    /// Per growing source, the event builder's longest reach: its parts end only where
+    /// the next hit comes later than that after every hit before (no event is split).
+    gaps: HashMap<String, f64>,
+}
+
+/// The longest time an event can reach over (its first-hit discrimination time, and the
+/// longest times to its first and from its previous hit), for `s` as the events step will
+/// resolve it; 0 when events are switched off.
+fn event_gap_s(cfg: &ValidConfig, s: &Source) -> f64 {
+    if cfg.events.enabled == Some(false) {
+        return 0.0;
+    }
+    let vaex = s.vaex().and_then(|p| {
+        Some((
+            p.display().to_string(),
+            crate::ingest::vallen::vaex::read(p).ok()?,
+        ))
+    });
+    let setup = crate::events::setup::resolve(
+        &cfg.events,
+        &cfg.location,
+        vaex.as_ref().map(|(p, v)| (p.as_str(), v)),
+        &Default::default(),
+    );
+    let p = &setup.params;
+    p.fhcdt_s.max(p.dt1x_max_s).max(p.dtnx_max_s)
 }
 
 impl Follower {
@@ -99,6 +136,7 @@ impl Follower {
             tails: HashMap::new(),
             dta_positions: HashMap::new(),
             dtas: HashMap::new(),
+            gaps: HashMap::new(),
         };
         for (id, r) in &state.sources {
             if r.whole {
@@ -221,10 +259,15 @@ impl Follower {
         let l = &cfg.live;
         // A look that fails (a lock held past the busy wait, a file being replaced) is
         // tried again at the next one, from where this reader stands.
+        let gap = *self
+            .gaps
+            .entry(s.id.clone())
+            .or_insert_with(|| event_gap_s(cfg, s));
         let Ok(windows) = tail.look(
             Duration::from_secs_f64(l.transient_wait_s),
             self.settle,
             super::FLUSH_FILES,
+            gap,
             &cfg.ingest,
         ) else {
             return true;
@@ -262,7 +305,16 @@ impl Follower {
             }
         };
         let wait = Duration::from_secs_f64(cfg.live.transient_wait_s);
-        let Ok((items, end)) = tail.look(&s.files, wait, room) else {
+        let gap = *self
+            .gaps
+            .entry(s.id.clone())
+            .or_insert_with(|| event_gap_s(cfg, s));
+        let Ok(crate::ingest::dta::tail::Handed {
+            items,
+            end,
+            next_hit,
+        }) = tail.look(&s.files, wait, room, gap)
+        else {
             return true;
         };
         if items.is_empty() {
@@ -283,6 +335,7 @@ impl Follower {
                 items: Arc::new(Mutex::new(items)),
                 records,
                 end,
+                next_hit,
             }),
         });
         true

@@ -52,6 +52,8 @@ pub enum WatchError {
     #[error(transparent)]
     Workflow(#[from] crate::workflow::WorkflowError),
     #[error(transparent)]
+    Events(#[from] crate::events::EventsError),
+    #[error(transparent)]
     Io(#[from] crate::util::IoAt),
 }
 
@@ -65,6 +67,7 @@ impl HasKind for WatchError {
             WatchError::Som(e) => e.kind(),
             WatchError::Plot(e) => e.kind(),
             WatchError::Workflow(e) => e.kind(),
+            WatchError::Events(e) => e.kind(),
             WatchError::Io(_) => ErrorKind::Failed,
         }
     }
@@ -99,6 +102,8 @@ pub struct Flush {
     pub classes: BTreeMap<String, u64>,
     /// Seconds from the newest file's last write to the commit, the longest in the flush.
     pub lag_s: f64,
+    /// Events built (sources, when two or more channels hear them).
+    pub events: u64,
 }
 
 impl Flush {
@@ -115,8 +120,13 @@ impl Flush {
                     .join(", ")
             )
         };
+        let events = if self.events > 0 {
+            format!(", {} events", self.events)
+        } else {
+            String::new()
+        };
         format!(
-            "flush {}: +{} hits ({} in all), {} rows, {} rejects, {:.0} hits/s{classes}, lag {:.1} s",
+            "flush {}: +{} hits ({} in all), {} rows, {} rejects{events}, {:.0} hits/s{classes}, lag {:.1} s",
             self.number,
             self.hits,
             self.total_hits,
@@ -185,12 +195,13 @@ impl WatchDir {
 }
 
 /// The tables a flush writes a part of.
-const TABLES: [PartTable; 5] = [
+const TABLES: [PartTable; 6] = [
     PartTable::Main,
     PartTable::Hits,
     PartTable::Rejects,
     PartTable::Parametric,
     PartTable::Markers,
+    PartTable::Events,
 ];
 
 /// The map the watcher classifies with.
@@ -411,6 +422,29 @@ fn flush(
         )?;
         let k = state.parts;
         let stream = StreamDir::new(&scratch);
+        // Events of the part: its sources are cut where no event spans the cut (growing
+        // pairs and chains), so these are the whole experiment's, numbered on.
+        let mut channels = state.channels.get(experiment).cloned().unwrap_or_default();
+        let job = StreamJob::Features;
+        let ev = crate::events::run_part_after(
+            &crate::events::PartTables {
+                experiment,
+                hits: &stream.table(PartTable::Hits, job),
+                features: Some((
+                    stream.table(PartTable::Main, job).as_path(),
+                    PartTable::Main.schema(job, cfg),
+                )),
+                events: &stream.table(PartTable::Events, job),
+                vaex: sources.iter().find_map(|p| p.source.vaex()),
+            },
+            cfg,
+            state.events.get(experiment).copied().unwrap_or(0),
+            &mut channels,
+            sources.last().and_then(|p| p.part.as_ref()?.next_hit()),
+        )?;
+        *state.events.entry(experiment.clone()).or_default() += ev.events;
+        state.channels.insert(experiment.clone(), channels);
+        f.events += ev.events;
         let tables = dir.tables();
         for t in TABLES {
             let from = stream.table(t, StreamJob::Features);

@@ -23,6 +23,12 @@ pub struct State {
     pub rejects: u64,
     /// SOM class → rows.
     pub classes: BTreeMap<String, u64>,
+    /// Events built so far by experiment (the next part's are numbered on), and the
+    /// channels seen (whether events are built at all).
+    #[serde(default)]
+    pub events: BTreeMap<String, u64>,
+    #[serde(default)]
+    pub channels: BTreeMap<String, std::collections::BTreeSet<u32>>,
     /// Source id → what has been read of it.
     pub sources: BTreeMap<String, SourceState>,
 }

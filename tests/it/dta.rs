@@ -399,9 +399,9 @@ fn a_growing_dta_chain_read_in_pieces_gives_the_offline_items() {
     append_in_pieces(&path, &bytes, 7919, || {
         looks += 1;
         let t = tail.get_or_insert_with(|| DtaTail::open(&src, &last, &cfg).unwrap());
-        let (items, at) = t.look(&src.files, long, 3).unwrap();
-        got.extend(items);
-        last = at;
+        let h = t.look(&src.files, long, 3, 1e-3).unwrap();
+        got.extend(h.items);
+        last = h.end;
         // Killed once, after committing what it had.
         if looks == 40 {
             tail = None;
@@ -409,7 +409,7 @@ fn a_growing_dta_chain_read_in_pieces_gives_the_offline_items() {
     });
     let mut t2 = tail.unwrap_or_else(|| DtaTail::open(&src, &last, &cfg).unwrap());
     loop {
-        let (items, _) = t2.look(&src.files, Duration::ZERO, 3).unwrap();
+        let items = t2.look(&src.files, Duration::ZERO, 3, 1e-3).unwrap().items;
         if items.is_empty() {
             break;
         }
@@ -464,19 +464,19 @@ fn a_growing_dta_chain_read_in_pieces_gives_the_offline_items() {
     let mut tail = DtaTail::open(&chain, &Position::default(), &cfg).unwrap();
     let mut got = Vec::new();
     append_in_pieces(&files[0], &a, 1000, || {
-        got.extend(tail.look(&files[..1], long, 5).unwrap().0);
+        got.extend(tail.look(&files[..1], long, 5, 0.0).unwrap().items);
     });
     // X.DTA alone: its cut end waits (it may still be written).
     assert!(!described(got.clone())
         .iter()
         .any(|r| r.contains("past the end")));
-    let at = tail.look(&files[..1], long, 5).unwrap().1;
+    let at = tail.look(&files[..1], long, 5, 0.0).unwrap().end;
     let mut tail = DtaTail::open(&chain, &at, &cfg).unwrap();
     append_in_pieces(&files[1], &b, 1500, || {
-        got.extend(tail.look(&files, long, 5).unwrap().0);
+        got.extend(tail.look(&files, long, 5, 0.0).unwrap().items);
     });
     loop {
-        let (items, _) = tail.look(&files, Duration::ZERO, 5).unwrap();
+        let items = tail.look(&files, Duration::ZERO, 5, 0.0).unwrap().items;
         if items.is_empty() {
             break;
         }

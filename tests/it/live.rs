@@ -297,18 +297,19 @@ fn rows_by(files: &[PathBuf], key: &str) -> BTreeMap<(String, String), Vec<Vec<S
 
 const PAIR_HITS: usize = 2400;
 
-/// The acquisition of a Vallen pair as AMSY-6 writes it (rollback journal): a hit row every
-/// ~5 ms in small transactions, its transient ~100 ms later, a parametric row (the load)
+/// The acquisition of a Vallen pair as AMSY-6 writes it (rollback journal): hit rows in
+/// small transactions at a few hundred hits/s (a source every 10 ms heard by two channels), its transient ~100 ms later, a parametric row (the load)
 /// every 10 hits, a status row per channel every second; every 300th hit has no transient
 /// index and hit 1 000's transient never comes.
 fn write_growing_pair(base: &Path) {
     use aepipe::ingest::vallen::{HitToWrite, Journal, PairWriter};
     let e = aepipe::synth::Experiment::new("strip-9", PAIR_HITS, 9);
     let recs: Vec<_> = e.records().collect();
+    // A source every 10 ms, heard by channel 1 and, 0–60 µs later, channel 2 (one event).
     let hit = |k: usize| HitToWrite {
         channel: 1 + (k % 2) as u32,
         trai: if k % 300 == 299 { 0 } else { k as u64 + 1 },
-        time_s: 0.01 + 0.005 * k as f64,
+        time_s: 0.01 + 0.01 * (k / 2) as f64 + (k % 2) as f64 * 1e-6 * ((k / 2) % 61) as f64,
         sample_rate_hz: recs[k].sample_rate_hz,
         pretrigger: recs[k].pretrigger,
         samples_v: &recs[k].samples,
@@ -359,7 +360,7 @@ fn write_growing_pair(base: &Path) {
             }
         }
         // The acquisition's last parametric row, after the last hit.
-        w.parametric(0.02 + 0.005 * PAIR_HITS as f64, 0.1 * PAIR_HITS as f64, 0.0)
+        w.parametric(0.02 + 0.01 * PAIR_HITS as f64, 0.1 * PAIR_HITS as f64, 0.0)
     })
     .unwrap();
     eprintln!("writer: {PAIR_HITS} hits in {:?}", t0.elapsed());
@@ -455,38 +456,32 @@ fn watch_a_growing_vallen_pair_killed_and_restarted_exactly_once() {
         "a transient written twice"
     );
 
-    // The live rows are the offline run's, but for the events columns: two channels make
-    // the final run build events (it needs the whole test); live rows say "not built".
+    // The live rows are the offline run's, the events columns included: the watcher's
+    // windows end only where no event can span the end, so its events are the offline
+    // run's, numbered on.
     let last = out.join("final");
     let (fnames, fin) = keyed_rows(&[find(&last, "features.parquet")]);
     assert_eq!(fnames, names);
     assert_eq!(fin.len(), live.len());
-    let same_but_events = |names: &[String], live: &[Vec<String>], fin: &[Vec<String>], k| {
-        assert_eq!(live.len(), fin.len());
-        let mut built = 0;
-        for (c, n) in names.iter().enumerate() {
-            if ["event", "event_first", "zone"].contains(&n.as_str()) {
-                assert_eq!(live[0][c], "", "{n} of {k:?} in a live row");
-                built += usize::from(!fin[0][c].is_empty());
-            } else {
-                assert_eq!(live[0][c], fin[0][c], "{n} of {k:?}: live and final");
-            }
-        }
-        built
-    };
-    let mut in_events = 0;
     for (k, v) in &live {
-        in_events += same_but_events(&names, v, &fin[k], k);
+        assert_eq!(&fin[k], v, "transient {k:?} differs between live and final");
     }
-    assert!(in_events > 0, "the final run built events");
-    let (hnames, fin_hits) = keyed_rows(&[find(&last, "hits.parquet")]);
+    let (_, fin_hits) = keyed_rows(&[find(&last, "hits.parquet")]);
     for (k, v) in &live_hits {
-        same_but_events(&hnames, v, &fin_hits[k], k);
+        assert_eq!(&fin_hits[k], v, "hit {k:?} differs between live and final");
     }
-    for (table, key) in [("parametric", "row"), ("markers", "row")] {
+    same_events_and_classes(&out, &last);
+    for (table, key) in [
+        ("parametric", "row"),
+        ("markers", "row"),
+        ("events", "event"),
+    ] {
         let live = rows_by(&files(&out.join(table)), key);
         let fin = rows_by(&[find(&last, &format!("{table}.parquet"))], key);
         assert!(!fin.is_empty(), "{table}: the pair holds some");
+        for (k, v) in &live {
+            assert_eq!(Some(v), fin.get(k), "{table} {k:?}");
+        }
         assert_eq!(live, fin, "{table}: live rows and final rows");
     }
     let (_, live_rejects) = table_rows_of(&files(&out.join("rejects")));
@@ -546,8 +541,8 @@ fn table_rows_of(files: &[PathBuf]) -> (Vec<String>, Vec<Vec<String>>) {
 
 const DTA_HITS: usize = 1200;
 
-/// A MISTRAS acquisition: a `.DTA` appended in pieces cut anywhere (inside messages), a hit
-/// and its waveform per ~5 ms on two channels, hit 500 without a waveform, and a new chain
+/// A MISTRAS acquisition: a `.DTA` appended in pieces cut anywhere (inside messages), a
+/// source every 10 ms heard by two channels (a hit and its waveform each), hit 500 without a waveform, and a new chain
 /// file (`X__2.DTA`, the setup again) from hit 700 on.
 fn write_growing_dta(dir: &Path) {
     use super::dta::{hit, msg, setup, wave};
@@ -578,7 +573,11 @@ fn write_growing_dta(dir: &Path) {
             pending.extend(setup(&chans, true));
             file = dir.join("X__2.DTA");
         }
-        let (t, ch) = (1.0 + 0.005 * k as f64, 1 + (k % 2) as u8);
+        // A source every 10 ms, heard by channel 1 and 40 µs later channel 2.
+        let (t, ch) = (
+            1.0 + 0.01 * (k / 2) as f64 + (k % 2) as f64 * 40e-6,
+            1 + (k % 2) as u8,
+        );
         pending.extend(hit(t, ch, 60 + (k % 20) as u8, 5));
         if k != 500 {
             // The setup's 128 pretrigger samples (the synthetic record has 500).
@@ -660,7 +659,7 @@ fn watch_a_growing_dta_chain_killed_and_restarted_exactly_once() {
     eprintln!("{said}");
     assert_eq!(code, Some(0), "{said}");
 
-    let (hnames, live_hits) = keyed_rows(&files(&out.join("hits")));
+    let (_, live_hits) = keyed_rows(&files(&out.join("hits")));
     assert_eq!(live_hits.len(), DTA_HITS, "distinct hits in the live parts");
     assert!(
         live_hits.values().all(|v| v.len() == 1),
@@ -679,26 +678,24 @@ fn watch_a_growing_dta_chain_killed_and_restarted_exactly_once() {
         "a waveform written twice"
     );
 
-    // The live rows are the offline run's (the events columns apart: built in the final
-    // run only).
+    // The live rows are the offline run's, events included.
     let last = out.join("final");
     let (fnames, fin) = keyed_rows(&[find(&last, "features.parquet")]);
     assert_eq!(fnames, names);
-    let (_, fin_hits) = keyed_rows(&[find(&last, "hits.parquet")]);
-    let same =
-        |names: &[String], a: &[Vec<String>], b: &[Vec<String>], k: &(String, String, String)| {
-            for (c, n) in names.iter().enumerate() {
-                if !["event", "event_first", "zone"].contains(&n.as_str()) {
-                    assert_eq!(a[0][c], b[0][c], "{n} of {k:?}: live and final");
-                }
-            }
-        };
+    assert_eq!(fin.len(), live.len());
     for (k, v) in &live {
-        same(&names, v, &fin[k], k);
+        assert_eq!(&fin[k], v, "waveform {k:?} differs between live and final");
     }
+    let (_, fin_hits) = keyed_rows(&[find(&last, "hits.parquet")]);
     for (k, v) in &live_hits {
-        same(&hnames, v, &fin_hits[k], k);
+        assert_eq!(&fin_hits[k], v, "hit {k:?} differs between live and final");
     }
+    assert_eq!(
+        rows_by(&files(&out.join("events")), "event"),
+        rows_by(&[find(&last, "events.parquet")], "event"),
+        "events: live rows and final rows"
+    );
+    same_events_and_classes(&out, &last);
 
     let offline = t.path().join("offline");
     let (code, _, err) = aepipe(&[
@@ -722,5 +719,28 @@ fn watch_a_growing_dta_chain_killed_and_restarted_exactly_once() {
             a == b,
             "{name}: the watcher's final table differs from aepipe run's"
         );
+    }
+}
+
+/// The live events are the final run's (some built: two channels hear each source), and
+/// each classified row's live SOM class is the final run's (one row per event: the same
+/// map, the same first hits).
+fn same_events_and_classes(out: &Path, last: &Path) {
+    let (en, _) = table_rows(&files(&out.join("events"))[0]);
+    let live = rows_by(&files(&out.join("events")), "event");
+    let chans = en.iter().position(|c| c == "channels").unwrap();
+    let two = live.values().filter(|v| v[0][chans] == "[1, 2]").count();
+    assert!(
+        two > live.len() / 2,
+        "sources heard by both channels: {two} of {}",
+        live.len()
+    );
+    let (cn, live_cls) = keyed_rows(&files(&out.join("classification")));
+    let (_, fin_cls) = keyed_rows(&[find(last, "classification.parquet")]);
+    assert_eq!(live_cls.len(), fin_cls.len(), "classified rows");
+    let som = cn.iter().position(|c| c == "som_label").unwrap();
+    for (k, v) in &live_cls {
+        assert_eq!(v.len(), 1, "{k:?} classified twice");
+        assert_eq!(v[0][som], fin_cls[k][0][som], "{k:?}'s class");
     }
 }

@@ -34,6 +34,16 @@ pub struct Position {
     pub drains: Vec<(usize, u64)>,
 }
 
+/// What one look hands out.
+pub struct Handed {
+    pub items: Vec<Item>,
+    /// Where the reading stands after them (what to commit with them).
+    pub end: Position,
+    /// The hit after them (time, channel) when they end before a known one: it closes
+    /// their last event.
+    pub next_hit: Option<(f64, u32)>,
+}
+
 /// Follows one growing chain.
 pub struct DtaTail {
     src: DtaSource,
@@ -42,7 +52,14 @@ pub struct DtaTail {
     k: Option<usize>,
     /// Bytes of that file handed to the reader.
     complete: u64,
-    handed: Position,
+    /// Items read but not handed out (after the last place a part may end), and after
+    /// which of them the reader stood where: (items before, position).
+    carry: Vec<Item>,
+    steps: Vec<(usize, Position)>,
+    /// Where the items handed out end.
+    handed_at: Position,
+    /// Where the reader stands (after the last message it read).
+    at: Position,
     grew: Instant,
 }
 
@@ -58,13 +75,16 @@ impl DtaTail {
             chain: Vec::new(),
             k: None,
             complete: 0,
-            handed: Position::default(),
+            at: Position::default(),
+            carry: Vec::new(),
+            steps: Vec::new(),
+            handed_at: from.clone(),
             grew: Instant::now(),
         };
         t.update_chain(&src.files);
         if *from != Position::default() {
-            t.advance(usize::MAX, Some(from), &mut |_| {})?;
-            if t.handed.file != from.file || t.handed.offset != from.offset {
+            t.advance(usize::MAX, Some(from), &mut |_| {}, &mut |_, _| {})?;
+            if t.at.file != from.file || t.at.offset != from.offset {
                 return Err(file_err(
                     t.chain.get(from.file).map_or(Path::new(&src.id), |p| p.as_path()),
                     format!(
@@ -90,31 +110,84 @@ impl DtaTail {
 
     /// Hits wait for their waveforms: the test is not idle.
     pub fn waiting(&self) -> bool {
-        !self.src.pending.is_empty()
+        !self.src.pending.is_empty() || !self.carry.is_empty()
     }
 
-    /// Read what is new, at most about `max_records` hits and waveforms; the items, and
-    /// where the reading stands after them. `wait`: how long hits wait for their waveforms
-    /// without the chain growing before they are let out alone.
+    /// Read what is new, about `max_records` hits and waveforms at most, and hand out the
+    /// items up to the last place a part may end: where the next hit comes more than
+    /// `gap_s` after every hit before it (the event builder's longest reach: no event spans
+    /// two parts; 0: anywhere), or the end once the chain has not grown for `wait`. The
+    /// items, and where the reading stands after them (what to commit with them). Hits
+    /// waiting for their waveforms are let out alone once the chain has not grown for
+    /// `wait`.
     pub fn look(
         &mut self,
         files: &[PathBuf],
         wait: Duration,
         max_records: usize,
-    ) -> Result<(Vec<Item>, Position), IngestError> {
+        gap_s: f64,
+    ) -> Result<Handed, IngestError> {
         self.update_chain(files);
-        let before = (self.handed.clone(), self.complete);
-        let mut items = Vec::new();
-        if max_records > 0 {
-            self.advance(max_records, None, &mut |i| items.push(i))?;
+        let before = (self.at.clone(), self.complete);
+        let carried = records(&self.carry);
+        if max_records > carried {
+            let mut got = Vec::new();
+            let mut steps = Vec::new();
+            let n0 = self.carry.len();
+            self.advance(
+                max_records - carried,
+                None,
+                &mut |i| got.push(i),
+                &mut |n, p| steps.push((n0 + n, p)),
+            )?;
+            self.carry.extend(got);
+            self.steps.extend(steps);
         }
         let now = Instant::now();
-        if (self.handed.clone(), self.complete) != before {
+        let quiet = if (self.at.clone(), self.complete) != before {
             self.grew = now;
-        } else if self.waiting() && now.duration_since(self.grew) >= wait {
-            self.drain(&mut |i| items.push(i));
+            false
+        } else {
+            now.duration_since(self.grew) >= wait
+        };
+        if quiet && !self.src.pending.is_empty() {
+            let mut got = Vec::new();
+            self.drain(&mut |i| got.push(i));
+            self.carry.extend(got);
+            let n = self.carry.len();
+            self.steps.push((n, self.at.clone()));
         }
-        Ok((items, self.handed.clone()))
+        // The last place a part may end.
+        let end = if quiet || gap_s <= 0.0 {
+            self.steps.last().cloned().map(|(n, p)| (n, p, None))
+        } else {
+            last_cut(&self.carry, &self.steps, gap_s)
+                // A run with no quiet gap at all is not held forever.
+                .or_else(|| {
+                    (records(&self.carry) > 8 * max_records.max(1))
+                        .then(|| self.steps.last().cloned().map(|(n, p)| (n, p, None)))
+                        .flatten()
+                })
+        };
+        let Some((n, at, next_hit)) = end else {
+            return Ok(Handed {
+                items: Vec::new(),
+                end: self.handed_at.clone(),
+                next_hit: None,
+            });
+        };
+        let rest = self.carry.split_off(n);
+        let out = std::mem::replace(&mut self.carry, rest);
+        self.steps.retain(|(k, _)| *k > n);
+        for s in &mut self.steps {
+            s.0 -= n;
+        }
+        self.handed_at = at.clone();
+        Ok(Handed {
+            items: out,
+            end: at,
+            next_hit,
+        })
     }
 
     /// Let the waiting hits and waveforms out alone (as at the end of the chain).
@@ -122,9 +195,7 @@ impl DtaTail {
         while let Some(p) = self.src.pending.pop_front() {
             self.src.emit(p);
         }
-        self.handed
-            .drains
-            .push((self.handed.file, self.handed.offset));
+        self.at.drains.push((self.at.file, self.at.offset));
         for i in self.src.out.drain(..) {
             sink(i);
         }
@@ -137,20 +208,19 @@ impl DtaTail {
         max_records: usize,
         stop: Option<&Position>,
         sink: &mut impl FnMut(Item),
+        step_done: &mut impl FnMut(usize, Position),
     ) -> Result<(), IngestError> {
         let mut records = 0usize;
+        let mut items = 0usize;
         loop {
             if let Some(s) = stop {
-                if s.drains.contains(&(self.handed.file, self.handed.offset))
+                if s.drains.contains(&(self.at.file, self.at.offset))
                     && !self.src.pending.is_empty()
-                    && !self
-                        .handed
-                        .drains
-                        .contains(&(self.handed.file, self.handed.offset))
+                    && !self.at.drains.contains(&(self.at.file, self.at.offset))
                 {
                     self.drain(sink);
                 }
-                if self.handed.file == s.file && self.handed.offset == s.offset {
+                if self.at.file == s.file && self.at.offset == s.offset {
                     return Ok(());
                 }
             }
@@ -163,27 +233,39 @@ impl DtaTail {
                 self.src.open_next();
                 self.k = Some(next);
                 self.complete = 0;
-                self.handed.file = next;
-                self.handed.offset = 0;
+                self.at.file = next;
+                self.at.offset = 0;
                 if self.src.current.is_none() {
                     // Unreadable: its reject row is out, the chain goes on with the next.
+                    let had = items;
                     for i in self.src.out.drain(..) {
+                        items += 1;
                         sink(i);
+                    }
+                    if items > had {
+                        step_done(items, self.at.clone());
                     }
                     continue;
                 }
             }
             let progressed = self.src.step();
+            let had = items;
             for i in self.src.out.drain(..) {
                 if matches!(i, Item::Record(_) | Item::Hit(_)) {
                     records += 1;
                 }
+                items += 1;
                 sink(i);
             }
-            match &self.src.current {
-                Some((_, r)) => self.handed.offset = r.offset(),
+            if let Some((_, r)) = &self.src.current {
+                self.at.offset = r.offset();
+            }
+            if items > had {
+                step_done(items, self.at.clone());
+            }
+            if self.src.current.is_none() {
                 // The file is done: the next one (if there is one yet) opens next time.
-                None => continue,
+                continue;
             }
             if records >= max_records {
                 return Ok(());
@@ -234,4 +316,47 @@ fn whole_messages(path: &Path, from: u64) -> Result<(u64, u64), IngestError> {
         r.seek_relative(n as i64).map_err(e)?;
     }
     Ok((at, len))
+}
+
+/// Hits and waveforms among the items.
+fn records(items: &[Item]) -> usize {
+    items
+        .iter()
+        .filter(|i| matches!(i, Item::Record(_) | Item::Hit(_)))
+        .count()
+}
+
+/// The last step boundary after which the next hit comes more than `gap_s` after every hit
+/// before it: (items before, position, the next hit's time and channel).
+#[allow(clippy::type_complexity)]
+fn last_cut(
+    items: &[Item],
+    steps: &[(usize, Position)],
+    gap_s: f64,
+) -> Option<(usize, Position, Option<(f64, u32)>)> {
+    // Latest hit time up to each item, and the first hit from each item on.
+    let time = |i: &Item| match i {
+        Item::Hit(h) => h.time_s.filter(|t| t.is_finite()).map(|t| (t, h.channel)),
+        _ => None,
+    };
+    let mut next = vec![None; items.len() + 1];
+    for k in (0..items.len()).rev() {
+        next[k] = time(&items[k]).or(next[k + 1]);
+    }
+    let mut best = None;
+    let (mut latest, mut k) = (f64::NEG_INFINITY, 0usize);
+    for (n, p) in steps {
+        while k < *n {
+            if let Some((t, _)) = time(&items[k]) {
+                latest = latest.max(t);
+            }
+            k += 1;
+        }
+        if let Some((t, c)) = next[*n] {
+            if latest > f64::NEG_INFINITY && t > latest + gap_s {
+                best = Some((*n, p.clone(), Some((t, c))));
+            }
+        }
+    }
+    best
 }

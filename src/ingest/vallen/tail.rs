@@ -93,6 +93,9 @@ pub struct Window {
     pub hits: u64,
     /// Where the reading stands after this window.
     pub end: Position,
+    /// The hit after the window (time, channel), when the window ends before a known one:
+    /// it closes the window's last event.
+    pub next_hit: Option<(f64, u32)>,
 }
 
 impl Window {
@@ -241,15 +244,18 @@ impl Tail {
         })
     }
 
-    /// Read what is new in the files and hand out the windows that are ready, each of at
-    /// most `max_hits` hits. `wait`: how long a hit waits for its transient and load;
-    /// `settle`: how long the pair must not grow before a transient no hit links to is
-    /// read as standalone.
+    /// Read what is new in the files and hand out the windows that are ready, each of about
+    /// `max_hits` hits. `wait`: how long a hit waits for its transient and load; `settle`:
+    /// how long the pair must not grow before a transient no hit links to is read as
+    /// standalone; `gap_s`: a window ends only where the next hit comes more than this
+    /// after every hit before it (the event builder's longest reach, so that no event spans
+    /// two windows; 0: anywhere).
     pub fn look(
         &mut self,
         wait: Duration,
         settle: Duration,
         max_hits: usize,
+        gap_s: f64,
         cfg: &IngestConfig,
     ) -> Result<Vec<Window>, IngestError> {
         let now = Instant::now();
@@ -257,25 +263,26 @@ impl Tail {
         if grew {
             self.grew = now;
         }
-        // The sets that are ready, in windows.
+        // The sets that are ready, in windows ending where no event can span the end.
+        let gap = (gap_s.max(0.0) * self.pridb_time_base).ceil() as i64;
+        let plan = self.plan(now, wait, gap, max_hits.max(1) as u64);
         let mut windows: Vec<Window> = Vec::new();
-        let mut load: Option<Arc<(TimeSeries, TimeSeries)>> = None;
-        while let Some(s) = self.queue.front() {
-            if s.set_type == 2 && !self.ready(s, now, wait) {
-                break;
+        if !plan.is_empty() {
+            let load = Arc::new(read_load(&self.pridb, cfg));
+            for sets in plan {
+                let mut w = self.window(load.clone(), cfg);
+                for _ in 0..sets {
+                    let s = self.queue.pop_front().expect("planned");
+                    self.take(s, &mut w);
+                }
+                w.next_hit = self.queue.front().filter(|s| s.set_type == 2).map(|s| {
+                    (
+                        s.time as f64 * (1.0 / self.pridb_time_base),
+                        s.chan.max(0) as u32,
+                    )
+                });
+                windows.push(w);
             }
-            let w_full = windows
-                .last()
-                .is_none_or(|w| w.hits as usize >= max_hits.max(1));
-            if w_full {
-                let load = load
-                    .get_or_insert_with(|| Arc::new(read_load(&self.pridb, cfg)))
-                    .clone();
-                windows.push(self.window(load, cfg));
-            }
-            let s = self.queue.pop_front().expect("front");
-            let w = windows.last_mut().expect("one");
-            self.take(s, w);
         }
         // Transients no hit links to, once the .tradb has gone past them (or the pair
         // stopped growing with nothing waiting).
@@ -318,6 +325,53 @@ impl Tail {
                 .any(|a| !self.linked.contains_key(&a.key))
     }
 
+    /// How many sets each window takes: the run of ready sets from the front of the queue,
+    /// cut where the next hit comes more than `gap` ticks after every hit before it, each
+    /// window the longest such run of at most `max_hits` hits (longer if no cut comes
+    /// sooner: an event is never split). The end of the ready run is a cut once nothing
+    /// waits behind it and its last hit has waited `wait` for a next one.
+    fn plan(&self, now: Instant, wait: Duration, gap: i64, max_hits: u64) -> Vec<usize> {
+        // (sets before the cut, hits before it)
+        let mut cuts: Vec<(usize, u64)> = Vec::new();
+        let (mut hits, mut max_time, mut end) = (0u64, i64::MIN, 0usize);
+        let mut last_seen = None;
+        let mut stopped = false;
+        for (i, s) in self.queue.iter().enumerate() {
+            if s.set_type == 2 {
+                if hits > 0 && (gap == 0 || s.time > max_time.saturating_add(gap)) {
+                    cuts.push((i, hits));
+                }
+                if !self.ready(s, now, wait) {
+                    stopped = true;
+                    break;
+                }
+                hits += 1;
+                max_time = max_time.max(s.time);
+                last_seen = Some(s.seen);
+            }
+            end = i + 1;
+        }
+        if !stopped && end > 0 {
+            let quiet = last_seen.is_none_or(|t| now.duration_since(t) >= wait);
+            if gap == 0 || quiet {
+                cuts.push((end, hits));
+            }
+        }
+        let mut plan = Vec::new();
+        let (mut sets0, mut hits0, mut k) = (0usize, 0u64, 0usize);
+        while k < cuts.len() {
+            let mut j = k;
+            while j + 1 < cuts.len() && cuts[j + 1].1 - hits0 <= max_hits {
+                j += 1;
+            }
+            if cuts[j].0 > sets0 {
+                plan.push(cuts[j].0 - sets0);
+            }
+            (sets0, hits0, k) = (cuts[j].0, cuts[j].1, j + 1);
+        }
+        plan
+    }
+
     /// Whether a hit can be read as the offline reader would read it.
     fn ready(&self, s: &Set, now: Instant, wait: Duration) -> bool {
         if now.duration_since(s.seen) >= wait {
@@ -354,6 +408,7 @@ impl Tail {
             max_samples: cfg.max_samples_per_record,
             hits: 0,
             end: self.handed,
+            next_hit: None,
         }
     }
 
@@ -686,7 +741,7 @@ mod tests {
         let long = Duration::from_secs(3600);
         let mut tail = Tail::open(&src, Position::default(), &cfg).unwrap();
         // Nothing is there yet.
-        assert!(tail.look(long, long, 5, &cfg).unwrap().is_empty());
+        assert!(tail.look(long, long, 5, 0.0, &cfg).unwrap().is_empty());
         let mut got = Vec::new();
         let mut last_end = Position::default();
         let take = |ws: Vec<Window>, got: &mut Vec<Item>, last_end: &mut Position| {
@@ -713,7 +768,7 @@ mod tests {
             .unwrap();
             // A hit waits for its transient and for the parametric row after it.
             take(
-                tail.look(long, long, 5, &cfg).unwrap(),
+                tail.look(long, long, 5, 0.0, &cfg).unwrap(),
                 &mut got,
                 &mut last_end,
             );
@@ -736,7 +791,7 @@ mod tests {
                 // there.
                 tail = Tail::open(&src, last_end, &cfg).unwrap();
             }
-            let ws = tail.look(long, long, 5, &cfg).unwrap();
+            let ws = tail.look(long, long, 5, 0.0, &cfg).unwrap();
             // Hit 13's transient never comes: it (and every hit after it) waits.
             take(ws, &mut got, &mut last_end);
             // The step's last hit waits for the parametric row after it (its load).
@@ -751,10 +806,12 @@ mod tests {
             }
         }
         // The wait ends: the rest is read, hit 13 as the offline reader accounts for it.
-        let ws = tail.look(Duration::ZERO, Duration::ZERO, 5, &cfg).unwrap();
+        let ws = tail
+            .look(Duration::ZERO, Duration::ZERO, 5, 0.0, &cfg)
+            .unwrap();
         take(ws, &mut got, &mut last_end);
         assert!(tail
-            .look(Duration::ZERO, Duration::ZERO, 5, &cfg)
+            .look(Duration::ZERO, Duration::ZERO, 5, 0.0, &cfg)
             .unwrap()
             .is_empty());
         assert_eq!(last_end.hits, 36);
