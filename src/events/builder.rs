@@ -298,6 +298,27 @@ mod tests {
         assert!(fate.iter().all(|f| *f == Fate::InEvent(0)));
     }
 
+    /// Hits built in two parts cut where the next hit comes beyond every window, the first
+    /// part's last event closed by that next hit: the events of the whole.
+    #[test]
+    fn parts_cut_at_a_quiet_gap_give_the_whole_experiments_events() {
+        let hits = [
+            h(0, 0.0, 1),
+            h(1, 20.0, 2),
+            h(2, 40.0, 3),
+            h(3, 400.0, 2),
+            h(4, 420.0, 1),
+        ];
+        let (whole, _) = build(&hits, &p()).unwrap();
+        let (mut a, _) = build(&hits[..3], &p()).unwrap();
+        assert_eq!(a[0].close, CloseReason::EndOfStream);
+        a[0].close_by(hits[3].time_s, hits[3].channel, &p());
+        let (b, _) = build(&hits[3..], &p()).unwrap();
+        a.extend(b);
+        assert_eq!(a, whole);
+        assert_eq!(whole[0].close, CloseReason::Dt1xExpired);
+    }
+
     #[test]
     fn windows_close_events_strictly() {
         // DTNX: 30 µs after the last hit is still in (strict >), 31 is out.

@@ -381,7 +381,9 @@ fn watch_a_growing_vallen_pair_killed_and_restarted_exactly_once() {
     std::fs::write(
         &cfg,
         "[ingest.vallen]\nload_param = \"PA0\"\nload_n_per_mv = 1.0\n\
-         [live]\nflush_s = 0.5\nsettle_s = 0.3\npoll_s = 0.05\ntransient_wait_s = 3\n",
+         [live]\nflush_s = 0.5\nsettle_s = 0.3\npoll_s = 0.05\ntransient_wait_s = 3\n\
+         [location]\nkind = \"linear\"\nvelocity_m_s = 700\nsensors = { 1 = [-0.020], 2 = [0.020] }\n\
+         zone = [-0.015, 0.015]\nexclude_outside = true\n",
     )
     .unwrap();
     let page = out.join("live.html");
@@ -471,6 +473,12 @@ fn watch_a_growing_vallen_pair_killed_and_restarted_exactly_once() {
         assert_eq!(&fin_hits[k], v, "hit {k:?} differs between live and final");
     }
     same_events_and_classes(&out, &last);
+    // Located live: sources inside and outside the zone.
+    let (zn, zr) = table_rows_of(&files(&out.join("events")));
+    let zone = zn.iter().position(|c| c == "zone").unwrap();
+    for z in ["inside", "outside"] {
+        assert!(zr.iter().any(|r| r[zone] == z), "a source {z} the zone");
+    }
     for (table, key) in [
         ("parametric", "row"),
         ("markers", "row"),
