@@ -104,6 +104,8 @@ pub struct Flush {
     pub lag_s: f64,
     /// Events built (sources, when two or more channels hear them).
     pub events: u64,
+    /// Each classified row's class, time and load (for the page).
+    pub points: Vec<(String, f64, Option<f64>)>,
 }
 
 impl Flush {
@@ -466,10 +468,12 @@ fn flush(
                     for ((class, _), n) in &conf.counts {
                         *f.classes.entry(class.clone()).or_default() += *n as u64;
                     }
+                    let part = dir.classification_part(experiment, k);
                     move_into(
                         &crate::som::layout::ClassifyDir::new(&cls_dir).classification(),
-                        &dir.classification_part(experiment, k),
+                        &part,
                     )?;
+                    f.points.extend(class_points(&part, &features)?);
                 }
                 // A part whose rows are all unusable for the map (flat records): no
                 // classification part.
@@ -503,6 +507,38 @@ fn flush(
         .and_then(|w| SystemTime::now().duration_since(w).ok())
         .map_or(0.0, |d| d.as_secs_f64());
     Ok(f)
+}
+
+/// Each classified row's (class, time, load): the classification part joined with the
+/// features part on (channel, hit); rows without a time are left out.
+fn class_points(
+    classification: &Path,
+    features: &Path,
+) -> Result<Vec<(String, f64, Option<f64>)>, WatchError> {
+    use crate::store::TableScan;
+    use polars::prelude::col;
+    let f = TableScan::open(features)?;
+    let df = f.select(vec![col("channel"), col("hit"), col("time_s"), col("load_n")])?;
+    let (fc, fh) = (f.f64s(&df, "channel")?, f.f64s(&df, "hit")?);
+    let (ft, fl) = (f.f64s(&df, "time_s")?, f.f64s(&df, "load_n")?);
+    let at: std::collections::HashMap<(i64, i64), (Option<f64>, Option<f64>)> = fc
+        .iter()
+        .zip(&fh)
+        .zip(ft.iter().zip(&fl))
+        .filter_map(|((c, h), (t, l))| Some(((c.map(|v| v as i64)?, h.map(|v| v as i64)?), (*t, *l))))
+        .collect();
+    let c = TableScan::open(classification)?;
+    let df = c.select(vec![col("channel"), col("hit"), col("som_label")])?;
+    let (cc, ch, cl) = (c.f64s(&df, "channel")?, c.f64s(&df, "hit")?, c.strings(&df, "som_label")?);
+    Ok(cc
+        .iter()
+        .zip(&ch)
+        .zip(cl)
+        .filter_map(|((c, h), l)| {
+            let (t, load) = at.get(&(c.map(|v| v as i64)?, h.map(|v| v as i64)?))?;
+            Some((l?, (*t)?, *load))
+        })
+        .collect())
 }
 
 /// Rename a finished table into its Hive place (the same disk: the scratch folder is in

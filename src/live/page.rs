@@ -20,6 +20,38 @@ pub struct Page {
     lines: Vec<String>,
     /// The latest hits' CWT pictures (relative to DIR), newest first.
     cwts: Vec<(String, String)>,
+    /// Class → the classified rows' (time, load) since this watcher started, thinned.
+    by_class: BTreeMap<String, Thinned>,
+}
+
+/// Points kept for a picture: every `stride`-th one, the stride doubled whenever more than
+/// [`KEEP`] are kept (bounded memory over a test of any length).
+#[derive(Default)]
+struct Thinned {
+    stride: u64,
+    seen: u64,
+    pts: Vec<(f64, Option<f64>)>,
+}
+
+/// Points kept per class at most.
+const KEEP: usize = 4000;
+
+impl Thinned {
+    fn push(&mut self, p: (f64, Option<f64>)) {
+        self.stride = self.stride.max(1);
+        if self.seen % self.stride == 0 {
+            self.pts.push(p);
+            if self.pts.len() > KEEP {
+                let mut k = 0;
+                self.pts.retain(|_| {
+                    k += 1;
+                    k % 2 == 1
+                });
+                self.stride *= 2;
+            }
+        }
+        self.seen += 1;
+    }
 }
 
 /// CWT pictures the page shows (the latest hits'), and the files they rotate through.
@@ -60,6 +92,7 @@ impl Page {
             points: vec![(0.0, state.hits, state.classes.clone())],
             lines: Vec::new(),
             cwts: Vec::new(),
+            by_class: BTreeMap::new(),
         }
     }
 
@@ -74,6 +107,9 @@ impl Page {
             state.hits,
             state.classes.clone(),
         ));
+        for (c, t, l) in &f.points {
+            self.by_class.entry(c.clone()).or_default().push((*t, *l));
+        }
         self.lines.push(f.line());
         if self.lines.len() > LINES {
             self.lines.remove(0);
@@ -122,7 +158,12 @@ impl Page {
             }
             h.push_str("</table>");
         }
-        h.push_str(&self.svg(state));
+        if self.by_class.is_empty() {
+            h.push_str(&self.svg(state));
+        } else {
+            h.push_str(&self.by_time());
+            h.push_str(&self.profile());
+        }
         if !self.cwts.is_empty() {
             h.push_str("<h2>The latest hits</h2>");
             for (png, caption) in &self.cwts {
@@ -156,6 +197,125 @@ impl Page {
         Ok(())
     }
 
+    /// Cumulative classified rows per class against the hits' own time (since this
+    /// watcher started).
+    fn by_time(&self) -> String {
+        let all = self.by_class.values().flat_map(|c| c.pts.iter().map(|p| p.0));
+        let (t0, t1) = all.fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), t| {
+            (a.min(t), b.max(t))
+        });
+        let series: Vec<(String, Vec<(f64, f64)>)> = self
+            .by_class
+            .iter()
+            .map(|(c, th)| {
+                let mut ts: Vec<f64> = th.pts.iter().map(|p| p.0).collect();
+                ts.sort_by(f64::total_cmp);
+                let pts = ts
+                    .iter()
+                    .enumerate()
+                    .map(|(i, t)| (*t, ((i as u64 + 1) * th.stride) as f64))
+                    .collect();
+                (c.clone(), pts)
+            })
+            .collect();
+        let y_max = series
+            .iter()
+            .filter_map(|s| s.1.last().map(|p| p.1))
+            .fold(1.0, f64::max);
+        let mut s = String::from("<h2>Classified rows per class against the hits' time</h2>");
+        s.push_str(&frame(t0, t1, 0.0, y_max, "s (acquisition clock)", "rows"));
+        for (i, (name, pts)) in series.iter().enumerate() {
+            let colour = COLOURS[i % COLOURS.len()];
+            let (x, y) = scales(t0, t1, 0.0, y_max);
+            let path: Vec<String> = pts
+                .iter()
+                .map(|(t, v)| format!("{:.1},{:.1}", x(*t), y(*v)))
+                .collect();
+            let _ = write!(
+                s,
+                "<polyline fill=\"none\" stroke=\"{colour}\" stroke-width=\"2\" points=\"{}\"/>\
+                 <text x=\"{}\" y=\"{}\" font-size=\"12\" fill=\"{colour}\">{}</text>",
+                path.join(" "),
+                W - PAD - 116.0,
+                PAD + 14.0 * (i as f64 + 1.0),
+                esc(name)
+            );
+        }
+        s.push_str("</svg>");
+        s
+    }
+
+    /// The damage profile so far (Fig. 6.1): each classified row at its time and load, the
+    /// peak load so far, and the rows per class before and after it.
+    fn profile(&self) -> String {
+        let pts: Vec<(usize, f64, f64)> = self
+            .by_class
+            .values()
+            .enumerate()
+            .flat_map(|(i, c)| c.pts.iter().filter_map(move |p| Some((i, p.0, p.1?))))
+            .filter(|p| p.2.is_finite())
+            .collect();
+        if pts.is_empty() {
+            return "<p>No load with the hits (no load channel or load file): no damage \
+                    profile.</p>"
+                .into();
+        }
+        let (t0, t1) = pts
+            .iter()
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), p| (a.min(p.1), b.max(p.1)));
+        let peak = pts
+            .iter()
+            .fold((f64::NAN, f64::NEG_INFINITY), |m, p| if p.2 > m.1 { (p.1, p.2) } else { m });
+        let l_min = pts.iter().map(|p| p.2).fold(f64::INFINITY, f64::min).min(0.0);
+        let mut s = String::from("<h2>Damage profile so far</h2>");
+        s.push_str(&frame(t0, t1, l_min, peak.1, "s (acquisition clock)", "N"));
+        let (x, y) = scales(t0, t1, l_min, peak.1);
+        for &(i, t, l) in &pts {
+            let _ = write!(
+                s,
+                "<circle cx=\"{:.1}\" cy=\"{:.1}\" r=\"2\" fill=\"{}\" fill-opacity=\"0.6\"/>",
+                x(t),
+                y(l),
+                COLOURS[i % COLOURS.len()]
+            );
+        }
+        let _ = write!(
+            s,
+            "<line x1=\"{0:.1}\" x2=\"{0:.1}\" y1=\"{PAD}\" y2=\"{1}\" stroke=\"#000\" \
+             stroke-dasharray=\"4 3\"/><text x=\"{2:.1}\" y=\"{3}\" font-size=\"12\">\
+             peak load {4:.1} N at {5:.2} s</text>",
+            x(peak.0),
+            H - PAD,
+            x(peak.0) + 4.0,
+            PAD + 12.0,
+            peak.1,
+            peak.0
+        );
+        for (i, c) in self.by_class.keys().enumerate() {
+            let colour = COLOURS[i % COLOURS.len()];
+            let _ = write!(
+                s,
+                "<text x=\"{}\" y=\"{}\" font-size=\"12\" fill=\"{colour}\">{}</text>",
+                W - PAD - 116.0,
+                PAD + 28.0 + 14.0 * i as f64,
+                esc(c)
+            );
+        }
+        s.push_str("</svg><table><tr><th>SOM class</th><th>before the peak load</th><th>after</th></tr>");
+        for (c, th) in &self.by_class {
+            let before = th.pts.iter().filter(|p| p.0 <= peak.0).count() as u64 * th.stride;
+            let after = th.pts.len() as u64 * th.stride - before;
+            let approx = if th.stride > 1 { "≈ " } else { "" };
+            let _ = write!(
+                s,
+                "<tr><th>{}</th><td>{approx}{before}</td><td>{approx}{after}</td></tr>",
+                esc(c)
+            );
+        }
+        s.push_str("</table>");
+        s
+    }
+
     /// Cumulative rows per class (and hits in all) against the watch's time.
     fn svg(&self, state: &State) -> String {
         let (w, ht, pad) = (640.0, 300.0, 40.0);
@@ -177,9 +337,6 @@ impl Page {
             ht - pad + 16.0,
             pad + 4.0
         );
-        const COLOURS: [&str; 6] = [
-            "#d62728", "#1f77b4", "#2ca02c", "#9467bd", "#ff7f0e", "#8c564b",
-        ];
         let mut series: Vec<(String, Vec<(f64, f64)>)> = vec![(
             "all hits".into(),
             self.points.iter().map(|p| (p.0, p.1 as f64)).collect(),
@@ -215,5 +372,56 @@ impl Page {
         }
         s.push_str("</svg>");
         s
+    }
+}
+
+const COLOURS: [&str; 6] = [
+    "#d62728", "#1f77b4", "#2ca02c", "#9467bd", "#ff7f0e", "#8c564b",
+];
+/// A picture's width, height and margin (px).
+const W: f64 = 640.0;
+const H: f64 = 300.0;
+const PAD: f64 = 40.0;
+
+/// Data to picture coordinates: x over `[x0, x1]`, y over `[y0, y1]`.
+fn scales(x0: f64, x1: f64, y0: f64, y1: f64) -> (impl Fn(f64) -> f64, impl Fn(f64) -> f64) {
+    let (dx, dy) = ((x1 - x0).max(1e-9), (y1 - y0).max(1e-9));
+    (
+        move |x: f64| PAD + (W - 2.0 * PAD) * (x - x0) / dx,
+        move |y: f64| H - PAD - (H - 2.0 * PAD) * (y - y0) / dy,
+    )
+}
+
+/// An SVG's opening: its frame and the axes' ends with their units.
+fn frame(x0: f64, x1: f64, y0: f64, y1: f64, x_unit: &str, y_unit: &str) -> String {
+    format!(
+        "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"{W}\" height=\"{H}\">\
+         <rect x=\"{PAD}\" y=\"{PAD}\" width=\"{}\" height=\"{}\" fill=\"none\" stroke=\"#999\"/>\
+         <text x=\"{PAD}\" y=\"{}\" font-size=\"12\">{}</text>\
+         <text x=\"{}\" y=\"{}\" font-size=\"12\" text-anchor=\"end\">{} {}</text>\
+         <text x=\"4\" y=\"{}\" font-size=\"12\">{} {}</text>\
+         <text x=\"4\" y=\"{}\" font-size=\"12\">{}</text>",
+        W - 2.0 * PAD,
+        H - 2.0 * PAD,
+        H - PAD + 16.0,
+        num(x0),
+        W - PAD,
+        H - PAD + 16.0,
+        num(x1),
+        esc(x_unit),
+        PAD - 6.0,
+        num(y1),
+        esc(y_unit),
+        H - PAD,
+        num(y0),
+    )
+}
+
+/// A number for an axis end: a few significant digits.
+fn num(v: f64) -> String {
+    if v.abs() >= 100.0 || v == 0.0 {
+        format!("{v:.0}")
+    } else {
+        format!("{v:.3}")
     }
 }
