@@ -663,6 +663,7 @@ fn bench(which: BenchCmd) -> Result<Outcome> {
             burst,
             threads,
             out,
+            vallen,
         } => {
             let r = crate::live::bench::watch_bench(
                 &crate::live::bench::WatchBench {
@@ -670,6 +671,7 @@ fn bench(which: BenchCmd) -> Result<Outcome> {
                     seconds,
                     burst,
                     threads,
+                    vallen,
                 },
                 &out,
                 |l| println!("{l}"),

@@ -470,5 +470,9 @@ pub enum BenchCmd {
         /// Where the acquisition and the watcher's folder go (removed first)
         #[arg(long, default_value = "target/bench-watch")]
         out: PathBuf,
+        /// The acquisition is a Vallen pair the writer appends to (two channels per source,
+        /// transients, a load channel) instead of a folder of WAV files
+        #[arg(long)]
+        vallen: bool,
     },
 }

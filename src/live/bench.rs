@@ -20,6 +20,9 @@ pub struct WatchBench {
     /// the folder, each stamped with its arrival.
     pub burst: usize,
     pub threads: usize,
+    /// The acquisition is a Vallen pair the writer appends to (two channels hearing each
+    /// source, transients, a load channel), not a folder of WAV files.
+    pub vallen: bool,
 }
 
 /// Lags of one phase, seconds.
@@ -66,6 +69,9 @@ pub fn watch_bench(
     out: &Path,
     mut say: impl FnMut(&str),
 ) -> Result<WatchBenchResult, WatchError> {
+    if b.vallen {
+        return vallen_bench(b, out, say);
+    }
     let _ = std::fs::remove_dir_all(out);
     let data = out.join("acquisition").join("test-1");
     std::fs::create_dir_all(&data).map_err(|e| crate::util::IoAt::new(&data, e))?;
@@ -154,21 +160,13 @@ pub fn watch_bench(
     let mut burst = Vec::new();
     let mut last_commit: Option<SystemTime> = None;
     let mut burst_last_write: Option<SystemTime> = None;
-    let features = watch_dir.join("features");
-    for exp in std::fs::read_dir(&features)
-        .map_err(|e| crate::util::IoAt::new(&features, e))?
-        .flatten()
     {
-        for part in std::fs::read_dir(exp.path())
-            .into_iter()
-            .flatten()
-            .flatten()
-        {
+        for part in parts_of(&watch_dir.join("features")) {
             let committed = part
                 .metadata()
                 .and_then(|m| m.modified())
-                .map_err(|e| crate::util::IoAt::new(&part.path(), e))?;
-            let (_, _, batches) = crate::store::read_parquet(&part.path())?;
+                .map_err(|e| crate::util::IoAt::new(&part, e))?;
+            let (_, _, batches) = crate::store::read_parquet(&part)?;
             for rb in batches {
                 let Some(col) = rb.column_by_name("source_file") else {
                     continue;
@@ -212,4 +210,199 @@ pub fn watch_bench(
         flushes: summary.state.flushes,
         burst_drain_s,
     })
+}
+
+/// The benchmark on a Vallen pair: the writer appends hit rows, their transients and a
+/// parametric row every 10 hits in one transaction per 10 ms (rollback journal, as AMSY-6),
+/// a source every two hits (channel 1, then channel 2 30 µs later), then the burst in
+/// transactions of 1 000 hits as fast as SQLite takes them; the lag of a hit is its part's
+/// write time − the commit of the transaction that wrote its transient.
+fn vallen_bench(
+    b: &WatchBench,
+    out: &Path,
+    mut say: impl FnMut(&str),
+) -> Result<WatchBenchResult, WatchError> {
+    use crate::ingest::vallen::{HitToWrite, Journal, PairWriter};
+    let _ = std::fs::remove_dir_all(out);
+    let data = out.join("acquisition");
+    std::fs::create_dir_all(&data).map_err(|e| crate::util::IoAt::new(&data, e))?;
+    let watch_dir = out.join("watch");
+    let cfg = ValidConfig::default()
+        .with(|c| {
+            c.report.enabled = false;
+            c.ingest.vallen.load_param = "PA0".into();
+            c.ingest.vallen.load_n_per_mv = 1.0;
+        })
+        .map_err(crate::workflow::WorkflowError::Config)?;
+    let e = crate::synth::Experiment::new("test-1", 256, 11);
+    let protos: Vec<crate::model::AeRecord> = e.records().collect();
+    let steady_n = (b.rate * b.seconds).round() as usize;
+    let total = steady_n + b.burst;
+    let stop = AtomicBool::new(false);
+    let ready = AtomicBool::new(false);
+    let o = WatchOptions {
+        until_idle_s: Some(3.0),
+        offline_at_end: false,
+        threads: b.threads,
+        model: None,
+    };
+    let sql = |e: rusqlite::Error| {
+        WatchError::Io(crate::util::IoAt::new(
+            &data,
+            std::io::Error::other(e.to_string()),
+        ))
+    };
+    // Acquisition time: sources 2/rate apart in the steady phase, 500 µs apart in the burst.
+    let time_of = |i: usize| -> f64 {
+        let source = if i < steady_n {
+            (i / 2) as f64 * 2.0 / b.rate
+        } else {
+            (steady_n / 2) as f64 * 2.0 / b.rate + ((i - steady_n) / 2) as f64 * 500e-6
+        };
+        0.01 + source + (i % 2) as f64 * 30e-6
+    };
+    // The load (N, written as mV at 1 N/mV): rising to 300 N at the end of the steady
+    // phase, then falling to 120 N over the burst (the strip breaking).
+    let t_peak = time_of(steady_n);
+    let t_end = time_of(total);
+    let load_at = |t: f64| -> f64 {
+        if t <= t_peak {
+            300.0 * t / t_peak
+        } else {
+            300.0 - 180.0 * (t - t_peak) / (t_end - t_peak).max(1e-9)
+        }
+    };
+    let hit = |i: usize| {
+        let r = &protos[i % protos.len()];
+        HitToWrite {
+            channel: 1 + (i % 2) as u32,
+            trai: i as u64 + 1,
+            time_s: time_of(i),
+            sample_rate_hz: r.sample_rate_hz,
+            pretrigger: r.pretrigger,
+            samples_v: &r.samples,
+            restart: false,
+            transient: true,
+        }
+    };
+    let write = |w: &PairWriter, from: usize, to: usize| -> rusqlite::Result<()> {
+        w.batch(|w| {
+            for i in from..to {
+                let h = hit(i);
+                if i % 10 == 0 {
+                    w.parametric(h.time_s - 1e-5, load_at(h.time_s - 1e-5), 0.0)?;
+                }
+                w.hit(&h)?;
+                w.transient(&h)?;
+            }
+            Ok(())
+        })
+    };
+    let mut written: Vec<SystemTime> = vec![SystemTime::UNIX_EPOCH; total];
+    let (ready, data_ref, sql, write) = (&ready, &data, &sql, &write);
+    let (summary, writes) = std::thread::scope(|s| {
+        let written = &mut written;
+        let writer = s.spawn(move || -> Result<(f64, f64), WatchError> {
+            while !ready.load(std::sync::atomic::Ordering::Relaxed) {
+                std::thread::sleep(Duration::from_millis(20));
+            }
+            let w = PairWriter::create(&data_ref.join("test-1"), 1e-3, 1e-4, Journal::Delete)
+                .map_err(sql)?;
+            let t0 = Instant::now();
+            let mut i = 0;
+            while i < steady_n {
+                std::thread::sleep(Duration::from_millis(10));
+                let due = ((t0.elapsed().as_secs_f64() * b.rate) as usize).min(steady_n);
+                if due > i {
+                    write(&w, i, due).map_err(sql)?;
+                    let now = SystemTime::now();
+                    written[i..due].iter_mut().for_each(|t| *t = now);
+                    i = due;
+                }
+            }
+            let steady_rate = steady_n as f64 / t0.elapsed().as_secs_f64().max(1e-9);
+            let t1 = Instant::now();
+            while i < total {
+                let to = (i + 1000).min(total);
+                write(&w, i, to).map_err(sql)?;
+                let now = SystemTime::now();
+                written[i..to].iter_mut().for_each(|t| *t = now);
+                i = to;
+            }
+            // The acquisition's last parametric row, after the last hit.
+            w.batch(|w| w.parametric(time_of(total) + 1e-3, load_at(t_end), 0.0))
+                .map_err(sql)?;
+            Ok((steady_rate, t1.elapsed().as_secs_f64()))
+        });
+        let summary = super::watch(
+            &cfg,
+            std::slice::from_ref(&data),
+            &watch_dir,
+            &o,
+            &stop,
+            |l| {
+                ready.store(true, std::sync::atomic::Ordering::Relaxed);
+                say(l)
+            },
+        );
+        (summary, writer.join().expect("writer thread"))
+    });
+    let summary = summary?;
+    let (steady_rate, burst_write_s) = writes?;
+    // Each transient's lag: its part's write time − its commit by the writer.
+    let (mut steady, mut burst) = (Vec::new(), Vec::new());
+    let (mut last_commit, mut burst_last_write): (Option<SystemTime>, Option<SystemTime>) =
+        (None, None);
+    for part in parts_of(&watch_dir.join("features")) {
+        let committed = part
+            .metadata()
+            .and_then(|m| m.modified())
+            .map_err(|e| crate::util::IoAt::new(&part, e))?;
+        let (_, _, batches) = crate::store::read_parquet(&part)?;
+        for rb in batches {
+            let hits = rb
+                .column_by_name("hit")
+                .expect("features have a hit column");
+            let hits =
+                arrow::array::AsArray::as_primitive::<arrow::datatypes::Int64Type>(hits.as_ref());
+            for r in 0..rb.num_rows() {
+                let i = (hits.value(r) as usize).saturating_sub(1).min(total - 1);
+                let lag = committed
+                    .duration_since(written[i])
+                    .map_or(0.0, |d| d.as_secs_f64());
+                if i >= steady_n {
+                    burst.push(lag);
+                    last_commit = Some(last_commit.map_or(committed, |c| c.max(committed)));
+                    burst_last_write =
+                        Some(burst_last_write.map_or(written[i], |c| c.max(written[i])));
+                } else {
+                    steady.push(lag);
+                }
+            }
+        }
+    }
+    let burst_drain_s = match (last_commit, burst_last_write) {
+        (Some(c), Some(w)) => c.duration_since(w).map_or(0.0, |d| d.as_secs_f64()),
+        _ => 0.0,
+    };
+    Ok(WatchBenchResult {
+        steady: lags(steady),
+        burst: lags(burst),
+        burst_write_s,
+        steady_rate,
+        committed: summary.state.hits,
+        flushes: summary.state.flushes,
+        burst_drain_s,
+    })
+}
+
+/// The parts of a Hive table: `DIR/experiment=*/part-*.parquet`.
+fn parts_of(table: &Path) -> Vec<std::path::PathBuf> {
+    std::fs::read_dir(table)
+        .into_iter()
+        .flatten()
+        .flatten()
+        .flat_map(|e| std::fs::read_dir(e.path()).into_iter().flatten().flatten())
+        .map(|p| p.path())
+        .collect()
 }

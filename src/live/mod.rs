@@ -518,18 +518,29 @@ fn class_points(
     use crate::store::TableScan;
     use polars::prelude::col;
     let f = TableScan::open(features)?;
-    let df = f.select(vec![col("channel"), col("hit"), col("time_s"), col("load_n")])?;
+    let df = f.select(vec![
+        col("channel"),
+        col("hit"),
+        col("time_s"),
+        col("load_n"),
+    ])?;
     let (fc, fh) = (f.f64s(&df, "channel")?, f.f64s(&df, "hit")?);
     let (ft, fl) = (f.f64s(&df, "time_s")?, f.f64s(&df, "load_n")?);
     let at: std::collections::HashMap<(i64, i64), (Option<f64>, Option<f64>)> = fc
         .iter()
         .zip(&fh)
         .zip(ft.iter().zip(&fl))
-        .filter_map(|((c, h), (t, l))| Some(((c.map(|v| v as i64)?, h.map(|v| v as i64)?), (*t, *l))))
+        .filter_map(|((c, h), (t, l))| {
+            Some(((c.map(|v| v as i64)?, h.map(|v| v as i64)?), (*t, *l)))
+        })
         .collect();
     let c = TableScan::open(classification)?;
     let df = c.select(vec![col("channel"), col("hit"), col("som_label")])?;
-    let (cc, ch, cl) = (c.f64s(&df, "channel")?, c.f64s(&df, "hit")?, c.strings(&df, "som_label")?);
+    let (cc, ch, cl) = (
+        c.f64s(&df, "channel")?,
+        c.f64s(&df, "hit")?,
+        c.strings(&df, "som_label")?,
+    );
     Ok(cc
         .iter()
         .zip(&ch)

@@ -200,7 +200,10 @@ impl Page {
     /// Cumulative classified rows per class against the hits' own time (since this
     /// watcher started).
     fn by_time(&self) -> String {
-        let all = self.by_class.values().flat_map(|c| c.pts.iter().map(|p| p.0));
+        let all = self
+            .by_class
+            .values()
+            .flat_map(|c| c.pts.iter().map(|p| p.0));
         let (t0, t1) = all.fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), t| {
             (a.min(t), b.max(t))
         });
@@ -262,11 +265,21 @@ impl Page {
         }
         let (t0, t1) = pts
             .iter()
-            .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), p| (a.min(p.1), b.max(p.1)));
-        let peak = pts
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), p| {
+                (a.min(p.1), b.max(p.1))
+            });
+        let peak = pts.iter().fold((f64::NAN, f64::NEG_INFINITY), |m, p| {
+            if p.2 > m.1 {
+                (p.1, p.2)
+            } else {
+                m
+            }
+        });
+        let l_min = pts
             .iter()
-            .fold((f64::NAN, f64::NEG_INFINITY), |m, p| if p.2 > m.1 { (p.1, p.2) } else { m });
-        let l_min = pts.iter().map(|p| p.2).fold(f64::INFINITY, f64::min).min(0.0);
+            .map(|p| p.2)
+            .fold(f64::INFINITY, f64::min)
+            .min(0.0);
         let mut s = String::from("<h2>Damage profile so far</h2>");
         s.push_str(&frame(t0, t1, l_min, peak.1, "s (acquisition clock)", "N"));
         let (x, y) = scales(t0, t1, l_min, peak.1);
@@ -279,15 +292,20 @@ impl Page {
                 COLOURS[i % COLOURS.len()]
             );
         }
+        // The label on the side of the line with room for it.
+        let (lx, anchor) = if x(peak.0) > W / 2.0 {
+            (x(peak.0) - 4.0, "end")
+        } else {
+            (x(peak.0) + 4.0, "start")
+        };
         let _ = write!(
             s,
             "<line x1=\"{0:.1}\" x2=\"{0:.1}\" y1=\"{PAD}\" y2=\"{1}\" stroke=\"#000\" \
-             stroke-dasharray=\"4 3\"/><text x=\"{2:.1}\" y=\"{3}\" font-size=\"12\">\
-             peak load {4:.1} N at {5:.2} s</text>",
+             stroke-dasharray=\"4 3\"/><text x=\"{lx:.1}\" y=\"{2}\" font-size=\"12\" \
+             text-anchor=\"{anchor}\">peak load {3:.1} N at {4:.2} s</text>",
             x(peak.0),
             H - PAD,
-            x(peak.0) + 4.0,
-            PAD + 12.0,
+            H - PAD - 6.0,
             peak.1,
             peak.0
         );
@@ -296,12 +314,14 @@ impl Page {
             let _ = write!(
                 s,
                 "<text x=\"{}\" y=\"{}\" font-size=\"12\" fill=\"{colour}\">{}</text>",
-                W - PAD - 116.0,
-                PAD + 28.0 + 14.0 * i as f64,
+                PAD + 6.0,
+                PAD + 14.0 * (i as f64 + 1.0),
                 esc(c)
             );
         }
-        s.push_str("</svg><table><tr><th>SOM class</th><th>before the peak load</th><th>after</th></tr>");
+        s.push_str(
+            "</svg><table><tr><th>SOM class</th><th>before the peak load</th><th>after</th></tr>",
+        );
         for (c, th) in &self.by_class {
             let before = th.pts.iter().filter(|p| p.0 <= peak.0).count() as u64 * th.stride;
             let after = th.pts.len() as u64 * th.stride - before;
