@@ -39,7 +39,7 @@ const KEEP: usize = 4000;
 impl Thinned {
     fn push(&mut self, p: (f64, Option<f64>)) {
         self.stride = self.stride.max(1);
-        if self.seen % self.stride == 0 {
+        if self.seen.is_multiple_of(self.stride) {
             self.pts.push(p);
             if self.pts.len() > KEEP {
                 let mut k = 0;
