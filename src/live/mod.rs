@@ -308,9 +308,9 @@ pub fn watch(
             let (batch, rest) = take_files(std::mem::take(&mut pending), FLUSH_FILES);
             pending = rest;
             backlog = !pending.is_empty();
-            let last_hit = batch.iter().rev().find(|p| p.per_hit()).cloned();
+            let latest = batch.iter().rev().find_map(|p| page::latest_record(p, cfg));
             let f = flush(cfg, &dir, &mut state, &model, batch, o.threads)?;
-            let cwt = last_hit.and_then(|p| page::draw_latest(&dir, cfg, &p, f.number));
+            let cwt = latest.and_then(|r| page::draw_latest(&dir, cfg, &r, f.number));
             page.add(&f, &state, cwt);
             page.write(&dir, &state, Some(&f), cfg)?;
             say(&f.line());

@@ -57,31 +57,51 @@ impl Thinned {
 /// CWT pictures the page shows (the latest hits'), and the files they rotate through.
 const CWTS: usize = 3;
 
-/// The CWT picture of the last hit of a one-hit-per-file source, windowed on its burst as
-/// the report's gallery is: (picture, caption), or `None` when it cannot be read or drawn
-/// (the page then keeps the earlier ones).
+/// The last record of a pending source: its last file read again (one hit per file), a
+/// growing pair's latest transient read alone, or a chain's last one taken from its items.
+pub fn latest_record(
+    p: &super::follow::Pending,
+    cfg: &ValidConfig,
+) -> Option<crate::model::AeRecord> {
+    use super::follow::Part;
+    use crate::model::Item;
+    match &p.part {
+        Some(Part::Vallen(w)) => crate::ingest::vallen::tail::last_record(w, &cfg.ingest),
+        Some(Part::Dta { items, .. }) => items.lock().ok()?.iter().rev().find_map(|i| match i {
+            Item::Record(r) => Some(r.clone()),
+            _ => None,
+        }),
+        None if p.per_hit() => {
+            let last = p.source.files.last()?.clone();
+            let src = crate::ingest::Source {
+                first_hit: p.source.first_hit + p.source.files.len() as u64 - 1,
+                files: vec![last],
+                ..p.source.clone()
+            };
+            crate::ingest::open(&src, cfg).find_map(|it| match it {
+                Item::Record(r) => Some(r),
+                _ => None,
+            })
+        }
+        None => None,
+    }
+}
+
+/// The CWT picture of a record, windowed on its burst as the report's gallery is:
+/// (picture, caption), or `None` when it cannot be drawn (the page then keeps the earlier
+/// ones).
 pub fn draw_latest(
     dir: &WatchDir,
     cfg: &ValidConfig,
-    p: &super::follow::Pending,
+    r: &crate::model::AeRecord,
     slot: u32,
 ) -> Option<(String, String)> {
-    let last = p.source.files.last()?.clone();
-    let src = crate::ingest::Source {
-        first_hit: p.source.first_hit + p.source.files.len() as u64 - 1,
-        files: vec![last],
-        ..p.source.clone()
-    };
-    let r = crate::ingest::open(&src, cfg).find_map(|it| match it {
-        crate::model::Item::Record(r) => Some(r),
-        _ => None,
-    })?;
-    crate::features::validate(&r, cfg).ok()?;
+    crate::features::validate(r, cfg).ok()?;
     let rel = format!("watch/live/latest-{}.png", slot as usize % CWTS);
     let png = dir.path().join(&rel);
     std::fs::create_dir_all(png.parent()?).ok()?;
     let mut ex = crate::features::FeatureExtractor::new(cfg);
-    let title = crate::workflow::burst_picture(&mut ex, &r, &png, None).ok()?;
+    let title = crate::workflow::burst_picture(&mut ex, r, &png, None).ok()?;
     Some((rel, title))
 }
 

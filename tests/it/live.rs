@@ -473,6 +473,7 @@ fn watch_a_growing_vallen_pair_killed_and_restarted_exactly_once() {
         assert_eq!(&fin_hits[k], v, "hit {k:?} differs between live and final");
     }
     same_events_and_classes(&out, &last);
+    page_draws_a_latest_hit(&out, true);
     // Located live: sources inside and outside the zone.
     let (zn, zr) = table_rows_of(&files(&out.join("events")));
     let zone = zn.iter().position(|c| c == "zone").unwrap();
@@ -704,6 +705,7 @@ fn watch_a_growing_dta_chain_killed_and_restarted_exactly_once() {
         "events: live rows and final rows"
     );
     same_events_and_classes(&out, &last);
+    page_draws_a_latest_hit(&out, false);
 
     let offline = t.path().join("offline");
     let (code, _, err) = aepipe(&[
@@ -728,6 +730,20 @@ fn watch_a_growing_dta_chain_killed_and_restarted_exactly_once() {
             "{name}: the watcher's final table differs from aepipe run's"
         );
     }
+}
+
+/// The live page shows the CWT of a latest hit (read from the growing pair or chain).
+fn page_draws_a_latest_hit(out: &Path, with_load: bool) {
+    let html = std::fs::read_to_string(out.join("live.html")).unwrap();
+    let at = html
+        .find("watch/live/latest-")
+        .expect("a latest hit's CWT on the page");
+    let png = &html[at..at + html[at..].find('?').unwrap()];
+    assert!(out.join(png).is_file(), "{png}");
+    // The damage profile so far: with a load channel, the peak load and rows per class
+    // before and after it.
+    assert_eq!(html.contains("Damage profile so far"), with_load);
+    assert_eq!(html.contains("before the peak load"), with_load);
 }
 
 /// The live events are the final run's (some built: two channels hear each source), and

@@ -588,6 +588,25 @@ fn read_load(conn: &Connection, cfg: &IngestConfig) -> (TimeSeries, TimeSeries) 
     )
 }
 
+/// The window's latest transient (the last the `.tradb` stored), read alone: what the live
+/// page draws.
+pub fn last_record(w: &Window, cfg: &IngestConfig) -> Option<crate::model::AeRecord> {
+    let last = *w.transients.iter().max_by_key(|t| t.2)?;
+    let one = Window {
+        sets: SetWindow {
+            after: w.sets.upto,
+            ..w.sets
+        },
+        transients: vec![last],
+        missing: Vec::new(),
+        ..w.clone()
+    };
+    read(&one, cfg).find_map(|i| match i {
+        Item::Record(r) => Some(r),
+        _ => None,
+    })
+}
+
 /// The rows of one window, as the offline reader gives them for its sets.
 pub fn read(w: &Window, cfg: &IngestConfig) -> Box<dyn Iterator<Item = Item> + Send> {
     let mut first: Vec<Item> = Vec::new();
