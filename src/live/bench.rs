@@ -140,70 +140,21 @@ pub fn watch_bench(
             }
             Ok((steady_rate, t1.elapsed().as_secs_f64()))
         });
-        let summary = super::watch(
-            &cfg,
-            std::slice::from_ref(&data),
-            &watch_dir,
-            &o,
-            &stop,
-            |l| {
-                ready.store(true, std::sync::atomic::Ordering::Relaxed);
-                say(l)
-            },
-        );
+        let summary = watch_signalling(&cfg, &data, &watch_dir, &o, &stop, &ready, &mut say);
         (summary, writer.join().expect("writer thread"))
     });
     let summary = summary?;
     let (steady_rate, burst_write_s) = writes?;
     // Each hit's lag: its part's write time − its file's last write.
-    let mut steady = Vec::new();
-    let mut burst = Vec::new();
-    let mut last_commit: Option<SystemTime> = None;
-    let mut burst_last_write: Option<SystemTime> = None;
-    {
-        for part in parts_of(&watch_dir.join("features")) {
-            let committed = part
-                .metadata()
+    let (steady, burst, burst_drain_s) =
+        collect_lags(&watch_dir.join("features"), steady_n, |_, file| {
+            std::fs::metadata(file)
                 .and_then(|m| m.modified())
-                .map_err(|e| crate::util::IoAt::new(&part, e))?;
-            let (_, _, batches) = crate::store::read_parquet(&part)?;
-            for rb in batches {
-                let Some(col) = rb.column_by_name("source_file") else {
-                    continue;
-                };
-                let files = arrow::array::AsArray::as_string::<i32>(col.as_ref());
-                let hits = rb
-                    .column_by_name("hit")
-                    .expect("features have a hit column");
-                let hits = arrow::array::AsArray::as_primitive::<arrow::datatypes::Int64Type>(
-                    hits.as_ref(),
-                );
-                for r in 0..rb.num_rows() {
-                    let written = std::fs::metadata(files.value(r))
-                        .and_then(|m| m.modified())
-                        .map_err(|e| crate::util::IoAt::new(Path::new(files.value(r)), e))?;
-                    let lag = committed
-                        .duration_since(written)
-                        .map_or(0.0, |d| d.as_secs_f64());
-                    if hits.value(r) as usize > steady_n {
-                        burst.push(lag);
-                        last_commit = Some(last_commit.map_or(committed, |c| c.max(committed)));
-                        burst_last_write =
-                            Some(burst_last_write.map_or(written, |c| c.max(written)));
-                    } else {
-                        steady.push(lag);
-                    }
-                }
-            }
-        }
-    }
-    let burst_drain_s = match (last_commit, burst_last_write) {
-        (Some(c), Some(w)) => c.duration_since(w).map_or(0.0, |d| d.as_secs_f64()),
-        _ => 0.0,
-    };
+                .map_err(|e| crate::util::IoAt::new(Path::new(file), e).into())
+        })?;
     Ok(WatchBenchResult {
-        steady: lags(steady),
-        burst: lags(burst),
+        steady,
+        burst,
         burst_write_s,
         steady_rate,
         committed: summary.state.hits,
@@ -334,66 +285,97 @@ fn vallen_bench(
                 .map_err(sql)?;
             Ok((steady_rate, t1.elapsed().as_secs_f64()))
         });
-        let summary = super::watch(
-            &cfg,
-            std::slice::from_ref(&data),
-            &watch_dir,
-            &o,
-            &stop,
-            |l| {
-                ready.store(true, std::sync::atomic::Ordering::Relaxed);
-                say(l)
-            },
-        );
+        let summary = watch_signalling(&cfg, &data, &watch_dir, &o, &stop, ready, &mut say);
         (summary, writer.join().expect("writer thread"))
     });
     let summary = summary?;
     let (steady_rate, burst_write_s) = writes?;
     // Each transient's lag: its part's write time − its commit by the writer.
-    let (mut steady, mut burst) = (Vec::new(), Vec::new());
-    let (mut last_commit, mut burst_last_write): (Option<SystemTime>, Option<SystemTime>) =
-        (None, None);
-    for part in parts_of(&watch_dir.join("features")) {
-        let committed = part
-            .metadata()
-            .and_then(|m| m.modified())
-            .map_err(|e| crate::util::IoAt::new(&part, e))?;
-        let (_, _, batches) = crate::store::read_parquet(&part)?;
-        for rb in batches {
-            let hits = rb
-                .column_by_name("hit")
-                .expect("features have a hit column");
-            let hits =
-                arrow::array::AsArray::as_primitive::<arrow::datatypes::Int64Type>(hits.as_ref());
-            for r in 0..rb.num_rows() {
-                let i = (hits.value(r) as usize).saturating_sub(1).min(total - 1);
-                let lag = committed
-                    .duration_since(written[i])
-                    .map_or(0.0, |d| d.as_secs_f64());
-                if i >= steady_n {
-                    burst.push(lag);
-                    last_commit = Some(last_commit.map_or(committed, |c| c.max(committed)));
-                    burst_last_write =
-                        Some(burst_last_write.map_or(written[i], |c| c.max(written[i])));
-                } else {
-                    steady.push(lag);
-                }
-            }
-        }
-    }
-    let burst_drain_s = match (last_commit, burst_last_write) {
-        (Some(c), Some(w)) => c.duration_since(w).map_or(0.0, |d| d.as_secs_f64()),
-        _ => 0.0,
-    };
+    let (steady, burst, burst_drain_s) =
+        collect_lags(&watch_dir.join("features"), steady_n, |hit, _| {
+            Ok(written[(hit as usize).saturating_sub(1).min(total - 1)])
+        })?;
     Ok(WatchBenchResult {
-        steady: lags(steady),
-        burst: lags(burst),
+        steady,
+        burst,
         burst_write_s,
         steady_rate,
         committed: summary.state.hits,
         flushes: summary.state.flushes,
         burst_drain_s,
     })
+}
+
+/// Each features row's lag, its part's write time − when its hit was written (`written`,
+/// by the row's hit number and source file), for the steady phase and the burst (hit
+/// numbers past `steady_n`) apart; and the seconds from the burst's last write to its last
+/// row committed.
+fn collect_lags(
+    features: &Path,
+    steady_n: usize,
+    mut written: impl FnMut(u64, &str) -> Result<SystemTime, WatchError>,
+) -> Result<(Lags, Lags, f64), WatchError> {
+    let (mut steady, mut burst) = (Vec::new(), Vec::new());
+    let (mut last_commit, mut burst_last_write): (Option<SystemTime>, Option<SystemTime>) =
+        (None, None);
+    for part in parts_of(features) {
+        let committed = part
+            .metadata()
+            .and_then(|m| m.modified())
+            .map_err(|e| crate::util::IoAt::new(&part, e))?;
+        let (_, _, batches) = crate::store::read_parquet(&part)?;
+        for rb in batches {
+            let (Some(files), Some(hits)) =
+                (rb.column_by_name("source_file"), rb.column_by_name("hit"))
+            else {
+                continue;
+            };
+            let files = arrow::array::AsArray::as_string::<i32>(files.as_ref());
+            let hits =
+                arrow::array::AsArray::as_primitive::<arrow::datatypes::Int64Type>(hits.as_ref());
+            for r in 0..rb.num_rows() {
+                let hit = hits.value(r).max(0) as u64;
+                let w = written(hit, files.value(r))?;
+                let lag = committed.duration_since(w).map_or(0.0, |d| d.as_secs_f64());
+                if hit as usize > steady_n {
+                    burst.push(lag);
+                    last_commit = Some(last_commit.map_or(committed, |c| c.max(committed)));
+                    burst_last_write = Some(burst_last_write.map_or(w, |c| c.max(w)));
+                } else {
+                    steady.push(lag);
+                }
+            }
+        }
+    }
+    let drain = match (last_commit, burst_last_write) {
+        (Some(c), Some(w)) => c.duration_since(w).map_or(0.0, |d| d.as_secs_f64()),
+        _ => 0.0,
+    };
+    Ok((lags(steady), lags(burst), drain))
+}
+
+/// Watch `data` into `watch_dir`, setting `ready` at the watcher's first line (its map
+/// trained, its page written): the writer waits for it.
+fn watch_signalling(
+    cfg: &ValidConfig,
+    data: &Path,
+    watch_dir: &Path,
+    o: &WatchOptions,
+    stop: &AtomicBool,
+    ready: &AtomicBool,
+    say: &mut impl FnMut(&str),
+) -> Result<super::WatchSummary, WatchError> {
+    super::watch(
+        cfg,
+        std::slice::from_ref(&data.to_path_buf()),
+        watch_dir,
+        o,
+        stop,
+        |l| {
+            ready.store(true, std::sync::atomic::Ordering::Relaxed);
+            say(l)
+        },
+    )
 }
 
 /// The parts of a Hive table: `DIR/experiment=*/part-*.parquet`.

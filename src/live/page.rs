@@ -247,22 +247,10 @@ impl Page {
             .fold(1.0, f64::max);
         let mut s = String::from("<h2>Classified rows per class against the hits' time</h2>");
         s.push_str(&frame(t0, t1, 0.0, y_max, "s (acquisition clock)", "rows"));
+        let (x, y) = scales(t0, t1, 0.0, y_max);
         for (i, (name, pts)) in series.iter().enumerate() {
-            let colour = COLOURS[i % COLOURS.len()];
-            let (x, y) = scales(t0, t1, 0.0, y_max);
-            let path: Vec<String> = pts
-                .iter()
-                .map(|(t, v)| format!("{:.1},{:.1}", x(*t), y(*v)))
-                .collect();
-            let _ = write!(
-                s,
-                "<polyline fill=\"none\" stroke=\"{colour}\" stroke-width=\"2\" points=\"{}\"/>\
-                 <text x=\"{}\" y=\"{}\" font-size=\"12\" fill=\"{colour}\">{}</text>",
-                path.join(" "),
-                W - PAD - 116.0,
-                PAD + 14.0 * (i as f64 + 1.0),
-                esc(name)
-            );
+            let at = pts.iter().map(|(t, v)| (x(*t), y(*v)));
+            line(&mut s, at, COLOURS[i % COLOURS.len()], name, i);
         }
         s.push_str("</svg>");
         s
@@ -358,57 +346,19 @@ impl Page {
 
     /// Cumulative rows per class (and hits in all) against the watch's time.
     fn svg(&self, state: &State) -> String {
-        let (w, ht, pad) = (640.0, 300.0, 40.0);
         let t_max = self.points.last().map_or(1.0, |p| p.0).max(1.0);
         let y_max = self.points.iter().map(|p| p.1).max().unwrap_or(0).max(1) as f64;
-        let x = |t: f64| pad + (w - 2.0 * pad) * t / t_max;
-        let y = |v: f64| ht - pad - (ht - 2.0 * pad) * v / y_max;
-        let mut s = format!(
-            "<h2>Hits against time</h2><svg xmlns=\"http://www.w3.org/2000/svg\" \
-             width=\"{w}\" height=\"{ht}\"><rect x=\"{pad}\" y=\"{pad}\" width=\"{}\" \
-             height=\"{}\" fill=\"none\" stroke=\"#999\"/>\
-             <text x=\"{pad}\" y=\"{}\" font-size=\"12\">0</text>\
-             <text x=\"{}\" y=\"{}\" font-size=\"12\" text-anchor=\"end\">{t_max:.0} s</text>\
-             <text x=\"4\" y=\"{}\" font-size=\"12\">{y_max:.0}</text>",
-            w - 2.0 * pad,
-            ht - 2.0 * pad,
-            ht - pad + 16.0,
-            w - pad,
-            ht - pad + 16.0,
-            pad + 4.0
-        );
-        let mut series: Vec<(String, Vec<(f64, f64)>)> = vec![(
-            "all hits".into(),
-            self.points.iter().map(|p| (p.0, p.1 as f64)).collect(),
-        )];
-        for c in state.classes.keys() {
-            series.push((
-                c.clone(),
-                self.points
-                    .iter()
-                    .map(|p| (p.0, p.2.get(c).copied().unwrap_or(0) as f64))
-                    .collect(),
-            ));
-        }
-        for (i, (name, pts)) in series.iter().enumerate() {
-            let colour = if i == 0 {
-                "#000"
-            } else {
-                COLOURS[(i - 1) % COLOURS.len()]
-            };
-            let path: Vec<String> = pts
+        let mut s = String::from("<h2>Hits against time</h2>");
+        s.push_str(&frame(0.0, t_max, 0.0, y_max, "s (watch)", "hits"));
+        let (x, y) = scales(0.0, t_max, 0.0, y_max);
+        let all = self.points.iter().map(|p| (x(p.0), y(p.1 as f64)));
+        line(&mut s, all, "#000", "all hits", 0);
+        for (i, c) in state.classes.keys().enumerate() {
+            let pts = self
+                .points
                 .iter()
-                .map(|(t, v)| format!("{:.1},{:.1}", x(*t), y(*v)))
-                .collect();
-            let _ = write!(
-                s,
-                "<polyline fill=\"none\" stroke=\"{colour}\" stroke-width=\"2\" points=\"{}\"/>\
-                 <text x=\"{}\" y=\"{}\" font-size=\"12\" fill=\"{colour}\">{}</text>",
-                path.join(" "),
-                w - pad + 4.0 - 120.0,
-                pad + 14.0 * (i as f64 + 1.0),
-                esc(name)
-            );
+                .map(|p| (x(p.0), y(p.2.get(c).copied().unwrap_or(0) as f64)));
+            line(&mut s, pts, COLOURS[i % COLOURS.len()], c, i + 1);
         }
         s.push_str("</svg>");
         s
@@ -418,6 +368,27 @@ impl Page {
 const COLOURS: [&str; 6] = [
     "#d62728", "#1f77b4", "#2ca02c", "#9467bd", "#ff7f0e", "#8c564b",
 ];
+/// A named series (picture coordinates) as a line, its name in the legend's row `row` at
+/// the top right.
+fn line(
+    s: &mut String,
+    pts: impl Iterator<Item = (f64, f64)>,
+    colour: &str,
+    name: &str,
+    row: usize,
+) {
+    let path: Vec<String> = pts.map(|(x, y)| format!("{x:.1},{y:.1}")).collect();
+    let _ = write!(
+        s,
+        "<polyline fill=\"none\" stroke=\"{colour}\" stroke-width=\"2\" points=\"{}\"/>\
+         <text x=\"{}\" y=\"{}\" font-size=\"12\" fill=\"{colour}\">{}</text>",
+        path.join(" "),
+        W - PAD - 116.0,
+        PAD + 14.0 * (row as f64 + 1.0),
+        esc(name)
+    );
+}
+
 /// A picture's width, height and margin (px).
 const W: f64 = 640.0;
 const H: f64 = 300.0;

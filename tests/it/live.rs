@@ -223,29 +223,18 @@ fn watch_a_folder_of_wav_hits_killed_and_restarted_exactly_once() {
     }
 
     // The final tables are an offline `aepipe run`'s, byte for byte.
-    let offline = t.path().join("offline");
-    let (code, _, err) = aepipe(&[
-        "run",
-        "--config",
-        cfg.to_str().unwrap(),
-        data.to_str().unwrap(),
-        "--out",
-        offline.to_str().unwrap(),
-    ]);
-    assert_eq!(code, 0, "{err}");
-    for name in [
-        "features.parquet",
-        "hits.parquet",
-        "rejects.parquet",
-        "classification.parquet",
-    ] {
-        let a = std::fs::read(find(&out.join("final"), name)).unwrap();
-        let b = std::fs::read(find(&offline, name)).unwrap();
-        assert!(
-            a == b,
-            "{name}: the watcher's final table differs from aepipe run's"
-        );
-    }
+    same_as_aepipe_run(
+        t.path(),
+        &cfg,
+        &data,
+        &out.join("final"),
+        &[
+            "features.parquet",
+            "hits.parquet",
+            "rejects.parquet",
+            "classification.parquet",
+        ],
+    );
 
     // The live page is there, self-contained, reloading, and counts every hit.
     let html = std::fs::read_to_string(out.join("live.html")).unwrap();
@@ -386,92 +375,14 @@ fn watch_a_growing_vallen_pair_killed_and_restarted_exactly_once() {
          zone = [-0.015, 0.015]\nexclude_outside = true\n",
     )
     .unwrap();
-    let page = out.join("live.html");
     let base = data.join("strip-9");
-    let writer = std::thread::spawn(move || {
-        let t0 = Instant::now();
-        while !page.is_file() {
-            assert!(
-                t0.elapsed() < Duration::from_secs(180),
-                "the watcher never got ready"
-            );
-            std::thread::sleep(Duration::from_millis(20));
-        }
-        write_growing_pair(&base);
-    });
-    let nanos = std::time::SystemTime::now()
-        .duration_since(std::time::UNIX_EPOCH)
-        .unwrap()
-        .subsec_nanos();
-    let delay = Duration::from_millis(u64::from(nanos % 3000));
-    eprintln!("vallen watch test: SIGKILL {delay:?} after the first commit");
-    let mut first = start_watch(&data, &out, &cfg);
-    let state = out.join("watch").join("state.json");
-    let t0 = Instant::now();
-    while !state.is_file() {
-        assert!(
-            t0.elapsed() < Duration::from_secs(180),
-            "no commit within 180 s"
-        );
-        if let Some(s) = first.try_wait().unwrap() {
-            panic!("aepipe watch ended early: {s}");
-        }
-        std::thread::sleep(Duration::from_millis(20));
-    }
-    std::thread::sleep(delay);
-    first.kill().unwrap(); // SIGKILL
-    first.wait().unwrap();
-    let before: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(&state).unwrap()).unwrap();
-    eprintln!(
-        "killed with {} hits committed, at {}",
-        before["hits"], before["sources"]["strip-9"]["vallen"]
-    );
-    let again = start_watch(&data, &out, &cfg);
-    writer.join().unwrap();
-    let (code, said) = wait_for(again, Duration::from_secs(300));
-    eprintln!("{said}");
-    assert_eq!(code, Some(0), "{said}");
+    kill_once_and_finish(&data, &out, &cfg, move || write_growing_pair(&base));
 
-    // Every hit a row exactly once across the kill; every transient a features row once.
-    let (_, live_hits) = keyed_rows(&files(&out.join("hits")));
-    assert_eq!(
-        live_hits.len(),
-        PAIR_HITS,
-        "distinct hits in the live parts"
-    );
-    assert!(
-        live_hits.values().all(|v| v.len() == 1),
-        "a hit written twice"
-    );
-    let numbers: BTreeSet<u64> = live_hits.keys().map(|k| k.2.parse().unwrap()).collect();
-    assert_eq!(numbers, (1..=PAIR_HITS as u64).collect());
-    let (names, live) = keyed_rows(&files(&out.join("features")));
-    let with_transient = PAIR_HITS - PAIR_HITS / 300 - 1;
-    assert_eq!(
-        live.len(),
-        with_transient,
-        "distinct transients in the live parts"
-    );
-    assert!(
-        live.values().all(|v| v.len() == 1),
-        "a transient written twice"
-    );
-
-    // The live rows are the offline run's, the events columns included: the watcher's
-    // windows end only where no event can span the end, so its events are the offline
-    // run's, numbered on.
+    // Every hit a row exactly once across the kill, every transient a features row once,
+    // each equal to the final run's, the events columns included: the watcher's windows end
+    // only where no event can span the end, so its events are the offline run's.
     let last = out.join("final");
-    let (fnames, fin) = keyed_rows(&[find(&last, "features.parquet")]);
-    assert_eq!(fnames, names);
-    assert_eq!(fin.len(), live.len());
-    for (k, v) in &live {
-        assert_eq!(&fin[k], v, "transient {k:?} differs between live and final");
-    }
-    let (_, fin_hits) = keyed_rows(&[find(&last, "hits.parquet")]);
-    for (k, v) in &live_hits {
-        assert_eq!(&fin_hits[k], v, "hit {k:?} differs between live and final");
-    }
+    live_rows_are_the_final_ones(&out, &last, PAIR_HITS, PAIR_HITS - PAIR_HITS / 300 - 1);
     same_events_and_classes(&out, &last);
     page_draws_a_latest_hit(&out, true);
     // Located live: sources inside and outside the zone.
@@ -509,31 +420,21 @@ fn watch_a_growing_vallen_pair_killed_and_restarted_exactly_once() {
     );
 
     // The final tables are an offline `aepipe run`'s, byte for byte.
-    let offline = t.path().join("offline");
-    let (code, _, err) = aepipe(&[
-        "run",
-        "--config",
-        cfg.to_str().unwrap(),
-        data.to_str().unwrap(),
-        "--out",
-        offline.to_str().unwrap(),
-    ]);
-    assert_eq!(code, 0, "{err}");
-    for name in [
-        "features.parquet",
-        "hits.parquet",
-        "rejects.parquet",
-        "parametric.parquet",
-        "markers.parquet",
-        "classification.parquet",
-    ] {
-        let a = std::fs::read(find(&last, name)).unwrap();
-        let b = std::fs::read(find(&offline, name)).unwrap();
-        assert!(
-            a == b,
-            "{name}: the watcher's final table differs from aepipe run's"
-        );
-    }
+    same_as_aepipe_run(
+        t.path(),
+        &cfg,
+        &data,
+        &last,
+        &[
+            "features.parquet",
+            "hits.parquet",
+            "rejects.parquet",
+            "parametric.parquet",
+            "markers.parquet",
+            "events.parquet",
+            "classification.parquet",
+        ],
+    );
 }
 
 /// All rows of several tables with one header.
@@ -621,84 +522,12 @@ fn watch_a_growing_dta_chain_killed_and_restarted_exactly_once() {
         "[live]\nflush_s = 0.5\nsettle_s = 0.3\npoll_s = 0.05\ntransient_wait_s = 3\n",
     )
     .unwrap();
-    let page = out.join("live.html");
     let dir = data.clone();
-    let writer = std::thread::spawn(move || {
-        let t0 = Instant::now();
-        while !page.is_file() {
-            assert!(
-                t0.elapsed() < Duration::from_secs(180),
-                "the watcher never got ready"
-            );
-            std::thread::sleep(Duration::from_millis(20));
-        }
-        write_growing_dta(&dir);
-    });
-    let nanos = std::time::SystemTime::now()
-        .duration_since(std::time::UNIX_EPOCH)
-        .unwrap()
-        .subsec_nanos();
-    let delay = Duration::from_millis(u64::from(nanos % 3000));
-    eprintln!("dta watch test: SIGKILL {delay:?} after the first commit");
-    let mut first = start_watch(&data, &out, &cfg);
-    let state = out.join("watch").join("state.json");
-    let t0 = Instant::now();
-    while !state.is_file() {
-        assert!(
-            t0.elapsed() < Duration::from_secs(180),
-            "no commit within 180 s"
-        );
-        if let Some(s) = first.try_wait().unwrap() {
-            panic!("aepipe watch ended early: {s}");
-        }
-        std::thread::sleep(Duration::from_millis(20));
-    }
-    std::thread::sleep(delay);
-    first.kill().unwrap(); // SIGKILL
-    first.wait().unwrap();
-    let before: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(&state).unwrap()).unwrap();
-    eprintln!(
-        "killed with {} hits committed, at {}",
-        before["hits"], before["sources"]["X"]["dta"]
-    );
-    let again = start_watch(&data, &out, &cfg);
-    writer.join().unwrap();
-    let (code, said) = wait_for(again, Duration::from_secs(300));
-    eprintln!("{said}");
-    assert_eq!(code, Some(0), "{said}");
+    kill_once_and_finish(&data, &out, &cfg, move || write_growing_dta(&dir));
 
-    let (_, live_hits) = keyed_rows(&files(&out.join("hits")));
-    assert_eq!(live_hits.len(), DTA_HITS, "distinct hits in the live parts");
-    assert!(
-        live_hits.values().all(|v| v.len() == 1),
-        "a hit written twice"
-    );
-    let numbers: BTreeSet<u64> = live_hits.keys().map(|k| k.2.parse().unwrap()).collect();
-    assert_eq!(numbers, (1..=DTA_HITS as u64).collect());
-    let (names, live) = keyed_rows(&files(&out.join("features")));
-    assert_eq!(
-        live.len(),
-        DTA_HITS - 1,
-        "distinct waveforms in the live parts"
-    );
-    assert!(
-        live.values().all(|v| v.len() == 1),
-        "a waveform written twice"
-    );
-
-    // The live rows are the offline run's, events included.
+    // Every hit and waveform once, equal to the final run's (events included).
     let last = out.join("final");
-    let (fnames, fin) = keyed_rows(&[find(&last, "features.parquet")]);
-    assert_eq!(fnames, names);
-    assert_eq!(fin.len(), live.len());
-    for (k, v) in &live {
-        assert_eq!(&fin[k], v, "waveform {k:?} differs between live and final");
-    }
-    let (_, fin_hits) = keyed_rows(&[find(&last, "hits.parquet")]);
-    for (k, v) in &live_hits {
-        assert_eq!(&fin_hits[k], v, "hit {k:?} differs between live and final");
-    }
+    live_rows_are_the_final_ones(&out, &last, DTA_HITS, DTA_HITS - 1);
     assert_eq!(
         rows_by(&files(&out.join("events")), "event"),
         rows_by(&[find(&last, "events.parquet")], "event"),
@@ -707,29 +536,20 @@ fn watch_a_growing_dta_chain_killed_and_restarted_exactly_once() {
     same_events_and_classes(&out, &last);
     page_draws_a_latest_hit(&out, false);
 
-    let offline = t.path().join("offline");
-    let (code, _, err) = aepipe(&[
-        "run",
-        "--config",
-        cfg.to_str().unwrap(),
-        data.to_str().unwrap(),
-        "--out",
-        offline.to_str().unwrap(),
-    ]);
-    assert_eq!(code, 0, "{err}");
-    for name in [
-        "features.parquet",
-        "hits.parquet",
-        "rejects.parquet",
-        "classification.parquet",
-    ] {
-        let a = std::fs::read(find(&last, name)).unwrap();
-        let b = std::fs::read(find(&offline, name)).unwrap();
-        assert!(
-            a == b,
-            "{name}: the watcher's final table differs from aepipe run's"
-        );
-    }
+    // The final tables are an offline `aepipe run`'s, byte for byte.
+    same_as_aepipe_run(
+        t.path(),
+        &cfg,
+        &data,
+        &last,
+        &[
+            "features.parquet",
+            "hits.parquet",
+            "rejects.parquet",
+            "events.parquet",
+            "classification.parquet",
+        ],
+    );
 }
 
 /// The live page shows the CWT of a latest hit (read from the growing pair or chain).
@@ -766,5 +586,115 @@ fn same_events_and_classes(out: &Path, last: &Path) {
     for (k, v) in &live_cls {
         assert_eq!(v.len(), 1, "{k:?} classified twice");
         assert_eq!(v[0][som], fin_cls[k][0][som], "{k:?}'s class");
+    }
+}
+
+/// Start the watcher on `data`, start the acquisition (`write`) once the watcher is ready,
+/// SIGKILL the watcher at a random moment 0–3 s after its first commit (printed, so that a
+/// failure can be replayed), start it again with the same arguments and let it run to
+/// idle: it must end with exit 0.
+fn kill_once_and_finish(
+    data: &Path,
+    out: &Path,
+    cfg: &Path,
+    write: impl FnOnce() + Send + 'static,
+) {
+    let page = out.join("live.html");
+    let writer = std::thread::spawn(move || {
+        let t0 = Instant::now();
+        while !page.is_file() {
+            assert!(
+                t0.elapsed() < Duration::from_secs(180),
+                "the watcher never got ready"
+            );
+            std::thread::sleep(Duration::from_millis(20));
+        }
+        write();
+    });
+    let nanos = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .unwrap()
+        .subsec_nanos();
+    let delay = Duration::from_millis(u64::from(nanos % 3000));
+    eprintln!("watch test: SIGKILL {delay:?} after the first commit");
+    let mut first = start_watch(data, out, cfg);
+    let state = out.join("watch").join("state.json");
+    let t0 = Instant::now();
+    while !state.is_file() {
+        assert!(
+            t0.elapsed() < Duration::from_secs(180),
+            "no commit within 180 s"
+        );
+        if let Some(s) = first.try_wait().unwrap() {
+            panic!("aepipe watch ended early: {s}");
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    std::thread::sleep(delay);
+    first.kill().unwrap(); // SIGKILL
+    first.wait().unwrap();
+    let before: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&state).unwrap()).unwrap();
+    eprintln!(
+        "killed with {} hits committed, at {}",
+        before["hits"], before["sources"]
+    );
+    let again = start_watch(data, out, cfg);
+    writer.join().unwrap();
+    let (code, said) = wait_for(again, Duration::from_secs(300));
+    eprintln!("{said}");
+    assert_eq!(code, Some(0), "{said}");
+}
+
+/// `aepipe run` of the finished acquisition (into `root/offline`) writes the tables `names`
+/// byte for byte as the watcher's final run (`last`) did.
+fn same_as_aepipe_run(root: &Path, cfg: &Path, data: &Path, last: &Path, names: &[&str]) {
+    let offline = root.join("offline");
+    let (code, _, err) = aepipe(&[
+        "run",
+        "--config",
+        cfg.to_str().unwrap(),
+        data.to_str().unwrap(),
+        "--out",
+        offline.to_str().unwrap(),
+    ]);
+    assert_eq!(code, 0, "{err}");
+    for name in names {
+        let a = std::fs::read(find(last, name)).unwrap();
+        let b = std::fs::read(find(&offline, name)).unwrap();
+        assert!(
+            a == b,
+            "{name}: the watcher's final table differs from aepipe run's"
+        );
+    }
+}
+
+/// Across all flushes' parts: hits 1..=`hits` each one row, `records` distinct features
+/// rows each once, and every live hits and features row equal to the final run's (all
+/// columns).
+fn live_rows_are_the_final_ones(out: &Path, last: &Path, hits: usize, records: usize) {
+    let (_, live_hits) = keyed_rows(&files(&out.join("hits")));
+    assert_eq!(live_hits.len(), hits, "distinct hits in the live parts");
+    assert!(
+        live_hits.values().all(|v| v.len() == 1),
+        "a hit written twice"
+    );
+    let numbers: BTreeSet<u64> = live_hits.keys().map(|k| k.2.parse().unwrap()).collect();
+    assert_eq!(numbers, (1..=hits as u64).collect());
+    let (names, live) = keyed_rows(&files(&out.join("features")));
+    assert_eq!(live.len(), records, "distinct records in the live parts");
+    assert!(
+        live.values().all(|v| v.len() == 1),
+        "a record written twice"
+    );
+    let (fnames, fin) = keyed_rows(&[find(last, "features.parquet")]);
+    assert_eq!(fnames, names);
+    assert_eq!(fin.len(), live.len());
+    for (k, v) in &live {
+        assert_eq!(&fin[k], v, "record {k:?} differs between live and final");
+    }
+    let (_, fin_hits) = keyed_rows(&[find(last, "hits.parquet")]);
+    for (k, v) in &live_hits {
+        assert_eq!(&fin_hits[k], v, "hit {k:?} differs between live and final");
     }
 }
