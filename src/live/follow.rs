@@ -34,12 +34,22 @@ pub enum Part {
     Dta {
         items: Arc<Mutex<Vec<Item>>>,
         records: usize,
+        /// Hit rows among the items (counted before the flush takes them).
+        hits: usize,
         end: DtaPosition,
         next_hit: Option<(f64, u32)>,
     },
 }
 
 impl Part {
+    /// Hits in the part (a pair's window; a chain's hit rows).
+    pub fn hits(&self) -> usize {
+        match self {
+            Part::Vallen(w) => w.hits as usize,
+            Part::Dta { hits, .. } => *hits,
+        }
+    }
+
     /// The hit after the part (time, channel), when it ends before a known one.
     pub fn next_hit(&self) -> Option<(f64, u32)> {
         match self {
@@ -324,6 +334,7 @@ impl Follower {
             .iter()
             .filter(|i| matches!(i, Item::Record(_) | Item::Hit(_)))
             .count();
+        let hits = items.iter().filter(|i| matches!(i, Item::Hit(_))).count();
         let written = s
             .all_files()
             .filter_map(|f| std::fs::metadata(f).and_then(|m| m.modified()).ok())
@@ -334,6 +345,7 @@ impl Follower {
             part: Some(Part::Dta {
                 items: Arc::new(Mutex::new(items)),
                 records,
+                hits,
                 end,
                 next_hit,
             }),

@@ -442,7 +442,13 @@ fn flush(
             cfg,
             state.events.get(experiment).copied().unwrap_or(0),
             &mut channels,
-            sources.last().and_then(|p| p.part.as_ref()?.next_hit()),
+            // The hit after the part's last hits (a later part of transients only has none).
+            sources
+                .iter()
+                .rev()
+                .filter_map(|p| p.part.as_ref())
+                .find(|p| p.hits() > 0)
+                .and_then(|p| p.next_hit()),
         )?;
         *state.events.entry(experiment.clone()).or_default() += ev.events;
         state.channels.insert(experiment.clone(), channels);

@@ -34,6 +34,14 @@ pub struct Position {
     pub drains: Vec<(usize, u64)>,
 }
 
+/// Hits and waveforms carried without a quiet gap after which a part is cut anyway (an
+/// event may be split there: a chain that never pauses for the builder's reach).
+const FORCED_CUT: usize = 16_000;
+
+/// The offset of a file the reader has finished (its closing items, a cut message's reject
+/// included, are behind it).
+const FILE_DONE: u64 = u64::MAX;
+
 /// What one look hands out.
 pub struct Handed {
     pub items: Vec<Item>,
@@ -134,21 +142,25 @@ impl DtaTail {
             let mut got = Vec::new();
             let mut steps = Vec::new();
             let n0 = self.carry.len();
-            self.advance(
+            let read = self.advance(
                 max_records - carried,
                 None,
                 &mut |i| got.push(i),
                 &mut |n, p| steps.push((n0 + n, p)),
-            )?;
+            );
+            // What was read before a failure is kept: the reader has moved past it.
             self.carry.extend(got);
             self.steps.extend(steps);
+            read?;
         }
         let now = Instant::now();
+        // Quiet: nothing new although the reader was let on (not when the carried items
+        // already fill the part and nothing was read).
         let quiet = if (self.at.clone(), self.complete) != before {
             self.grew = now;
             false
         } else {
-            now.duration_since(self.grew) >= wait
+            max_records > carried && now.duration_since(self.grew) >= wait
         };
         if quiet && !self.src.pending.is_empty() {
             let mut got = Vec::new();
@@ -164,7 +176,7 @@ impl DtaTail {
             last_cut(&self.carry, &self.steps, gap_s)
                 // A run with no quiet gap at all is not held forever.
                 .or_else(|| {
-                    (records(&self.carry) > 8 * max_records.max(1))
+                    (records(&self.carry) > FORCED_CUT)
                         .then(|| self.steps.last().cloned().map(|(n, p)| (n, p, None)))
                         .flatten()
                 })
@@ -257,9 +269,10 @@ impl DtaTail {
                 items += 1;
                 sink(i);
             }
-            if let Some((_, r)) = &self.src.current {
-                self.at.offset = r.offset();
-            }
+            self.at.offset = match &self.src.current {
+                Some((_, r)) => r.offset(),
+                None => FILE_DONE,
+            };
             if items > had {
                 step_done(items, self.at.clone());
             }
@@ -279,7 +292,22 @@ impl DtaTail {
             let k = self.k.expect("a file is open");
             let (whole, len) = whole_messages(&self.chain[k], self.complete)?;
             let finished = k + 1 < self.chain.len();
-            let upto = if finished { len } else { whole };
+            let mut upto = if finished { len } else { whole };
+            if let Some(s) = stop {
+                // Replaying: the reader stops at each place the committed reading stood
+                // (where waiting hits were let out, and its end), whatever came after.
+                let next = s
+                    .drains
+                    .iter()
+                    .filter(|d| d.0 == k)
+                    .map(|d| d.1)
+                    .chain((s.file == k).then_some(s.offset))
+                    .filter(|&o| o > self.complete && o != FILE_DONE)
+                    .min();
+                if let Some(o) = next {
+                    upto = upto.min(o);
+                }
+            }
             if upto > self.complete {
                 if let Some((_, r)) = self.src.current.as_mut() {
                     r.grow(upto - self.complete);

@@ -175,6 +175,11 @@ pub struct Tail {
     /// Time in ticks of the last parametric row holding the configured inputs.
     load_until: Option<i64>,
     grew: Instant,
+    /// The latest hit time scanned, and the most a hit stored later has begun before one
+    /// stored earlier (ticks): a window ends only where no hit still to come can belong
+    /// to its last event.
+    newest: i64,
+    inversion: i64,
 }
 
 impl Tail {
@@ -241,6 +246,8 @@ impl Tail {
             tradb_reached: i64::MIN,
             load_until: None,
             grew: Instant::now(),
+            newest: i64::MIN,
+            inversion: 0,
         })
     }
 
@@ -259,7 +266,21 @@ impl Tail {
         cfg: &IngestConfig,
     ) -> Result<Vec<Window>, IngestError> {
         let now = Instant::now();
-        let grew = self.scan_pridb(now)? | self.scan_tradb()?;
+        // Each file to its end, the .pridb first: a transient is judged (linked or
+        // standalone) only against the hits of every set before it.
+        let mut grew = false;
+        while let n @ 1.. = self.scan_pridb(now)? {
+            grew = true;
+            if n < SCAN_ROWS as usize {
+                break;
+            }
+        }
+        while let n @ 1.. = self.scan_tradb()? {
+            grew = true;
+            if n < SCAN_ROWS as usize {
+                break;
+            }
+        }
         if grew {
             self.grew = now;
         }
@@ -275,12 +296,18 @@ impl Tail {
                     let s = self.queue.pop_front().expect("planned");
                     self.take(s, &mut w);
                 }
-                w.next_hit = self.queue.front().filter(|s| s.set_type == 2).map(|s| {
-                    (
-                        s.time as f64 * (1.0 / self.pridb_time_base),
-                        s.chan.max(0) as u32,
-                    )
-                });
+                // The hit that comes next in time closes the window's last event.
+                w.next_hit = self
+                    .queue
+                    .iter()
+                    .filter(|s| s.set_type == 2)
+                    .min_by_key(|s| (s.time, s.setid))
+                    .map(|s| {
+                        (
+                            s.time as f64 * (1.0 / self.pridb_time_base),
+                            s.chan.max(0) as u32,
+                        )
+                    });
                 windows.push(w);
             }
         }
@@ -331,6 +358,16 @@ impl Tail {
     /// sooner: an event is never split). The end of the ready run is a cut once nothing
     /// waits behind it and its last hit has waited `wait` for a next one.
     fn plan(&self, now: Instant, wait: Duration, gap: i64, max_hits: u64) -> Vec<usize> {
+        // The earliest hit time from each set of the queue on (hits stored later may have
+        // begun earlier).
+        let mut later = vec![i64::MAX; self.queue.len() + 1];
+        for (i, s) in self.queue.iter().enumerate().rev() {
+            later[i] = if s.set_type == 2 {
+                later[i + 1].min(s.time)
+            } else {
+                later[i + 1]
+            };
+        }
         // (sets before the cut, hits before it)
         let mut cuts: Vec<(usize, u64)> = Vec::new();
         let (mut hits, mut max_time, mut end) = (0u64, i64::MIN, 0usize);
@@ -338,7 +375,11 @@ impl Tail {
         let mut stopped = false;
         for (i, s) in self.queue.iter().enumerate() {
             if s.set_type == 2 {
-                if hits > 0 && (gap == 0 || s.time > max_time.saturating_add(gap)) {
+                // Every hit queued after the cut, and any still to come (no earlier than
+                // the latest one less the largest inversion seen), beyond the reach.
+                let reach = max_time.saturating_add(gap);
+                let clear = later[i] > reach && self.newest.saturating_sub(self.inversion) > reach;
+                if hits > 0 && (gap == 0 || clear) {
                     cuts.push((i, hits));
                 }
                 if !self.ready(s, now, wait) {
@@ -455,8 +496,8 @@ impl Tail {
         w.end = self.handed;
     }
 
-    /// New `.pridb` sets; true if there were any.
-    fn scan_pridb(&mut self, now: Instant) -> Result<bool, IngestError> {
+    /// New `.pridb` sets (a chunk of at most [`SCAN_ROWS`]); how many.
+    fn scan_pridb(&mut self, now: Instant) -> Result<usize, IngestError> {
         let rows = {
             let mut st = self
                 .pridb
@@ -477,9 +518,14 @@ impl Tail {
                 .map_err(|e| file_err(&self.pridb_path, format!("cannot list sets: {e}")))?;
             rows
         };
-        let grew = !rows.is_empty();
+        let n = rows.len();
         for (setid, set_type, time, chan, trai, has_load) in rows {
             self.scanned_pridb = setid;
+            if set_type == 2 {
+                // Hits are stored as they end: one stored later may have begun earlier.
+                self.inversion = self.inversion.max(self.newest.saturating_sub(time));
+                self.newest = self.newest.max(time);
+            }
             let acquisition = self.acquisitions.add(setid, set_type, trai);
             if set_type == 1 && has_load {
                 self.load_until = Some(self.load_until.map_or(time, |t| t.max(time)));
@@ -500,11 +546,11 @@ impl Tail {
                 });
             }
         }
-        Ok(grew)
+        Ok(n)
     }
 
-    /// New `.tradb` records; true if there were any.
-    fn scan_tradb(&mut self) -> Result<bool, IngestError> {
+    /// New `.tradb` records (a chunk of at most [`SCAN_ROWS`]); how many.
+    fn scan_tradb(&mut self) -> Result<usize, IngestError> {
         if self.tradb.is_none() {
             // The acquisition may create the .tradb after the .pridb.
             match open_live(&self.tradb_path) {
@@ -512,7 +558,7 @@ impl Tail {
                     self.tradb_time_base = time_base(&c, "tr_globalinfo");
                     self.tradb = Some(c);
                 }
-                _ => return Ok(false),
+                _ => return Ok(0),
             }
         }
         let conn = self.tradb.as_ref().expect("opened");
@@ -536,7 +582,7 @@ impl Tail {
                 .map_err(|e| file_err(&self.tradb_path, format!("cannot list records: {e}")))?;
             rows
         };
-        let grew = !rows.is_empty();
+        let n = rows.len();
         for (setid, time, chan, trai) in rows {
             self.scanned_tradb = setid;
             // The .tradb's own acquisitions, as `transient_keys` numbers them.
@@ -565,15 +611,15 @@ impl Tail {
                 },
             );
         }
-        Ok(grew)
+        Ok(n)
     }
 }
 
-/// A read-only connection to a database another process writes: a lock it meets waits a
-/// little instead of failing the look.
+/// A read-only connection to a database another process writes: a lock it meets waits up
+/// to 2 s (a writer's commit) instead of failing the look.
 fn open_live(path: &Path) -> Result<Connection, IngestError> {
     let c = open_ro(path)?;
-    c.busy_timeout(Duration::from_millis(250))
+    c.busy_timeout(Duration::from_secs(2))
         .map_err(|e| file_err(path, e.to_string()))?;
     Ok(c)
 }
@@ -842,6 +888,74 @@ mod tests {
             assert_eq!(a, b);
         }
         assert!(offline.iter().any(|r| r.contains("has no transient")));
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+}
+
+#[cfg(test)]
+mod cut_tests {
+    use super::*;
+    use crate::ingest::vallen::{HitToWrite, Journal, PairWriter};
+
+    /// Hits are stored as they end: a long hit that began first may be stored after a
+    /// short one of a later source. A window must not end between it and its event's
+    /// first hit, and the hit that comes next in time closes the window's last event.
+    #[test]
+    fn a_hit_stored_late_with_an_earlier_time_stays_with_its_event() {
+        let dir = std::env::temp_dir().join(format!("aepipe-cut-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        let w = PairWriter::create(&dir.join("c"), 1e-3, 1e-4, Journal::Wal).unwrap();
+        let (pridb, tradb) = w.paths();
+        let src = Source {
+            id: "c".into(),
+            format: crate::ingest::Format::Vallen,
+            files: vec![tradb],
+            companions: vec![pridb],
+            first_hit: 0,
+        };
+        let cfg = IngestConfig::default();
+        let samples = vec![0.0f32; 256];
+        let hit = |ch: u32, trai: u64, t: f64| HitToWrite {
+            channel: ch,
+            trai,
+            time_s: t,
+            sample_rate_hz: 1e7,
+            pretrigger: 0,
+            samples_v: &samples,
+            restart: false,
+            transient: true,
+        };
+        // P (ch1, 0 s, short), X (ch3, 5 ms), then Q (ch2, 0.05 ms: P's event, long, so
+        // stored after X).
+        for h in [hit(1, 1, 0.0), hit(3, 2, 5e-3), hit(2, 3, 0.05e-3)] {
+            w.batch(|w| {
+                w.hit(&h)?;
+                w.transient(&h)
+            })
+            .unwrap();
+        }
+        let long = Duration::from_secs(3600);
+        let gap = 1e-3;
+        let mut tail = Tail::open(&src, Position::default(), &cfg).unwrap();
+        // By SetID, X comes more than the reach after P; but Q, stored later, began within
+        // it, and more may come as early as 5 ms − 4.95 ms: no window yet.
+        assert!(tail.look(long, long, 100, gap, &cfg).unwrap().is_empty());
+        // R (ch1, 20 ms) comes long after every one of them.
+        let r = hit(1, 4, 20e-3);
+        w.batch(|w| {
+            w.hit(&r)?;
+            w.transient(&r)
+        })
+        .unwrap();
+        let ws = tail.look(long, long, 100, gap, &cfg).unwrap();
+        assert_eq!(ws.len(), 1);
+        assert_eq!(ws[0].hits, 3, "P, X and Q in one window");
+        let (t, ch) = ws[0].next_hit.unwrap();
+        assert!(
+            (t - 20e-3).abs() < 1e-9 && ch == 1,
+            "R closes the last event"
+        );
         let _ = std::fs::remove_dir_all(&dir);
     }
 }
