@@ -49,6 +49,25 @@ pub struct WatchBenchResult {
     pub burst_drain_s: f64,
 }
 
+impl WatchBenchResult {
+    fn of(
+        summary: &super::WatchSummary,
+        steady_rate: f64,
+        burst_write_s: f64,
+        (steady, burst, burst_drain_s): (Lags, Lags, f64),
+    ) -> WatchBenchResult {
+        WatchBenchResult {
+            steady,
+            burst,
+            burst_write_s,
+            steady_rate,
+            committed: summary.state.hits,
+            flushes: summary.state.flushes,
+            burst_drain_s,
+        }
+    }
+}
+
 fn lags(mut v: Vec<f64>) -> Lags {
     if v.is_empty() {
         return Lags::default();
@@ -92,14 +111,6 @@ pub fn watch_bench(
         .map(|r| (r.sample_rate_hz as u32, r.samples))
         .collect();
     let steady_n = (b.rate * b.seconds).round() as usize;
-    let stop = AtomicBool::new(false);
-    let ready = AtomicBool::new(false);
-    let o = WatchOptions {
-        until_idle_s: Some(3.0),
-        offline_at_end: false,
-        threads: b.threads,
-        model: None,
-    };
     let write_to = |dir: &Path, i: usize| -> Result<(), WatchError> {
         let (fs, x) = &protos[i % protos.len()];
         let f = dir.join(format!("hit_{:06}.wav", i + 1));
@@ -114,11 +125,8 @@ pub fn watch_bench(
     for i in steady_n..steady_n + b.burst {
         write_to(&staging, i)?;
     }
-    let (summary, writes) = std::thread::scope(|s| {
-        let writer = s.spawn(|| -> Result<(f64, f64), WatchError> {
-            while !ready.load(std::sync::atomic::Ordering::Relaxed) {
-                std::thread::sleep(Duration::from_millis(20));
-            }
+    let (summary, steady_rate, burst_write_s) =
+        watch_while_writing(&cfg, &data, &watch_dir, b.threads, &mut say, || {
             let write = |i: usize| write_to(&data, i);
             let t0 = Instant::now();
             for i in 0..steady_n {
@@ -139,28 +147,19 @@ pub fn watch_bench(
                     .map_err(|e| crate::util::IoAt::new(&to, e))?;
             }
             Ok((steady_rate, t1.elapsed().as_secs_f64()))
-        });
-        let summary = watch_signalling(&cfg, &data, &watch_dir, &o, &stop, &ready, &mut say);
-        (summary, writer.join().expect("writer thread"))
-    });
-    let summary = summary?;
-    let (steady_rate, burst_write_s) = writes?;
-    // Each hit's lag: its part's write time − its file's last write.
-    let (steady, burst, burst_drain_s) =
-        collect_lags(&watch_dir.join("features"), steady_n, |_, file| {
-            std::fs::metadata(file)
-                .and_then(|m| m.modified())
-                .map_err(|e| crate::util::IoAt::new(Path::new(file), e).into())
         })?;
-    Ok(WatchBenchResult {
-        steady,
-        burst,
-        burst_write_s,
+    // Each hit's lag: its part's write time − its file's last write.
+    let lags = collect_lags(&watch_dir.join("features"), steady_n, |_, file| {
+        std::fs::metadata(file)
+            .and_then(|m| m.modified())
+            .map_err(|e| crate::util::IoAt::new(Path::new(file), e).into())
+    })?;
+    Ok(WatchBenchResult::of(
+        &summary,
         steady_rate,
-        committed: summary.state.hits,
-        flushes: summary.state.flushes,
-        burst_drain_s,
-    })
+        burst_write_s,
+        lags,
+    ))
 }
 
 /// The benchmark on a Vallen pair: the writer appends hit rows, their transients and a
@@ -189,14 +188,6 @@ fn vallen_bench(
     let protos: Vec<crate::model::AeRecord> = e.records().collect();
     let steady_n = (b.rate * b.seconds).round() as usize;
     let total = steady_n + b.burst;
-    let stop = AtomicBool::new(false);
-    let ready = AtomicBool::new(false);
-    let o = WatchOptions {
-        until_idle_s: Some(3.0),
-        offline_at_end: false,
-        threads: b.threads,
-        model: None,
-    };
     let sql = |e: rusqlite::Error| {
         WatchError::Io(crate::util::IoAt::new(
             &data,
@@ -250,14 +241,11 @@ fn vallen_bench(
         })
     };
     let mut written: Vec<SystemTime> = vec![SystemTime::UNIX_EPOCH; total];
-    let (ready, data_ref, sql, write) = (&ready, &data, &sql, &write);
-    let (summary, writes) = std::thread::scope(|s| {
-        let written = &mut written;
-        let writer = s.spawn(move || -> Result<(f64, f64), WatchError> {
-            while !ready.load(std::sync::atomic::Ordering::Relaxed) {
-                std::thread::sleep(Duration::from_millis(20));
-            }
-            let w = PairWriter::create(&data_ref.join("test-1"), 1e-3, 1e-4, Journal::Delete)
+    let times = &mut written;
+    let (summary, steady_rate, burst_write_s) =
+        watch_while_writing(&cfg, &data, &watch_dir, b.threads, &mut say, || {
+            let written = times;
+            let w = PairWriter::create(&data.join("test-1"), 1e-3, 1e-4, Journal::Delete)
                 .map_err(sql)?;
             let t0 = Instant::now();
             let mut i = 0;
@@ -284,26 +272,17 @@ fn vallen_bench(
             w.batch(|w| w.parametric(time_of(total) + 1e-3, load_at(t_end), 0.0))
                 .map_err(sql)?;
             Ok((steady_rate, t1.elapsed().as_secs_f64()))
-        });
-        let summary = watch_signalling(&cfg, &data, &watch_dir, &o, &stop, ready, &mut say);
-        (summary, writer.join().expect("writer thread"))
-    });
-    let summary = summary?;
-    let (steady_rate, burst_write_s) = writes?;
-    // Each transient's lag: its part's write time − its commit by the writer.
-    let (steady, burst, burst_drain_s) =
-        collect_lags(&watch_dir.join("features"), steady_n, |hit, _| {
-            Ok(written[(hit as usize).saturating_sub(1).min(total - 1)])
         })?;
-    Ok(WatchBenchResult {
-        steady,
-        burst,
-        burst_write_s,
+    // Each transient's lag: its part's write time − its commit by the writer.
+    let lags = collect_lags(&watch_dir.join("features"), steady_n, |hit, _| {
+        Ok(written[(hit as usize).saturating_sub(1).min(total - 1)])
+    })?;
+    Ok(WatchBenchResult::of(
+        &summary,
         steady_rate,
-        committed: summary.state.hits,
-        flushes: summary.state.flushes,
-        burst_drain_s,
-    })
+        burst_write_s,
+        lags,
+    ))
 }
 
 /// Each features row's lag, its part's write time − when its hit was written (`written`,
@@ -354,28 +333,44 @@ fn collect_lags(
     Ok((lags(steady), lags(burst), drain))
 }
 
-/// Watch `data` into `watch_dir`, setting `ready` at the watcher's first line (its map
-/// trained, its page written): the writer waits for it.
-fn watch_signalling(
+/// Watch `data` into `watch_dir` (ending 3 s after the last new data) while `write`, the
+/// acquisition, runs on a thread of its own from the watcher's first line on (its map
+/// trained, its page written); the watch's summary and what `write` returns (the steady
+/// rate it reached, the seconds the burst took).
+fn watch_while_writing(
     cfg: &ValidConfig,
     data: &Path,
     watch_dir: &Path,
-    o: &WatchOptions,
-    stop: &AtomicBool,
-    ready: &AtomicBool,
+    threads: usize,
     say: &mut impl FnMut(&str),
-) -> Result<super::WatchSummary, WatchError> {
-    super::watch(
-        cfg,
-        std::slice::from_ref(&data.to_path_buf()),
-        watch_dir,
-        o,
-        stop,
-        |l| {
+    write: impl FnOnce() -> Result<(f64, f64), WatchError> + Send,
+) -> Result<(super::WatchSummary, f64, f64), WatchError> {
+    let stop = AtomicBool::new(false);
+    let ready = AtomicBool::new(false);
+    let o = WatchOptions {
+        until_idle_s: Some(3.0),
+        offline_at_end: false,
+        threads,
+        model: None,
+    };
+    let (summary, writes) = std::thread::scope(|s| {
+        let ready = &ready;
+        let writer = s.spawn(move || {
+            while !ready.load(std::sync::atomic::Ordering::Relaxed) {
+                std::thread::sleep(Duration::from_millis(20));
+            }
+            write()
+        });
+        let inputs = [data.to_path_buf()];
+        let summary = super::watch(cfg, &inputs, watch_dir, &o, &stop, |l| {
             ready.store(true, std::sync::atomic::Ordering::Relaxed);
             say(l)
-        },
-    )
+        });
+        (summary, writer.join().expect("writer thread"))
+    });
+    let summary = summary?;
+    let (steady_rate, burst_write_s) = writes?;
+    Ok((summary, steady_rate, burst_write_s))
 }
 
 /// The parts of a Hive table: `DIR/experiment=*/part-*.parquet`.

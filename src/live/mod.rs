@@ -165,7 +165,7 @@ impl WatchDir {
     /// The folders of the watcher's Hive tables (the only ones a restart cleans).
     pub fn table_dirs(&self) -> Vec<PathBuf> {
         let tables = self.tables();
-        TABLES
+        PartTable::ALL
             .iter()
             .map(|&t| tables.hive_dir(t, StreamJob::Features))
             .chain([self.0.join("classification")])
@@ -195,16 +195,6 @@ impl WatchDir {
         self.0.join("final")
     }
 }
-
-/// The tables a flush writes a part of.
-const TABLES: [PartTable; 6] = [
-    PartTable::Main,
-    PartTable::Hits,
-    PartTable::Rejects,
-    PartTable::Parametric,
-    PartTable::Markers,
-    PartTable::Events,
-];
 
 /// The map the watcher classifies with.
 fn the_map(
@@ -454,7 +444,8 @@ fn flush(
         state.channels.insert(experiment.clone(), channels);
         f.events += ev.events;
         let tables = dir.tables();
-        for t in TABLES {
+        // A flush writes a part of every table a part of `aepipe run` has.
+        for t in PartTable::ALL {
             let from = stream.table(t, StreamJob::Features);
             let to = tables.hive_file(t, StreamJob::Features, experiment, k);
             move_into(&from, &to)?;

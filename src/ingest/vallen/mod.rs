@@ -473,19 +473,9 @@ fn open_with(
         .as_ref()
         .map(|p| p.display().to_string())
         .unwrap_or_default();
-    let missing =
-        |info: &PriInfo, have: &HashSet<(i64, i64, i64)>, why: &str| -> VecDeque<Reject> {
-            let mut m: Vec<(u32, i64, i64, i64)> = info
-                .link
-                .iter()
-                .filter(|(k, _)| !have.contains(k))
-                .map(|(&(t, c, time), &a)| (a, t, c, time))
-                .collect();
-            m.sort_unstable();
-            m.into_iter()
-                .map(|(a, t, c, _)| missing_reject(&experiment, &pridb_name, (a, t, c), why))
-                .collect()
-        };
+    let missing = |info: &PriInfo, have: &HashSet<(i64, i64, i64)>, why: &str| {
+        missing_rejects(&experiment, &pridb_name, &info.link, have, why)
+    };
     let offsets = TraiOffsets::new(&info.acq_max_trai);
     // VisualAE features beside the .pridb (X.trfdb), joined to the hits by TRAI.
     let trf = match pridb.as_ref().map(|p| p.with_extension("trfdb")) {
@@ -605,6 +595,26 @@ fn open_with(
     };
     let r = reader(tradb, conn, tb, keys, have, tail, info, last);
     Box::new(first.into_iter().chain(r))
+}
+
+/// The rejects of the hits (`link`: (TRAI, channel, time) → acquisition) whose transient
+/// is not in `have`, in (acquisition, TRAI, channel, time) order.
+fn missing_rejects(
+    experiment: &str,
+    pridb: &str,
+    link: &HashMap<(i64, i64, i64), u32>,
+    have: &HashSet<(i64, i64, i64)>,
+    why: &str,
+) -> VecDeque<Reject> {
+    let mut m: Vec<(u32, i64, i64, i64)> = link
+        .iter()
+        .filter(|(k, _)| !have.contains(k))
+        .map(|(&(t, c, time), &a)| (a, t, c, time))
+        .collect();
+    m.sort_unstable();
+    m.into_iter()
+        .map(|(a, t, c, _)| missing_reject(experiment, pridb, (a, t, c), why))
+        .collect()
 }
 
 /// The reject of a hit (acquisition, TRAI, channel) whose transient is not there.
