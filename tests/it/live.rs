@@ -78,32 +78,18 @@ fn find(dir: &Path, name: &str) -> PathBuf {
 
 #[test]
 fn watch_a_folder_of_wav_hits_killed_and_restarted_exactly_once() {
-    let t = TempDir::new("live-wav");
-    let data = t.path().join("strip-7");
-    std::fs::create_dir_all(&data).unwrap();
-    let out = t.path().join("watch");
-    let cfg = t.path().join("live.toml");
-    std::fs::write(
-        &cfg,
+    let (t, data, out, cfg) = watch_test(
+        "live-wav",
+        "strip-7",
         // The synthetic hits' 500 pretrigger samples, which a WAV does not carry.
         "[ingest]\npretrigger_samples = 500\n[live]\nflush_s = 0.5\nsettle_s = 0.3\npoll_s = 0.05\n",
-    )
-    .unwrap();
+    );
 
     // The acquisition, started once the watcher is ready (its map trained, its page
     // written), as an operator starts the test: hits written in place (a file grows while
     // it is written) at ~80 hits/s, with a pause now and then.
     let writer_dir = data.clone();
-    let page = out.join("live.html");
-    let writer = std::thread::spawn(move || {
-        let t0 = Instant::now();
-        while !page.is_file() {
-            assert!(
-                t0.elapsed() < Duration::from_secs(180),
-                "the watcher never got ready"
-            );
-            std::thread::sleep(Duration::from_millis(20));
-        }
+    let writer = write_once_ready(&out, move || {
         let e = aepipe::synth::Experiment::new("strip-7", HITS, 7);
         for (i, r) in e.records().enumerate() {
             let f = writer_dir.join(format!("hit_{:05}.wav", i + 1));
@@ -112,33 +98,8 @@ fn watch_a_folder_of_wav_hits_killed_and_restarted_exactly_once() {
         }
     });
 
-    // A random kill point, printed so a failure can be replayed: after the first commit,
-    // 0–1.5 s on.
-    let nanos = std::time::SystemTime::now()
-        .duration_since(std::time::UNIX_EPOCH)
-        .unwrap()
-        .subsec_nanos();
-    let delay = Duration::from_millis(u64::from(nanos % 1500));
-    eprintln!("watch test: SIGKILL {delay:?} after the first commit");
-    let mut first = start_watch(&data, &out, &cfg);
+    kill_after_first_commit(&data, &out, &cfg, 1500);
     let state = out.join("watch").join("state.json");
-    let t0 = Instant::now();
-    while !state.is_file() {
-        assert!(
-            t0.elapsed() < Duration::from_secs(180),
-            "no commit within 180 s"
-        );
-        if let Some(s) = first.try_wait().unwrap() {
-            panic!("aepipe watch ended early: {s}");
-        }
-        std::thread::sleep(Duration::from_millis(20));
-    }
-    std::thread::sleep(delay);
-    first.kill().unwrap(); // SIGKILL
-    first.wait().unwrap();
-    let before: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(&state).unwrap()).unwrap();
-    eprintln!("killed with {} hits committed", before["hits"]);
 
     // Then a polite stop (SIGTERM, as Ctrl-C is SIGINT) once it has committed again: it
     // flushes what it read and exits 0.
@@ -362,19 +323,14 @@ fn write_growing_pair(base: &Path) {
 /// run's, the final tables byte-identical to `aepipe run` of the finished pair.
 #[test]
 fn watch_a_growing_vallen_pair_killed_and_restarted_exactly_once() {
-    let t = TempDir::new("live-vallen");
-    let data = t.path().join("acq");
-    std::fs::create_dir_all(&data).unwrap();
-    let out = t.path().join("watch");
-    let cfg = t.path().join("live.toml");
-    std::fs::write(
-        &cfg,
+    let (t, data, out, cfg) = watch_test(
+        "live-vallen",
+        "acq",
         "[ingest.vallen]\nload_param = \"PA0\"\nload_n_per_mv = 1.0\n\
          [live]\nflush_s = 0.5\nsettle_s = 0.3\npoll_s = 0.05\ntransient_wait_s = 3\n\
          [location]\nkind = \"linear\"\nvelocity_m_s = 700\nsensors = { 1 = [-0.020], 2 = [0.020] }\n\
          zone = [-0.015, 0.015]\nexclude_outside = true\n",
-    )
-    .unwrap();
+    );
     let base = data.join("strip-9");
     kill_once_and_finish(&data, &out, &cfg, move || write_growing_pair(&base));
 
@@ -512,16 +468,11 @@ fn write_growing_dta(dir: &Path) {
 /// run's, the final tables byte-identical to `aepipe run` of the finished chain.
 #[test]
 fn watch_a_growing_dta_chain_killed_and_restarted_exactly_once() {
-    let t = TempDir::new("live-dta");
-    let data = t.path().join("acq");
-    std::fs::create_dir_all(&data).unwrap();
-    let out = t.path().join("watch");
-    let cfg = t.path().join("live.toml");
-    std::fs::write(
-        &cfg,
+    let (t, data, out, cfg) = watch_test(
+        "live-dta",
+        "acq",
         "[live]\nflush_s = 0.5\nsettle_s = 0.3\npoll_s = 0.05\ntransient_wait_s = 3\n",
-    )
-    .unwrap();
+    );
     let dir = data.clone();
     kill_once_and_finish(&data, &out, &cfg, move || write_growing_dta(&dir));
 
@@ -599,8 +550,34 @@ fn kill_once_and_finish(
     cfg: &Path,
     write: impl FnOnce() + Send + 'static,
 ) {
+    let writer = write_once_ready(out, write);
+    kill_after_first_commit(data, out, cfg, 3000);
+    let again = start_watch(data, out, cfg);
+    writer.join().unwrap();
+    let (code, said) = wait_for(again, Duration::from_secs(300));
+    eprintln!("{said}");
+    assert_eq!(code, Some(0), "{said}");
+}
+
+/// A test's folders: the acquisition's (`data_name`), the watcher's, and its configuration
+/// (`toml`).
+fn watch_test(name: &str, data_name: &str, toml: &str) -> (TempDir, PathBuf, PathBuf, PathBuf) {
+    let t = TempDir::new(name);
+    let data = t.path().join(data_name);
+    std::fs::create_dir_all(&data).unwrap();
+    let (out, cfg) = (t.path().join("watch"), t.path().join("live.toml"));
+    std::fs::write(&cfg, toml).unwrap();
+    (t, data, out, cfg)
+}
+
+/// Run the acquisition (`write`) on a thread of its own once the watcher writing into
+/// `out` is ready (its map trained, its page written), as an operator starts the test.
+fn write_once_ready(
+    out: &Path,
+    write: impl FnOnce() + Send + 'static,
+) -> std::thread::JoinHandle<()> {
     let page = out.join("live.html");
-    let writer = std::thread::spawn(move || {
+    std::thread::spawn(move || {
         let t0 = Instant::now();
         while !page.is_file() {
             assert!(
@@ -610,12 +587,17 @@ fn kill_once_and_finish(
             std::thread::sleep(Duration::from_millis(20));
         }
         write();
-    });
+    })
+}
+
+/// Start the watcher and SIGKILL it at a random moment 0–`max_ms` ms after its first
+/// commit (printed, so that a failure can be replayed).
+fn kill_after_first_commit(data: &Path, out: &Path, cfg: &Path, max_ms: u32) {
     let nanos = std::time::SystemTime::now()
         .duration_since(std::time::UNIX_EPOCH)
         .unwrap()
         .subsec_nanos();
-    let delay = Duration::from_millis(u64::from(nanos % 3000));
+    let delay = Duration::from_millis(u64::from(nanos % max_ms));
     eprintln!("watch test: SIGKILL {delay:?} after the first commit");
     let mut first = start_watch(data, out, cfg);
     let state = out.join("watch").join("state.json");
@@ -639,11 +621,6 @@ fn kill_once_and_finish(
         "killed with {} hits committed, at {}",
         before["hits"], before["sources"]
     );
-    let again = start_watch(data, out, cfg);
-    writer.join().unwrap();
-    let (code, said) = wait_for(again, Duration::from_secs(300));
-    eprintln!("{said}");
-    assert_eq!(code, Some(0), "{said}");
 }
 
 /// `aepipe run` of the finished acquisition (into `root/offline`) writes the tables `names`

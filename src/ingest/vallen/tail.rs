@@ -21,7 +21,7 @@
 
 use super::pridb::{HitRows, PriInfo, TraiOffsets};
 use super::sets::{SetRows, SetWindow};
-use super::{columns, missing_reject, open_ro, time_base, Reader};
+use super::{columns, missing_reject, missing_rejects, open_ro, time_base, Reader};
 use crate::config::IngestConfig;
 use crate::ingest::{file_err, IngestError, Source, TimeSeries};
 use crate::model::{Item, Reject};
@@ -700,20 +700,17 @@ pub fn read(w: &Window, cfg: &IngestConfig) -> Box<dyn Iterator<Item = Item> + S
         match open_ro(&w.tradb) {
             Ok(c) => Some(c),
             Err(e) => {
-                // As the offline reader: every transient promised is a reject saying why.
+                // As the offline reader: every transient the window's hits promise is a
+                // reject saying why.
                 first.push(file_reject(&w.tradb, e.to_string()));
-                for (chan, _, _, trai) in keys.drain(..) {
-                    if let Some((&(t, c, _), &a)) =
-                        w.link.iter().find(|(k, _)| k.0 == trai && k.1 == chan)
-                    {
-                        tail.push_back(missing_reject(
-                            &w.experiment,
-                            &w.pridb.display().to_string(),
-                            (a, t, c),
-                            "the .tradb cannot be read",
-                        ));
-                    }
-                }
+                keys.clear();
+                tail.extend(missing_rejects(
+                    &w.experiment,
+                    &w.pridb.display().to_string(),
+                    &w.link,
+                    &HashSet::new(),
+                    "the .tradb cannot be read",
+                ));
                 None
             }
         }
@@ -752,6 +749,23 @@ mod tests {
     use super::*;
     use crate::ingest::vallen::{HitToWrite, Journal, PairWriter};
 
+    /// A new pair `id` (WAL) in a folder of its own, its writer, and the source that reads it.
+    pub(super) fn growing_pair(id: &str) -> (std::path::PathBuf, PairWriter, Source) {
+        let dir = std::env::temp_dir().join(format!("aepipe-tail-{id}-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        let w = PairWriter::create(&dir.join(id), 1e-3, 1e-4, Journal::Wal).unwrap();
+        let (pridb, tradb) = w.paths();
+        let src = Source {
+            id: id.into(),
+            format: crate::ingest::Format::Vallen,
+            files: vec![tradb],
+            companions: vec![pridb],
+            first_hit: 0,
+        };
+        (dir, w, src)
+    }
+
     fn describe(items: impl IntoIterator<Item = Item>) -> Vec<String> {
         let mut v: Vec<String> = items
             .into_iter()
@@ -770,19 +784,7 @@ mod tests {
     /// the finished pair, each once.
     #[test]
     fn windows_of_a_growing_pair_are_the_offline_rows() {
-        let dir = std::env::temp_dir().join(format!("aepipe-tail-{}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&dir);
-        std::fs::create_dir_all(&dir).unwrap();
-        let base = dir.join("t");
-        let w = PairWriter::create(&base, 1e-3, 1e-4, Journal::Wal).unwrap();
-        let (pridb, tradb) = w.paths();
-        let src = Source {
-            id: "t".into(),
-            format: crate::ingest::Format::Vallen,
-            files: vec![tradb],
-            companions: vec![pridb],
-            first_hit: 0,
-        };
+        let (dir, w, src) = growing_pair("t");
         let mut cfg = IngestConfig::default();
         cfg.vallen.load_param = "PA0".into();
         let e = crate::synth::Experiment::new("t", 36, 5);
@@ -895,25 +897,14 @@ mod tests {
 #[cfg(test)]
 mod cut_tests {
     use super::*;
-    use crate::ingest::vallen::{HitToWrite, Journal, PairWriter};
+    use crate::ingest::vallen::HitToWrite;
 
     /// Hits are stored as they end: a long hit that began first may be stored after a
     /// short one of a later source. A window must not end between it and its event's
     /// first hit, and the hit that comes next in time closes the window's last event.
     #[test]
     fn a_hit_stored_late_with_an_earlier_time_stays_with_its_event() {
-        let dir = std::env::temp_dir().join(format!("aepipe-cut-{}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&dir);
-        std::fs::create_dir_all(&dir).unwrap();
-        let w = PairWriter::create(&dir.join("c"), 1e-3, 1e-4, Journal::Wal).unwrap();
-        let (pridb, tradb) = w.paths();
-        let src = Source {
-            id: "c".into(),
-            format: crate::ingest::Format::Vallen,
-            files: vec![tradb],
-            companions: vec![pridb],
-            first_hit: 0,
-        };
+        let (dir, w, src) = super::tests::growing_pair("c");
         let cfg = IngestConfig::default();
         let samples = vec![0.0f32; 256];
         let hit = |ch: u32, trai: u64, t: f64| HitToWrite {
