@@ -184,7 +184,19 @@ fn read_f64(path: &Path) -> Result<Vec<f64>, BenchError> {
 }
 
 /// Median of `repeats` timed runs after one warm-up, seconds.
-fn median_time(repeats: usize, mut f: impl FnMut()) -> f64 {
+fn median_time(repeats: usize, f: impl FnMut()) -> f64 {
+    timed_runs(repeats, f).median
+}
+
+/// Wall times of `repeats` runs after a warm-up run.
+#[derive(Debug, Clone, Copy)]
+pub struct Runs {
+    pub median: f64,
+    pub min: f64,
+    pub max: f64,
+}
+
+fn timed_runs(repeats: usize, mut f: impl FnMut()) -> Runs {
     f();
     let mut t: Vec<f64> = (0..repeats.max(1))
         .map(|_| {
@@ -194,7 +206,11 @@ fn median_time(repeats: usize, mut f: impl FnMut()) -> f64 {
         })
         .collect();
     t.sort_by(f64::total_cmp);
-    t[t.len() / 2]
+    Runs {
+        median: t[t.len() / 2],
+        min: t[0],
+        max: t[t.len() - 1],
+    }
 }
 
 /// Morlet ω0 as a Gabor FWHM in periods: σ_f = f/ω0 ⇔ FWHM = 2√(2 ln 2)·ω0/(2π) periods.
@@ -209,6 +225,77 @@ pub struct CwtBenchRow {
     pub threads: usize,
     pub seconds: f64,
     pub per_signal_ms: f64,
+    /// Fastest and slowest of the timed runs.
+    pub spread: (f64, f64),
+}
+
+impl CwtBenchRow {
+    fn of(what: &str, threads: usize, runs: Runs, nsig: usize) -> CwtBenchRow {
+        CwtBenchRow {
+            what: what.into(),
+            threads,
+            seconds: runs.median,
+            per_signal_ms: runs.median * 1e3 / nsig as f64,
+            spread: (runs.min, runs.max),
+        }
+    }
+}
+
+/// `aepipe bench cwt`: our rows, and how far the banded full-resolution CWT is from one
+/// full-length inverse FFT per frequency on the same signals.
+#[derive(Debug, Clone)]
+pub struct CwtBench {
+    pub rows: Vec<CwtBenchRow>,
+    /// Largest |banded − exact| over the signals compared, relative to the peak of its
+    /// frequency's row, and relative to the peak of its signal's scalogram.
+    pub banded_error: Option<BandedError>,
+}
+
+#[derive(Debug, Clone, Copy)]
+pub struct BandedError {
+    pub signals: usize,
+    pub of_row_peak: f64,
+    pub of_scalogram_peak: f64,
+}
+
+/// The banded path's error against the exact one on the first `count` signals.
+fn banded_error(
+    x: &[f32],
+    n: usize,
+    fs: f64,
+    bank: &crate::dsp::cwt::WaveletBank,
+    count: usize,
+) -> BandedError {
+    let nf = bank.freqs_hz.len();
+    let mut cwt = crate::dsp::cwt::Cwt::new(bank.clone());
+    let (mut exact, mut fast) = (vec![0f32; nf * n], vec![0f32; nf * n]);
+    let mut e = BandedError {
+        signals: 0,
+        of_row_peak: 0.0,
+        of_scalogram_peak: 0.0,
+    };
+    for sig in x.chunks_exact(n).take(count) {
+        cwt.load(sig, fs);
+        cwt.full_power_exact(sig, fs, &mut exact);
+        cwt.full_power(sig, fs, &mut fast);
+        let global = exact.iter().fold(0f32, |m, &v| m.max(v)) as f64;
+        for (a, b) in exact.chunks_exact(n).zip(fast.chunks_exact(n)) {
+            let peak = a.iter().fold(0f32, |m, &v| m.max(v)) as f64;
+            let err = a
+                .iter()
+                .zip(b)
+                .map(|(u, v)| (*u as f64 - *v as f64).abs())
+                .fold(0.0, f64::max);
+            if peak > 0.0 {
+                e.of_row_peak = e.of_row_peak.max(err / peak);
+            }
+            if global > 0.0 {
+                e.of_scalogram_peak = e.of_scalogram_peak.max(err / global);
+            }
+        }
+        e.signals += 1;
+    }
+    e
 }
 
 /// W1 and the feature path on the peers' exact inputs (`dir` = output of their
@@ -220,7 +307,7 @@ pub fn cwt_bench(
     threads_list: &[usize],
     repeats: usize,
     skip_full: bool,
-) -> Result<Vec<CwtBenchRow>, BenchError> {
+) -> Result<CwtBench, BenchError> {
     use crate::dsp::cwt::{Cwt, WaveletBank};
     use rayon::prelude::*;
     let x = read_f32(&dir.join("w1_signals_f32.bin"))?;
@@ -235,31 +322,39 @@ pub fn cwt_bench(
     let nf = freqs.len();
     let mut out = vec![0.0f32; if skip_full { 0 } else { nsig * nf * n }];
     let mut rows = Vec::new();
-    for &threads in threads_list.iter().filter(|_| !skip_full) {
-        let pool = rayon::ThreadPoolBuilder::new()
-            .num_threads(threads)
-            .build()
-            .map_err(BenchError::run)?;
-        let states = crate::pipeline::StatePool::default();
-        let t = median_time(repeats, || {
-            pool.install(|| {
-                out.par_chunks_mut(nf * n)
-                    .zip(x.par_chunks(n))
-                    .for_each_init(
-                        || states.checkout(|| Cwt::new(bank.clone())),
-                        |cwt, (o, sig)| {
-                            cwt.load(sig, fs);
-                            cwt.full_power(sig, fs, o);
-                        },
-                    )
-            })
-        });
-        rows.push(CwtBenchRow {
-            what: "W1 full-resolution CWT |W|² → (651, 250, 4096) f32".into(),
-            threads,
-            seconds: t,
-            per_signal_ms: t * 1e3 / nsig as f64,
-        });
+    let full_rows = [
+        (true, "W1 full-resolution CWT |W|² → (651, 250, 4096) f32"),
+        (
+            false,
+            "W1 same, exact: one 4096-point inverse FFT per frequency",
+        ),
+    ];
+    for (banded, what) in full_rows.into_iter().filter(|_| !skip_full) {
+        for &threads in threads_list {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .map_err(BenchError::run)?;
+            let states = crate::pipeline::StatePool::default();
+            let runs = timed_runs(repeats, || {
+                pool.install(|| {
+                    out.par_chunks_mut(nf * n)
+                        .zip(x.par_chunks(n))
+                        .for_each_init(
+                            || states.checkout(|| Cwt::new(bank.clone())),
+                            |cwt, (o, sig)| {
+                                cwt.load(sig, fs);
+                                if banded {
+                                    cwt.full_power(sig, fs, o);
+                                } else {
+                                    cwt.full_power_exact(sig, fs, o);
+                                }
+                            },
+                        )
+                })
+            });
+            rows.push(CwtBenchRow::of(what, threads, runs, nsig));
+        }
     }
     drop(out);
     // The whole feature path (thesis defaults) on the same signals.
@@ -289,7 +384,7 @@ pub fn cwt_bench(
             .build()
             .map_err(BenchError::run)?;
         let states = crate::pipeline::StatePool::default();
-        let t = median_time(repeats, || {
+        let runs = timed_runs(repeats, || {
             pool.install(|| {
                 recs.par_iter().for_each_init(
                     || states.checkout(|| crate::features::FeatureExtractor::new(&cfg)),
@@ -299,12 +394,12 @@ pub fn cwt_bench(
                 )
             })
         });
-        rows.push(CwtBenchRow {
-            what: "feature path (spectrum, 25 ratios, 200 bins, hit features, label, row)".into(),
+        rows.push(CwtBenchRow::of(
+            "feature path (spectrum, 25 ratios, 200 bins, hit features, label, row)",
             threads,
-            seconds: t,
-            per_signal_ms: t * 1e3 / nsig as f64,
-        });
+            runs,
+            nsig,
+        ));
     }
     // W2: spectrum + 25 band ratios only.
     let mut cwt = crate::dsp::cwt::Cwt::new(WaveletBank {
@@ -312,7 +407,7 @@ pub fn cwt_bench(
         fwhm_periods: 2.0,
     });
     let mut ratios = vec![0.0; 25];
-    let t = median_time(repeats * 4, || {
+    let runs = timed_runs(repeats * 4, || {
         for s in x.chunks(n) {
             cwt.load(s, fs);
             std::hint::black_box(crate::dsp::spectrum::power_ratios(
@@ -324,13 +419,14 @@ pub fn cwt_bench(
             ));
         }
     });
-    rows.push(CwtBenchRow {
-        what: "W2 spectrum + 25 band ratios".into(),
-        threads: 1,
-        seconds: t,
-        per_signal_ms: t * 1e3 / nsig as f64,
-    });
-    Ok(rows)
+    rows.push(CwtBenchRow::of(
+        "W2 spectrum + 25 band ratios",
+        1,
+        runs,
+        nsig,
+    ));
+    let banded_error = (!skip_full).then(|| banded_error(&x, n, fs, &bank, 32));
+    Ok(CwtBench { rows, banded_error })
 }
 
 /// Run one peer script in the same run (`python script args… --out tmp.json`) and return the
@@ -410,20 +506,29 @@ pub const CWT_PEERS: &[PeerJob] = &[
     },
 ];
 
-/// Run one peer script in the same run; returns the median seconds from its JSON.
+/// Run one peer script in the same run; returns its median, fastest and slowest timed run
+/// from its JSON.
 pub fn run_peer(
     python: &Path,
     peers: &Path,
     script: &str,
     args: &[&str],
-) -> Result<f64, BenchError> {
+) -> Result<Runs, BenchError> {
     let v = peer_json(python, peers, script, args)?;
-    let med = v["timing"]["median_s"]
-        .as_f64()
-        .ok_or_else(|| BenchError::Peer("no timing.median_s in the peer's JSON".into()))?;
     // W2 reports the time of `inner` passes; per pass is what we compare.
     let inner = v["params"]["inner"].as_f64().unwrap_or(1.0);
-    Ok(med / inner)
+    let get = |key: &str| {
+        v["timing"][key]
+            .as_f64()
+            .map(|t| t / inner)
+            .ok_or_else(|| BenchError::Peer(format!("no timing.{key} in the peer's JSON")))
+    };
+    let median = get("median_s")?;
+    Ok(Runs {
+        median,
+        min: get("min_s").unwrap_or(median),
+        max: get("max_s").unwrap_or(median),
+    })
 }
 
 /// W3 on the peers' exact inputs: 651 × 200-D vectors, 10×10 map, the same initial codebook

@@ -1,6 +1,6 @@
 //! What the commands print on the terminal.
 
-use crate::bench::{CwtBenchRow, SimScale};
+use crate::bench::{CwtBench, SimScale};
 use crate::pipeline::RunReport;
 use crate::som::tables::Model;
 use std::path::Path;
@@ -179,37 +179,61 @@ pub fn sim_scale(rows: &[SimScale], steps: usize) {
     }
 }
 
-pub fn cwt_bench(ours: &[CwtBenchRow]) {
+pub fn cwt_bench(ours: &CwtBench) {
     println!(
-        "{:<72} {:>7} {:>9} {:>11}",
-        "aepipe (651 signals × 4096 samples)", "threads", "median s", "ms/signal"
+        "{:<72} {:>7} {:>9} {:>15} {:>11}",
+        "aepipe (651 signals × 4096 samples)", "threads", "median s", "min–max s", "ms/signal"
     );
-    for r in ours {
+    for r in &ours.rows {
         println!(
-            "{:<72} {:>7} {:>9.3} {:>11.3}",
-            r.what, r.threads, r.seconds, r.per_signal_ms
+            "{:<72} {:>7} {:>9.3} {:>15} {:>11.3}",
+            r.what,
+            r.threads,
+            r.seconds,
+            format!("{:.3}–{:.3}", r.spread.0, r.spread.1),
+            r.per_signal_ms
+        );
+    }
+    if let Some(e) = ours.banded_error {
+        println!(
+            "fast W1 path against the exact one, first {} signals: largest |Δ|W|²| = {:.1e} of its row's peak, {:.1e} of the scalogram's",
+            e.signals, e.of_row_peak, e.of_scalogram_peak
         );
     }
 }
 
 /// Run the CWT peers in the same run and print their times against ours.
-pub fn cwt_peers(ours: &[CwtBenchRow], python: &Path, peers: &Path) {
+pub fn cwt_peers(ours: &CwtBench, python: &Path, peers: &Path) {
     let find = |prefix: &str, t: usize| {
-        ours.iter()
+        ours.rows
+            .iter()
             .find(|r| r.what.starts_with(prefix) && r.threads == t)
             .map(|r| r.seconds)
     };
     println!(
-        "\n{:<40} {:>9} {:>34}",
-        "peer (same inputs, same run)", "median s", "peer / aepipe (same threads)"
+        "\n{:<40} {:>9} {:>15} {:>30} {:>12}",
+        "peer (same inputs, same run)",
+        "median s",
+        "min–max s",
+        "peer / aepipe (same threads)",
+        "vs exact"
     );
+    let ratio = |secs: f64, ours: Option<f64>| {
+        ours.map(|o| format!("{:.2}x", secs / o))
+            .unwrap_or_else(|| "–".into())
+    };
     for p in crate::bench::CWT_PEERS {
         match crate::bench::run_peer(python, peers, p.script, p.args) {
-            Ok(secs) => {
-                let ratio = find(p.workload, p.threads)
-                    .map(|o| format!("{:.2}x", secs / o))
-                    .unwrap_or_else(|| "–".into());
-                println!("{:<40} {secs:>9.3} {ratio:>34}", p.name);
+            Ok(r) => {
+                let secs = r.median;
+                let exact = (p.workload == "W1").then(|| find("W1 same, exact", p.threads));
+                println!(
+                    "{:<40} {secs:>9.3} {:>15} {:>30} {:>12}",
+                    p.name,
+                    format!("{:.3}–{:.3}", r.min, r.max),
+                    ratio(secs, find(p.workload, p.threads)),
+                    exact.map_or("–".into(), |e| ratio(secs, e)),
+                );
             }
             Err(e) => println!("{:<40} failed: {e}", p.name),
         }

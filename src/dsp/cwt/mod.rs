@@ -7,14 +7,23 @@
 //! `σ_f = 2√(2 ln 2)·f / (2π·fwhm_periods)`. The gain 2 at ν = f makes the transform
 //! amplitude-preserving: a sine of amplitude A at f gives |W(t, f)| = A.
 //!
-//! One implementation, two paths:
-//! * [`Cwt::full_power`]: |W|² at every sample × every frequency of the record (pictures).
+//! One implementation, three paths:
+//! * [`Cwt::full_power`]: |W|² at every sample × every frequency of the record (pictures,
+//!   `aepipe.cwt`). A frequency whose band a grid of a quarter of the record or less holds
+//!   twice over is inverse-transformed there and interpolated along time to every sample
+//!   (`banded`); the wider ones (high frequencies, where σ_f spans many grid steps) are
+//!   interpolated across frequency from exact anchors σ_f/5 apart (`across`). Within 1e-4 of
+//!   each row's peak of [`Cwt::full_power_exact`] (one full-length inverse FFT per frequency),
+//!   1.6× faster than it on the peers' W1.
 //! * [`Cwt::window_power`]: |W|² only over an output window `[a, b)` (the 200 feature bins
 //!   need 40 µs). Each frequency then needs only the window plus its wavelet's support
 //!   (±5σ_t), so it is computed from a short segment with a short FFT; frequencies that need
 //!   the same segment length share one forward FFT. Where a segment would not fit inside the
 //!   record (low frequencies, long wavelets) the whole record is used, exactly as the full
 //!   path does, so the two paths agree.
+
+mod across;
+mod banded;
 
 use super::next_fast_len;
 use crate::config::CwtConfig;
@@ -41,6 +50,8 @@ const MAX_PLANS: usize = 1024;
 const MAX_GROUP_SETS: usize = 256;
 /// Filter taps kept (f32 each): 8 Mi taps = 32 MiB per worker.
 const MAX_FILTER_TAPS: usize = 8 << 20;
+/// Interpolator weights kept, over all decimations (32 bytes each).
+const MAX_PHASES: usize = 1 << 16;
 /// A segment at most 1/this of the padded record is transformed on its own
 /// even where it reaches past the record (read as zeros there), instead of transforming the
 /// whole record: the cost of a frequency stays bounded by its wavelet, not the record.
@@ -74,6 +85,12 @@ impl WaveletBank {
     /// Standard deviation of the filter in frequency, Hz.
     pub fn sigma_f(&self, f: f64) -> f64 {
         FWHM_SIGMAS * f / (2.0 * PI * self.fwhm_periods)
+    }
+
+    /// Whether the filter of `f` reaches Nyquist at `fs` and is rolled off there (see
+    /// `make_band`): the filter's shape changes where this changes.
+    fn cut_at_nyquist(&self, f: f64, fs: f64) -> bool {
+        f + SUPPORT_SIGMAS * self.sigma_f(f) > fs / 2.0
     }
 
     /// Standard deviation of the envelope in time, s.
@@ -126,7 +143,7 @@ fn make_band(bank: &WaveletBank, fi: usize, m: usize, fs: f64) -> Band {
     if hi < lo {
         return Band::default();
     }
-    let cut = f + SUPPORT_SIGMAS * s > nyq;
+    let cut = bank.cut_at_nyquist(f, fs);
     let taps = (lo..=hi)
         .map(|k| {
             let nu = k as f64 * df;
@@ -154,6 +171,10 @@ pub struct Cwt {
     /// Filter taps held by `filters` (their memory bound).
     filter_taps: usize,
     groups: HashMap<(usize, u64, usize, usize), Arc<Vec<Group>>>,
+    /// The banded path's interpolator weights per decimation, and their count (bound).
+    phases: HashMap<usize, Arc<Vec<[f32; banded::TAPS]>>>,
+    phase_count: usize,
+    banded: banded::Scratch,
     /// Spectrum of the whole record loaded by [`Cwt::load`], zero-padded to a fast length.
     full: Vec<Complex32>,
     /// (record length, padded length, sample rate bits) of the loaded record.
@@ -173,6 +194,9 @@ impl Cwt {
             filters: HashMap::default(),
             filter_taps: 0,
             groups: HashMap::default(),
+            phases: HashMap::default(),
+            phase_count: 0,
+            banded: banded::Scratch::default(),
             full: Vec::new(),
             loaded: None,
             seg: Vec::new(),
@@ -280,6 +304,19 @@ impl Cwt {
     /// |W|² of frequency `fi` from a spectrum of length `m`, for outputs `lo..hi` of the
     /// segment, into `out` (length `hi − lo`).
     fn band_power(&mut self, fi: usize, seg: Seg, lo: usize, hi: usize, out: &mut [f32]) {
+        if !self.band_transform(fi, seg) {
+            out.fill(0.0);
+            return;
+        }
+        for (o, w) in out.iter_mut().zip(&self.work[lo..hi]) {
+            *o = w.norm_sqr();
+        }
+    }
+
+    /// W of frequency `fi` over the whole segment (complex, unnormalised inverse FFT of the
+    /// filtered spectrum) into `self.work`; false (and nothing computed) where its filter is
+    /// empty (above Nyquist).
+    fn band_transform(&mut self, fi: usize, seg: Seg) -> bool {
         let Seg {
             m,
             fs,
@@ -287,8 +324,7 @@ impl Cwt {
         } = seg;
         let band = self.band(fi, m, fs);
         if band.taps.is_empty() {
-            out.fill(0.0);
-            return;
+            return false;
         }
         let plan = self.plan(m, true);
         self.work.clear();
@@ -307,9 +343,7 @@ impl Cwt {
             self.scratch.resize(need, Complex32::default());
         }
         plan.process_with_scratch(&mut self.work, &mut self.scratch[..need]);
-        for (o, w) in out.iter_mut().zip(&self.work[lo..hi]) {
-            *o = w.norm_sqr();
-        }
+        true
     }
 
     fn check_loaded(&self, x: &[f32], fs: f64) {
@@ -321,8 +355,21 @@ impl Cwt {
     }
 
     /// Full resolution: |W(t, f)|² for every frequency (rows) × every sample (columns),
-    /// row-major into `out`, which must hold `n_freqs · x.len()` values.
+    /// row-major into `out`, which must hold `n_freqs · x.len()` values. Interpolated along
+    /// time (`banded`) or across frequency (`across`) where that is cheaper than a full-length
+    /// transform: within 1e-4 of each row's peak of
+    /// [`full_power_exact`](Self::full_power_exact).
     pub fn full_power(&mut self, x: &[f32], fs: f64, out: &mut [f32]) {
+        self.full_rows(x, fs, out, true);
+    }
+
+    /// As [`full_power`](Self::full_power), with one inverse FFT of the whole padded record
+    /// per frequency: the reference the banded path is measured against.
+    pub fn full_power_exact(&mut self, x: &[f32], fs: f64, out: &mut [f32]) {
+        self.full_rows(x, fs, out, false);
+    }
+
+    fn full_rows(&mut self, x: &[f32], fs: f64, out: &mut [f32], fast: bool) {
         self.check_loaded(x, fs);
         let n = x.len();
         let nf = self.bank.freqs_hz.len();
@@ -331,20 +378,179 @@ impl Cwt {
             nf * n,
             "full_power needs n_freqs × n_samples outputs"
         );
-        let padded = self.padded_len();
-        for fi in 0..nf {
-            self.band_power(
-                fi,
-                Seg {
-                    m: padded,
-                    fs,
-                    whole: true,
-                },
-                0,
-                n,
-                &mut out[fi * n..(fi + 1) * n],
-            );
+        if n == 0 {
+            return;
         }
+        let padded = self.padded_len();
+        let whole = Seg {
+            m: padded,
+            fs,
+            whole: true,
+        };
+        if !fast {
+            for (fi, row) in out.chunks_exact_mut(n).enumerate() {
+                self.band_power(fi, whole, 0, n, row);
+            }
+            return;
+        }
+        // Rows that no grid of a quarter of the record holds are taken across frequency where
+        // they come in ascending runs of one filter shape (a run ends where the roll-off at
+        // Nyquist sets in: the filters change abruptly there); the rest along time on their
+        // shorter grid.
+        let wide: Vec<bool> = (0..nf)
+            .map(|fi| {
+                self.decimation(fi, padded, fs)
+                    .is_some_and(|d| d <= across::MAX_DECIMATION)
+            })
+            .collect();
+        let freqs = self.bank.freqs_hz.clone();
+        let mut fi = 0;
+        while fi < nf {
+            let mut end = fi + 1;
+            let same_shape =
+                |a: f64, b: f64| self.bank.cut_at_nyquist(a, fs) == self.bank.cut_at_nyquist(b, fs);
+            while wide[fi]
+                && end < nf
+                && wide[end]
+                && freqs[end] > freqs[end - 1]
+                && same_shape(freqs[end], freqs[fi])
+            {
+                end += 1;
+            }
+            if wide[fi] && self.across_run(fi..end, whole, n, out) {
+                fi = end;
+                continue;
+            }
+            for i in fi..end {
+                let row = &mut out[i * n..(i + 1) * n];
+                if !self.banded_row(i, padded, fs, row) {
+                    self.band_power(i, whole, 0, n, row);
+                }
+            }
+            fi = end;
+        }
+    }
+
+    /// The decimation `banded` would give frequency `fi` (None: nothing to compute there).
+    fn decimation(&mut self, fi: usize, padded: usize, fs: f64) -> Option<usize> {
+        let band = self.band(fi, padded, fs);
+        if band.taps.is_empty() {
+            return None;
+        }
+        let len = band.taps.len();
+        let c = banded::centre(self.bank.freqs_hz[fi], fs / padded as f64, band.k0, len);
+        Some(banded::decimation(padded, band.k0, len, c))
+    }
+
+    /// Rows `rows` (ascending frequencies) from exact anchors and interpolation across
+    /// frequency between them; false (nothing written) where the run is too short for it.
+    fn across_run(
+        &mut self,
+        rows: std::ops::Range<usize>,
+        whole: Seg,
+        n: usize,
+        out: &mut [f32],
+    ) -> bool {
+        let f = &self.bank.freqs_hz[rows.clone()];
+        let bank = &self.bank;
+        let anchors = across::anchors(f, |x| bank.sigma_f(x));
+        if anchors.len() < across::TAPS || anchors.len() == f.len() {
+            return false;
+        }
+        let f = f.to_vec();
+        // Anchors' complex W (real parts, then imaginary), computed when a stencil first needs them
+        // and dropped once no later stencil does: at most TAPS + 1 records' worth.
+        let mut held: std::collections::VecDeque<(usize, Vec<f32>)> = Default::default();
+        let mut spare: Vec<Vec<f32>> = Vec::new();
+        for i in 0..f.len() {
+            let row = &mut out[(rows.start + i) * n..(rows.start + i + 1) * n];
+            let s = across::stencil_start(&anchors, i);
+            while held.front().is_some_and(|h| h.0 < s) {
+                spare.extend(held.pop_front().map(|h| h.1));
+            }
+            while held.back().map_or(s, |h| h.0 + 1) < s + across::TAPS {
+                let k = held.back().map_or(s, |h| h.0 + 1);
+                let mut buf = spare.pop().unwrap_or_default();
+                buf.clear();
+                buf.resize(2 * n, 0.0);
+                if self.band_transform(rows.start + anchors[k], whole) {
+                    let (re, im) = buf.split_at_mut(n);
+                    for ((r, i), w) in re.iter_mut().zip(im).zip(&self.work[..n]) {
+                        *r = w.re;
+                        *i = w.im;
+                    }
+                }
+                held.push_back((k, buf));
+            }
+            if let Some(h) = held.iter().find(|h| anchors[h.0] == i) {
+                let (re, im) = h.1.split_at(n);
+                for ((o, r), i) in row.iter_mut().zip(re).zip(im) {
+                    *o = r * r + i * i;
+                }
+                continue;
+            }
+            let nodes: [f64; across::TAPS] = std::array::from_fn(|t| f[anchors[s + t]]);
+            let w = across::weights(&nodes, f[i]);
+            let stencil: [&[f32]; across::TAPS] = std::array::from_fn(|t| &held[t].1[..]);
+            across::interpolate_power(stencil, &w, row);
+        }
+        true
+    }
+
+    /// |W|² of frequency `fi` over the whole record from a decimated grid, into `row`; false
+    /// (nothing written) where the band is too wide to decimate.
+    fn banded_row(&mut self, fi: usize, padded: usize, fs: f64, row: &mut [f32]) -> bool {
+        let band = self.band(fi, padded, fs);
+        if band.taps.is_empty() {
+            return false;
+        }
+        let len = band.taps.len();
+        let c = banded::centre(self.bank.freqs_hz[fi], fs / padded as f64, band.k0, len);
+        let d = banded::decimation(padded, band.k0, len, c);
+        if d == 1 {
+            return false;
+        }
+        let m = padded / d;
+        let plan = self.plan(m, true);
+        // The band shifted so that bin c lands on 0: bins below it wrap to the grid's end.
+        self.work.clear();
+        self.work.resize(m, Complex32::default());
+        let split = c - band.k0;
+        let spec = &self.full[band.k0..band.k0 + len];
+        let (below, above) = (spec.split_at(split), band.taps.split_at(split));
+        for ((w, &v), &t) in self.work[m - split..].iter_mut().zip(below.0).zip(above.0) {
+            *w = v * t;
+        }
+        for ((w, &v), &t) in self.work[..len - split]
+            .iter_mut()
+            .zip(below.1)
+            .zip(above.1)
+        {
+            *w = v * t;
+        }
+        let need = plan.get_inplace_scratch_len();
+        if self.scratch.len() < need {
+            self.scratch.resize(need, Complex32::default());
+        }
+        plan.process_with_scratch(&mut self.work, &mut self.scratch[..need]);
+        let weights = self.phases(d);
+        banded::interpolate_power(&self.work, d, &weights, &mut self.banded, row);
+        true
+    }
+
+    /// The interpolator's weights for decimation `d`, made on first use.
+    fn phases(&mut self, d: usize) -> Arc<Vec<[f32; banded::TAPS]>> {
+        if let Some(w) = self.phases.get(&d) {
+            return w.clone();
+        }
+        if self.phase_count + d > MAX_PHASES {
+            self.phases.clear();
+            self.phase_count = 0;
+        }
+        let w = Arc::new(banded::phases(d));
+        self.phase_count += d;
+        self.phases.insert(d, w.clone());
+        w
     }
 
     /// How the frequencies of a window `a..b` of a record padded to `padded` samples are
@@ -371,7 +577,7 @@ impl Cwt {
                     if f <= 0.0 || f > fs / 2.0 {
                         continue;
                     }
-                    let cut_at_nyquist = f + SUPPORT_SIGMAS * bank.sigma_f(f) > fs / 2.0;
+                    let cut_at_nyquist = bank.cut_at_nyquist(f, fs);
                     // A filter cut at Nyquist is not compact in time: its segment keeps
                     // CUT_MARGIN times the support, where the ringing has died down.
                     let k = if cut_at_nyquist { CUT_MARGIN } else { 1.0 };
@@ -491,220 +697,4 @@ impl Cwt {
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-
-    fn bank() -> WaveletBank {
-        WaveletBank::from_config(&CwtConfig::default())
-    }
-
-    fn sine(n: usize, f: f64, fs: f64, a: f64) -> Vec<f32> {
-        (0..n)
-            .map(|i| (a * (2.0 * PI * f * i as f64 / fs).sin()) as f32)
-            .collect()
-    }
-
-    #[test]
-    fn default_grid_is_10_to_2500_khz_in_10_khz_steps() {
-        let b = bank();
-        assert_eq!(b.freqs_hz.len(), 250);
-        assert!((b.freqs_hz[0] - 10e3).abs() < 1e-6);
-        assert!((b.freqs_hz[249] - 2500e3).abs() < 1e-6);
-        assert!((b.freqs_hz[1] - b.freqs_hz[0] - 10e3).abs() < 1e-6);
-        // FWHM of 2 periods: Δf/f = FWHM_f / f ≈ 0.44.
-        let f = 500e3;
-        let rel = FWHM_SIGMAS * b.sigma_f(f) / f;
-        assert!((rel - 0.4413).abs() < 1e-3, "{rel}");
-        // Time FWHM = 2 periods.
-        assert!((FWHM_SIGMAS * b.sigma_t(f) - 2.0 / f).abs() < 1e-15);
-    }
-
-    #[test]
-    fn sine_ridge_is_at_its_frequency_with_its_amplitude() {
-        let fs = 10e6;
-        let n = 4096;
-        let b = bank();
-        let mut cwt = Cwt::new(b.clone());
-        let mut out = vec![0.0; b.freqs_hz.len() * n];
-        for f_khz in [100.0, 250.0, 500.0, 750.0, 1000.0, 1200.0, 1750.0, 2000.0] {
-            let f = f_khz * 1e3;
-            let a = 0.37;
-            let x = sine(n, f, fs, a);
-            cwt.load(&x, fs);
-            cwt.full_power(&x, fs, &mut out);
-            // Middle of the record, away from the circular ends.
-            let t = n / 2;
-            let (best, p) = (0..b.freqs_hz.len())
-                .map(|fi| (fi, out[fi * n + t]))
-                .fold((0, 0.0f32), |m, c| if c.1 > m.1 { c } else { m });
-            assert!(
-                (b.freqs_hz[best] - f).abs() <= 10e3 + 1e-6,
-                "{f_khz} kHz: ridge at {}",
-                b.freqs_hz[best]
-            );
-            let amp = (p as f64).sqrt();
-            assert!(
-                (amp - a).abs() / a < 0.02,
-                "{f_khz} kHz: |W| = {amp}, A = {a}"
-            );
-        }
-    }
-
-    #[test]
-    fn window_path_equals_full_path_on_the_window() {
-        let fs = 10e6;
-        let n = 4096;
-        let mut x = sine(n, 250e3, fs, 0.1);
-        for (i, v) in x.iter_mut().enumerate() {
-            let t = i as f64 / fs;
-            *v +=
-                (0.05 * (2.0 * PI * 1.2e6 * t).cos() * (-((t - 6e-5) / 3e-6).powi(2)).exp()) as f32;
-        }
-        let mut cwt = Cwt::new(bank());
-        cwt.load(&x, fs);
-        let mut full = vec![0.0; 250 * n];
-        cwt.full_power(&x, fs, &mut full);
-        let (a, b) = (500, 900);
-        let mut worst = 0.0f64;
-        let mut visited = 0;
-        let peak = full.iter().cloned().fold(0.0f32, f32::max) as f64;
-        cwt.window_power(&x, fs, a, b, |fi, p| {
-            visited += 1;
-            for (j, &v) in p.iter().enumerate() {
-                let r = full[fi * n + a + j] as f64;
-                worst = worst.max((v as f64 - r).abs() / peak);
-            }
-        });
-        assert_eq!(visited, 250);
-        assert!(worst < 1e-4, "worst difference {worst} of the peak");
-    }
-
-    #[test]
-    fn short_pulse_is_localised_in_time() {
-        let fs = 10e6;
-        let n = 4096;
-        let t0 = 150e-6;
-        let x: Vec<f32> = (0..n)
-            .map(|i| {
-                let t = i as f64 / fs - t0;
-                ((2.0 * PI * 1.2e6 * t).cos() * (-(t / 1e-6).powi(2) / 2.0).exp()) as f32
-            })
-            .collect();
-        let b = bank();
-        let mut cwt = Cwt::new(b.clone());
-        cwt.load(&x, fs);
-        let mut out = vec![0.0; b.freqs_hz.len() * n];
-        cwt.full_power(&x, fs, &mut out);
-        let fi = b
-            .freqs_hz
-            .iter()
-            .position(|&f| (f - 1.2e6).abs() < 1.0)
-            .unwrap();
-        let row = &out[fi * n..(fi + 1) * n];
-        let tmax = row
-            .iter()
-            .enumerate()
-            .fold((0, 0.0f32), |m, (i, &v)| if v > m.1 { (i, v) } else { m })
-            .0;
-        assert!(
-            ((tmax as f64 / fs) - t0).abs() < 1e-6,
-            "peak at {} µs",
-            tmax as f64 / fs * 1e6
-        );
-    }
-
-    #[test]
-    fn two_tones_separate() {
-        let fs = 10e6;
-        let n = 4096;
-        let x: Vec<f32> = sine(n, 250e3, fs, 0.2)
-            .iter()
-            .zip(sine(n, 750e3, fs, 0.1))
-            .map(|(a, b)| a + b)
-            .collect();
-        let b = bank();
-        let mut cwt = Cwt::new(b.clone());
-        cwt.load(&x, fs);
-        let mut out = vec![0.0; b.freqs_hz.len() * n];
-        cwt.full_power(&x, fs, &mut out);
-        let t = n / 2;
-        let col: Vec<f32> = (0..b.freqs_hz.len())
-            .map(|fi| out[fi * n + t].sqrt())
-            .collect();
-        let at = |f: f64| {
-            col[b
-                .freqs_hz
-                .iter()
-                .position(|&g| (g - f).abs() < 1.0)
-                .unwrap()]
-        };
-        assert!(
-            (at(250e3) - 0.2).abs() < 0.004 && (at(750e3) - 0.1).abs() < 0.002,
-            "{} {}",
-            at(250e3),
-            at(750e3)
-        );
-        // A clear valley between them.
-        assert!(at(500e3) < 0.1 * at(750e3), "valley {}", at(500e3));
-    }
-
-    #[test]
-    fn caches_stay_bounded_whatever_the_record_lengths() {
-        let fs = 5e6;
-        let mut cwt = Cwt::new(bank());
-        let mut rng = crate::util::Rng::new(3);
-        let mut padded = std::collections::BTreeSet::new();
-        for _ in 0..300 {
-            let n = 2250 + (rng.next_u64() % 40_000) as usize;
-            let x = sine(n, 300e3, fs, 0.1);
-            cwt.load(&x, fs);
-            padded.insert(cwt.padded_len());
-            cwt.window_power(&x, fs, 400, 600, |_, _| {});
-        }
-        // Many lengths, few FFT sizes, and every cache within its bound.
-        assert!(padded.len() < 60, "{} padded lengths", padded.len());
-        assert!(cwt.plans.len() <= MAX_PLANS);
-        assert!(cwt.plan_points <= MAX_PLAN_POINTS);
-        assert!(cwt.groups.len() <= MAX_GROUP_SETS);
-        assert!(cwt.filter_taps <= 2 * MAX_FILTER_TAPS);
-    }
-
-    #[test]
-    fn a_record_without_pretrigger_reads_as_zeros_before_its_start() {
-        // The same burst with 600 zeros in front (window at 600) and without (window at 0):
-        // the short segments of the second read zeros before the record, so both agree.
-        let fs = 10e6;
-        let burst: Vec<f32> = (0..8192)
-            .map(|i| {
-                let t = i as f64 / fs;
-                (0.1 * (2.0 * PI * 700e3 * t).sin() * (-t / 2e-5).exp()) as f32
-            })
-            .collect();
-        let mut padded_x = vec![0.0f32; 600];
-        padded_x.extend_from_slice(&burst);
-        padded_x.truncate(8192);
-        let b = bank();
-        let mut with_zeros = std::collections::BTreeMap::new();
-        let mut cwt = Cwt::new(b.clone());
-        cwt.load(&padded_x, fs);
-        cwt.window_power(&padded_x, fs, 600, 1000, |fi, p| {
-            with_zeros.insert(fi, p.to_vec());
-        });
-        let mut cwt2 = Cwt::new(b.clone());
-        cwt2.load(&burst, fs);
-        let (mut compared, mut worst) = (0, 0.0f64);
-        let peak = with_zeros.values().flatten().fold(0.0f32, |m, &v| m.max(v)) as f64;
-        cwt2.window_power(&burst, fs, 0, 400, |fi, p| {
-            let f = b.freqs_hz[fi];
-            let margin = SUPPORT_SIGMAS * b.sigma_t(f) * fs;
-            if margin < 550.0 {
-                compared += 1;
-                for (u, v) in p.iter().zip(&with_zeros[&fi]) {
-                    worst = worst.max((*u as f64 - *v as f64).abs() / peak);
-                }
-            }
-        });
-        assert!(compared > 150, "{compared}");
-        assert!(worst < 1e-4, "worst difference {worst} of the peak");
-    }
-}
+mod tests;
