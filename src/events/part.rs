@@ -10,7 +10,6 @@ use super::{EventsError, EventsSummary};
 use crate::config::{ChannelRole, Picker, ValidConfig};
 use crate::store::{TableScan, TableSchema, TableWriter};
 use arrow::array::{ArrayRef, BooleanArray, Int64Array, StringArray};
-use polars::prelude::col;
 use std::collections::{BTreeSet, HashMap};
 use std::path::Path;
 use std::sync::Arc;
@@ -52,13 +51,7 @@ pub fn run_part_after(
     // The hits: key, time, status and the link to their transient.
     let h = TableScan::open(p.hits).map_err(store)?;
     let df = h
-        .select(vec![
-            col("channel"),
-            col("hit"),
-            col("time_s"),
-            col("status"),
-            col("transient"),
-        ])
+        .columns(&["channel", "hit", "time_s", "status", "transient"])
         .map_err(store)?;
     let ch: Vec<u32> = h
         .f64s(&df, "channel")
@@ -91,9 +84,7 @@ pub fn run_part_after(
     let feats = match &p.features {
         Some((path, _)) => {
             let f = TableScan::open(path).map_err(store)?;
-            let df = f
-                .select(vec![col("channel"), col("hit"), col("arrival_s")])
-                .map_err(store)?;
+            let df = f.columns(&["channel", "hit", "arrival_s"]).map_err(store)?;
             let fch = f.f64s(&df, "channel").map_err(store)?;
             let fhit = f.f64s(&df, "hit").map_err(store)?;
             let arr = f.f64s(&df, "arrival_s").map_err(store)?;
