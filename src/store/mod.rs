@@ -677,6 +677,41 @@ mod tests {
         assert!(err.to_string().contains("experiment"), "{err}");
     }
 
+    /// `TableScan::columns` (the batch reader, stacked) gives `select`'s frame: four row
+    /// groups in one batch, and an empty table.
+    #[test]
+    fn columns_through_the_batch_reader_equal_the_polars_select() {
+        use polars::prelude::col;
+        let dir = std::env::temp_dir().join(format!("aepipe-cols-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        for rows in [0usize, 35] {
+            let path = dir.join(format!("t{rows}.parquet"));
+            let mut w = TableWriter::create(&path, rejects_table().schema(), &[], 10).unwrap();
+            for i in 0..rows {
+                w.push(rejects_table().row(crate::model::Reject {
+                    record_type: crate::model::RecordType::Hit,
+                    experiment: format!("e{}", i % 3),
+                    source_file: "f".into(),
+                    record_id: format!("r{i}"),
+                    stage: crate::model::Stage::Read,
+                    reason: "x".into(),
+                }))
+                .unwrap();
+            }
+            w.finish().unwrap();
+            let t = read::TableScan::open(&path).unwrap();
+            let names = ["record_id", "experiment"];
+            let a = t.columns(&names).unwrap();
+            let b = t.select(names.iter().map(|n| col(*n)).collect()).unwrap();
+            assert_eq!(a.height(), rows);
+            assert!(a.equals_missing(&b), "{a:?}\n{b:?}");
+            if rows > 0 {
+                assert!(t.batch_spans().len() == 1 && a.height() > 10);
+            }
+        }
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
     #[test]
     fn unfinished_writer_leaves_nothing() {
         let dir = std::env::temp_dir().join(format!("aepipe-store-{}", std::process::id()));
