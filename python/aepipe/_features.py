@@ -85,8 +85,8 @@ def cwt(
     gives |W| = A; ``freqs_hz`` defaults to the feature grid (10 … 2 500 kHz, 250
     frequencies). The same engine computes the features' bins. Rows are computed on a shorter
     transform and interpolated along time, or interpolated across frequency between exact
-    rows, where that is cheaper: within 1e-4 of each row's peak of one full-length inverse FFT
-    per frequency.
+    rows, where that is cheaper: within 5e-5 of the scalogram's peak (and 1e-4 of each row's
+    peak on broadband signals) of one full-length inverse FFT per frequency.
 
     >>> t = np.arange(4096) / 10e6
     >>> p = aepipe.cwt(0.3 * np.sin(2 * np.pi * 250e3 * t), 10e6, freqs_hz=[250e3, 750e3])

@@ -279,10 +279,11 @@ impl TableScan {
         }
     }
 
-    /// Read the selected expressions into memory.
     /// The named columns of every row (the row filter applied), read batch by batch through
-    /// [`TableScan::batches`] and stacked: the same frame as `select` of those columns, without
-    /// starting Polars' scan engine (its executor threads cost a small job ~10 ms).
+    /// [`TableScan::batches`] and stacked into one chunk: the same frame as `select` of those
+    /// columns. Without a row filter and with rows, Polars' scan engine is not started (its
+    /// executor threads cost a small job ~10 ms); a filter is applied per batch by Polars, and
+    /// an empty table is read by `select` (for its column types).
     pub fn columns(&self, names: &[&str]) -> Result<DataFrame, StoreError> {
         let mut out: Option<DataFrame> = None;
         for b in self.batches(names) {
@@ -296,12 +297,16 @@ impl TableScan {
             }
         }
         match out {
-            Some(df) => Ok(df),
+            Some(mut df) => {
+                df.rechunk_mut();
+                Ok(df)
+            }
             // No rows: the columns with their types.
             None => self.select(names.iter().map(|n| col(*n)).collect()),
         }
     }
 
+    /// Read the selected expressions into memory.
     pub fn select(&self, exprs: Vec<Expr>) -> Result<DataFrame, StoreError> {
         self.lf()?
             .select(exprs)

@@ -16,7 +16,7 @@ pub(super) const TAPS: usize = 6;
 /// Anchors per σ_f of the Gaussian filter (at the lower anchor's frequency): 5 keeps the
 /// interpolation ~2e-5 of a row's peak on the peers' signals; 4 would save a few transforms at
 /// ~3× the error.
-const ANCHORS_PER_SIGMA: f64 = 5.0;
+pub(super) const ANCHORS_PER_SIGMA: f64 = 5.0;
 
 /// The anchors of a run of rows with ascending frequencies `f` (indices into `f`): the first
 /// and last row, and between them each next anchor as far as σ_f(f_a) / ANCHORS_PER_SIGMA
