@@ -258,7 +258,15 @@ pub struct BandedError {
     pub of_scalogram_peak: f64,
 }
 
-/// The banded path's error against the exact one on the first `count` signals.
+/// A pool of `threads` workers for one benchmark row.
+fn bench_pool(threads: usize) -> Result<rayon::ThreadPool, BenchError> {
+    rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .map_err(BenchError::run)
+}
+
+/// The fast path's error against the exact one on the first `count` signals.
 fn banded_error(
     x: &[f32],
     n: usize,
@@ -266,9 +274,7 @@ fn banded_error(
     bank: &crate::dsp::cwt::WaveletBank,
     count: usize,
 ) -> BandedError {
-    let nf = bank.freqs_hz.len();
     let mut cwt = crate::dsp::cwt::Cwt::new(bank.clone());
-    let (mut exact, mut fast) = (vec![0f32; nf * n], vec![0f32; nf * n]);
     let mut e = BandedError {
         signals: 0,
         of_row_peak: 0.0,
@@ -276,22 +282,10 @@ fn banded_error(
     };
     for sig in x.chunks_exact(n).take(count) {
         cwt.load(sig, fs);
-        cwt.full_power_exact(sig, fs, &mut exact);
-        cwt.full_power(sig, fs, &mut fast);
-        let global = exact.iter().fold(0f32, |m, &v| m.max(v)) as f64;
-        for (a, b) in exact.chunks_exact(n).zip(fast.chunks_exact(n)) {
-            let peak = a.iter().fold(0f32, |m, &v| m.max(v)) as f64;
-            let err = a
-                .iter()
-                .zip(b)
-                .map(|(u, v)| (*u as f64 - *v as f64).abs())
-                .fold(0.0, f64::max);
-            if peak > 0.0 {
-                e.of_row_peak = e.of_row_peak.max(err / peak);
-            }
-            if global > 0.0 {
-                e.of_scalogram_peak = e.of_scalogram_peak.max(err / global);
-            }
+        let f = cwt.fast_path_error(sig, fs);
+        for r in f.rows.iter().filter(|r| r.peak > 0.0) {
+            e.of_row_peak = e.of_row_peak.max(r.err / r.peak);
+            e.of_scalogram_peak = e.of_scalogram_peak.max(r.err / f.peak);
         }
         e.signals += 1;
     }
@@ -331,10 +325,7 @@ pub fn cwt_bench(
     ];
     for (banded, what) in full_rows.into_iter().filter(|_| !skip_full) {
         for &threads in threads_list {
-            let pool = rayon::ThreadPoolBuilder::new()
-                .num_threads(threads)
-                .build()
-                .map_err(BenchError::run)?;
+            let pool = bench_pool(threads)?;
             let states = crate::pipeline::StatePool::default();
             let runs = timed_runs(repeats, || {
                 pool.install(|| {
@@ -379,10 +370,7 @@ pub fn cwt_bench(
         })
         .collect();
     for &threads in threads_list {
-        let pool = rayon::ThreadPoolBuilder::new()
-            .num_threads(threads)
-            .build()
-            .map_err(BenchError::run)?;
+        let pool = bench_pool(threads)?;
         let states = crate::pipeline::StatePool::default();
         let runs = timed_runs(repeats, || {
             pool.install(|| {

@@ -164,6 +164,31 @@ fn make_band(bank: &WaveletBank, fi: usize, m: usize, fs: f64) -> Band {
     Band { k0: lo, taps }
 }
 
+/// [`Cwt::fast_path_error`]: per frequency, and the exact scalogram's peak |W|².
+#[derive(Debug, Clone)]
+pub struct FastPathError {
+    pub rows: Vec<RowError>,
+    pub peak: f64,
+}
+
+/// One frequency's largest |fast − exact| |W|², the exact row's peak, and whether the two rows
+/// are the same bits (rows computed exactly: anchors, rows in no run).
+#[derive(Debug, Clone, Copy)]
+pub struct RowError {
+    pub err: f64,
+    pub peak: f64,
+    pub bit_equal: bool,
+}
+
+/// Run `plan` in place on `buf`, growing the caller's scratch to what the plan needs.
+fn transform(plan: &Arc<dyn Fft<f32>>, buf: &mut [Complex32], scratch: &mut Vec<Complex32>) {
+    let need = plan.get_inplace_scratch_len();
+    if scratch.len() < need {
+        scratch.resize(need, Complex32::default());
+    }
+    plan.process_with_scratch(buf, &mut scratch[..need]);
+}
+
 /// Per-worker CWT engine: plans, filters and buffers, reused across records.
 pub struct Cwt {
     bank: WaveletBank,
@@ -267,11 +292,7 @@ impl Cwt {
         self.seg
             .extend(x[lo..hi].iter().map(|&v| Complex32::new(v, 0.0)));
         self.seg.resize(m, Complex32::default());
-        let need = plan.get_inplace_scratch_len();
-        if self.scratch.len() < need {
-            self.scratch.resize(need, Complex32::default());
-        }
-        plan.process_with_scratch(&mut self.seg, &mut self.scratch[..need]);
+        transform(&plan, &mut self.seg, &mut self.scratch);
     }
 
     /// Load a record: one forward FFT of the whole record, kept for the spectrum features
@@ -284,11 +305,7 @@ impl Cwt {
         self.full.clear();
         self.full.extend(x.iter().map(|&v| Complex32::new(v, 0.0)));
         self.full.resize(padded, Complex32::default());
-        let need = plan.get_inplace_scratch_len();
-        if self.scratch.len() < need {
-            self.scratch.resize(need, Complex32::default());
-        }
-        plan.process_with_scratch(&mut self.full, &mut self.scratch[..need]);
+        transform(&plan, &mut self.full, &mut self.scratch);
         self.loaded = Some((n, padded, fs.to_bits()));
     }
 
@@ -341,11 +358,7 @@ impl Cwt {
         {
             *w = v * t;
         }
-        let need = plan.get_inplace_scratch_len();
-        if self.scratch.len() < need {
-            self.scratch.resize(need, Complex32::default());
-        }
-        plan.process_with_scratch(&mut self.work, &mut self.scratch[..need]);
+        transform(&plan, &mut self.work, &mut self.scratch);
         true
     }
 
@@ -435,6 +448,37 @@ impl Cwt {
                 }
             }
             fi = end;
+        }
+    }
+
+    /// How far [`full_power`](Self::full_power) is from
+    /// [`full_power_exact`](Self::full_power_exact) on the loaded record (the tests' and
+    /// `aepipe bench cwt`'s measure).
+    pub fn fast_path_error(&mut self, x: &[f32], fs: f64) -> FastPathError {
+        let (n, nf) = (x.len(), self.bank.freqs_hz.len());
+        let (mut exact, mut fast) = (vec![0f32; nf * n], vec![0f32; nf * n]);
+        self.full_power_exact(x, fs, &mut exact);
+        self.full_power(x, fs, &mut fast);
+        let peak_of = |r: &[f32]| r.iter().fold(0f32, |m, &v| m.max(v)) as f64;
+        let rows = exact
+            .chunks_exact(n.max(1))
+            .zip(fast.chunks_exact(n.max(1)))
+            .map(|(e, f)| {
+                let err = e
+                    .iter()
+                    .zip(f)
+                    .map(|(a, b)| (*a as f64 - *b as f64).abs())
+                    .fold(0.0, f64::max);
+                RowError {
+                    err,
+                    peak: peak_of(e),
+                    bit_equal: e == f,
+                }
+            })
+            .collect();
+        FastPathError {
+            rows,
+            peak: peak_of(&exact),
         }
     }
 
@@ -535,11 +579,7 @@ impl Cwt {
         {
             *w = v * t;
         }
-        let need = plan.get_inplace_scratch_len();
-        if self.scratch.len() < need {
-            self.scratch.resize(need, Complex32::default());
-        }
-        plan.process_with_scratch(&mut self.work, &mut self.scratch[..need]);
+        transform(&plan, &mut self.work, &mut self.scratch);
         let weights = self.phases(d);
         banded::interpolate_power(&self.work, d, &weights, &mut self.banded, row);
         true
