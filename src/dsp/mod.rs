@@ -29,6 +29,19 @@ pub fn next_fast_len(n: usize) -> usize {
     }
 }
 
+/// The smallest length ≥ `n` of the form 2^a·3^b with a ≥ 3 (a multiple of 8): RustFFT's
+/// AVX transforms of lengths with few factors of two are markedly slower per point (measured
+/// here, inverse f32: 486 = 2·3⁵ points 0.47 µs against 512 points 0.35 µs; 729 0.99 µs
+/// against 768 0.62 µs; 972 1.10 µs against 1 024 0.85 µs; 1 458 1.84 µs against 1 536 1.56 µs).
+/// For the CWT's short segments, whose length is free.
+pub fn next_fast_segment_len(n: usize) -> usize {
+    let mut m = next_fast_len(n);
+    while !m.is_multiple_of(8) {
+        m = next_fast_len(m + 1);
+    }
+    m
+}
+
 /// Remove the DC offset, measured as the mean of the pretrigger (the only part of a record
 /// known to hold no signal), and convert to f32 volts, into `out` (reused). Without a
 /// pretrigger nothing is subtracted: the mean of a record that holds a burst is not its

@@ -28,7 +28,6 @@
 mod across;
 mod banded;
 
-use super::next_fast_len;
 use crate::config::CwtConfig;
 use rustfft::num_complex::Complex32;
 use rustfft::{Fft, FftPlanner};
@@ -629,7 +628,7 @@ impl Cwt {
                     // CUT_MARGIN times the support, where the ringing has died down.
                     let k = if cut_at_nyquist { CUT_MARGIN } else { 1.0 };
                     let t = (k * SUPPORT_SIGMAS * bank.sigma_t(f) * fs).ceil() as usize;
-                    let m = next_fast_len(w + 2 * t);
+                    let m = super::next_fast_segment_len(w + 2 * t);
                     let margin = (m - w) / 2;
                     let inside = a >= margin && a - margin + m <= padded;
                     let short = m * WHOLE_RECORD_RATIO <= padded;
