@@ -241,18 +241,22 @@ impl CwtBenchRow {
     }
 }
 
-/// `aepipe bench cwt`: our rows, and how far the banded full-resolution CWT is from one
+/// The row of W1 computed with one full-length inverse FFT per frequency (the peers' ratios are
+/// also printed against it).
+pub const W1_EXACT_ROW: &str = "W1 same, exact: one 4096-point inverse FFT per frequency";
+
+/// `aepipe bench cwt`: our rows, and how far the fast full-resolution CWT is from one
 /// full-length inverse FFT per frequency on the same signals.
 #[derive(Debug, Clone)]
 pub struct CwtBench {
     pub rows: Vec<CwtBenchRow>,
-    /// Largest |banded − exact| over the signals compared, relative to the peak of its
+    /// Largest |fast − exact| over the signals compared, relative to the peak of its
     /// frequency's row, and relative to the peak of its signal's scalogram.
-    pub banded_error: Option<BandedError>,
+    pub fast_error: Option<FastErrorSummary>,
 }
 
 #[derive(Debug, Clone, Copy)]
-pub struct BandedError {
+pub struct FastErrorSummary {
     pub signals: usize,
     pub of_row_peak: f64,
     pub of_scalogram_peak: f64,
@@ -267,15 +271,15 @@ fn bench_pool(threads: usize) -> Result<rayon::ThreadPool, BenchError> {
 }
 
 /// The fast path's error against the exact one on the first `count` signals.
-fn banded_error(
+fn fast_error(
     x: &[f32],
     n: usize,
     fs: f64,
     bank: &crate::dsp::cwt::WaveletBank,
     count: usize,
-) -> BandedError {
+) -> FastErrorSummary {
     let mut cwt = crate::dsp::cwt::Cwt::new(bank.clone());
-    let mut e = BandedError {
+    let mut e = FastErrorSummary {
         signals: 0,
         of_row_peak: 0.0,
         of_scalogram_peak: 0.0,
@@ -318,12 +322,9 @@ pub fn cwt_bench(
     let mut rows = Vec::new();
     let full_rows = [
         (true, "W1 full-resolution CWT |W|² → (651, 250, 4096) f32"),
-        (
-            false,
-            "W1 same, exact: one 4096-point inverse FFT per frequency",
-        ),
+        (false, W1_EXACT_ROW),
     ];
-    for (banded, what) in full_rows.into_iter().filter(|_| !skip_full) {
+    for (fast, what) in full_rows.into_iter().filter(|_| !skip_full) {
         for &threads in threads_list {
             let pool = bench_pool(threads)?;
             let states = crate::pipeline::StatePool::default();
@@ -335,7 +336,7 @@ pub fn cwt_bench(
                             || states.checkout(|| Cwt::new(bank.clone())),
                             |cwt, (o, sig)| {
                                 cwt.load(sig, fs);
-                                if banded {
+                                if fast {
                                     cwt.full_power(sig, fs, o);
                                 } else {
                                     cwt.full_power_exact(sig, fs, o);
@@ -413,8 +414,8 @@ pub fn cwt_bench(
         runs,
         nsig,
     ));
-    let banded_error = (!skip_full).then(|| banded_error(&x, n, fs, &bank, 32));
-    Ok(CwtBench { rows, banded_error })
+    let fast_error = (!skip_full).then(|| fast_error(&x, n, fs, &bank, 32));
+    Ok(CwtBench { rows, fast_error })
 }
 
 /// Run one peer script in the same run (`python script args… --out tmp.json`) and return the

@@ -194,7 +194,7 @@ pub fn cwt_bench(ours: &CwtBench) {
             r.per_signal_ms
         );
     }
-    if let Some(e) = ours.banded_error {
+    if let Some(e) = ours.fast_error {
         println!(
             "fast W1 path against the exact one, first {} signals: largest |Δ|W|²| = {:.1e} of its row's peak, {:.1e} of the scalogram's",
             e.signals, e.of_row_peak, e.of_scalogram_peak
@@ -226,7 +226,8 @@ pub fn cwt_peers(ours: &CwtBench, python: &Path, peers: &Path) {
         match crate::bench::run_peer(python, peers, p.script, p.args) {
             Ok(r) => {
                 let secs = r.median;
-                let exact = (p.workload == "W1").then(|| find("W1 same, exact", p.threads));
+                let exact =
+                    (p.workload == "W1").then(|| find(crate::bench::W1_EXACT_ROW, p.threads));
                 println!(
                     "{:<40} {secs:>9.3} {:>15} {:>30} {:>12}",
                     p.name,

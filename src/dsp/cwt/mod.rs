@@ -380,7 +380,7 @@ impl Cwt {
     }
 
     /// As [`full_power`](Self::full_power), with one inverse FFT of the whole padded record
-    /// per frequency: the reference the banded path is measured against.
+    /// per frequency: the reference the fast path is measured against.
     pub fn full_power_exact(&mut self, x: &[f32], fs: f64, out: &mut [f32]) {
         self.full_rows(x, fs, out, false);
     }
@@ -481,15 +481,27 @@ impl Cwt {
         }
     }
 
-    /// The decimation `banded` would give frequency `fi` (None: nothing to compute there).
-    fn decimation(&mut self, fi: usize, padded: usize, fs: f64) -> Option<usize> {
+    /// Frequency `fi`'s filter on the whole padded grid, its peak bin and the decimation
+    /// `banded` gives it (None: an empty filter, nothing to compute).
+    fn banded_plan(
+        &mut self,
+        fi: usize,
+        padded: usize,
+        fs: f64,
+    ) -> Option<(Arc<Band>, usize, usize)> {
         let band = self.band(fi, padded, fs);
         if band.taps.is_empty() {
             return None;
         }
         let len = band.taps.len();
         let c = banded::centre(self.bank.freqs_hz[fi], fs / padded as f64, band.k0, len);
-        Some(banded::decimation(padded, band.k0, len, c))
+        let d = banded::decimation(padded, band.k0, len, c);
+        Some((band, c, d))
+    }
+
+    /// The decimation `banded` would give frequency `fi` (None: nothing to compute there).
+    fn decimation(&mut self, fi: usize, padded: usize, fs: f64) -> Option<usize> {
+        self.banded_plan(fi, padded, fs).map(|p| p.2)
     }
 
     /// Rows `rows` (ascending frequencies) from exact anchors and interpolation across
@@ -550,13 +562,9 @@ impl Cwt {
     /// |W|² of frequency `fi` over the whole record from a decimated grid, into `row`; false
     /// (nothing written) where the band is too wide to decimate.
     fn banded_row(&mut self, fi: usize, padded: usize, fs: f64, row: &mut [f32]) -> bool {
-        let band = self.band(fi, padded, fs);
-        if band.taps.is_empty() {
+        let Some((band, c, d)) = self.banded_plan(fi, padded, fs) else {
             return false;
-        }
-        let len = band.taps.len();
-        let c = banded::centre(self.bank.freqs_hz[fi], fs / padded as f64, band.k0, len);
-        let d = banded::decimation(padded, band.k0, len, c);
+        };
         if d == 1 {
             return false;
         }
@@ -565,16 +573,20 @@ impl Cwt {
         // The band shifted so that bin c lands on 0: bins below it wrap to the grid's end.
         self.work.clear();
         self.work.resize(m, Complex32::default());
-        let split = c - band.k0;
-        let spec = &self.full[band.k0..band.k0 + len];
-        let (below, above) = (spec.split_at(split), band.taps.split_at(split));
-        for ((w, &v), &t) in self.work[m - split..].iter_mut().zip(below.0).zip(above.0) {
+        let (len, split) = (band.taps.len(), c - band.k0);
+        let (spec_below, spec_from) = self.full[band.k0..band.k0 + len].split_at(split);
+        let (taps_below, taps_from) = band.taps.split_at(split);
+        for ((w, &v), &t) in self.work[m - split..]
+            .iter_mut()
+            .zip(spec_below)
+            .zip(taps_below)
+        {
             *w = v * t;
         }
         for ((w, &v), &t) in self.work[..len - split]
             .iter_mut()
-            .zip(below.1)
-            .zip(above.1)
+            .zip(spec_from)
+            .zip(taps_from)
         {
             *w = v * t;
         }
@@ -684,27 +696,33 @@ impl Cwt {
         let mut row = std::mem::take(&mut self.row);
         row.resize(b - a, 0.0);
         for g in groups.iter() {
-            if !g.whole_record {
-                self.forward_segment(x, g.start, g.m);
-            }
-            let lo = (a as isize - g.start) as usize;
-            let hi = lo + (b - a);
+            self.load_group(g, x);
             for &fi in &g.freqs {
-                self.band_power(
-                    fi,
-                    Seg {
-                        m: g.m,
-                        fs,
-                        whole: g.whole_record,
-                    },
-                    lo,
-                    hi,
-                    &mut row,
-                );
+                self.group_row(g, fs, a, fi, &mut row);
                 visit(fi, &row);
             }
         }
         self.row = row;
+    }
+
+    /// The spectrum group `g`'s frequencies start from: its segment's forward FFT (the whole
+    /// record's is already loaded).
+    fn load_group(&mut self, g: &Group, x: &[f32]) {
+        if !g.whole_record {
+            self.forward_segment(x, g.start, g.m);
+        }
+    }
+
+    /// |W|² of frequency `fi` of group `g` (loaded) over the window from sample `a`, into `out`
+    /// (the window's length).
+    fn group_row(&mut self, g: &Group, fs: f64, a: usize, fi: usize, out: &mut [f32]) {
+        let lo = (a as isize - g.start) as usize;
+        let seg = Seg {
+            m: g.m,
+            fs,
+            whole: g.whole_record,
+        };
+        self.band_power(fi, seg, lo, lo + out.len(), out);
     }
 
     /// |W|² of one frequency over the output window `a..b` into `out` (as
@@ -723,21 +741,8 @@ impl Cwt {
         out.resize(b - a, 0.0);
         let groups = self.groups(self.padded_len(), fs, a, b);
         if let Some(g) = groups.iter().find(|g| g.freqs.contains(&fi)) {
-            if !g.whole_record {
-                self.forward_segment(x, g.start, g.m);
-            }
-            let lo = (a as isize - g.start) as usize;
-            self.band_power(
-                fi,
-                Seg {
-                    m: g.m,
-                    fs,
-                    whole: g.whole_record,
-                },
-                lo,
-                lo + (b - a),
-                out,
-            );
+            self.load_group(g, x);
+            self.group_row(g, fs, a, fi, out);
         }
     }
 }
