@@ -20,12 +20,13 @@
 //! sums, [`pick_all`] shares one pair of prefix sums between the four, and the only memory
 //! is the caller's [`PickScratch`], reused from record to record.
 //!
-//! The AIC needs two logarithms per sample, which cost more than the rest of a record's
-//! picking together. [`aic`] therefore first evaluates it with a polynomial logarithm whose
-//! error is bounded (below 1e-8 in log10), keeps every index that could still be the
-//! minimum given that bound, and evaluates those with the library's `log10`, exactly as
-//! before: the pick is the exact one, only the work is less (a few dozen exact logarithms
-//! per record instead of 2n).
+//! The AIC needs two logarithms per sample; [`aic`] (its own file) takes few of them
+//! while giving the exact pick.
+
+mod aic;
+
+pub use aic::aic;
+use aic::{aic_loaded, aic_value};
 
 /// The buffers the pickers work in (owned by the caller, reused).
 #[derive(Debug, Default, Clone)]
@@ -37,6 +38,8 @@ pub struct PickScratch {
     /// their approximate values) that may hold the minimum.
     approx: Vec<f64>,
     candidates: Vec<(usize, f64)>,
+    /// Each AIC block's first index and lower bound.
+    blocks: Vec<(usize, f64)>,
     /// ER and MER values over the computed range.
     ratios: Vec<[f32; 2]>,
 }
@@ -141,197 +144,6 @@ fn lane_min(mut values: impl ExactSizeIterator<Item = f64>) -> f64 {
         low = if v < low { v } else { low };
     }
     low
-}
-
-/// Akaike information criterion. `None` for fewer than 2 samples (vallenae raises).
-pub fn aic(x: &[f32], s: &mut PickScratch) -> Option<usize> {
-    s.load_both(x);
-    aic_loaded(s)
-}
-
-/// One AIC value, vallenae's arithmetic, with the logarithm `log10` given.
-#[inline(always)]
-fn aic_value(i: usize, n: usize, sum: &[f64], sq: &[f64], log10: impl Fn(f64) -> f64) -> f64 {
-    let eps = f32::MIN_POSITIVE as f64;
-    // numpy's maximum propagates NaN.
-    let clamp = |v: f64| if v.is_nan() { v } else { v.max(eps) };
-    let (l_var, r_var) = variances(i, n, sum, sq);
-    (i as f64 + 1.0) * log10(clamp(l_var)) + (n as f64 - i as f64 - 2.0) * log10(clamp(r_var))
-}
-
-/// The population variances of x[..=i] and x[i+1..] from the prefix sums, in vallenae's
-/// arithmetic (unclamped; they may cancel below zero).
-#[inline(always)]
-fn variances(i: usize, n: usize, sum: &[f64], sq: &[f64]) -> (f64, f64) {
-    let (total, total_sq) = (sum[n - 1], sq[n - 1]);
-    let (l_len, r_len) = ((i + 1) as f64, (n - i - 1) as f64);
-    let (l_sum, l_sq) = (sum[i], sq[i]);
-    let (r_sum, r_sq) = (total - l_sum, total_sq - l_sq);
-    let (l_mean, r_mean) = ((1.0 / l_len) * l_sum, (1.0 / r_len) * r_sum);
-    let l_var = (1.0 / l_len) * l_sq - l_mean * l_mean;
-    let r_var = (1.0 / r_len) * r_sq - r_mean * r_mean;
-    (l_var, r_var)
-}
-
-/// The first index of the smallest exact AIC value among `candidates` (NaN never wins).
-fn exact_first_min(
-    candidates: impl Iterator<Item = usize>,
-    n: usize,
-    sum: &[f64],
-    sq: &[f64],
-) -> Option<usize> {
-    let mut best: Option<(usize, f64)> = None;
-    for i in candidates {
-        let v = aic_value(i, n, sum, sq, f64::log10);
-        if !v.is_nan() && best.is_none_or(|(_, b)| v < b) {
-            best = Some((i, v));
-        }
-    }
-    best.map(|b| b.0)
-}
-
-/// Bound on |fast_log10(v) − log10(v)| for every positive normal v (the tests check it).
-const FAST_LOG10_ERR: f64 = 1e-8;
-
-/// ln(1+t) on t ∈ [√½−1, √2−1]: a degree-9 polynomial (a least-squares Chebyshev fit, in
-/// powers of t, highest last), within 1.5e-8 of ln on that interval. Degree 13 (3e-12) cost
-/// a third more per sample and pruned no better: the candidates within the bound are the
-/// few samples about the minimum either way.
-const LN1P: [f64; 10] = [
-    2.644224492143188e-10,
-    0.9999999061054841,
-    -0.5000000283219791,
-    0.3333473061429857,
-    -0.250012522864788,
-    0.19944783534031452,
-    -0.1657576840854324,
-    0.15056337689992272,
-    -0.14296445004740982,
-    0.0838341074215048,
-];
-
-/// a·b + c, fused where the caller's target has FMA (`F`), else two roundings.
-#[inline(always)]
-fn madd<const F: bool>(a: f64, b: f64, c: f64) -> f64 {
-    if F {
-        a.mul_add(b, c)
-    } else {
-        a * b + c
-    }
-}
-
-/// log10 of a positive normal `v`: exponent, and the mantissa m ∈ [√½, √2) by [`LN1P`]
-/// (Estrin's scheme: a short dependency chain). Branch- and division-free so that the loop
-/// around it vectorises; only for inputs known to be positive and normal.
-#[inline(always)]
-fn fast_log10<const F: bool>(v: f64) -> f64 {
-    let bits = v.to_bits();
-    let e = ((bits >> 52) & 0x7ff) as i64 - 1023;
-    let m = f64::from_bits((bits & 0x000f_ffff_ffff_ffff) | 0x3ff0_0000_0000_0000);
-    let high = m > std::f64::consts::SQRT_2;
-    let m = if high { m * 0.5 } else { m };
-    let e = if high { e + 1 } else { e };
-    let t = m - 1.0;
-    let c = &LN1P;
-    let t2 = t * t;
-    let t4 = t2 * t2;
-    let t8 = t4 * t4;
-    let p = |k: usize| madd::<F>(c[k + 1], t, c[k]);
-    let q0 = madd::<F>(p(2), t2, p(0));
-    let q1 = madd::<F>(p(6), t2, p(4));
-    let lo = madd::<F>(q1, t4, q0);
-    let ln = madd::<F>(p(8), t8, lo);
-    madd::<F>(e as f64, std::f64::consts::LN_2, ln) * std::f64::consts::LOG10_E
-}
-
-/// Pass 1 of the AIC: `out[i]` within the bound of the exact value for i < n−1. The
-/// variances are computed exactly as [`aic_value`] does (they may cancel, so only the
-/// logarithm may differ); after the clamp they lie in [f32::MIN_POSITIVE, n·f32::MAX²],
-/// positive and normal, as [`fast_log10`] needs (the sum of squares is finite, checked).
-#[inline(always)]
-fn aic_approx_generic<const F: bool>(i0: usize, sum: &[f64], sq: &[f64], out: &mut [f64]) {
-    let n = sq.len();
-    let eps = f32::MIN_POSITIVE as f64;
-    for (i, o) in (i0..n - 1).zip(out.iter_mut()) {
-        let (l_len, r_len) = ((i + 1) as f64, (n - i - 1) as f64);
-        let (l_var, r_var) = variances(i, n, sum, sq);
-        let l_var = if l_var > eps { l_var } else { eps };
-        let r_var = if r_var > eps { r_var } else { eps };
-        *o = l_len * fast_log10::<F>(l_var) + (r_len - 1.0) * fast_log10::<F>(r_var);
-    }
-}
-
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2,fma")]
-unsafe fn aic_approx_avx2(i0: usize, sum: &[f64], sq: &[f64], out: &mut [f64]) {
-    aic_approx_generic::<true>(i0, sum, sq, out)
-}
-
-/// Pass 1 for i in `i0 .. i0 + out.len()`, four lanes at a time where the CPU has AVX2.
-fn aic_approx(i0: usize, sum: &[f64], sq: &[f64], out: &mut [f64]) {
-    #[cfg(target_arch = "x86_64")]
-    if std::is_x86_feature_detected!("avx2") && std::is_x86_feature_detected!("fma") {
-        // SAFETY: the CPU supports AVX2 and FMA (checked just above).
-        return unsafe { aic_approx_avx2(i0, sum, sq, out) };
-    }
-    aic_approx_generic::<false>(i0, sum, sq, out)
-}
-
-/// Pass 1 runs over blocks of this many samples, in a buffer that stays in the L1 cache: a
-/// whole-record buffer of approximate values (8 bytes a sample, written once and read twice)
-/// made the long records of a LinWave test wait on memory.
-const AIC_BLOCK: usize = 1024;
-
-fn aic_loaded(s: &mut PickScratch) -> Option<usize> {
-    let n = s.sq.len();
-    if n < 2 {
-        return None;
-    }
-    let (sum, sq) = (&s.sum, &s.sq);
-    // A sum of squares (non-negative terms) is finite exactly when every square is: no
-    // NaN or infinite sample, none whose f32 square overflows. Else (not a record the
-    // feature path lets through) the direct way, as numpy would.
-    if !sq[n - 1].is_finite() {
-        return exact_first_min(0..n, n, sum, sq);
-    }
-    // |approx − exact| ≤ (i+1)·δ + |n−i−2|·δ + the rounding of products and sum, whose
-    // terms are at most n·|log10 v| ≤ n·80 (v between f32::MIN_POSITIVE and n·f32::MAX²);
-    // twice that separates the indices that can hold the exact minimum from those that
-    // cannot.
-    let nf = n as f64 + 2.0;
-    let bound = 2.0 * (nf * FAST_LOG10_ERR + 8.0 * nf * 80.0 * f64::EPSILON);
-    // Pass 1, block by block: every defined value to within `bound` of the exact one, the
-    // running minimum `low`, and each index whose value is within `bound` of it then (a
-    // superset of those within `bound` of the final minimum, as the minimum only falls).
-    // The last element is undefined (NaN) and never a candidate.
-    let mut low = f64::INFINITY;
-    let mut prune_at = 64;
-    s.candidates.clear();
-    s.approx.resize(AIC_BLOCK.min(n - 1), 0.0);
-    for i0 in (0..n - 1).step_by(AIC_BLOCK) {
-        let out = &mut s.approx[..AIC_BLOCK.min(n - 1 - i0)];
-        aic_approx(i0, sum, sq, out);
-        let m = lane_min(out.iter().copied());
-        if m > low + bound {
-            continue; // nothing here comes within the bound of the minimum
-        }
-        low = low.min(m);
-        let cut = low + bound;
-        s.candidates.extend(
-            out.iter()
-                .enumerate()
-                .filter(|&(_, &v)| v <= cut)
-                .map(|(k, &v)| (i0 + k, v)),
-        );
-        if s.candidates.len() >= prune_at {
-            s.candidates.retain(|c| c.1 <= cut);
-            prune_at = 2 * s.candidates.len() + 64;
-        }
-    }
-    // Pass 2: the exact values of the candidates, in index order (the first minimum wins).
-    let cut = low + bound;
-    let candidates = s.candidates.iter().filter(|c| c.1 <= cut).map(|c| c.0);
-    exact_first_min(candidates, n, sum, sq)
 }
 
 /// Energy ratio with windows of `win` samples (vallenae's default 100). `None` when the
@@ -498,7 +310,7 @@ mod tests {
     use super::*;
 
     /// Noise, then a burst from sample `at`.
-    fn burst(n: usize, at: usize, seed: u64) -> Vec<f32> {
+    pub(super) fn burst(n: usize, at: usize, seed: u64) -> Vec<f32> {
         let mut r = seed;
         (0..n)
             .map(|i| {
@@ -515,21 +327,6 @@ mod tests {
                 noise + s
             })
             .collect()
-    }
-
-    /// vallenae's AIC computed the direct way: every value with the library's log10.
-    fn aic_reference(x: &[f32]) -> Option<usize> {
-        let mut s = PickScratch::default();
-        s.load_both(x);
-        let n = x.len();
-        let mut best: Option<(usize, f64)> = None;
-        for i in 0..n {
-            let v = aic_value(i, n, &s.sum, &s.sq, f64::log10);
-            if !v.is_nan() && best.is_none_or(|(_, b)| v < b) {
-                best = Some((i, v));
-            }
-        }
-        best.map(|b| b.0)
     }
 
     /// numpy's argmin / argmax the plain way, for the two-pass versions to equal.
@@ -627,51 +424,6 @@ mod tests {
             let p = p.unwrap();
             assert!((1440..=1560).contains(&p), "{name}: {p}");
             assert_eq!(all[k], Some(p), "{name}: pick_all differs");
-        }
-    }
-
-    #[test]
-    fn the_fast_logarithm_keeps_its_bound() {
-        // Across many octaves and both halves of the mantissa range, and at the edges.
-        let mut worst = 0.0f64;
-        let mut v = f32::MIN_POSITIVE as f64;
-        while v < 1e80 {
-            for k in 0..64 {
-                let x = v * (1.0 + k as f64 / 64.0);
-                worst = worst.max((fast_log10::<false>(x) - x.log10()).abs());
-                worst = worst.max((fast_log10::<true>(x) - x.log10()).abs());
-            }
-            v *= 1.37;
-        }
-        assert!(worst < FAST_LOG10_ERR, "worst error {worst:e}");
-    }
-
-    #[test]
-    fn the_pruned_aic_is_the_exact_aic() {
-        let mut s = PickScratch::default();
-        // Bursts of many lengths and onsets, flat and near-flat records (ties everywhere),
-        // a step, and records of two and three samples.
-        let mut cases: Vec<Vec<f32>> = (0..40)
-            .map(|k| burst(200 + 97 * k, 50 + 31 * k, 7 + k as u64))
-            .collect();
-        cases.push(vec![0.0; 500]);
-        cases.push(vec![1e-3; 500]);
-        cases.push((0..500).map(|i| if i < 250 { 0.0 } else { 1.0 }).collect());
-        cases.push(vec![1.0, 2.0]);
-        cases.push(vec![1.0, 2.0, 1.0]);
-        cases.push(burst(220_000, 100_000, 99));
-        // Slow growth: the minimum keeps falling block after block (the candidate list is
-        // pruned as it goes), and a record of exactly one block and one more.
-        cases.push((0..9000).map(|i| (i as f32 * 1e-3).exp() * 1e-3).collect());
-        cases.push(
-            (0..7000)
-                .map(|i| ((i as f32) * 0.01).sin() * i as f32)
-                .collect(),
-        );
-        cases.push(burst(AIC_BLOCK + 1, 600, 5));
-        cases.push(burst(AIC_BLOCK + 2, 600, 6));
-        for x in &cases {
-            assert_eq!(aic(x, &mut s), aic_reference(x), "n = {}", x.len());
         }
     }
 
