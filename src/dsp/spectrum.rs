@@ -34,33 +34,40 @@ pub fn power_ratios(
     let mut total_all = 0.0;
     let mut moment = 0.0;
     let mut peak = (0usize, -1.0f64);
-    // Bins come in frequency order, so each band is one run of bins: its sum is kept in a
-    // register and stored when the band changes (the same additions in the same order as
-    // `ratios[i] += p`, without a load and store per bin on the chain).
-    let (mut band, mut acc) = (usize::MAX, 0.0f64);
-    for (j, x) in spec.iter().enumerate().take(half + 1) {
-        let p = x.norm_sqr() as f64;
+    // Bins come in frequency order, so each band is one run of bins. The run's ends are
+    // found once per band (by the same expression the bins would use, which never falls as
+    // j grows), so no bin divides; its sum is kept in a register and stored when the run
+    // ends: the same additions in the same order as `ratios[i] += p` bin by bin.
+    let last = ratios.len() - 1;
+    let band_of = |j: usize| {
         let f = j as f64 * df;
-        if j > 0 {
+        (f < band_max).then(|| ((f / band_hz) as usize).min(last))
+    };
+    let bins = spec.len().min(half + 1);
+    let mut j = 0;
+    while j < bins {
+        let band = band_of(j);
+        let end = run_end(j, bins, band, band_hz, df, band_of);
+        let mut acc = 0.0f64;
+        if j == 0 {
+            // DC: in band 0's sum, not in the total, the centroid or the peak.
+            acc += spec[0].norm_sqr() as f64;
+            j = 1;
+        }
+        for (k, x) in spec[j..end].iter().enumerate() {
+            let j = j + k;
+            let p = x.norm_sqr() as f64;
             total_all += p;
-            moment += p * f;
+            moment += p * (j as f64 * df);
             if p > peak.1 {
                 peak = (j, p);
             }
-        }
-        if f < band_max {
-            let i = ((f / band_hz) as usize).min(ratios.len() - 1);
-            if i != band {
-                if band != usize::MAX {
-                    ratios[band] = acc;
-                }
-                (band, acc) = (i, 0.0);
-            }
             acc += p;
         }
-    }
-    if band != usize::MAX {
-        ratios[band] = acc;
+        if let Some(b) = band {
+            ratios[b] = acc;
+        }
+        j = end;
     }
     let total: f64 = ratios.iter().sum();
     if total.is_nan() || total <= 0.0 || !total.is_finite() {
@@ -77,6 +84,33 @@ pub fn power_ratios(
             0.0
         },
     })
+}
+
+/// The first bin after `j` (at most `bins`) whose band (`band_of`, never falling as the bin
+/// grows; `None` above the banded range) is not `band`: from the band's upper edge over the
+/// bin spacing, then moved bin by bin until `band_of` itself agrees.
+fn run_end(
+    j: usize,
+    bins: usize,
+    band: Option<usize>,
+    band_hz: f64,
+    df: f64,
+    band_of: impl Fn(usize) -> Option<usize>,
+) -> usize {
+    let Some(b) = band else { return bins };
+    let edge = ((b + 1) as f64 * band_hz / df).ceil();
+    let mut end = if edge.is_finite() && edge > 0.0 {
+        (edge as usize).clamp(j + 1, bins)
+    } else {
+        bins
+    };
+    while end > j + 1 && band_of(end - 1) != band {
+        end -= 1;
+    }
+    while end < bins && band_of(end) == band {
+        end += 1;
+    }
+    end
 }
 
 /// Column name of band `i`: `pr_200_300khz`.
@@ -166,5 +200,76 @@ mod tests {
         assert_eq!(band_column(2, 100e3), "pr_200_300khz");
         assert_eq!(band_column(0, 100e3), "pr_0_100khz");
         assert_eq!(band_column(1, 50e3), "pr_50_100khz");
+    }
+
+    /// The bin-by-bin loop the run version replaced (a division per bin), for bit equality.
+    fn power_ratios_reference(
+        spec: &[Complex32],
+        n: usize,
+        fs: f64,
+        band_hz: f64,
+        ratios: &mut [f64],
+    ) -> (f64, f64, usize) {
+        ratios.fill(0.0);
+        let band_max = band_hz * ratios.len() as f64;
+        let df = fs / n as f64;
+        let (mut total_all, mut moment, mut peak) = (0.0, 0.0, (0usize, -1.0f64));
+        for (j, x) in spec.iter().enumerate().take(n / 2 + 1) {
+            let p = x.norm_sqr() as f64;
+            let f = j as f64 * df;
+            if j > 0 {
+                total_all += p;
+                moment += p * f;
+                if p > peak.1 {
+                    peak = (j, p);
+                }
+            }
+            if f < band_max {
+                let i = ((f / band_hz) as usize).min(ratios.len() - 1);
+                ratios[i] += p;
+            }
+        }
+        (total_all, moment, peak.0)
+    }
+
+    #[test]
+    fn the_runs_give_the_bin_by_bin_sums_to_the_bit() {
+        let mut r = 5u64;
+        let mut u = || {
+            r = r
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (r >> 11) as f64 / (1u64 << 53) as f64
+        };
+        // Lengths odd and even, bands narrower than a bin, band ranges past Nyquist, rates
+        // whose bins fall exactly on band edges (10 MHz, n = 10 000: 1 kHz bins).
+        let cases = [
+            (4096, 10e6, 100e3, 25),
+            (10_000, 10e6, 100e3, 25),
+            (4097, 5e6, 100e3, 25),
+            (3, 10e6, 100e3, 25),
+            (2, 1e6, 100e3, 4),
+            (220_000, 5e6, 100e3, 25),
+            (1000, 10e6, 3e3, 7),
+            (2048, 2e6, 100e3, 25),
+            (777, 3.3e6, 33_333.3, 60),
+        ];
+        for (n, fs, band_hz, bands) in cases {
+            let spec: Vec<Complex32> = (0..n)
+                .map(|_| Complex32::new((u() - 0.5) as f32, (u() - 0.5) as f32))
+                .collect();
+            let (mut a, mut b) = (vec![0.0; bands], vec![0.0; bands]);
+            let s = power_ratios(&spec, n, fs, band_hz, &mut a).unwrap();
+            let (total_all, moment, peak) = power_ratios_reference(&spec, n, fs, band_hz, &mut b);
+            let total: f64 = b.iter().sum();
+            b.iter_mut().for_each(|v| *v /= total);
+            assert_eq!(a, b, "n {n}, fs {fs}, band {band_hz}");
+            assert_eq!(s.total_power.to_bits(), total.to_bits());
+            assert_eq!(
+                s.peak_freq_hz.to_bits(),
+                (peak as f64 * (fs / n as f64)).to_bits()
+            );
+            assert_eq!(s.centroid_freq_hz.to_bits(), (moment / total_all).to_bits());
+        }
     }
 }
