@@ -105,8 +105,9 @@ fn hinkley_loaded(n: usize, alpha: f64, sq: &[f64]) -> Option<usize> {
     }
     let trend = hinkley_trend(n, alpha, sq);
     let value = |i: usize, e: f64| hinkley_value(i, e, trend);
-    if !trend.is_finite() {
-        // Not a record the feature path lets through: numpy's argmin the plain way.
+    if !trend.is_finite() || trend < 0.0 {
+        // Not a record (or an α) the feature path lets through: numpy's argmin the plain
+        // way.
         let (mut best, mut best_v) = (0, f64::INFINITY);
         for (i, &e) in sq.iter().enumerate() {
             let v = value(i, e);
@@ -117,14 +118,46 @@ fn hinkley_loaded(n: usize, alpha: f64, sq: &[f64]) -> Option<usize> {
         return Some(best);
     }
     // The first index of the minimum (numpy's argmin; no NaN in finite input): the minimum
-    // first, in four lanes (it does not depend on the order), then the first index holding
-    // it, each value computed the same way both times.
-    let lowest = lane_min(sq.iter().enumerate().map(|(i, &e)| value(i, e)));
-    sq.iter()
-        .enumerate()
-        .position(|(i, &e)| value(i, e) <= lowest)
+    // first, in four lanes per block (it does not depend on the order), then the first
+    // index holding it, each value computed the same way both times.
+    // A block's values are at least `value(its last index, its first energy)`: the energy
+    // never falls, the index term never falls (trend ≥ 0), and rounding keeps both orders,
+    // so that one value is an exact lower bound. The block with the lowest bound goes
+    // first; a block whose bound is above the running minimum holds neither the minimum
+    // nor, later, its first index.
+    let block = |k: usize| k * HINKLEY_BLOCK..((k + 1) * HINKLEY_BLOCK).min(n);
+    let blocks = n.div_ceil(HINKLEY_BLOCK);
+    let floor = |k: usize| {
+        let r = block(k);
+        value(r.end - 1, sq[r.start])
+    };
+    let first = (0..blocks)
+        .min_by(|&p, &q| floor(p).total_cmp(&floor(q)))
+        .unwrap_or(0);
+    let mut lowest = f64::INFINITY;
+    for k in std::iter::once(first).chain((0..blocks).filter(|&k| k != first)) {
+        if floor(k) > lowest {
+            continue;
+        }
+        let r = block(k);
+        let low = lane_min(sq[r.clone()].iter().zip(r).map(|(&e, i)| value(i, e)));
+        lowest = lowest.min(low);
+    }
+    (0..blocks)
+        .filter(|&k| floor(k) <= lowest)
+        .find_map(|k| {
+            let r = block(k);
+            sq[r.clone()]
+                .iter()
+                .zip(r)
+                .find(|&(&e, i)| value(i, e) <= lowest)
+                .map(|(_, i)| i)
+        })
         .or(Some(0))
 }
+
+/// Hinkley's pass runs over blocks of this many samples, each bounded below first.
+const HINKLEY_BLOCK: usize = 256;
 
 /// The smallest of NaN-free values, from +∞, in four independent lanes.
 #[inline(always)]
@@ -389,6 +422,13 @@ mod tests {
         cases.push(x);
         cases.push(vec![1.0]);
         cases.push(burst(220_001, 100_000, 99));
+        // Hinkley's blocks: the minimum in the last block or the first sample, a level
+        // offset, silence over several blocks then a burst, values tied across blocks.
+        cases.push(burst(5000, 4990, 3));
+        cases.push(burst(5000, 0, 4));
+        cases.push(burst(3000, 1200, 5).iter().map(|v| v + 1e3).collect());
+        cases.push((0..3000).map(|i| if i < 1500 { 0.0 } else { 0.5 }).collect());
+        cases.push((0..2000).map(|i| if i % 512 == 0 { 1.0 } else { 0.0 }).collect());
         for x in &cases {
             assert_eq!(
                 hinkley(x, 5.0, &mut s),
