@@ -384,7 +384,7 @@ pub fn cwt_bench(
             })
         });
         rows.push(CwtBenchRow::of(
-            "feature path (spectrum, 25 ratios, 200 bins, hit features, label, row)",
+            "feature path (spectrum, 25 ratios, 200 bins, hit features, pickers, label, row)",
             threads,
             runs,
             nsig,

@@ -427,8 +427,16 @@ mod tests {
         cases.push(burst(5000, 4990, 3));
         cases.push(burst(5000, 0, 4));
         cases.push(burst(3000, 1200, 5).iter().map(|v| v + 1e3).collect());
-        cases.push((0..3000).map(|i| if i < 1500 { 0.0 } else { 0.5 }).collect());
-        cases.push((0..2000).map(|i| if i % 512 == 0 { 1.0 } else { 0.0 }).collect());
+        cases.push(
+            (0..3000)
+                .map(|i| if i < 1500 { 0.0 } else { 0.5 })
+                .collect(),
+        );
+        cases.push(
+            (0..2000)
+                .map(|i| if i % 512 == 0 { 1.0 } else { 0.0 })
+                .collect(),
+        );
         for x in &cases {
             assert_eq!(
                 hinkley(x, 5.0, &mut s),
