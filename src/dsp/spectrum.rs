@@ -19,7 +19,9 @@ pub struct SpectrumScalars {
 }
 
 /// Fill `ratios` (one per band) from the spectrum of an `n`-sample record at `fs`.
-/// Returns `None` when the record has no power below `band_max` (a flat record).
+/// Returns `None` when the record has no power below `band_max` (a flat record), and for
+/// no bands, a band width that is not positive or a negative rate (not inputs the
+/// configuration lets through).
 pub fn power_ratios(
     spec: &[Complex32],
     n: usize,
@@ -28,6 +30,9 @@ pub fn power_ratios(
     ratios: &mut [f64],
 ) -> Option<SpectrumScalars> {
     ratios.fill(0.0);
+    if ratios.is_empty() || band_hz.is_nan() || band_hz <= 0.0 || fs < 0.0 {
+        return None;
+    }
     let band_max = band_hz * ratios.len() as f64;
     let df = fs / n as f64;
     let half = n / 2;
@@ -253,6 +258,9 @@ mod tests {
             (1000, 10e6, 3e3, 7),
             (2048, 2e6, 100e3, 25),
             (777, 3.3e6, 33_333.3, 60),
+            (1, 10e6, 100e3, 25),
+            (4096, 10e6, 20e6, 3),
+            (4096, 0.0, 100e3, 25),
         ];
         for (n, fs, band_hz, bands) in cases {
             let spec: Vec<Complex32> = (0..n)
@@ -269,7 +277,25 @@ mod tests {
                 s.peak_freq_hz.to_bits(),
                 (peak as f64 * (fs / n as f64)).to_bits()
             );
-            assert_eq!(s.centroid_freq_hz.to_bits(), (moment / total_all).to_bits());
+            let centroid = if total_all > 0.0 {
+                moment / total_all
+            } else {
+                0.0
+            };
+            assert_eq!(s.centroid_freq_hz.to_bits(), centroid.to_bits());
         }
+        // A spectrum shorter than n/2 + 1 bins, a NaN bin, and inputs refused up front.
+        let spec = vec![Complex32::new(1.0, 0.5); 100];
+        let (mut a, mut b) = (vec![0.0; 25], vec![0.0; 25]);
+        power_ratios(&spec, 4096, 10e6, 100e3, &mut a).unwrap();
+        power_ratios_reference(&spec, 4096, 10e6, 100e3, &mut b);
+        let total: f64 = b.iter().sum();
+        assert_eq!(a, b.iter().map(|v| v / total).collect::<Vec<_>>());
+        let mut nan = spec.clone();
+        nan[7] = Complex32::new(f32::NAN, 0.0);
+        assert!(power_ratios(&nan, 200, 10e6, 100e3, &mut a).is_none());
+        assert!(power_ratios(&spec, 200, 10e6, 100e3, &mut []).is_none());
+        assert!(power_ratios(&spec, 200, 10e6, 0.0, &mut a).is_none());
+        assert!(power_ratios(&spec, 200, -10e6, 100e3, &mut a).is_none());
     }
 }

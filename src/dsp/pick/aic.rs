@@ -6,8 +6,9 @@
 //!
 //! 1. **Blocks that cannot hold the minimum are skipped whole.** The sum of squared
 //!    deviations of x[0..=i] never falls as i grows, nor that of x[i+1..] as i falls, so
-//!    over a block a..=b each variance is at least the one at the block's far edge over the
-//!    longest length, and each of the two terms, concave in its length, is least at one of
+//!    over a block a..=b each is at least its value where its part is shortest (at a for
+//!    the left part, at b for the right), and each of the two terms, concave in its length,
+//!    is least at one of
 //!    the block's ends: four logarithms bound the whole block from below. The bound carries
 //!    a margin for every rounding between the true sums of squares and the values vallenae's
 //!    arithmetic computes (f32 squares, f64 prefix sums, the cancelling subtraction), so it
@@ -131,8 +132,9 @@ fn fast_log10<const F: bool>(v: f64) -> f64 {
 
 /// Pass 1 of the AIC: `out[i]` within the bound of the exact value for i < n−1. The
 /// variances are computed exactly as [`aic_value`] does (they may cancel, so only the
-/// logarithm may differ); after the clamp they lie in [f32::MIN_POSITIVE, n·f32::MAX²],
-/// positive and normal, as [`fast_log10`] needs (the sum of squares is finite, checked).
+/// logarithm may differ); after the clamp they lie in [f32::MIN_POSITIVE, ~f32::MAX] (a
+/// mean of finite f32 squares, up to rounding), positive and normal, as [`fast_log10`]
+/// needs (the sum of squares is finite, checked).
 #[inline(always)]
 fn aic_approx_generic<const F: bool>(i0: usize, sum: &[f64], sq: &[f64], out: &mut [f64]) {
     let n = sq.len();
@@ -172,6 +174,13 @@ const AIC_BLOCK: usize = 256;
 /// the variances computed from the prefix sums of a record of `n` samples: the f32 squares
 /// (2⁻²⁴), the f64 prefix sums and the cancelling subtraction (≤ (4n + 16)·ε of the energy,
 /// √n more for the suffix's squared sum through Cauchy–Schwarz), times 4 for slack.
+///
+/// Only the squares of the block's own samples matter (those of the shared prefix or
+/// suffix are in the bound and the values alike). A subnormal f32 square is off by up to
+/// 2⁻¹⁵⁰ absolute rather than 2⁻²⁴ relative, and that is covered too: the bound can only
+/// exceed the value at a length ℓ if the part's squared deviations exceed ℓ·2⁻¹²⁶ (below
+/// that the clamp at `f32::MIN_POSITIVE` already puts the value above the bound), so the
+/// margin is then over 2⁻¹⁴⁸·ℓ, more than the ≤ ℓ block samples can be off by.
 fn rounding_per_energy(n: usize, suffix: bool) -> f64 {
     let nf = n as f64;
     let sums = (4.0 * nf + 16.0) * f64::EPSILON * if suffix { nf.sqrt() } else { 1.0 };
@@ -193,8 +202,7 @@ fn term_bound(s: f64, lo: f64, hi: f64, shift: f64) -> f64 {
 }
 
 /// A lower bound on every computed AIC value (exact log10) at i ∈ a..=b (b ≤ n − 2), from
-/// the prefix sums alone (step 1 of the module doc); −∞ when the record is too short to
-/// bother.
+/// the prefix sums alone (step 1 of the module doc).
 fn block_bound(a: usize, b: usize, sum: &[f64], sq: &[f64]) -> f64 {
     let n = sq.len();
     let (total, total_sq) = (sum[n - 1], sq[n - 1]);
@@ -221,7 +229,7 @@ pub(super) fn aic_loaded(s: &mut PickScratch) -> Option<usize> {
         return exact_first_min(0..n, n, sum, sq);
     }
     // |approx − exact| ≤ (i+1)·δ + |n−i−2|·δ + the rounding of products and sum, whose
-    // terms are at most n·|log10 v| ≤ n·80 (v between f32::MIN_POSITIVE and n·f32::MAX²);
+    // terms are at most n·|log10 v| ≤ n·39 < n·80 (v between f32::MIN_POSITIVE and f32::MAX);
     // twice that separates the indices that can hold the exact minimum from those that
     // cannot.
     let nf = n as f64 + 2.0;
@@ -364,6 +372,15 @@ mod tests {
                 .collect(),
         );
         cases.push(burst(6000, 2000, 8).iter().map(|v| v * 1e-30).collect());
+        // Squares in f32's subnormal range (|x| ~ 1e-22 to 1e-19): rounded absolutely.
+        for (k, &scale) in [1e-19f32, 3e-21, 1e-22].iter().enumerate() {
+            cases.push(
+                burst(3000, 900, 60 + k as u64)
+                    .iter()
+                    .map(|v| v * scale)
+                    .collect(),
+            );
+        }
         cases.push(
             burst(6000, 2500, 9)
                 .iter()

@@ -423,7 +423,7 @@ mod tests {
         cases.push(vec![1.0]);
         cases.push(burst(220_001, 100_000, 99));
         // Hinkley's blocks: the minimum in the last block or the first sample, a level
-        // offset, silence over several blocks then a burst, values tied across blocks.
+        // offset, silence over several blocks then a step, sparse spikes.
         cases.push(burst(5000, 4990, 3));
         cases.push(burst(5000, 0, 4));
         cases.push(burst(3000, 1200, 5).iter().map(|v| v + 1e3).collect());
@@ -437,6 +437,25 @@ mod tests {
                 .map(|i| if i % 512 == 0 { 1.0 } else { 0.0 })
                 .collect(),
         );
+        // Ties across blocks (exact in binary): spikes every 256 samples, α = 1, put S = 1/256
+        // at the end of every block; with spikes of 0.5 at 423 and 615 and α = 0.5, S ties at
+        // 422 and 614 while the lowest block bound is the third block's, which goes first.
+        let ties: Vec<f32> = (0..1024)
+            .map(|i| if i % 256 == 0 { 1.0 } else { 0.0 })
+            .collect();
+        assert_eq!(hinkley(&ties, 1.0, &mut s), Some(255));
+        assert_eq!(hinkley_reference(&ties, 1.0), Some(255));
+        let mut late = vec![0.0f32; 768];
+        (late[423], late[615]) = (0.5, 0.5);
+        assert_eq!(hinkley(&late, 0.5, &mut s), Some(422));
+        assert_eq!(hinkley_reference(&late, 0.5), Some(422));
+        // α outside the configuration's range: the plain loop (trend < 0, infinite, zero).
+        let onset = burst(3000, 1200, 5);
+        for alpha in [-2.0, 0.0, f64::INFINITY] {
+            for x in [&onset, &late] {
+                assert_eq!(hinkley(x, alpha, &mut s), hinkley_reference(x, alpha));
+            }
+        }
         for x in &cases {
             assert_eq!(
                 hinkley(x, 5.0, &mut s),
