@@ -83,22 +83,34 @@ def test_cwt_equals_a_direct_convolution_and_keeps_a_sines_amplitude() -> None:
 
 
 def test_features_release_the_gil_two_threads_beat_one_after_another() -> None:
+    need((os.cpu_count() or 1) >= 2, "one core: threads cannot overlap")
     x = synthetic_signals(96, 4096, 10e6, seed=11)
     aepipe.features(x[:4], sample_rate_hz=10e6, threads=1)  # warm the caches
-    t0 = time.perf_counter()
-    for _ in range(2):
-        aepipe.features(x, sample_rate_hz=10e6, threads=1)
-    serial = time.perf_counter() - t0
-    ts = [threading.Thread(target=aepipe.features, args=(x,), kwargs={"sample_rate_hz": 10e6, "threads": 1}) for _ in range(2)]
-    t0 = time.perf_counter()
-    for t in ts:
-        t.start()
-    for t in ts:
-        t.join()
-    parallel = time.perf_counter() - t0
-    need((os.cpu_count() or 1) >= 2, "one core: threads cannot overlap")
-    # With the GIL held the two would take as long as one after the other.
-    assert parallel < 0.8 * serial, f"two threads {parallel:.2f} s, one after another {serial:.2f} s"
+
+    def attempt() -> tuple[float, float]:
+        t0 = time.perf_counter()
+        for _ in range(2):
+            aepipe.features(x, sample_rate_hz=10e6, threads=1)
+        serial = time.perf_counter() - t0
+        kwargs = {"sample_rate_hz": 10e6, "threads": 1}
+        ts = [threading.Thread(target=aepipe.features, args=(x,), kwargs=kwargs) for _ in range(2)]
+        t0 = time.perf_counter()
+        for t in ts:
+            t.start()
+        for t in ts:
+            t.join()
+        return time.perf_counter() - t0, serial
+
+    # With the GIL held the two would take as long as one after the other, every time; a
+    # busy machine can spoil one attempt (a cold first run once did), so the best of three
+    # decides.
+    tries = []
+    for _ in range(3):
+        parallel, serial = attempt()
+        tries.append(f"{parallel:.2f} s against {serial:.2f} s")
+        if parallel < 0.8 * serial:
+            return
+    raise AssertionError("two threads never beat one after another: " + "; ".join(tries))
 
 
 def test_progress_draws_a_line_on_stderr(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
