@@ -239,13 +239,8 @@ mod tests {
 
     #[test]
     fn the_runs_give_the_bin_by_bin_sums_to_the_bit() {
-        let mut r = 5u64;
-        let mut u = || {
-            r = r
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (r >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut rng = crate::util::Rng::new(5);
+        let mut u = || rng.uniform();
         // Lengths odd and even, bands narrower than a bin, band ranges past Nyquist, rates
         // whose bins fall exactly on band edges (10 MHz, n = 10 000: 1 kHz bins).
         let cases = [

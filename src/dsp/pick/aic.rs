@@ -388,15 +388,8 @@ mod tests {
                 .map(|(i, v)| v + i as f32 * 1e-3)
                 .collect(),
         );
-        let mut r = 11u64;
-        cases.push(
-            (0..5000)
-                .map(|_| {
-                    r = r.wrapping_mul(6364136223846793005).wrapping_add(1);
-                    (r >> 40) as f32 / (1u64 << 24) as f32 - 0.5
-                })
-                .collect(),
-        );
+        let mut rng = crate::util::Rng::new(11);
+        cases.push((0..5000).map(|_| rng.uniform() as f32 - 0.5).collect());
         cases
     }
 
@@ -441,13 +434,8 @@ mod tests {
         // Offsets up to 1e4 on signals down to 1e-10 (the sums cancel to their last bits),
         // onsets anywhere, blocks of any length: the bound holds and the pick is exact.
         let mut s = PickScratch::default();
-        let mut r = 99u64;
-        let mut u = || {
-            r = r
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (r >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut rng = crate::util::Rng::new(99);
+        let mut u = || rng.uniform();
         for case in 0..300 {
             let n = 3 + (u() * 3000.0) as usize;
             let sign = if u() < 0.5 { -1.0 } else { 1.0 };
