@@ -4,6 +4,24 @@ fn bank() -> WaveletBank {
     WaveletBank::from_config(&CwtConfig::default())
 }
 
+/// The default bank and its full-resolution power of `x` (n_freqs × n, row-major).
+fn default_full_power(x: &[f32], fs: f64) -> (WaveletBank, Vec<f32>) {
+    let b = bank();
+    let mut cwt = Cwt::new(b.clone());
+    cwt.load(x, fs);
+    let mut out = vec![0.0; b.freqs_hz.len() * x.len()];
+    cwt.full_power(x, fs, &mut out);
+    (b, out)
+}
+
+/// The row of the grid frequency `f`.
+fn row_of(b: &WaveletBank, f: f64) -> usize {
+    b.freqs_hz
+        .iter()
+        .position(|&g| (g - f).abs() < 1.0)
+        .unwrap()
+}
+
 fn sine(n: usize, f: f64, fs: f64, a: f64) -> Vec<f32> {
     (0..n)
         .map(|i| (a * (2.0 * PI * f * i as f64 / fs).sin()) as f32)
@@ -95,16 +113,8 @@ fn short_pulse_is_localised_in_time() {
             ((2.0 * PI * 1.2e6 * t).cos() * (-(t / 1e-6).powi(2) / 2.0).exp()) as f32
         })
         .collect();
-    let b = bank();
-    let mut cwt = Cwt::new(b.clone());
-    cwt.load(&x, fs);
-    let mut out = vec![0.0; b.freqs_hz.len() * n];
-    cwt.full_power(&x, fs, &mut out);
-    let fi = b
-        .freqs_hz
-        .iter()
-        .position(|&f| (f - 1.2e6).abs() < 1.0)
-        .unwrap();
+    let (b, out) = default_full_power(&x, fs);
+    let fi = row_of(&b, 1.2e6);
     let row = &out[fi * n..(fi + 1) * n];
     let tmax = row
         .iter()
@@ -127,22 +137,9 @@ fn two_tones_separate() {
         .zip(sine(n, 750e3, fs, 0.1))
         .map(|(a, b)| a + b)
         .collect();
-    let b = bank();
-    let mut cwt = Cwt::new(b.clone());
-    cwt.load(&x, fs);
-    let mut out = vec![0.0; b.freqs_hz.len() * n];
-    cwt.full_power(&x, fs, &mut out);
+    let (b, out) = default_full_power(&x, fs);
     let t = n / 2;
-    let col: Vec<f32> = (0..b.freqs_hz.len())
-        .map(|fi| out[fi * n + t].sqrt())
-        .collect();
-    let at = |f: f64| {
-        col[b
-            .freqs_hz
-            .iter()
-            .position(|&g| (g - f).abs() < 1.0)
-            .unwrap()]
-    };
+    let at = |f: f64| out[row_of(&b, f) * n + t].sqrt();
     assert!(
         (at(250e3) - 0.2).abs() < 0.004 && (at(750e3) - 0.1).abs() < 0.002,
         "{} {}",

@@ -21,7 +21,7 @@
 //!    order: the pick is the exact one (the first index of the minimum), only the work is
 //!    less.
 
-use super::{lane_min, PickScratch};
+use super::{lane_min, lowest_first, PickScratch};
 
 /// Akaike information criterion. `None` for fewer than 2 samples (vallenae raises).
 pub fn aic(x: &[f32], s: &mut PickScratch) -> Option<usize> {
@@ -237,14 +237,11 @@ pub(super) fn aic_loaded(s: &mut PickScratch) -> Option<usize> {
     // Step 1: each block's lower bound; the lowest goes first. A block whose bound, less
     // the approximation's error and the rounding of the bound itself (one `bound` each,
     // generously), is above the running minimum plus `bound` holds no candidate.
-    s.blocks.clear();
-    s.blocks.extend((0..n - 1).step_by(AIC_BLOCK).map(|i0| {
+    s.floors.clear();
+    s.floors.extend((0..n - 1).step_by(AIC_BLOCK).map(|i0| {
         let i1 = (i0 + AIC_BLOCK).min(n - 1);
-        (i0, block_bound(i0, i1 - 1, sum, sq))
+        block_bound(i0, i1 - 1, sum, sq)
     }));
-    let first = (0..s.blocks.len())
-        .min_by(|&p, &q| s.blocks[p].1.total_cmp(&s.blocks[q].1))
-        .unwrap_or(0);
     // Step 2, block by block: every defined value to within `bound` of the exact one, the
     // running minimum `low`, and each index whose value is within `bound` of it then (a
     // superset of those within `bound` of the final minimum, as the minimum only falls).
@@ -253,10 +250,10 @@ pub(super) fn aic_loaded(s: &mut PickScratch) -> Option<usize> {
     let mut prune_at = 64;
     s.candidates.clear();
     s.approx.resize(AIC_BLOCK.min(n - 1), 0.0);
-    let order = std::iter::once(first).chain((0..s.blocks.len()).filter(|&k| k != first));
-    for k in order {
-        let (i0, floor) = s.blocks[k];
-        if floor - 2.0 * bound > low + bound {
+    let floors = &s.floors;
+    for k in lowest_first(floors.len(), |k| floors[k]) {
+        let i0 = k * AIC_BLOCK;
+        if floors[k] - 2.0 * bound > low + bound {
             continue; // the bound rules the whole block out
         }
         let out = &mut s.approx[..AIC_BLOCK.min(n - 1 - i0)];

@@ -38,8 +38,8 @@ pub struct PickScratch {
     /// their approximate values) that may hold the minimum.
     approx: Vec<f64>,
     candidates: Vec<(usize, f64)>,
-    /// Each AIC block's first index and lower bound.
-    blocks: Vec<(usize, f64)>,
+    /// Each AIC block's lower bound (block k starts at k·AIC_BLOCK).
+    floors: Vec<f64>,
     /// ER and MER values over the computed range.
     ratios: Vec<[f32; 2]>,
 }
@@ -118,24 +118,20 @@ fn hinkley_loaded(n: usize, alpha: f64, sq: &[f64]) -> Option<usize> {
         return Some(best);
     }
     // The first index of the minimum (numpy's argmin; no NaN in finite input): the minimum
-    // first, in four lanes per block (it does not depend on the order), then the first
-    // index holding it, each value computed the same way both times.
-    // A block's values are at least `value(its last index, its first energy)`: the energy
-    // never falls, the index term never falls (trend ≥ 0), and rounding keeps both orders,
-    // so that one value is an exact lower bound. The block with the lowest bound goes
-    // first; a block whose bound is above the running minimum holds neither the minimum
-    // nor, later, its first index.
+    // first, block by block in four lanes (it does not depend on the order), then the
+    // first index holding it, each value computed the same way both times. A block's
+    // values are at least `value(its last index, its first energy)`: the energy never
+    // falls, the index term never falls (trend ≥ 0), and rounding keeps both orders, so
+    // that one value is an exact lower bound, and a block whose bound is above the running
+    // minimum holds neither the minimum nor, later, its first index.
     let block = |k: usize| k * HINKLEY_BLOCK..((k + 1) * HINKLEY_BLOCK).min(n);
     let blocks = n.div_ceil(HINKLEY_BLOCK);
     let floor = |k: usize| {
         let r = block(k);
         value(r.end - 1, sq[r.start])
     };
-    let first = (0..blocks)
-        .min_by(|&p, &q| floor(p).total_cmp(&floor(q)))
-        .unwrap_or(0);
     let mut lowest = f64::INFINITY;
-    for k in std::iter::once(first).chain((0..blocks).filter(|&k| k != first)) {
+    for k in lowest_first(blocks, floor) {
         if floor(k) > lowest {
             continue;
         }
@@ -158,6 +154,18 @@ fn hinkley_loaded(n: usize, alpha: f64, sq: &[f64]) -> Option<usize> {
 
 /// Hinkley's pass runs over blocks of this many samples, each bounded below first.
 const HINKLEY_BLOCK: usize = 256;
+
+/// Block indices `0..blocks` in the order the block-bounded pickers visit them: the block
+/// with the lowest `floor` first (so the running minimum is near the final one at once),
+/// then the others in index order.
+fn lowest_first(blocks: usize, floor: impl Fn(usize) -> f64) -> impl Iterator<Item = usize> {
+    let first = (0..blocks)
+        .min_by(|&p, &q| floor(p).total_cmp(&floor(q)))
+        .unwrap_or(0);
+    std::iter::once(first)
+        .chain((0..blocks).filter(move |&k| k != first))
+        .take(blocks)
+}
 
 /// The smallest of NaN-free values, from +∞, in four independent lanes.
 #[inline(always)]
