@@ -14,8 +14,8 @@ use std::path::Path;
 pub struct PriInfo {
     /// Hits (`SetType` 2) in the file.
     pub hits: u64,
-    /// First `SetID` of each acquisition after the first (a section-start marker, or a
-    /// `TRAI` that does not rise).
+    /// First `SetID` of each acquisition after the first (a `TRAI` that does not rise; see
+    /// [`Acquisitions`]).
     pub acq_starts: Vec<i64>,
     /// Largest `TRAI` of each acquisition.
     pub acq_max_trai: Vec<i64>,
@@ -54,6 +54,54 @@ impl TraiOffsets {
     pub fn number(&self, acquisition: u32, trai: i64) -> u64 {
         let k = (acquisition.max(1) - 1) as usize;
         (trai + self.0.get(k).copied().unwrap_or(0)).max(0) as u64
+    }
+}
+
+/// The acquisitions of a `.pridb`, told set by set in storage order (the offline reader's
+/// one pass and a growing pair's scans share it).
+///
+/// A `TRAI` that does not rise starts a new acquisition: the recording was restarted into
+/// the file, and `TRAI` and the clock start again. A section-start marker (`SetType` 6)
+/// alone does not: a recording suspended and resumed writes one too, and its `TRAI` goes on
+/// rising (VisualAE and vallenae keep its numbers). Only where the hits carry no `TRAI` is a
+/// section marker followed by a clock that went back taken as a restart.
+#[derive(Debug, Default)]
+pub(super) struct Acquisitions {
+    seen_hit: bool,
+    marker_pending: bool,
+    pub(super) max_trai: i64,
+    /// The latest hit time of the current acquisition, ticks.
+    latest: i64,
+    /// First `SetID` of each acquisition after the first.
+    pub(super) starts: Vec<i64>,
+    /// Largest TRAI of each finished acquisition.
+    pub(super) max_trai_done: Vec<i64>,
+}
+
+impl Acquisitions {
+    /// The 1-based acquisition of the set.
+    pub(super) fn add(&mut self, setid: i64, set_type: i64, time: i64, trai: i64) -> u32 {
+        match set_type {
+            6 => self.marker_pending = true,
+            2 => {
+                let restart = trai > 0 && trai <= self.max_trai;
+                let clock_back = self.marker_pending && trai <= 0 && time < self.latest;
+                if self.seen_hit && (restart || clock_back) {
+                    self.starts.push(setid);
+                    self.max_trai_done.push(self.max_trai);
+                    self.max_trai = 0;
+                    self.latest = i64::MIN;
+                }
+                self.marker_pending = false;
+                self.seen_hit = true;
+                self.latest = self.latest.max(time);
+                if trai > 0 {
+                    self.max_trai = self.max_trai.max(trai);
+                }
+            }
+            _ => {}
+        }
+        self.starts.len() as u32 + 1
     }
 }
 
@@ -131,32 +179,21 @@ pub fn read_pridb(path: &Path, cfg: &IngestConfig) -> Result<PriInfo, IngestErro
             ))
         })
         .map_err(|e| file_err(path, format!("cannot read hits: {e}")))?;
-    let (mut seen_hit, mut marker_pending, mut max_trai) = (false, false, 0i64);
+    let mut acq = Acquisitions::default();
     for row in rows {
         let (setid, set_type, time, chan, trai) =
             row.map_err(|e| file_err(path, format!("cannot read hits: {e}")))?;
-        match set_type {
-            6 => marker_pending = true,
-            2 => {
-                let restart = trai > 0 && trai <= max_trai;
-                if seen_hit && (marker_pending || restart) {
-                    info.acq_starts.push(setid);
-                    info.acq_max_trai.push(max_trai);
-                    max_trai = 0;
-                }
-                marker_pending = false;
-                seen_hit = true;
-                info.hits += 1;
-                if trai > 0 {
-                    max_trai = max_trai.max(trai);
-                    let acq = info.acq_starts.len() as u32 + 1;
-                    info.link.insert((trai, chan, time), acq);
-                }
+        let a = acq.add(setid, set_type, time, trai);
+        if set_type == 2 {
+            info.hits += 1;
+            if trai > 0 {
+                info.link.insert((trai, chan, time), a);
             }
-            _ => {}
         }
     }
-    info.acq_max_trai.push(max_trai);
+    info.acq_starts = acq.starts;
+    info.acq_max_trai = acq.max_trai_done;
+    info.acq_max_trai.push(acq.max_trai);
     (info.load, info.extension) = load_series(&conn, &cols, tb, cfg);
     Ok(info)
 }

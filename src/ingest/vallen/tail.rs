@@ -19,7 +19,7 @@
 //! What the window's rows depend on is decided by the sets up to its end: the committed
 //! [`Position`] is enough to start again after a kill.
 
-use super::pridb::{HitRows, PriInfo, TraiOffsets};
+use super::pridb::{Acquisitions, HitRows, PriInfo, TraiOffsets};
 use super::sets::{SetRows, SetWindow};
 use super::{columns, missing_reject, missing_rejects, open_ro, time_base, Reader};
 use crate::config::IngestConfig;
@@ -102,42 +102,6 @@ impl Window {
     /// Hits and standalone transients: how much reading the window is.
     pub fn weight(&self) -> usize {
         (self.hits as usize).max(self.transients.len()).max(1)
-    }
-}
-
-/// The acquisitions seen so far (what [`super::read_pridb`] finds in one pass).
-#[derive(Default)]
-struct Acquisitions {
-    seen_hit: bool,
-    marker_pending: bool,
-    max_trai: i64,
-    starts: Vec<i64>,
-    /// Largest TRAI of each finished acquisition.
-    max_trai_done: Vec<i64>,
-}
-
-impl Acquisitions {
-    /// The acquisition of the set (a section-start marker or a TRAI that does not rise
-    /// begins one).
-    fn add(&mut self, setid: i64, set_type: i64, trai: i64) -> u32 {
-        match set_type {
-            6 => self.marker_pending = true,
-            2 => {
-                let restart = trai > 0 && trai <= self.max_trai;
-                if self.seen_hit && (self.marker_pending || restart) {
-                    self.starts.push(setid);
-                    self.max_trai_done.push(self.max_trai);
-                    self.max_trai = 0;
-                }
-                self.marker_pending = false;
-                self.seen_hit = true;
-                if trai > 0 {
-                    self.max_trai = self.max_trai.max(trai);
-                }
-            }
-            _ => {}
-        }
-        self.starts.len() as u32 + 1
     }
 }
 
@@ -526,7 +490,7 @@ impl Tail {
                 self.inversion = self.inversion.max(self.newest.saturating_sub(time));
                 self.newest = self.newest.max(time);
             }
-            let acquisition = self.acquisitions.add(setid, set_type, trai);
+            let acquisition = self.acquisitions.add(setid, set_type, time, trai);
             if set_type == 1 && has_load {
                 self.load_until = Some(self.load_until.map_or(time, |t| t.max(time)));
             }
