@@ -140,9 +140,9 @@ def test_bad_inputs_raise_typed_errors(tmp_path: Path) -> None:
         aepipe.Som.load(tmp_path)
     with pytest.raises(aepipe.SomError, match="1 row"):
         aepipe.Som(0, 3).fit(np.zeros((5, 2)))
-    # A named input that is not there is a reject row, as on the command line; with nothing
-    # left to classify the SOM stage says so.
-    with pytest.raises(aepipe.SomError, match="no usable rows"):
+    # A run that finds no recording is an input error naming what is missing, as on the
+    # command line (exit 1), never empty tables.
+    with pytest.raises(aepipe.IngestError, match="(?s)no recording aepipe reads.*no such file or folder"):
         aepipe.run(ROOT / "pipelines" / "notched-paper.toml", tmp_path / "nothing-here", tmp_path / "o")
     with pytest.raises(ValueError, match="2 samples"):
         aepipe.pickers.aic(np.ones(1, np.float32))

@@ -28,6 +28,13 @@ pub enum PipelineError {
     Pool(String),
     #[error("no input given")]
     NoInput,
+    /// Discovery found no recording in the inputs: what it passed over or could not open,
+    /// one line each.
+    #[error("no recording aepipe reads in {inputs}{}", passed_over.iter().map(|l| format!("\n  {l}")).collect::<String>())]
+    NothingToRead {
+        inputs: String,
+        passed_over: Vec<String>,
+    },
     #[error(transparent)]
     Events(#[from] crate::events::EventsError),
     /// The caller asked the job to stop ([`StreamOptions::control`]); nothing was published.
@@ -43,7 +50,7 @@ impl crate::util::HasKind for PipelineError {
             PipelineError::Io(_) | PipelineError::Pool(_) | PipelineError::Cancelled => {
                 ErrorKind::Failed
             }
-            PipelineError::NoInput => ErrorKind::Usage,
+            PipelineError::NoInput | PipelineError::NothingToRead { .. } => ErrorKind::Usage,
             PipelineError::Events(e) => e.kind(),
         }
     }

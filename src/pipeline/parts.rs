@@ -111,6 +111,29 @@ pub(crate) fn produce(
         rejects: discover_rejects,
         skipped,
     } = ingest::discover(inputs, &cfg.ingest);
+    if sources.is_empty() {
+        // A run that reads nothing is the input's fault, never an empty table.
+        let mut passed_over: Vec<String> = discover_rejects
+            .iter()
+            .map(|r| format!("{}: {}", r.source_file, r.reason))
+            .chain(
+                skipped
+                    .iter()
+                    .map(|(p, why)| format!("{}: {why}", p.display())),
+            )
+            .collect();
+        if passed_over.is_empty() {
+            passed_over.push("(no files)".into());
+        }
+        return Err(PipelineError::NothingToRead {
+            inputs: inputs
+                .iter()
+                .map(|p| p.display().to_string())
+                .collect::<Vec<_>>()
+                .join(", "),
+            passed_over,
+        });
+    }
     if let Some(sh) = opts.shard {
         sources.retain(|s| sh.owns(&s.id));
     }

@@ -61,6 +61,8 @@ pub fn pipeline(e: aepipe::pipeline::PipelineError) -> PyErr {
     match e {
         P::Cancelled => PyKeyboardInterrupt::new_err("aepipe: interrupted"),
         P::Store(s) => store(s),
+        // No recording in the inputs: the input's fault, as a file that cannot be read.
+        e @ P::NothingToRead { .. } => IngestError::new_err(e.to_string()),
         other => PipelineError::new_err(other.to_string()),
     }
 }
