@@ -61,9 +61,17 @@ pub enum Cmd {
     /// Run the streaming feature pipeline: DIR/features.parquet, rejects.parquet, manifest.json
     Features(RunArgs),
     /// Summarise experiments: format, channels, hits, rates, lengths, time span, load/extension
+    ///
+    /// Text files are recognised by what they hold (Vallen TXT exports, AEwin waveform exports
+    /// with or without a header, WaveExplorer exports, CSV, one value per line); the name
+    /// only breaks ties, and `[ingest] format` forces a format. Every file passed over is
+    /// listed with what was seen in it (first line, columns, numeric lines), what it
+    /// resembles, and which format or `[ingest]` keys would read it; the manifest keeps the
+    /// same line. Exit 1 when nothing can be read.
     Inspect {
         #[arg(required = true)]
         paths: Vec<PathBuf>,
+        /// Pipeline TOML whose `[ingest]` (format, rates, gains) applies
         #[arg(long)]
         config: Option<PathBuf>,
     },

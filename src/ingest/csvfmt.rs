@@ -8,8 +8,9 @@
 //!
 //! Delimiter `,`, `;` or tab, detected from the header.
 
+use super::sniff::{Head, Kind, Recogniser, Strength, Verdict};
 use super::{gain_factor, Source};
-use crate::config::IngestConfig;
+use crate::config::{FormatChoice, IngestConfig};
 use crate::model::{AeRecord, Item, Reject, Stage};
 use std::path::Path;
 
@@ -35,7 +36,7 @@ const CHAN: &[&str] = &["channel", "chan", "ch"];
 pub enum Sniff {
     PerHit,
     Long,
-    NotWaveform(String),
+    NotWaveform,
 }
 
 fn delimiter(line: &str) -> u8 {
@@ -144,9 +145,72 @@ pub fn sniff(head: &str) -> Sniff {
     match layout(head) {
         Ok(l) if l.hit.is_some() => Sniff::Long,
         Ok(_) => Sniff::PerHit,
-        Err(why) => Sniff::NotWaveform(format!("CSV is not a waveform: {why}")),
+        Err(_) => Sniff::NotWaveform,
     }
 }
+
+/// A CSV waveform: a value column (and a hit column for a long table). A `.csv`/`.tsv`
+/// file is claimed on its header alone (its reader rejects a value that is not a number,
+/// naming the line); a file of another extension only when the head's value cells are all
+/// numbers, so a text file of prose is never taken for a one-column CSV.
+fn recognise(h: &Head) -> Verdict {
+    let by_ext = matches!(h.ext.as_str(), "csv" | "tsv");
+    match layout(&h.text) {
+        Ok(l) => {
+            if !by_ext && !values_are_numbers(h, &l) {
+                return Verdict::No;
+            }
+            let kind = if l.hit.is_some() {
+                Kind::CsvLong
+            } else {
+                Kind::CsvPerHit
+            };
+            Verdict::mine(kind, Strength::Shape, u8::from(by_ext))
+        }
+        Err(why) => {
+            let tabular = h
+                .filled_lines()
+                .take(2)
+                .all(|l| l.split(layout_delim(&h.text) as char).count() >= 2);
+            if by_ext || tabular {
+                Verdict::Near(format!("CSV is not a waveform: {why}"))
+            } else {
+                Verdict::No
+            }
+        }
+    }
+}
+
+fn layout_delim(head: &str) -> u8 {
+    delimiter(head.lines().next().unwrap_or(""))
+}
+
+/// The head's rows (after the header) hold a number in the value column, and there is one.
+fn values_are_numbers(h: &Head, l: &Layout) -> bool {
+    let rows: Vec<&str> = h
+        .filled_lines()
+        .skip(usize::from(l.has_header))
+        .take(20)
+        .collect();
+    !rows.is_empty()
+        && rows.iter().all(|r| {
+            r.split(l.delim as char)
+                .nth(l.value)
+                .is_some_and(|c| c.trim().trim_matches('"').parse::<f64>().is_ok())
+        })
+}
+
+/// CSV waveforms: one hit per file or a long table with a hit column.
+pub(crate) const RECOGNISER: Recogniser = Recogniser {
+    what: "CSV with a value column (voltage_v, value, …), one hit per file or a long table with a hit column",
+    format: FormatChoice::Csv,
+    recognise,
+    forced: |h| match sniff(&h.text) {
+        Sniff::Long => Some(Kind::CsvLong),
+        Sniff::PerHit => Some(Kind::CsvPerHit),
+        Sniff::NotWaveform => None,
+    },
+};
 
 fn reader(path: &Path) -> Result<(Layout, csv::Reader<std::fs::File>), String> {
     let head = super::head(path, 4096).map_err(|e| format!("cannot read: {e}"))?;
@@ -437,11 +501,8 @@ mod tests {
             sniff("hit,channel,voltage_v\n1,1,0.1\n"),
             Sniff::Long
         ));
-        assert!(matches!(
-            sniff("Event,Time\n1,6.519\n"),
-            Sniff::NotWaveform(_)
-        ));
-        assert!(matches!(sniff("7.69,7.69,7.69\n"), Sniff::NotWaveform(_)));
+        assert!(matches!(sniff("Event,Time\n1,6.519\n"), Sniff::NotWaveform));
+        assert!(matches!(sniff("7.69,7.69,7.69\n"), Sniff::NotWaveform));
     }
 
     #[test]

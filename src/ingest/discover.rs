@@ -1,7 +1,8 @@
 //! Discovery: find the experiments in files and folders. Walking, telling each file's kind,
 //! grouping files into sources, and naming the sources uniquely are one function each.
 
-use super::{aewin, csvfmt, dta, text, waveexplorer, whole_file_reject, Format, Source};
+use super::sniff::{self, Kind as TextKind};
+use super::{dta, whole_file_reject, Format, Source};
 use crate::config::FormatChoice;
 use crate::config::IngestConfig;
 use crate::model::{Reject, Stage};
@@ -19,21 +20,16 @@ pub struct Discovery {
     pub skipped: Vec<(PathBuf, String)>,
 }
 
-/// What one file looks like, from its name and first bytes.
+/// What one file looks like: binary formats by extension (and magic bytes), text by what
+/// it holds ([`sniff`]).
 #[derive(Debug, Clone, PartialEq)]
 enum Kind {
     Pridb,
     Tradb,
     Parquet,
     Wav,
-    CsvPerHit,
-    CsvLong,
-    MachineLog,
-    AewinHitList,
-    AewinWave,
-    WaveExplorer,
-    Text,
     Dta,
+    Text(TextKind),
     Other(String),
 }
 
@@ -62,10 +58,6 @@ pub(crate) fn head(p: &Path, n: usize) -> std::io::Result<String> {
 
 fn detect_format(p: &Path, forced: FormatChoice) -> std::io::Result<Kind> {
     let ext = ext_lower(p);
-    let name = p
-        .file_name()
-        .map(|n| n.to_string_lossy().to_string())
-        .unwrap_or_default();
     match ext.as_str() {
         "pridb" => return Ok(Kind::Pridb),
         "tradb" => return Ok(Kind::Tradb),
@@ -85,49 +77,14 @@ fn detect_format(p: &Path, forced: FormatChoice) -> std::io::Result<Kind> {
                 },
             );
         }
-        "csv" | "txt" | "dat" | "tsv" => {}
+        e if sniff::TEXT_EXTENSIONS.contains(&e) => {}
         _ => return Ok(Kind::Other(format!("unknown file type '.{ext}'"))),
     }
-    let text = head(p, 4096)?;
-    if text.trim().is_empty() {
-        // An AEwin waveform file by its name is a hit that lost its samples: its reader
-        // rejects it. Any other empty file is passed over, saying so.
-        if aewin::parse_wave_name(p).is_some() {
-            return Ok(Kind::AewinWave);
-        }
-        return Ok(Kind::Other("empty file".into()));
-    }
-    if ext == "csv" {
-        if name.starts_with("Specimen_RawData") || aewin::looks_like_machine_log(&text) {
-            return Ok(Kind::MachineLog);
-        }
-        return Ok(match csvfmt::sniff(&text) {
-            csvfmt::Sniff::Long => Kind::CsvLong,
-            csvfmt::Sniff::PerHit => Kind::CsvPerHit,
-            csvfmt::Sniff::NotWaveform(why) => Kind::Other(why),
-        });
-    }
-    if waveexplorer::parse_header(&text).is_some()
-        || waveexplorer::looks_like_header(&text)
-        || forced == FormatChoice::Waveexplorer
-    {
-        return Ok(Kind::WaveExplorer);
-    }
-    if aewin::looks_like_hit_list(&text) {
-        return Ok(Kind::AewinHitList);
-    }
-    if text::looks_like_values(&text) {
-        if aewin::parse_wave_name(p).is_some() || forced == FormatChoice::Aewin {
-            return Ok(Kind::AewinWave);
-        }
-        return Ok(Kind::Text);
-    }
-    if ext == "csv" || ext == "tsv" {
-        return Ok(Kind::CsvPerHit);
-    }
-    Ok(Kind::Other(
-        "text that is neither one value per line nor a known export".into(),
-    ))
+    let head = sniff::Head::read(p)?;
+    Ok(match sniff::sniff(&head, forced) {
+        Ok(k) => Kind::Text(k),
+        Err(why) => Kind::Other(why.0),
+    })
 }
 
 /// Natural ordering for file names: digit runs compare as numbers (`hit_2` < `hit_10`).
@@ -345,15 +302,18 @@ fn classify(
 }
 
 /// The files into sources: Vallen pairs by base path, MISTRAS chains by (folder, base
-/// name), one-hit-per-file folders by (folder, format) with an AEwin folder's hit list and
-/// machine log as companions; multi-hit files are sources of their own.
+/// name), one-hit-per-file folders by (folder, format) — AEwin files by (folder, test),
+/// with the test's hit list and machine log as companions — Vallen TXT exports by (folder,
+/// database) unless that database is read; multi-hit files are sources of their own.
 fn group(kinds: Vec<(PathBuf, Kind)>, d: &mut Discovery) {
     // Vallen pairs by (folder, stem).
     let mut vallen: std::collections::BTreeMap<PathBuf, (Option<PathBuf>, Option<PathBuf>)> =
         Default::default();
-    // One-hit-per-file groups by (folder, format).
-    let mut groups: std::collections::BTreeMap<(PathBuf, Format), Vec<PathBuf>> =
+    // One-hit-per-file groups by (folder, format, test): the test only for AEwin files.
+    let mut groups: std::collections::BTreeMap<(PathBuf, Format, Option<String>), Vec<PathBuf>> =
         Default::default();
+    // Vallen TXT exports by their database's base path.
+    let mut exports: std::collections::BTreeMap<PathBuf, Vec<PathBuf>> = Default::default();
     let mut logs = Vec::new();
     let mut hitlists = Vec::new();
     // MISTRAS chains by (folder, base name).
@@ -377,37 +337,49 @@ fn group(kinds: Vec<(PathBuf, Kind)>, d: &mut Discovery) {
                 companions: vec![],
                 first_hit: 0,
             }),
-            Kind::WaveExplorer => d.sources.push(Source {
+            Kind::Text(TextKind::WaveExplorer) => d.sources.push(Source {
                 id: stem(&p),
                 format: Format::WaveExplorer,
                 files: vec![p],
                 companions: vec![],
                 first_hit: 0,
             }),
-            Kind::CsvLong => d.sources.push(Source {
+            Kind::Text(TextKind::CsvLong) => d.sources.push(Source {
                 id: stem(&p),
                 format: Format::CsvLong,
                 files: vec![p],
                 companions: vec![],
                 first_hit: 0,
             }),
-            Kind::Wav => groups.entry((parent, Format::Wav)).or_default().push(p),
-            Kind::CsvPerHit => groups
-                .entry((parent, Format::CsvPerHit))
+            Kind::Wav => groups
+                .entry((parent, Format::Wav, None))
                 .or_default()
                 .push(p),
-            Kind::Text => groups.entry((parent, Format::Text)).or_default().push(p),
-            Kind::AewinWave => groups.entry((parent, Format::Aewin)).or_default().push(p),
+            Kind::Text(TextKind::CsvPerHit) => groups
+                .entry((parent, Format::CsvPerHit, None))
+                .or_default()
+                .push(p),
+            Kind::Text(TextKind::Text) => groups
+                .entry((parent, Format::Text, None))
+                .or_default()
+                .push(p),
+            Kind::Text(TextKind::AewinWave { test }) => groups
+                .entry((parent, Format::Aewin, test))
+                .or_default()
+                .push(p),
+            Kind::Text(TextKind::VallenTxt { datafile }) => {
+                exports.entry(parent.join(datafile)).or_default().push(p)
+            }
             Kind::Dta => chains
                 .entry((parent, dta::chain_key(&p).0))
                 .or_default()
                 .push(p),
-            Kind::MachineLog => logs.push(p),
-            Kind::AewinHitList => hitlists.push(p),
+            Kind::Text(TextKind::MachineLog) => logs.push(p),
+            Kind::Text(TextKind::AewinHitList) => hitlists.push(p),
             Kind::Other(_) => unreachable!("filtered above"),
         }
     }
-    for (base, (pri, tra)) in vallen {
+    for (base, (pri, tra)) in vallen.clone() {
         let id = base
             .file_name()
             .map(|s| s.to_string_lossy().to_string())
@@ -447,6 +419,31 @@ fn group(kinds: Vec<(PathBuf, Kind)>, d: &mut Discovery) {
             (None, None) => {}
         }
     }
+    for (base, files) in exports {
+        // The .tradb they came from is read: the exports would be its transients again.
+        if let Some((_, Some(tra))) = vallen.get(&base) {
+            for p in files {
+                d.skipped.push((
+                    p,
+                    format!(
+                        "a Vallen TXT export of a transient of {}, which lies beside it and is read instead (the same transient is not read twice)",
+                        tra.display()
+                    ),
+                ));
+            }
+            continue;
+        }
+        d.sources.push(Source {
+            id: base
+                .file_name()
+                .map(|s| s.to_string_lossy().to_string())
+                .unwrap_or_default(),
+            format: Format::VallenTxt,
+            files,
+            companions: vec![],
+            first_hit: 0,
+        });
+    }
     for ((_, id), mut files) in chains {
         files.sort_by_key(|p| dta::chain_key(p).1);
         d.sources.push(Source {
@@ -459,12 +456,13 @@ fn group(kinds: Vec<(PathBuf, Kind)>, d: &mut Discovery) {
     }
     let mut used_logs = vec![false; logs.len()];
     let mut used_lists = vec![false; hitlists.len()];
-    for ((dir, format), mut members) in groups {
+    for ((dir, format, test), mut members) in groups {
         members.sort_by_key(|p| natural_key(&p.file_name().unwrap_or_default().to_string_lossy()));
-        let id = dir
-            .file_name()
-            .map(|s| s.to_string_lossy().to_string())
-            .unwrap_or_else(|| dir_name(&members[0]));
+        let id = test.unwrap_or_else(|| {
+            dir.file_name()
+                .map(|s| s.to_string_lossy().to_string())
+                .unwrap_or_else(|| dir_name(&members[0]))
+        });
         let mut companions = Vec::new();
         if format == Format::Aewin {
             // Hit list `<ID>.TXT` beside the folder; machine log `Specimen_RawData_<n>.csv`
@@ -517,7 +515,11 @@ fn source_base(s: &Source) -> PathBuf {
         return PathBuf::from(&s.id);
     };
     let dir = first.parent().map(Path::to_path_buf).unwrap_or_default();
-    if s.format.one_hit_per_file() {
+    let own_name = dir.file_name().is_some_and(|n| n.to_string_lossy() == s.id);
+    if s.format == Format::VallenTxt || (s.format == Format::Aewin && !own_name) {
+        // Several tests (databases) in one folder: each its own base.
+        dir.join(&s.id)
+    } else if s.format.one_hit_per_file() {
         dir
     } else if s.format == Format::Mistras {
         dir.join(dta::chain_key(first).0)

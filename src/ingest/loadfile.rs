@@ -214,7 +214,9 @@ pub fn path_for(src: &Source, cfg: &LoadConfig) -> Option<PathBuf> {
     }
     let first = src.all_files().next()?;
     let dir = first.parent().map(Path::to_path_buf).unwrap_or_default();
-    let stem = if src.format.one_hit_per_file() {
+    let stem = if src.format == super::Format::VallenTxt {
+        src.id.clone()
+    } else if src.format.one_hit_per_file() {
         dir.file_name()
             .map(|s| s.to_string_lossy().to_string())
             .unwrap_or_default()

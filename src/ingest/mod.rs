@@ -12,6 +12,7 @@ mod discover;
 pub mod dta;
 pub mod loadfile;
 mod parquetfmt;
+pub(crate) mod sniff;
 mod text;
 pub mod vallen;
 mod waveexplorer;
@@ -74,6 +75,9 @@ pub enum Format {
     Parquet,
     /// MISTRAS AEwin binary `.DTA` (hits, waveforms, parametric rows), chains as one.
     Mistras,
+    /// Vallen TXT exports of transients, one per file, grouped by the database they came
+    /// from.
+    VallenTxt,
 }
 
 impl Format {
@@ -103,6 +107,7 @@ impl Format {
             Format::Text => "text (one hit per file)",
             Format::Parquet => "parquet (waveforms)",
             Format::Mistras => "mistras dta",
+            Format::VallenTxt => "vallen txt export",
         }
     }
 }
@@ -289,6 +294,7 @@ fn open_format(src: &Source, cfg: &IngestConfig) -> Box<dyn Iterator<Item = Item
         Format::Text => text::open(src, cfg),
         Format::Parquet => parquetfmt::open(src, cfg),
         Format::Mistras => dta::open(src, cfg),
+        Format::VallenTxt => vallen::txt::open(src, cfg),
     }
 }
 

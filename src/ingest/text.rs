@@ -1,8 +1,9 @@
 //! Plain text waveforms: one value per line (optionally a header line), one hit per file.
 //! The rate and pretrigger come from `[ingest]`.
 
+use super::sniff::{Head, Kind, Recogniser, Strength, Verdict};
 use super::{gain_factor, Source};
-use crate::config::IngestConfig;
+use crate::config::{FormatChoice, IngestConfig};
 use crate::model::{AeRecord, Item, Reject, Stage};
 use std::path::Path;
 
@@ -17,6 +18,39 @@ pub fn looks_like_values(head: &str) -> bool {
     let numeric = lines.iter().filter(|l| l.parse::<f64>().is_ok()).count();
     numeric >= 2 && numeric + 1 >= lines.len()
 }
+
+fn recognise(h: &Head) -> Verdict {
+    let name = u8::from(matches!(h.ext.as_str(), "txt" | "dat" | "asc"));
+    if looks_like_values(&h.text) {
+        return Verdict::mine(Kind::Text, Strength::Shape, name);
+    }
+    // Mostly single numbers, but more than a header line that is not: say which.
+    let lines: Vec<&str> = h.filled_lines().take(20).collect();
+    let numeric = lines.iter().filter(|l| l.parse::<f64>().is_ok()).count();
+    if numeric * 2 > lines.len() {
+        if let Some((i, l)) = lines
+            .iter()
+            .enumerate()
+            .skip(1)
+            .find(|(_, l)| l.parse::<f64>().is_err())
+        {
+            return Verdict::Near(format!(
+                "resembles one value per line, but line {} of the filled lines, '{}', is not a number",
+                i + 1,
+                l.chars().take(40).collect::<String>()
+            ));
+        }
+    }
+    Verdict::No
+}
+
+/// Plain text, one value per line (a first line that is not a number is a header).
+pub(crate) const RECOGNISER: Recogniser = Recogniser {
+    what: "one value per line (rate from [ingest] sample_rate_hz)",
+    format: FormatChoice::Text,
+    recognise,
+    forced: |h| looks_like_values(&h.text).then_some(Kind::Text),
+};
 
 /// Read one value per line; a first line that is not a number is taken as a header.
 /// Any later line that is not a number is an error naming the line.

@@ -1,31 +1,53 @@
 //! Digital Wave WaveExplorer text export: a header line `rate_MHz n_events n_samples
-//! n_channels` (tab separated), then `n_events × n_channels × n_samples` values, one per line,
-//! event after event (channel blocks inside an event). The pretrigger comes from
-//! `[ingest.waveexplorer]`. A token like `20deg` in the file name becomes the hit label (the
-//! PLB angle of the labelled data set).
+//! n_channels` (tab separated), then one line per sample, event after event, each line
+//! holding one value per channel (a tab after each value, CRLF line ends). The Daly lab's
+//! reader (`ae_measure2.read_ae_file2`) reads channel k as the k-th value of each line. The
+//! pretrigger comes from `[ingest.waveexplorer]`. A token like `20deg` in the file name
+//! becomes the hit label (the PLB angle of the labelled data set). Any file name: the
+//! header and the lines under it tell the format.
 
+use super::sniff::{cells, Head, Kind, Recogniser, Strength, Verdict};
 use super::{file_err, Source};
-use crate::config::IngestConfig;
+use crate::config::{FormatChoice, IngestConfig};
 use crate::model::{AeRecord, Item, Reject, Stage};
 use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};
 
-/// `(sample_rate_hz, events, samples, channels)` from the first line, if it is such a header.
-pub fn parse_header(head: &str) -> Option<(f64, u64, usize, usize)> {
-    let mut lines = head.lines();
-    let first = lines.next()?;
-    let w: Vec<&str> = first.split_whitespace().collect();
-    if w.len() != 4 {
+/// The header's cells: four numbers separated by tabs or spaces (never commas: that is a
+/// CSV row).
+fn header_cells(line: &str) -> Option<Vec<&str>> {
+    if line.contains(',') || line.contains(';') {
         return None;
     }
+    let w: Vec<&str> = line.split_whitespace().collect();
+    (w.len() == 4 && w.iter().all(|t| t.parse::<f64>().is_ok())).then_some(w)
+}
+
+/// The first two non-empty lines of a head.
+fn first_two(head: &str) -> (Option<&str>, Option<&str>) {
+    let mut lines = head.lines().map(str::trim).filter(|l| !l.is_empty());
+    (lines.next(), lines.next())
+}
+
+/// `(sample_rate_hz, events, samples, channels)` from the first line, if it is a valid
+/// header over a line of `channels` values.
+#[cfg(test)]
+fn parse_header(head: &str) -> Option<(f64, u64, usize, usize)> {
+    let (first, second) = first_two(head);
+    let h = header_values(first?)?;
+    let values = cells(second?);
+    (values.len() == h.3 && values.iter().all(|v| v.parse::<f64>().is_ok())).then_some(h)
+}
+
+/// The header line's values when they are valid: rate > 0, at least one event and sample,
+/// 1–64 channels.
+fn header_values(first: &str) -> Option<(f64, u64, usize, usize)> {
+    let w = header_cells(first)?;
     let rate_mhz: f64 = w[0].parse().ok()?;
     let n: u64 = w[1].parse().ok()?;
     let len: usize = w[2].parse().ok()?;
     let ch: usize = w[3].parse().ok()?;
-    let second_is_value = lines
-        .next()
-        .is_some_and(|l| l.trim().parse::<f64>().is_ok());
-    (rate_mhz > 0.0 && n > 0 && len > 0 && (1..=64).contains(&ch) && second_is_value).then_some((
+    (rate_mhz > 0.0 && n > 0 && len > 0 && (1..=64).contains(&ch)).then_some((
         rate_mhz * 1e6,
         n,
         len,
@@ -33,19 +55,38 @@ pub fn parse_header(head: &str) -> Option<(f64, u64, usize, usize)> {
     ))
 }
 
-/// A first line of four numbers over a value: a WaveExplorer header, valid or not. (An
-/// invalid one — a zero rate, no events — is read by this reader, which says what is wrong,
-/// rather than as plain text with a header line and the configured rate.)
+/// A first line of four numbers over a line of values: a WaveExplorer header, valid or not.
+/// (An invalid one — a zero rate, no events — is read by this reader, which says what is
+/// wrong, rather than as plain text with a header line and the configured rate.)
 pub fn looks_like_header(head: &str) -> bool {
-    let mut lines = head.lines();
-    let (Some(first), Some(second)) = (lines.next(), lines.next()) else {
+    let (Some(first), Some(second)) = first_two(head) else {
         return false;
     };
-    let w: Vec<&str> = first.split_whitespace().collect();
-    w.len() == 4
-        && w.iter().all(|t| t.parse::<f64>().is_ok())
-        && second.trim().parse::<f64>().is_ok()
+    let values = cells(second);
+    header_cells(first).is_some()
+        && (1..=64).contains(&values.len())
+        && values.iter().all(|v| v.parse::<f64>().is_ok())
 }
+
+fn recognise(h: &Head) -> Verdict {
+    if !looks_like_header(&h.text) {
+        return Verdict::No;
+    }
+    let name = if h.name.ends_with("_wave.txt") {
+        2
+    } else {
+        u8::from(h.ext == "txt")
+    };
+    Verdict::mine(Kind::WaveExplorer, Strength::Signature, name)
+}
+
+/// WaveExplorer exports, by their header line.
+pub(crate) const RECOGNISER: Recogniser = Recogniser {
+    what: "WaveExplorer exports (header 'rate_MHz events samples channels', a line per sample)",
+    format: FormatChoice::Waveexplorer,
+    recognise,
+    forced: |_| Some(Kind::WaveExplorer),
+};
 
 /// `220426_20deg_4mm_wave` → `20deg`.
 fn label_from_name(p: &Path) -> Option<String> {
@@ -77,15 +118,15 @@ struct Reader {
 }
 
 impl Reader {
-    fn read_block(&mut self) -> Result<Vec<f32>, String> {
-        let mut v = Vec::with_capacity(self.len);
-        while v.len() < self.len {
+    /// One event: `len` lines of one value per channel, the channels' samples apart.
+    fn read_event(&mut self) -> Result<Vec<Vec<f32>>, String> {
+        let mut v = vec![Vec::with_capacity(self.len); self.channels];
+        let mut got = 0;
+        while got < self.len {
             let Some(line) = self.lines.next() else {
                 return Err(format!(
-                    "file ends after {} of {} values of this event (header promised {} events)",
-                    v.len(),
-                    self.len,
-                    self.events
+                    "file ends after {got} of {} values of this event (header promised {} events)",
+                    self.len, self.events
                 ));
             };
             self.line_no += 1;
@@ -94,10 +135,31 @@ impl Reader {
             if t.is_empty() {
                 continue;
             }
-            v.push(
-                t.parse::<f32>()
-                    .map_err(|_| format!("line {}: '{t}' is not a number", self.line_no))?,
-            );
+            if self.channels == 1 {
+                v[0].push(
+                    t.parse::<f32>()
+                        .map_err(|_| format!("line {}: '{t}' is not a number", self.line_no))?,
+                );
+            } else {
+                let mut k = 0;
+                for c in t.split_whitespace() {
+                    if k == self.channels {
+                        break;
+                    }
+                    v[k].push(
+                        c.parse::<f32>()
+                            .map_err(|_| format!("line {}: '{c}' is not a number", self.line_no))?,
+                    );
+                    k += 1;
+                }
+                if k < self.channels {
+                    return Err(format!(
+                        "line {}: {k} value(s) where the header promises {} channels",
+                        self.line_no, self.channels
+                    ));
+                }
+            }
+            got += 1;
         }
         Ok(v)
     }
@@ -126,38 +188,36 @@ impl Iterator for Reader {
                 reason: "not read: an earlier event of this file was malformed".into(),
             }));
         }
-        for ch in 1..=self.channels {
-            let item = match self.read_block() {
-                Ok(samples) => Item::Record(AeRecord {
-                    kind: crate::model::RecordKind::Hit,
-                    experiment: self.experiment.clone(),
-                    channel: ch as u32,
-                    hit: ev,
-                    time_s: None,
-                    sample_rate_hz: self.rate,
-                    pretrigger: self.pretrigger,
-                    samples,
-                    load_n: None,
-                    extension_m: None,
-                    label: self.label.clone(),
-                    threshold_v: None,
-                    source_file: self.path.display().to_string(),
-                }),
-                Err(reason) => {
-                    self.failed = true;
-                    Item::Reject(Reject {
-                        record_type: crate::model::RecordType::Transient,
+        match self.read_event() {
+            Ok(channels) => {
+                for (ch, samples) in channels.into_iter().enumerate() {
+                    self.queue.push_back(Item::Record(AeRecord {
+                        kind: crate::model::RecordKind::Hit,
                         experiment: self.experiment.clone(),
+                        channel: ch as u32 + 1,
+                        hit: ev,
+                        time_s: None,
+                        sample_rate_hz: self.rate,
+                        pretrigger: self.pretrigger,
+                        samples,
+                        load_n: None,
+                        extension_m: None,
+                        label: self.label.clone(),
+                        threshold_v: None,
                         source_file: self.path.display().to_string(),
-                        record_id: format!("event {ev}"),
-                        stage: Stage::Read,
-                        reason,
-                    })
+                    }));
                 }
-            };
-            self.queue.push_back(item);
-            if self.failed {
-                break;
+            }
+            Err(reason) => {
+                self.failed = true;
+                self.queue.push_back(Item::Reject(Reject {
+                    record_type: crate::model::RecordType::Transient,
+                    experiment: self.experiment.clone(),
+                    source_file: self.path.display().to_string(),
+                    record_id: format!("event {ev}"),
+                    stage: Stage::Read,
+                    reason,
+                }));
             }
         }
         self.queue.pop_front()
@@ -185,7 +245,7 @@ pub fn open(src: &Source, cfg: &IngestConfig) -> Box<dyn Iterator<Item = Item> +
         Some(Ok(l)) => l,
         _ => return reject("empty file".into()),
     };
-    let Some((rate, events, len, channels)) = parse_header(&format!("{first}\n0\n")) else {
+    let Some((rate, events, len, channels)) = header_values(first.trim()) else {
         return reject(format!(
             "first line '{}' is not a valid WaveExplorer header (rate_MHz > 0, n_events ≥ 1, n_samples ≥ 1, n_channels 1–64)",
             first.trim()

@@ -147,7 +147,7 @@ pub fn identity_table() -> Table<Identity> {
     Table::new("identity")
         .col(ColumnSpec::new("experiment", ColType::Utf8, "", "experiment id: file stem of a Vallen pair or multi-hit file, folder name for one-hit-per-file folders; when two experiments of a batch would share one, their path below the input folder (`a/bearing`, `b/bearing`)"), |r: &Identity| s(&r.experiment))
         .col(ColumnSpec::new("channel", ColType::Int32, "", "sensor channel as numbered by the acquisition system (0 = unknown)"), |r| Value::I32(Some(r.channel as i32)))
-        .col(ColumnSpec::new("hit", ColType::Int64, "", "transient number inside the experiment, 1-based: Vallen TRAI (plus the largest TRAI of the earlier acquisitions after a restart), MISTRAS waveform #, AEwin hit #, event #; hits.parquet links each hit to it"), |r| Value::I64(Some(r.hit as i64)))
+        .col(ColumnSpec::new("hit", ColType::Int64, "", "transient number inside the experiment, 1-based: Vallen TRAI (plus the largest TRAI of the earlier acquisitions after a restart; a pause keeps TRAI), a Vallen TXT export's Trai, MISTRAS waveform #, AEwin hit # (name or header), WaveExplorer event #; hits.parquet links each hit to it"), |r| Value::I64(Some(r.hit as i64)))
         .col(ColumnSpec::new("time_s", ColType::Float64, "s", "trigger time since the start of the acquisition (null: the format does not record it)").nullable(), |r| Value::F64(r.time_s))
         .col(ColumnSpec::new("sample_rate_hz", ColType::Float64, "Hz", "sampling rate"), |r| Value::F64(Some(r.sample_rate_hz)))
         .col(ColumnSpec::new("pretrigger_samples", ColType::Int32, "samples", "samples recorded before the trigger"), |r| Value::I32(Some(r.pretrigger as i32)))

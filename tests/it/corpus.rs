@@ -430,7 +430,8 @@ fn recordings(batch: &Path) -> Vec<Case> {
             let f = d.join("EXPA_1_1_1000.txt");
             std::fs::write(&f, values(256) + "0.1\n1..2\n").unwrap();
             std::fs::write(d.join("EXPA_1_2_2000.txt"), values(256)).unwrap();
-            (folder(d), f)
+            // The experiment is the test the files name, not their folder.
+            ("EXPA".into(), f)
         },
         Expect::Partly(1, &["1..2"]),
     );
@@ -440,7 +441,7 @@ fn recordings(batch: &Path) -> Vec<Case> {
             let f = d.join("EXPB_1_1_1000.txt");
             std::fs::write(&f, "").unwrap();
             std::fs::write(d.join("EXPB_1_2_2000.txt"), values(256)).unwrap();
-            (folder(d), f)
+            ("EXPB".into(), f)
         },
         Expect::Partly(1, &["0 samples"]),
     );

@@ -11,6 +11,7 @@ mod dta;
 mod e2e;
 mod events;
 mod exit_codes;
+mod exports;
 mod fidelity;
 mod formats;
 mod hits;

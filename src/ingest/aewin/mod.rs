@@ -332,7 +332,11 @@ impl Iterator for Reader {
                     time_s: r.time_s,
                     sample_rate_hz: r.rate,
                     pretrigger: self.pretrigger,
-                    samples: r.samples.into_iter().map(|v| (v * self.gain) as f32).collect(),
+                    samples: r
+                        .samples
+                        .into_iter()
+                        .map(|v| (v * self.gain) as f32)
+                        .collect(),
                     load_n: tm.and_then(|t| self.log.load_n.at(t)),
                     extension_m: tm.and_then(|t| self.log.extension_m.at(t)),
                     label: None,

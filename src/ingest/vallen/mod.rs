@@ -686,6 +686,7 @@ fn transient_keys(
 mod pridb;
 mod sets;
 pub mod tail;
+pub mod txt;
 pub mod vaex;
 mod write;
 use pridb::HitRows;
