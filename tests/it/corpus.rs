@@ -445,6 +445,67 @@ fn recordings(batch: &Path) -> Vec<Case> {
         },
         Expect::Partly(1, &["0 samples"]),
     );
+    add(
+        "aewin_header_not_volts",
+        &|d, _| {
+            let head = |unit: &str, hit: u32| {
+                format!(
+                    "SOURCE FILE NAME: C.DTA\r\nSAMPLE INTERVAL (Seconds): 1.0E-07\r\nUNITS: {unit}\r\nCHANNEL NUMBER: 1\r\nHIT NUMBER: {hit}\r\nTIME OF TEST: {hit}.5\r\n\r\n"
+                )
+            };
+            let f = d.join("EXPC_1_1_1500000.txt");
+            std::fs::write(&f, head("mV", 1) + &values(256)).unwrap();
+            std::fs::write(d.join("EXPC_1_2_2500000.txt"), head("Volts", 2) + &values(256))
+                .unwrap();
+            ("EXPC".into(), f)
+        },
+        Expect::Partly(1, &["'mV' is not volts"]),
+    );
+    add(
+        "aewin_header_points_lie",
+        &|d, _| {
+            let f = d.join("EXPD_1_1_1000.txt");
+            std::fs::write(
+                &f,
+                "SAMPLE INTERVAL (Seconds): 1.0E-07\nSIGNAL UNITS: Volts\nNUMBER OF DATA POINTS PER WAVEFORM: 9999\nHIT NUMBER: 1\n\n".to_string()
+                    + &values(256),
+            )
+            .unwrap();
+            ("EXPD".into(), f)
+        },
+        Expect::Reject(&["declares 9999 data points; the file holds 256"]),
+    );
+
+    // --- Vallen TXT export ---
+    add(
+        "vallen_txt_bad_row",
+        &|d, _| {
+            let f = d.join("export_1.txt");
+            let rows: String = (0..64)
+                .map(|i| format!("{:.1}\t{}\r\r\n", i as f64 * 0.2 - 2.0, (i as f64 * 0.3).sin()))
+                .collect();
+            std::fs::write(
+                &f,
+                format!("Datafile: plateX.tradb, Trai: 1, Chan:1\r\r\nTime (microsec)\tAmplitude (mV)\r\r\n{rows}12.8\tclipped\r\r\n"),
+            )
+            .unwrap();
+            ("plateX".into(), f)
+        },
+        Expect::Reject(&["'12.8\tclipped' is not a time and an amplitude"]),
+    );
+    add(
+        "vallen_txt_unit_unknown",
+        &|d, _| {
+            let f = d.join("export_2.txt");
+            std::fs::write(
+                &f,
+                "Datafile: plateY, Trai: 2, Chan:1\r\r\nTime (microsec)\tAmplitude (dB)\r\r\n0\t1\r\r\n0.2\t2\r\r\n",
+            )
+            .unwrap();
+            ("plateY".into(), f)
+        },
+        Expect::Reject(&["amplitude unit 'dB' is not a voltage"]),
+    );
 
     // --- WaveExplorer ---
     add(
@@ -482,6 +543,16 @@ fn recordings(batch: &Path) -> Vec<Case> {
             ("d_wave".into(), f)
         },
         Expect::Reject(&["not a valid WaveExplorer header"]),
+    );
+    add(
+        "waveexplorer_two_channels_short_line",
+        &|d, _| {
+            let f = d.join("scan.txt");
+            let pair: String = (0..64).map(|i| format!("0.{i}\t-0.{i}\t\r\n")).collect();
+            std::fs::write(&f, format!("10\t2\t64\t2\r\n{pair}0.1\t\r\n{pair}")).unwrap();
+            ("scan".into(), f)
+        },
+        Expect::Partly(2, &["1 value(s) where the header promises 2 channels"]),
     );
 
     // --- WAV ---
