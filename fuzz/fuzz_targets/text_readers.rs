@@ -1,12 +1,13 @@
-//! The file readers that take text or WAV (WaveExplorer, AEwin waveform text, plain text,
-//! CSV per hit and long, WAV, MISTRAS .DTA), through discovery, as the pipeline calls them.
+//! The file readers that take text or WAV (WaveExplorer, AEwin waveform text with or without
+//! a header, Vallen TXT exports, plain text, CSV per hit and long, WAV, MISTRAS .DTA),
+//! through discovery and its sniffer, as the pipeline calls them.
 #![no_main]
-use aepipe::config::IngestConfig;
+use aepipe::config::{IngestConfig, PipelineConfig};
 use aepipe::ingest::{discover, open};
 use aepipe::model::Item;
 use libfuzzer_sys::fuzz_target;
 
-const NAMES: [&str; 8] = [
+const NAMES: [&str; 9] = [
     "x_wave.txt",
     "hit.txt",
     "hit.csv",
@@ -15,6 +16,7 @@ const NAMES: [&str; 8] = [
     "run.DTA",
     "x_1_20_300.txt",
     "values.dat",
+    "export.asc",
 ];
 
 fuzz_target!(|data: &[u8]| {
@@ -33,8 +35,12 @@ fuzz_target!(|data: &[u8]| {
         ..IngestConfig::default()
     };
     let d = discover(&[exp.clone()], &cfg);
+    let pipeline = PipelineConfig {
+        ingest: cfg,
+        ..PipelineConfig::default()
+    };
     for s in &d.sources {
-        for item in open(s, &cfg).take(100_000) {
+        for item in open(s, &pipeline).take(100_000) {
             if let Item::Record(r) = item {
                 assert!(r.samples.len() <= 1 << 20, "{} samples past the limit", r.samples.len());
             }

@@ -56,6 +56,18 @@ pub(crate) fn head(p: &Path, n: usize) -> std::io::Result<String> {
     Ok(String::from_utf8_lossy(&buf).into_owned())
 }
 
+/// Every text reader's recogniser, in the order that breaks a tie no name breaks.
+const TEXT_READERS: &[&sniff::Recogniser] = &[
+    &super::waveexplorer::RECOGNISER,
+    &super::aewin::HEADER_RECOGNISER,
+    &super::vallen::txt::RECOGNISER,
+    &super::aewin::HIT_LIST_RECOGNISER,
+    &super::aewin::MACHINE_LOG_RECOGNISER,
+    &super::csvfmt::RECOGNISER,
+    &super::aewin::VALUES_RECOGNISER,
+    &super::text::RECOGNISER,
+];
+
 fn detect_format(p: &Path, forced: FormatChoice) -> std::io::Result<Kind> {
     let ext = ext_lower(p);
     match ext.as_str() {
@@ -81,7 +93,7 @@ fn detect_format(p: &Path, forced: FormatChoice) -> std::io::Result<Kind> {
         _ => return Ok(Kind::Other(format!("unknown file type '.{ext}'"))),
     }
     let head = sniff::Head::read(p)?;
-    Ok(match sniff::sniff(&head, forced) {
+    Ok(match sniff::sniff(TEXT_READERS, &head, forced) {
         Ok(k) => Kind::Text(k),
         Err(why) => Kind::Other(why.0),
     })

@@ -1,8 +1,8 @@
 //! Telling a text file's format by what it holds.
 //!
 //! Discovery reads a text file's first kilobytes once ([`Head`]) and asks every text reader
-//! whether the file is its own ([`RECOGNISERS`]; each reader module declares its
-//! recogniser next to its code, so the next export variant is that reader's business). A
+//! whether the file is its own (each reader module declares its [`Recogniser`] next to its
+//! code, so the next export variant is that reader's business; discovery lists them). A
 //! reader answers with a [`Verdict`]: the file is its own, with a [`Strength`] (a
 //! signature no other format writes beats a generic shape such as "one number per line"),
 //! or it resembles its format but something is missing (said in words, with what would
@@ -187,18 +187,6 @@ pub(crate) struct Recogniser {
     pub forced: fn(&Head) -> Option<Kind>,
 }
 
-/// Every text reader, in the order that breaks a tie no name breaks.
-pub(crate) const RECOGNISERS: &[&Recogniser] = &[
-    &super::waveexplorer::RECOGNISER,
-    &super::aewin::HEADER_RECOGNISER,
-    &super::vallen::txt::RECOGNISER,
-    &super::aewin::HIT_LIST_RECOGNISER,
-    &super::aewin::MACHINE_LOG_RECOGNISER,
-    &super::csvfmt::RECOGNISER,
-    &super::aewin::VALUES_RECOGNISER,
-    &super::text::RECOGNISER,
-];
-
 /// Never a forced reading.
 pub(crate) fn never(_: &Head) -> Option<Kind> {
     None
@@ -209,9 +197,14 @@ pub(crate) fn never(_: &Head) -> Option<Kind> {
 #[error("{0}")]
 pub(crate) struct PassedOver(pub String);
 
-/// A text file's kind, or the line that says why no reader takes it.
-pub(crate) fn sniff(head: &Head, forced: FormatChoice) -> Result<Kind, PassedOver> {
-    sniff_with(RECOGNISERS, head, forced).map_err(PassedOver)
+/// A text file's kind as `readers` (in the order that breaks a tie no name breaks) tell
+/// it, or the line that says why none takes it.
+pub(crate) fn sniff(
+    readers: &[&Recogniser],
+    head: &Head,
+    forced: FormatChoice,
+) -> Result<Kind, PassedOver> {
+    sniff_with(readers, head, forced).map_err(PassedOver)
 }
 
 fn sniff_with(readers: &[&Recogniser], head: &Head, forced: FormatChoice) -> Result<Kind, String> {
