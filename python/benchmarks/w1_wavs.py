@@ -2,7 +2,7 @@
 
 Usage: python w1_wavs.py PEERS/data/w1_signals_f32.bin OUT_DIR
 
-The whole-process benchmark of the README's Performance section reads them with
+The whole-process benchmark of docs/performance.md reads them with
 `aepipe features OUT_DIR --out RUN --threads 1 --quiet` (651 WAV records, no pretrigger).
 Standard library only: the standard `wave` module writes integer PCM, so the 44-byte
 header of an IEEE-float WAV (format 3) is written here.

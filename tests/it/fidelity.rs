@@ -90,7 +90,7 @@ fn the_criteria_give_the_simulated_library_its_mechanisms() {
 /// Fig. 4.23: the frequency of a fibre failure rises with 1/L of the piece left on fibre 2's
 /// side (13 − p springs of 71.4 µm), as far as the grid carries it. Past point 8 the fit
 /// asks for ≥ 1.45 MHz, at the edge of what the 72 µm grid carries (group velocity 20 % low
-/// at 1.50 MHz, see `acoustic::band_limit`), and the order breaks: the README gives the
+/// at 1.50 MHz, see `acoustic::band_limit`), and the order breaks: docs/fidelity.md gives the
 /// numbers.
 #[test]
 fn fibre_failure_frequency_rises_with_one_over_the_released_length() {
@@ -132,7 +132,7 @@ fn fibre_failure_frequency_rises_with_one_over_the_released_length() {
 /// Fig. 4.24, at the source: from 1.0 % to 2.0 % extension of fibre 3 (point 7) the released
 /// piece's free end rings at the same frequency (within ±5 %) with more energy. At the sensor
 /// the band-limited spectrum's peak does move (1254 → 1047 kHz): there the piece's ring is
-/// mixed with the tension-dependent motion of the structure (see the README, "Fidelity").
+/// mixed with the tension-dependent motion of the structure (see docs/fidelity.md).
 #[test]
 fn a_failing_fibre_rings_at_one_frequency_whatever_its_extension() {
     use aepipe::sim::scenario::{self, Params};
