@@ -1,7 +1,7 @@
 //! The `aepipe` command: parse the flags (clap, in `aepipe::cli`), dispatch, and turn an
 //! error into one line on stderr and the exit code of the README's table.
 
-use aepipe::cli::{dispatch, exit_code, Cli};
+use aepipe::cli::{dispatch, Cli};
 use clap::Parser;
 use std::process::ExitCode;
 
@@ -19,7 +19,7 @@ fn main() -> ExitCode {
         Ok(outcome) => ExitCode::from(outcome.code()),
         Err(e) => {
             eprintln!("aepipe: {}", one_line(&e.to_string()));
-            ExitCode::from(exit_code(&e))
+            ExitCode::from(e.code())
         }
     }
 }

@@ -1,12 +1,15 @@
-//! One function per command: load what it needs, call the library, print. Errors go up as
-//! `anyhow::Error` holding the room's typed error, which [`super::exit_code`] maps.
+//! One function per command, taking its checked argument struct whole: load what it needs,
+//! call the library, print. Errors go up as a [`Failure`] holding the room's typed error.
 
+use super::args::*;
+use super::exit::Failure;
 use super::print;
-use super::{BenchCmd, Cli, Cmd, InitArg, RunArgs, SomCmd, UsageError};
+use super::UsageError;
 use crate::config::{PipelineConfig, ValidConfig};
 use crate::pipeline::{StreamJob, StreamOptions};
-use anyhow::Result;
-use std::path::{Path, PathBuf};
+use std::path::Path;
+
+type Result<T> = std::result::Result<T, Failure>;
 
 /// How a command that did not fail ended.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -37,142 +40,41 @@ pub fn dispatch(cli: Cli) -> Result<Outcome> {
     match cli.cmd {
         Cmd::Waveforms(a) => stream_job(StreamJob::Waveforms, a),
         Cmd::Features(a) => stream_job(StreamJob::Features, a),
-        Cmd::Inspect { paths, config } => inspect(&paths, config.as_deref()),
-        Cmd::Cwt {
-            inputs,
-            hit,
-            channel,
-            experiment,
-            png,
-            config,
-        } => cwt(
-            &inputs,
-            hit,
-            channel,
-            experiment.as_deref(),
-            &png,
-            config.as_deref(),
-        ),
-        Cmd::Trend {
-            features,
-            out,
-            cutoff,
-            alpha,
-            columns,
-            no_plots,
-        } => trend(&features, &out, cutoff, alpha, columns, no_plots),
-        Cmd::Som { which } => som(which),
-        Cmd::Schema { table, config } => schema(&table, config.as_deref()),
-        Cmd::Simulate {
-            model,
-            scenario,
-            params,
-            sweep,
-            solver,
-            out,
-            trajectories,
-            snapshots,
-            scale,
-            threshold_db,
-            noise_db,
-            pretrigger,
-        } => simulate(crate::sim::SimJob {
-            model,
-            scenario,
-            params: crate::sim::scenario::Params(params),
-            sweep: sweep
-                .as_deref()
-                .map(crate::sim::scenario::parse_sweep)
-                .transpose()?,
-            solver,
-            out,
-            run: crate::sim::SimOptions {
-                trajectory_every: trajectories,
-                snapshot_every: snapshots,
-            },
-            acquisition: crate::sim::output::Acquisition {
-                scale_v_per_pa: scale,
-                threshold_db,
-                noise_db,
-                pretrigger,
-                ..Default::default()
-            },
-        }),
-        Cmd::Reference {
-            config,
-            out,
-            threads,
-            shard,
-        } => reference(&config, &out, threads, shard),
-        Cmd::Run {
-            inputs,
-            config,
-            out,
-            truth,
-            threads,
-            resume,
-            shard,
-            label,
-        } => run(
-            inputs,
-            config,
-            &out,
-            truth.as_deref(),
-            threads,
-            resume,
-            shard,
-            label,
-        ),
-        Cmd::Merge {
-            dir,
-            out,
-            truth,
-            threads,
-            tables_only,
-        } => merge(&dir, out, truth.as_deref(), threads, tables_only),
-        Cmd::Report { run_dir } => report(&run_dir),
-        Cmd::Watch {
-            inputs,
-            out,
-            config,
-            model,
-            until_idle,
-            threads,
-        } => watch(&inputs, &out, config.as_deref(), model, until_idle, threads),
-        Cmd::SynthExperiment {
-            out,
-            hits,
-            seed,
-            library,
-            id,
-        } => synth_experiment(&out, &id, hits, seed, library.as_deref()),
-        Cmd::Demo {
-            out,
-            hits,
-            seed,
-            threads,
-        } => demo(&out, hits, seed, threads),
-        Cmd::Bench { which } => bench(which),
+        Cmd::Inspect(a) => inspect(a),
+        Cmd::Cwt(a) => cwt(a),
+        Cmd::Trend(a) => trend(a),
+        Cmd::Som(which) => som(which),
+        Cmd::Schema(a) => schema(a),
+        Cmd::Simulate(a) => simulate(a),
+        Cmd::Reference(a) => reference(a),
+        Cmd::Run(a) => run(a),
+        Cmd::Merge(a) => merge(a),
+        Cmd::Report(a) => report(a),
+        Cmd::Watch(a) => watch(a),
+        Cmd::SynthExperiment(a) => synth_experiment(a),
+        Cmd::Demo(a) => demo(a),
+        Cmd::Bench(which) => bench(which),
     }
 }
 
-fn cwt(
-    inputs: &[PathBuf],
-    hit: u64,
-    channel: Option<u32>,
-    experiment: Option<&str>,
-    png: &Path,
-    config: Option<&Path>,
-) -> Result<Outcome> {
-    let cfg = load_config(config)?;
-    let summary = crate::workflow::cwt_of_hit(inputs, &cfg, experiment, channel, hit, png)?;
+fn cwt(a: CwtArgs) -> Result<Outcome> {
+    let cfg = load_config(a.config.as_deref())?;
+    let summary = crate::workflow::cwt_of_hit(
+        &a.inputs,
+        &cfg,
+        a.experiment.as_deref(),
+        a.channel,
+        a.hit,
+        &a.png,
+    )?;
     println!("{summary}");
-    println!("wrote {}", png.display());
+    println!("wrote {}", a.png.display());
     Ok(Outcome::Success)
 }
 
-fn schema(table: &str, config: Option<&Path>) -> Result<Outcome> {
-    let cfg = load_config(config)?;
+fn schema(a: SchemaArgs) -> Result<Outcome> {
+    let cfg = load_config(a.config.as_deref())?;
+    let table = &a.table;
     let t = crate::workflow::table_schema(table, &cfg).ok_or_else(|| {
         UsageError(format!(
             "unknown table '{table}' ({})",
@@ -183,21 +85,40 @@ fn schema(table: &str, config: Option<&Path>) -> Result<Outcome> {
     Ok(Outcome::Success)
 }
 
-fn simulate(job: crate::sim::SimJob) -> Result<Outcome> {
+fn simulate(a: SimulateArgs) -> Result<Outcome> {
+    let job = crate::sim::SimJob {
+        model: a.model,
+        scenario: a.scenario,
+        params: crate::sim::scenario::Params(a.params),
+        sweep: a
+            .sweep
+            .as_deref()
+            .map(crate::sim::scenario::parse_sweep)
+            .transpose()?,
+        solver: a.solver,
+        out: a.out,
+        run: crate::sim::SimOptions {
+            trajectory_every: a.trajectories,
+            snapshot_every: a.snapshots,
+        },
+        acquisition: crate::sim::output::Acquisition {
+            scale_v_per_pa: a.scale,
+            threshold_db: a.threshold_db,
+            noise_db: a.noise_db,
+            pretrigger: a.pretrigger,
+            ..Default::default()
+        },
+    };
     for l in crate::sim::run_job(&job)? {
         println!("{l}");
     }
     Ok(Outcome::Success)
 }
 
-fn reference(
-    config: &Path,
-    out: &Path,
-    threads: usize,
-    shard: Option<crate::util::Shard>,
-) -> Result<Outcome> {
+fn reference(a: ReferenceArgs) -> Result<Outcome> {
     use crate::sim::reference::{build_library_part, LibraryDir, ReferenceFile};
-    let f = ReferenceFile::read(config)?;
+    let (out, threads, shard) = (a.out.as_path(), a.threads, a.shard);
+    let f = ReferenceFile::read(&a.config)?;
     let (runs, n, secs) = crate::util::with_threads(threads, || {
         build_library_part(&f.reference, out, shard, true)
     })?;
@@ -213,17 +134,16 @@ fn reference(
     Ok(Outcome::Success)
 }
 
-#[allow(clippy::too_many_arguments)]
-fn run(
-    inputs: Vec<PathBuf>,
-    config: Option<PathBuf>,
-    out: &Path,
-    truth: Option<&Path>,
-    threads: usize,
-    resume: bool,
-    shard: Option<crate::util::Shard>,
-    label: Option<String>,
-) -> Result<Outcome> {
+fn run(a: RunArgs) -> Result<Outcome> {
+    let JobArgs {
+        inputs,
+        out,
+        config,
+        threads,
+        resume,
+        shard,
+    } = a.job;
+    let (out, truth, label) = (out.as_path(), a.truth.as_deref(), a.label);
     // `--config P IN…`, or the positional form `P IN…`.
     let (pipeline, inputs) = match config {
         Some(p) => (p, inputs),
@@ -273,14 +193,16 @@ extern "C" fn on_stop_signal(_: libc::c_int) {
     STOP.store(true, std::sync::atomic::Ordering::Relaxed);
 }
 
-fn watch(
-    inputs: &[PathBuf],
-    out: &Path,
-    config: Option<&Path>,
-    model: Option<PathBuf>,
-    until_idle: Option<f64>,
-    threads: usize,
-) -> Result<Outcome> {
+fn watch(a: WatchArgs) -> Result<Outcome> {
+    let WatchArgs {
+        inputs,
+        out,
+        config,
+        model,
+        until_idle,
+        threads,
+    } = a;
+    let (inputs, out, config) = (inputs.as_slice(), out.as_path(), config.as_deref());
     if until_idle.is_some_and(|s| !(s.is_finite() && s >= 0.0)) {
         return Err(UsageError("--until-idle must be a number of seconds ≥ 0".into()).into());
     }
@@ -324,15 +246,15 @@ fn watch(
 }
 
 /// `aepipe merge`: the shards' own kind says which merge (feature run, tables only, library).
-fn merge(
-    dir: &Path,
-    out: Option<PathBuf>,
-    truth: Option<&Path>,
-    threads: usize,
-    tables_only: bool,
-) -> Result<Outcome> {
+fn merge(a: MergeArgs) -> Result<Outcome> {
     use crate::store::shard::{detect, ShardKind};
-    let out = out.unwrap_or_else(|| dir.join("merged"));
+    let (dir, truth, threads, tables_only) = (
+        a.dir.as_path(),
+        a.truth.as_deref(),
+        a.threads,
+        a.tables_only,
+    );
+    let out = a.out.unwrap_or_else(|| dir.join("merged"));
     match detect(dir)? {
         ShardKind::ReferenceLibrary => {
             let n = crate::sim::reference::merge_library(dir, &out)?;
@@ -363,40 +285,35 @@ fn merge(
     Ok(Outcome::Success)
 }
 
-fn report(run_dir: &Path) -> Result<Outcome> {
-    let p = crate::workflow::rebuild_report(run_dir)?;
+fn report(a: ReportArgs) -> Result<Outcome> {
+    let p = crate::workflow::rebuild_report(&a.run_dir)?;
     println!("report: {}", p.display());
     Ok(Outcome::Success)
 }
 
-fn synth_experiment(
-    out: &Path,
-    id: &str,
-    hits: usize,
-    seed: u64,
-    library: Option<&Path>,
-) -> Result<Outcome> {
-    let s = crate::synth::synth_experiment(out, id, hits, seed, library, true)?;
+fn synth_experiment(a: SynthExperimentArgs) -> Result<Outcome> {
+    let s =
+        crate::synth::synth_experiment(&a.out, &a.id, a.hits, a.seed, a.library.as_deref(), true)?;
     println!("{s}");
     Ok(Outcome::Success)
 }
 
-fn demo(out: &Path, hits: usize, seed: u64, threads: usize) -> Result<Outcome> {
-    let d = crate::demo::run_demo(out, hits, seed, threads)?;
-    print::demo(&d, out);
+fn demo(a: DemoArgs) -> Result<Outcome> {
+    let d = crate::demo::run_demo(&a.out, a.hits, a.seed, a.threads)?;
+    print::demo(&d, &a.out);
     Ok(Outcome::Success)
 }
 
-fn stream_job(job: StreamJob, a: RunArgs) -> Result<Outcome> {
-    let cfg = load_config(a.config.as_deref())?;
+fn stream_job(job: StreamJob, a: StreamArgs) -> Result<Outcome> {
+    let cfg = load_config(a.job.config.as_deref())?;
     let opts = StreamOptions {
-        threads: a.threads,
+        threads: a.job.threads,
         progress: !a.quiet,
-        resume: a.resume,
-        shard: a.shard,
+        resume: a.job.resume,
+        shard: a.job.shard,
         control: None,
     };
-    let report = crate::pipeline::run(job, &a.inputs, &a.out, &cfg, &opts)?;
+    let report = crate::pipeline::run(job, &a.job.inputs, &a.job.out, &cfg, &opts)?;
     print::stream_run(&report, job.table_file());
     if a.strict && report.stats.rejects > 0 {
         eprintln!(
@@ -408,8 +325,9 @@ fn stream_job(job: StreamJob, a: RunArgs) -> Result<Outcome> {
     Ok(Outcome::Success)
 }
 
-fn inspect(paths: &[PathBuf], config: Option<&Path>) -> Result<Outcome> {
-    let cfg = load_config(config)?;
+fn inspect(a: InspectArgs) -> Result<Outcome> {
+    let cfg = load_config(a.config.as_deref())?;
+    let paths = &a.paths;
     let d = crate::ingest::discover(paths, &cfg.ingest);
     for s in &d.sources {
         println!("{}", crate::inspect::summarise(s, &cfg));
@@ -437,29 +355,23 @@ fn inspect(paths: &[PathBuf], config: Option<&Path>) -> Result<Outcome> {
     Ok(Outcome::Success)
 }
 
-fn trend(
-    features: &[PathBuf],
-    out: &Path,
-    cutoff: crate::config::Cutoff,
-    alpha: f64,
-    columns: Vec<String>,
-    no_plots: bool,
-) -> Result<Outcome> {
+fn trend(a: TrendArgs) -> Result<Outcome> {
     use crate::analysis::trend;
+    let (features, out) = (a.features.as_slice(), a.out.as_path());
     let opts = trend::TrendOptions {
-        cutoff,
-        alpha,
-        columns,
+        cutoff: a.cutoff,
+        alpha: a.alpha,
+        columns: a.columns,
         sources: crate::store::SourceRows::default(),
     };
     let mut plots = Vec::new();
-    let lines = if no_plots { 0 } else { 4 };
+    let lines = if a.no_plots { 0 } else { 4 };
     let rep = trend::run_trend_with(features, out, &opts, lines, usize::MAX, |pic| {
         let sel = pic.selection;
         let png = trend::TrendDir::new(out).png(&sel.experiment, sel.channel);
         crate::plot::trend_png(&png, pic)?;
         plots.push(png);
-        Ok::<(), anyhow::Error>(())
+        Ok::<(), Failure>(())
     })?;
     print!("{}", trend::format_table(&rep));
     for png in plots {
@@ -476,7 +388,7 @@ fn trend(
 fn som(which: SomCmd) -> Result<Outcome> {
     use crate::som::tables::{classify_tables, load_model, train, TrainOptions, TrainingSet};
     match which {
-        SomCmd::Train {
+        SomCmd::Train(SomTrainArgs {
             features,
             label,
             out,
@@ -487,7 +399,7 @@ fn som(which: SomCmd) -> Result<Outcome> {
             cols,
             seed,
             init,
-        } => {
+        }) => {
             let o = TrainOptions {
                 columns,
                 label,
@@ -514,13 +426,13 @@ fn som(which: SomCmd) -> Result<Outcome> {
                 out.display()
             );
         }
-        SomCmd::Classify {
+        SomCmd::Classify(SomClassifyArgs {
             model,
             features,
             out,
             reference,
             read_erroneous,
-        } => {
+        }) => {
             let m = load_model(&model)?;
             let reference = reference.unwrap_or_else(|| m.label_column.clone());
             let conf = classify_tables(
@@ -544,7 +456,7 @@ fn som(which: SomCmd) -> Result<Outcome> {
                 png.display()
             );
         }
-        SomCmd::Show { model, png } => {
+        SomCmd::Show(SomShowArgs { model, png }) => {
             let m = load_model(&model)?;
             print::som_map(&m);
             let dir = if model.is_dir() {
@@ -562,22 +474,22 @@ fn som(which: SomCmd) -> Result<Outcome> {
 
 fn bench(which: BenchCmd) -> Result<Outcome> {
     match which {
-        BenchCmd::Sim {
+        BenchCmd::Sim(BenchSimArgs {
             masses,
             steps,
             repeats,
-        } => {
+        }) => {
             let rows = crate::bench::sim_scale(&masses, steps)?;
             print::sim_scale(&rows, steps);
             let t = crate::bench::sim_mesh(repeats)?;
             println!("mesh3x3-bond-failure, 250×250 grid, 40 µs (relaxation + 4 000 implicit steps + 400 FDTD steps): median {t:.3} s");
         }
-        BenchCmd::Som {
+        BenchCmd::Som(BenchSomArgs {
             inputs,
             peers,
             python,
             repeats,
-        } => {
+        }) => {
             let (t, qe, te) = crate::bench::som_bench(&inputs, repeats)?;
             println!("aepipe SOM (1 thread): median {t:.4} s, QE {qe:.4}, TE8 {te:.4}");
             if let Some(peers) = peers {
@@ -587,28 +499,28 @@ fn bench(which: BenchCmd) -> Result<Outcome> {
                 }
             }
         }
-        BenchCmd::Cwt {
+        BenchCmd::Cwt(BenchCwtArgs {
             inputs,
             peers,
             python,
             threads,
             repeats,
             skip_full,
-        } => {
+        }) => {
             let ours = crate::bench::cwt_bench(&inputs, &threads, repeats, skip_full)?;
             print::cwt_bench(&ours);
             if let Some(peers) = peers {
                 print::cwt_peers(&ours, &python, &peers);
             }
         }
-        BenchCmd::Stream {
+        BenchCmd::Stream(BenchStreamArgs {
             hits,
             samples,
             no_pretrigger,
             linwave,
             threads,
             out,
-        } => {
+        }) => {
             let w = if linwave {
                 crate::bench::Workload::LinWave
             } else {
@@ -641,13 +553,13 @@ fn bench(which: BenchCmd) -> Result<Outcome> {
                 );
             }
         }
-        BenchCmd::Analysis {
+        BenchCmd::Analysis(BenchAnalysisArgs {
             rows,
             experiments,
             base,
             threads,
             out,
-        } => {
+        }) => {
             let b = crate::bench::analysis::analysis(
                 rows,
                 experiments,
@@ -657,14 +569,14 @@ fn bench(which: BenchCmd) -> Result<Outcome> {
             )?;
             print::analysis_bench(&b);
         }
-        BenchCmd::Watch {
+        BenchCmd::Watch(BenchWatchArgs {
             rate,
             seconds,
             burst,
             threads,
             out,
             vallen,
-        } => {
+        }) => {
             let r = crate::live::bench::watch_bench(
                 &crate::live::bench::WatchBench {
                     rate,

@@ -8,22 +8,12 @@
 //! | 1 | usage, configuration or input error ([`ErrorKind::Usage`]): a flag, a config/model/library file, a table or folder that is not what the command needs |
 //! | 2 | `--strict` was given and at least one hit or file was rejected |
 //! | 3 | the run failed ([`ErrorKind::Failed`]): an output could not be written, or a stage failed while running |
+//!
+//! Every command returns [`Failure`], which any error that knows its kind converts into
+//! (`?`): an error type without [`HasKind`] does not compile into a command, so the map
+//! from errors to codes is exhaustive by construction — there is no list of types to keep.
 
-use crate::analysis::trend::TrendError;
-use crate::bench::BenchError;
-use crate::config::ConfigError;
-use crate::ingest::IngestError;
-use crate::live::WatchError;
-use crate::pipeline::{MergeError, PipelineError};
-use crate::plot::PlotError;
-use crate::report::ReportError;
-use crate::sim::SimError;
-use crate::som::SomError;
-use crate::store::shard::ShardSetError;
-use crate::store::StoreError;
-use crate::synth::SynthError;
-use crate::util::{ErrorKind, HasKind, IoAt};
-use crate::workflow::WorkflowError;
+use crate::util::{ErrorKind, HasKind};
 
 /// A command line that parsed but does not make sense (a malformed `--sweep`, an unknown
 /// table name, `aepipe run` without a pipeline).
@@ -49,33 +39,48 @@ pub fn code_of(k: ErrorKind) -> u8 {
     }
 }
 
-/// The exit code of a failed command: its error's kind (an error of no room's: failed).
-pub fn exit_code(e: &anyhow::Error) -> u8 {
-    macro_rules! kind_of {
-        ($($ty:ty),* $(,)?) => {
-            $(if let Some(x) = e.downcast_ref::<$ty>() {
-                return code_of(x.kind());
-            })*
-        };
+/// An error of any room, with its kind.
+pub trait KindedError: std::error::Error + HasKind + Send + Sync + 'static {}
+
+impl<T: std::error::Error + HasKind + Send + Sync + 'static> KindedError for T {}
+
+/// Why a command failed: a room's typed error, kept whole.
+#[derive(Debug)]
+pub struct Failure(Box<dyn KindedError>);
+
+impl<E: KindedError> From<E> for Failure {
+    fn from(e: E) -> Failure {
+        Failure(Box::new(e))
     }
-    kind_of!(
-        UsageError,
-        ConfigError,
-        WorkflowError,
-        PipelineError,
-        MergeError,
-        ShardSetError,
-        StoreError,
-        IngestError,
-        TrendError,
-        SomError,
-        SimError,
-        SynthError,
-        PlotError,
-        ReportError,
-        BenchError,
-        WatchError,
-        IoAt,
-    );
-    FAILED
+}
+
+impl Failure {
+    /// The exit code of the README's table.
+    pub fn code(&self) -> u8 {
+        code_of(self.0.kind())
+    }
+}
+
+impl std::fmt::Display for Failure {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        self.0.fmt(f)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_failure_keeps_its_rooms_kind() {
+        let f: Failure = UsageError("x".into()).into();
+        assert_eq!((f.code(), f.to_string().as_str()), (USAGE, "x"));
+        let io = crate::util::IoAt::new(
+            std::path::Path::new("/x"),
+            std::io::Error::other("disk full"),
+        );
+        let f: Failure = io.into();
+        assert_eq!(f.code(), FAILED);
+        assert!(f.to_string().contains("disk full"));
+    }
 }
