@@ -473,8 +473,8 @@ fn flush(
                     f.points.extend(class_points(&part, &features)?);
                 }
                 // A part whose rows are all unusable for the map (flat records): no
-                // classification part.
-                Err(crate::som::SomError::Data(_)) => {}
+                // classification part. Any other error of the map is the run's.
+                Err(crate::som::SomError::NoUsableRows) => {}
                 Err(e) => return Err(e.into()),
             }
         }

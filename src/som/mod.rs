@@ -23,6 +23,10 @@ pub enum SomError {
     Params(String),
     #[error("som: {0}")]
     Data(String),
+    /// No row of the feature tables can be put on the map (every one flat or unlabelled): a
+    /// caller classifying part by part (`aepipe watch`) goes on to the next part.
+    #[error("som: no usable rows in the feature tables")]
+    NoUsableRows,
     /// A model or feature table could not be read.
     #[error("{path}: {message}")]
     File { path: String, message: String },
@@ -41,6 +45,7 @@ impl crate::util::HasKind for SomError {
         match self {
             SomError::Params(_)
             | SomError::Data(_)
+            | SomError::NoUsableRows
             | SomError::File { .. }
             | SomError::Codebook(_) => crate::util::ErrorKind::Usage,
             SomError::Write { .. } => crate::util::ErrorKind::Failed,

@@ -366,9 +366,7 @@ pub fn train(paths: &[PathBuf], out: &Path, o: &TrainOptions) -> Result<Model, S
         Ok(())
     })?;
     if row_labels.is_empty() {
-        return Err(SomError::Data(
-            "no usable rows in the feature tables".into(),
-        ));
+        return Err(SomError::NoUsableRows);
     }
     let (rows, comp) = {
         let as_str: Vec<Option<&str>> = row_labels
@@ -790,9 +788,7 @@ pub fn classify_tables(
         Ok(())
     })?;
     if rows == 0 {
-        return Err(SomError::Data(
-            "no usable rows in the feature tables".into(),
-        ));
+        return Err(SomError::NoUsableRows);
     }
     w.finish().map_err(|e| werr(&path, e))?;
     Ok(conf)
