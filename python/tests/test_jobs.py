@@ -74,18 +74,29 @@ def test_run_gives_the_command_lines_tables_and_a_summary(tmp_path: Path) -> Non
     assert set(s["peak_rss_bytes"]) == set(s["seconds"])
 
 
-def test_a_long_call_returns_on_ctrl_c_within_a_second_and_cleans_up() -> None:
-    def interrupt_later(delay: float, at: list[float]) -> None:
+def test_a_long_call_returns_on_ctrl_c_within_a_second_and_cleans_up(tmp_path: Path) -> None:
+    """Each job interrupted here is one that cannot finish first, whatever the machine: a
+    library of 2 048 simulations (the embedded one is 64), and a feature run that waits on
+    an input the test releases only after the interrupt."""
+
+    def interrupt_later(delay: float, at: list[float], then=None) -> None:
         time.sleep(delay)
         at.append(time.perf_counter())
         _thread.interrupt_main()
+        if then is not None:
+            then()
 
     leftovers = lambda: glob.glob(os.path.join(tempfile.gettempdir(), f"aepipe-py-{os.getpid()}-*"))  # noqa: E731
-    # The embedded library: 64 simulations, many seconds in any build.
+    # The embedded library with 32 times its material draws: 2 048 simulations of 6 000
+    # steps cannot be done in half a second by any build.
+    lib = (ROOT / "pipelines" / "reference-library.toml").read_text()
+    assert "variants = 2\n" in lib
+    big = tmp_path / "big-library.toml"
+    big.write_text(lib.replace("variants = 2\n", "variants = 64\n"))
     at: list[float] = []
-    threading.Thread(target=interrupt_later, args=(1.0, at), daemon=True).start()
+    threading.Thread(target=interrupt_later, args=(0.5, at), daemon=True).start()
     with pytest.raises(KeyboardInterrupt):
-        aepipe.reference_library(threads=2)
+        aepipe.reference_library(big, threads=2)
     waited = time.perf_counter() - at[0]
     assert waited < 1.0, f"returned {waited:.2f} s after Ctrl-C"
     # The job stopped (its next simulation saw the request) and its folder is gone.
@@ -93,21 +104,44 @@ def test_a_long_call_returns_on_ctrl_c_within_a_second_and_cleans_up() -> None:
     while leftovers() and time.time() < deadline:
         time.sleep(0.2)
     assert not leftovers()
-    # The feature pipeline stops too: a batch of 3 000 records, interrupted.
+    # The feature pipeline stops too. Its inputs hold a named pipe, which discovery must
+    # read: the job waits there until the interrupt has been sent, then the pipe is fed (as
+    # often as it is opened) and the job's next record sees the request.
     fs = 10_000_000
     with tempfile.TemporaryDirectory() as d:
-        x = synthetic_signals(40, 4096, fs, seed=1)
-        for k in range(75):
-            wav_folder(Path(d) / f"e{k}", x, fs)
+        wav_folder(Path(d) / "e0", synthetic_signals(40, 4096, fs, seed=1), fs)
+        (Path(d) / "gate").mkdir()
+        fifo = Path(d) / "gate" / "hit.txt"
+        os.mkfifo(fifo)
+        stop = threading.Event()
+
+        def feed() -> None:
+            while not stop.is_set():
+                try:
+                    fd = os.open(fifo, os.O_WRONLY | os.O_NONBLOCK)
+                except OSError:  # no reader yet
+                    time.sleep(0.005)
+                    continue
+                try:
+                    os.write(fd, b"0.1\n0.2\n-0.1\n0.05\n")
+                except OSError:  # the reader let go first
+                    pass
+                finally:
+                    os.close(fd)
+
+        feeder = threading.Thread(target=feed, daemon=True)
         at.clear()
-        threading.Thread(target=interrupt_later, args=(0.8, at), daemon=True).start()
-        with pytest.raises(KeyboardInterrupt):
-            aepipe.features(d, threads=1)
-        assert time.perf_counter() - at[0] < 1.0
-        deadline = time.time() + 10
-        while leftovers() and time.time() < deadline:
-            time.sleep(0.2)
-        assert not leftovers()
+        threading.Thread(target=interrupt_later, args=(0.3, at, feeder.start), daemon=True).start()
+        try:
+            with pytest.raises(KeyboardInterrupt):
+                aepipe.features(d, threads=1)
+            assert time.perf_counter() - at[0] < 1.0
+            deadline = time.time() + 10
+            while leftovers() and time.time() < deadline:
+                time.sleep(0.2)
+            assert not leftovers()
+        finally:
+            stop.set()
 
 
 def test_bad_inputs_raise_typed_errors(tmp_path: Path) -> None:
