@@ -455,8 +455,11 @@ fn recordings(batch: &Path) -> Vec<Case> {
             };
             let f = d.join("EXPC_1_1_1500000.txt");
             std::fs::write(&f, head("mV", 1) + &values(256)).unwrap();
-            std::fs::write(d.join("EXPC_1_2_2500000.txt"), head("Volts", 2) + &values(256))
-                .unwrap();
+            std::fs::write(
+                d.join("EXPC_1_2_2500000.txt"),
+                head("Volts", 2) + &values(256),
+            )
+            .unwrap();
             ("EXPC".into(), f)
         },
         Expect::Partly(1, &["'mV' is not volts"]),
@@ -482,7 +485,13 @@ fn recordings(batch: &Path) -> Vec<Case> {
         &|d, _| {
             let f = d.join("export_1.txt");
             let rows: String = (0..64)
-                .map(|i| format!("{:.1}\t{}\r\r\n", i as f64 * 0.2 - 2.0, (i as f64 * 0.3).sin()))
+                .map(|i| {
+                    format!(
+                        "{:.1}\t{}\r\r\n",
+                        i as f64 * 0.2 - 2.0,
+                        (i as f64 * 0.3).sin()
+                    )
+                })
                 .collect();
             std::fs::write(
                 &f,
