@@ -76,7 +76,7 @@ pub fn summarise(src: &Source, cfg: &PipelineConfig) -> Summary {
             s.channels.extend(t.channels.iter().copied());
             ingest::loadfile::attach(ingest::vallen::open_hits(src, &cfg.ingest), src, &cfg.load)
         }
-        None => ingest::open(src, cfg),
+        None => ingest::open(src, &cfg.ingest, &cfg.load),
     };
     for item in items {
         match item {

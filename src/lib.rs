@@ -7,17 +7,18 @@
 //!
 //! - [`util`]: hashing, atomic writes, shards, error kinds — used by everything.
 //! - [`model`]: the shared vocabulary (records, hits, rejects, mechanisms, parametric rows).
-//! - [`config`]: the pipeline TOML, checked once into a `ValidConfig`.
 //! - [`store`]: tables declared once, the atomic Parquet writer, the readers, shards.
 //! - [`ingest`]: sources — discovery and the readers of every recording format.
 //! - [`dsp`]: spectrum, power ratios, CWT, hit features, FFT filters.
 //! - [`features`]: the per-record transform into a feature row and its criteria label.
-//! - [`inspect`]: human summaries of what the inputs hold.
 //! - [`events`]: hits → events (VisualAE's event builder), source location, zones.
-//! - [`pipeline`]: the staged streaming runner, parts, manifest, shards.
+//! - [`sim`]: the hybrid vibro-acoustic simulator and reference libraries (ch. 3–4).
 //! - [`analysis`]: trend statistics of the features (ch. 4.5.5).
 //! - [`som`]: the self-organising map, its tables and the damage profile (ch. 5).
-//! - [`sim`]: the hybrid vibro-acoustic simulator and reference libraries (ch. 3–4).
+//! - [`config`]: the pipeline file: every room's settings gathered and checked into a
+//!   `ValidConfig`.
+//! - [`inspect`]: human summaries of what the inputs hold.
+//! - [`pipeline`]: the staged streaming runner, parts, manifest, shards.
 //! - [`synth`]: synthetic experiments for the demo, fixtures and benchmarks.
 //! - [`plot`]: the pictures (PNG).
 //! - [`report`]: the self-contained HTML report.

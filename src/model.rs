@@ -558,3 +558,32 @@ mod tests {
         assert_eq!(Mechanism::parse("crack"), None);
     }
 }
+
+/// A channel's role in the event builder (VisualAE's channel functions, vallenae's
+/// `ChannelFunction`).
+#[derive(
+    Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, serde::Serialize, serde::Deserialize,
+)]
+#[serde(rename_all = "lowercase")]
+pub enum ChannelRole {
+    /// Ignored entirely.
+    Unused,
+    /// Takes part and may open an event.
+    Normal,
+    /// Never opens an event; while no event is open its hit restarts the FHCDT timer (so the
+    /// same source's later hits at normal sensors open none); joins an open event but is
+    /// left out of location.
+    Guard,
+    /// A guard when it would be the first hit, a normal channel otherwise.
+    Combined,
+}
+
+/// `[location] kind`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum LocationKind {
+    /// Along a line between two sensors (a strip): x only.
+    Linear,
+    /// On a plane from three or more sensors: x and y.
+    Planar,
+}

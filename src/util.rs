@@ -29,6 +29,46 @@ impl HasKind for IoAt {
     }
 }
 
+/// Settings that passed their room's checks (linfa's validated hyper-parameters): only the
+/// room's `check` makes one (the constructor is crate-private), and it reads as the settings
+/// (`Deref`). A function that needs checked settings takes a `&Checked<…>`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Checked<T>(T);
+
+impl<T> Checked<T> {
+    pub(crate) fn new(t: T) -> Checked<T> {
+        Checked(t)
+    }
+
+    /// The settings, to change and check again.
+    pub fn into_inner(self) -> T {
+        self.0
+    }
+}
+
+impl<T> std::ops::Deref for Checked<T> {
+    type Target = T;
+    fn deref(&self) -> &T {
+        &self.0
+    }
+}
+
+/// `Option<PathBuf>` as TOML writes it: a path, or `""` for none (the file format before
+/// the type existed, kept so the canonical TOML and its hash do not change).
+pub mod empty_is_none {
+    use serde::{Deserialize, Deserializer, Serializer};
+    use std::path::PathBuf;
+
+    pub fn serialize<S: Serializer>(p: &Option<PathBuf>, s: S) -> Result<S::Ok, S::Error> {
+        s.serialize_str(&p.as_ref().map(|p| p.to_string_lossy()).unwrap_or_default())
+    }
+
+    pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<Option<PathBuf>, D::Error> {
+        let s = String::deserialize(d)?;
+        Ok((!s.is_empty()).then(|| PathBuf::from(s)))
+    }
+}
+
 /// An I/O failure at a path: the one error this module returns.
 #[derive(Debug, thiserror::Error)]
 #[error("{path}: {source}")]

@@ -2,7 +2,7 @@
 //! a header, Vallen TXT exports, plain text, CSV per hit and long, WAV, MISTRAS .DTA),
 //! through discovery and its sniffer, as the pipeline calls them.
 #![no_main]
-use aepipe::config::{IngestConfig, PipelineConfig};
+use aepipe::config::{IngestConfig, LoadConfig};
 use aepipe::ingest::{discover, open};
 use aepipe::model::Item;
 use libfuzzer_sys::fuzz_target;
@@ -35,12 +35,9 @@ fuzz_target!(|data: &[u8]| {
         ..IngestConfig::default()
     };
     let d = discover(&[exp.clone()], &cfg);
-    let pipeline = PipelineConfig {
-        ingest: cfg,
-        ..PipelineConfig::default()
-    };
+    let load = LoadConfig::default();
     for s in &d.sources {
-        for item in open(s, &pipeline).take(100_000) {
+        for item in open(s, &cfg, &load).take(100_000) {
             if let Item::Record(r) = item {
                 assert!(r.samples.len() <= 1 << 20, "{} samples past the limit", r.samples.len());
             }

@@ -19,7 +19,7 @@
 //! A falling b (or Ib) means the large events gain on the small ones: macro-cracks taking over
 //! from distributed micro-damage, the classic precursor of final failure.
 
-use crate::config::EvolutionConfig;
+use super::settings::EvolutionConfig;
 use crate::store::{ColType, ColumnSpec, HitKey, Table, Value};
 
 /// One source of a series, in time order: the row that stands for it (an event's first hit,

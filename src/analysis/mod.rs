@@ -5,5 +5,6 @@
 //! are plain, tested Rust in [`stats`].
 
 pub mod evolution;
+pub mod settings;
 pub mod stats;
 pub mod trend;

@@ -32,7 +32,7 @@ impl crate::util::HasKind for TrendError {
     }
 }
 
-pub use crate::config::Cutoff;
+pub use super::settings::Cutoff;
 
 /// Trend options.
 #[derive(Debug, Clone)]

@@ -293,7 +293,7 @@ pub fn analysis(
     );
     let model = base.join("run/som/model");
     let cfg = crate::synth::demo_config()
-        .with(|c| c.som.model = model.display().to_string())
+        .with(|c| c.som.model = Some(model.to_path_buf()))
         .map_err(BenchError::run)?;
     let data = base.join("data");
     let summary = crate::workflow::analyse(

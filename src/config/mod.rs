@@ -1,16 +1,57 @@
-//! Pipeline configuration: what `pipelines/*.toml` may say, with defaults.
+//! The pipeline file: every room's settings gathered into one [`PipelineConfig`] (what
+//! `pipelines/*.toml` may say, with defaults), read once, checked by each room's own check
+//! into a [`ValidConfig`] (linfa's validated hyper-parameters), hashed for the manifest.
 //!
-//! Parsed once into a checked [`PipelineConfig`] (linfa's "validated hyper-parameters" idea):
-//! unknown keys are errors, so a typo in a lab's TOML is reported instead of silently ignored.
+//! Each room owns its section and its checks, next to its code: `[ingest]`/`[load]`
+//! ([`crate::ingest::settings`]), `[dsp]`/`[onset]` ([`crate::dsp::settings`]),
+//! `[criteria]`/`[validate]` ([`crate::features::settings`]), `[events]`/`[location]`
+//! ([`crate::events::settings`]), `[trend]`/`[evolution]` ([`crate::analysis::settings`]),
+//! `[som]` ([`crate::som::settings`]). The sections of the rooms that read the whole
+//! configuration and so stand above this one — `[pipeline]` (the streaming runner),
+//! `[report]` and `[live]` — are declared here, beside the aggregate. Unknown keys are
+//! errors, so a typo in a lab's TOML is reported instead of silently ignored.
 
 use serde::{Deserialize, Serialize};
 use std::path::Path;
 
-mod sources;
-pub use sources::{
-    ChannelRole, EventsConfig, EvolutionConfig, LocationConfig, LocationKind, OnsetConfig, Picker,
-    ZoneSpec,
+pub use crate::analysis::settings::{AnalysisSettingsError, Cutoff, EvolutionConfig, TrendConfig};
+pub use crate::dsp::settings::{
+    BinsConfig, CwtConfig, DspConfig, DspSettingsError, HitConfig, OnsetConfig, Picker,
 };
+pub use crate::events::settings::{EventsConfig, EventsSettingsError, LocationConfig, ZoneSpec};
+pub use crate::features::settings::{CriteriaConfig, FeatureSettingsError, ValidateConfig};
+pub use crate::ingest::settings::{
+    AewinConfig, Chid, ColumnRef, FormatChoice, IngestConfig, IngestSettingsError, LoadConfig,
+    MistrasConfig, ParamInput, VallenConfig, WaveExplorerConfig,
+};
+pub use crate::model::{ChannelRole, LocationKind};
+pub use crate::som::settings::{
+    som_defaults, MapSource, ReadErroneous, SomConfig, SomSettingsError, TrainOn,
+};
+
+/// A value a room's check refused, by room: each names its key.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum SettingsError {
+    #[error(transparent)]
+    Ingest(#[from] IngestSettingsError),
+    #[error(transparent)]
+    Dsp(#[from] DspSettingsError),
+    #[error(transparent)]
+    Features(#[from] FeatureSettingsError),
+    #[error(transparent)]
+    Events(#[from] EventsSettingsError),
+    #[error(transparent)]
+    Analysis(#[from] AnalysisSettingsError),
+    #[error(transparent)]
+    Som(#[from] SomSettingsError),
+    /// `[pipeline]` or `[live]`.
+    #[error("{key} {rule}, got {value}")]
+    Run {
+        key: &'static str,
+        rule: &'static str,
+        value: f64,
+    },
+}
 
 #[derive(Debug, thiserror::Error)]
 pub enum ConfigError {
@@ -19,107 +60,51 @@ pub enum ConfigError {
         path: String,
         source: std::io::Error,
     },
+    /// The TOML does not parse, or a key is unknown or of the wrong type (serde's words).
     #[error("{path}: {message}")]
     Parse { path: String, message: String },
-    #[error("config: {0}")]
-    Invalid(String),
+    /// A value out of range: the file it came from (`config` for text) and the room's
+    /// error naming the key.
+    #[error("{}: {source}", path.as_deref().unwrap_or("config"))]
+    Invalid {
+        path: Option<String>,
+        source: SettingsError,
+    },
 }
 
 impl crate::util::HasKind for ConfigError {
     fn kind(&self) -> crate::util::ErrorKind {
         match self {
-            ConfigError::Read { .. } | ConfigError::Parse { .. } | ConfigError::Invalid(_) => {
+            ConfigError::Read { .. } | ConfigError::Parse { .. } | ConfigError::Invalid { .. } => {
                 crate::util::ErrorKind::Usage
             }
         }
     }
 }
 
-/// Which hits enter the statistics (in TOML and on the command line: `none`, `peak-load`,
-/// `time:SECONDS`, `hits:N`).
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-#[serde(try_from = "String", into = "String")]
-pub enum Cutoff {
-    None,
-    /// Hits up to (and including) the one at the highest load.
-    PeakLoad,
-    /// Hits with `time_s ≤` this.
-    Time(f64),
-    /// The first N hits.
-    Hits(usize),
-}
-
-impl std::fmt::Display for Cutoff {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        match self {
-            Cutoff::None => f.write_str("none"),
-            Cutoff::PeakLoad => f.write_str("peak-load"),
-            Cutoff::Time(t) => write!(f, "time:{t}"),
-            Cutoff::Hits(n) => write!(f, "hits:{n}"),
+/// A room's check error as the configuration's (no file named yet).
+macro_rules! invalid_from {
+    ($($t:ty),*) => {$(
+        impl From<$t> for ConfigError {
+            fn from(e: $t) -> ConfigError {
+                ConfigError::Invalid {
+                    path: None,
+                    source: e.into(),
+                }
+            }
         }
-    }
+    )*};
 }
 
-impl TryFrom<String> for Cutoff {
-    type Error = ConfigError;
-    fn try_from(s: String) -> Result<Cutoff, ConfigError> {
-        s.parse()
-    }
-}
-
-impl From<Cutoff> for String {
-    fn from(c: Cutoff) -> String {
-        c.to_string()
-    }
-}
-
-/// What the SOM of `aepipe run` is trained on (ch. 5).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum TrainOn {
-    /// A simulated reference library (labels = the simulator's mechanisms, ch. 3–4).
-    #[default]
-    Reference,
-    /// A balanced subset of the run's own hits labelled by a column (the ch. 4.7 criteria:
-    /// the thesis's ch. 5.4 procedure).
-    Criteria,
-}
-
-impl std::str::FromStr for Cutoff {
-    type Err = ConfigError;
-    fn from_str(s: &str) -> Result<Cutoff, ConfigError> {
-        let bad = || {
-            ConfigError::Invalid(format!(
-                "cut-off '{s}': expected none, peak-load, time:SECONDS or hits:N"
-            ))
-        };
-        match s {
-            "none" => Ok(Cutoff::None),
-            "peak-load" => Ok(Cutoff::PeakLoad),
-            _ => match s.split_once(':') {
-                Some(("time", v)) => v.parse().map(Cutoff::Time).map_err(|_| bad()),
-                Some(("hits", v)) => v.parse().map(Cutoff::Hits).map_err(|_| bad()),
-                _ => Err(bad()),
-            },
-        }
-    }
-}
-
-/// Input format, detected from the files unless forced.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
-#[serde(rename_all = "lowercase")]
-pub enum FormatChoice {
-    #[default]
-    Auto,
-    Vallen,
-    Aewin,
-    Waveexplorer,
-    Wav,
-    Csv,
-    Text,
-    Parquet,
-    Mistras,
-}
+invalid_from!(
+    SettingsError,
+    IngestSettingsError,
+    DspSettingsError,
+    FeatureSettingsError,
+    EventsSettingsError,
+    AnalysisSettingsError,
+    SomSettingsError
+);
 
 #[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
@@ -175,174 +160,6 @@ impl Default for LiveConfig {
     }
 }
 
-/// A column of a delimited file: its header name (surrounding spaces trimmed) or its
-/// 1-based index.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(untagged)]
-pub enum ColumnRef {
-    Index(usize),
-    Name(String),
-}
-
-impl std::fmt::Display for ColumnRef {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        match self {
-            ColumnRef::Index(i) => write!(f, "column {i}"),
-            ColumnRef::Name(n) => write!(f, "column {n:?}"),
-        }
-    }
-}
-
-/// `[load]`: a test machine (MTS, Zwick, Instron…) that logs load and extension on its own
-/// clock into a delimited text file beside the AE recordings. Each hit gets the load and
-/// extension interpolated at its time; the file's rows go to `parametric.parquet`.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(default, deny_unknown_fields)]
-pub struct LoadConfig {
-    /// Path of the load file relative to the folder that holds the experiment's recordings
-    /// (or absolute); `{experiment}` is replaced by the experiment id, `{stem}` by the
-    /// recording's file stem (folder name for a folder of one-hit files). Empty: no file.
-    pub file: String,
-    /// Header name or 1-based index of the time column.
-    pub time_column: ColumnRef,
-    pub load_column: ColumnRef,
-    /// Optional: the extension column.
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub extension_column: Option<ColumnRef>,
-    /// Multiply the file's time by this to get seconds.
-    pub time_scale_s: f64,
-    /// Multiply the file's load by this to get newtons (1000 for kN).
-    pub load_scale_n: f64,
-    /// Multiply the file's extension by this to get metres (0.001 for mm).
-    pub extension_scale_m: f64,
-    /// Per experiment id: test-machine time = AE time − offset, seconds (0 where absent).
-    pub offset_s: std::collections::BTreeMap<String, f64>,
-}
-
-impl Default for LoadConfig {
-    fn default() -> Self {
-        LoadConfig {
-            file: String::new(),
-            time_column: ColumnRef::Name("Time".into()),
-            load_column: ColumnRef::Name("Load".into()),
-            extension_column: None,
-            time_scale_s: 1.0,
-            load_scale_n: 1.0,
-            extension_scale_m: 1.0,
-            offset_s: Default::default(),
-        }
-    }
-}
-
-/// The trend stage of `aepipe run` (ch. 4.5.5).
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(default, deny_unknown_fields)]
-pub struct TrendConfig {
-    pub enabled: bool,
-    /// `none`, `peak-load` (ch. 4.5.5: only hits before the load falls), `time:S`, `hits:N`.
-    pub cutoff: Cutoff,
-    /// Significance level (Table 4.2: 1 %).
-    pub alpha: f64,
-}
-
-impl Default for TrendConfig {
-    fn default() -> Self {
-        TrendConfig {
-            enabled: true,
-            cutoff: Cutoff::PeakLoad,
-            alpha: 0.01,
-        }
-    }
-}
-
-/// The SOM stage of `aepipe run` (ch. 5).
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(default, deny_unknown_fields)]
-pub struct SomConfig {
-    pub enabled: bool,
-    /// `reference`: train on a simulated reference library (labels = mechanism, ch. 3–4);
-    /// `criteria`: train on a balanced subset of the run's own hits labelled by the ch. 4.7
-    /// criteria (the thesis's ch. 5.4 procedure).
-    pub train_on: TrainOn,
-    /// Reference library `waveforms.parquet`; empty: build the embedded
-    /// `pipelines/reference-library.toml` into the run's folder.
-    pub reference_library: String,
-    /// A trained map to classify with instead of training one (a model folder written by
-    /// `aepipe som train`, a run's `som/model`, or the Python package's `Som.save`); empty:
-    /// train as `train_on` says. A study classified with one lab map, a live test, a
-    /// benchmark.
-    pub model: String,
-    /// Share of the hits in the training set (ch. 5.4: 10 %; a reference library is used
-    /// whole).
-    pub fraction: f64,
-    pub rows: usize,
-    pub cols: usize,
-    pub seed: u64,
-    /// The features column the classes are checked against in the confusion report and,
-    /// with `train_on = "criteria"`, trained on: any column (criteria_label, label,
-    /// experiment, channel, …).
-    pub label: String,
-    /// How the map's erroneous area is read (issue 24): `quality-check` (default) — a hit
-    /// is erroneous when the features' time-domain quality check (`quality_fault`) found a
-    /// fault, and a sound hit whose BMU is labelled erroneous takes the class of its
-    /// nearest node labelled otherwise; `map` — the BMU's label alone, as the thesis read
-    /// it (ch. 5.4).
-    pub read_erroneous: ReadErroneous,
-}
-
-/// How the SOM stage reads the map's erroneous area (`[som] read_erroneous`).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum ReadErroneous {
-    /// Erroneous iff the time-domain quality check found a fault; the map decides among
-    /// the other classes. Maps with no node labelled erroneous are read as `Map`.
-    #[default]
-    QualityCheck,
-    /// The BMU's label alone (the thesis's reading).
-    Map,
-}
-
-impl ReadErroneous {
-    pub fn as_str(self) -> &'static str {
-        match self {
-            ReadErroneous::QualityCheck => "quality-check",
-            ReadErroneous::Map => "map",
-        }
-    }
-}
-
-impl Default for SomConfig {
-    fn default() -> Self {
-        SomConfig {
-            label: "criteria_label".into(),
-            enabled: true,
-            train_on: TrainOn::Reference,
-            reference_library: String::new(),
-            model: String::new(),
-            fraction: som_defaults::FRACTION,
-            rows: som_defaults::ROWS,
-            cols: som_defaults::COLS,
-            seed: som_defaults::SEED,
-            read_erroneous: ReadErroneous::default(),
-        }
-    }
-}
-
-/// The map's defaults, in one place (Table 5.2 and ch. 5.4): the library's
-/// `som::SomParams`, `som::tables::TrainOptions`, `[som]` of the pipeline TOML and the CLI's
-/// `som train` flags all take them from here.
-pub mod som_defaults {
-    /// A 10×10 map.
-    pub const ROWS: usize = 10;
-    pub const COLS: usize = 10;
-    /// The seed of the map's initialisation and sample order.
-    pub const SEED: u64 = 2008;
-    /// Share of the hits in the training set (ch. 5.4: 64 of 651 ≈ 10 %).
-    pub const FRACTION: f64 = 0.1;
-    /// The seed of `som train`'s training-set draw (a run draws with [`SEED`]).
-    pub const TRAINING_SEED: u64 = 5;
-}
-
 /// The HTML report of `aepipe run`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
@@ -367,283 +184,6 @@ impl Default for ReportConfig {
     }
 }
 
-/// Signal processing (thesis ch. 4.5.5, 5.2; DESIGN §4).
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(default, deny_unknown_fields)]
-pub struct DspConfig {
-    /// Width of one power-ratio band, Hz (Eq. 4.5.4: Δf = 100 kHz).
-    pub band_hz: f64,
-    /// Upper end of the power-ratio range, Hz (Eq. 4.5.4: 2500 kHz → 25 bands).
-    pub band_max_hz: f64,
-    pub cwt: CwtConfig,
-    pub bins: BinsConfig,
-    pub hit: HitConfig,
-}
-
-/// The continuous wavelet transform: complex Gabor (Morlet) wavelet on a linear grid.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(default, deny_unknown_fields)]
-pub struct CwtConfig {
-    pub f_min_hz: f64,
-    pub f_max_hz: f64,
-    pub n_freqs: usize,
-    /// Full width at half maximum of the Gaussian envelope, in periods of the centre
-    /// frequency (AGU-Vallen style Gabor wavelet; 2 periods → Δf/f ≈ 0.44). Morlet with
-    /// ω0 = 6 is 2.2487 periods.
-    pub fwhm_periods: f64,
-}
-
-/// The time/frequency bins of ch. 5.2 (Fig. 5.2): normalised |W|² summed over windows.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(default, deny_unknown_fields)]
-pub struct BinsConfig {
-    /// Window length in time, s (thesis: 5 µs).
-    pub window_s: f64,
-    /// Number of time windows from the trigger (8 × 5 µs = 40 µs).
-    pub n_windows: usize,
-    /// Frequency band of one bin, Hz (thesis: 100 kHz); bands cover 0..dsp.band_max_hz.
-    pub band_hz: f64,
-}
-
-/// Standard hit features (vallenae / ASTM E1316 conventions).
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(default, deny_unknown_fields)]
-pub struct HitConfig {
-    /// Detection threshold, dB_AE, used when the recording does not carry its own
-    /// (Vallen records do; they are used unless `use_record_threshold = false`).
-    pub threshold_db: f64,
-    pub use_record_threshold: bool,
-}
-
-/// The ch. 4.7 criteria that label a hit from its CWT (every threshold here).
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(default, deny_unknown_fields)]
-pub struct CriteriaConfig {
-    /// The two bond-failure frequencies, Hz (≈250 and ≈750 kHz).
-    pub bond_low_hz: f64,
-    pub bond_high_hz: f64,
-    /// How far a dominant frequency may be from them, Hz (Fig. 4.7: ±10 % of the material
-    /// properties moves a fibre's frequency by less than ±150 kHz).
-    pub bond_tolerance_hz: f64,
-    /// A fibre failure's dominant frequency is above this, Hz (800 kHz).
-    pub fibre_min_hz: f64,
-    /// …lasts less than this above half power, s (5 µs).
-    pub fibre_max_duration_s: f64,
-    /// …and arrives within this time of the trigger, s.
-    pub fibre_max_arrival_s: f64,
-    /// A component counts as present when its peak power is at least this share of the
-    /// dominant component's (0.05 in power ≈ 0.22 in amplitude: clearly visible in a CWT).
-    pub component_min_ratio: f64,
-    /// "both": a bond-like component peaking at least this long after the fibre pulse, s.
-    pub both_min_delay_s: f64,
-    /// "both": the pulse's peak power is at least this share of the dominant component's
-    /// (ch. 5.4: the pulse is "comparable" to the wave; 0.25 in power = 0.5 in amplitude).
-    /// A weaker flash at the onset of a wave is the onset, not a fibre failure.
-    pub both_min_ratio: f64,
-    /// Triggered early: the signal already exceeds the threshold this long before the
-    /// trigger, s.
-    pub early_trigger_s: f64,
-    /// Triggered before the front (ch. 5.4, Fig. 5.8c): the signal first reaches the
-    /// threshold this long after the trigger, s (an AE system's own trigger is the first
-    /// crossing, so a record whose front comes later was triggered by something else).
-    pub late_front_s: f64,
-    /// Two bursts: the envelope falls below `burst_quiet_ratio` of the peak for at least
-    /// `burst_gap_s`, then rises above `burst_level_ratio` of the peak again.
-    pub burst_gap_s: f64,
-    pub burst_quiet_ratio: f64,
-    pub burst_level_ratio: f64,
-    /// Clipped: this many consecutive samples at the record's extreme value…
-    pub clip_run: usize,
-    /// …or this many samples at it in all (0: off; issue 24: a 250 kHz wave at 10 MHz
-    /// clipped at 90 % of its peak sits at the rail 2–3 samples a half-cycle, so the run
-    /// alone missed it)…
-    pub clip_count: usize,
-    /// …when the extreme is at least this many quantisation steps (the smallest gap between
-    /// the record's distinct values): a weak record spanning a few ADC codes repeats its top
-    /// code without being clipped.
-    pub clip_min_steps: f64,
-}
-
-impl Default for DspConfig {
-    fn default() -> Self {
-        DspConfig {
-            band_hz: 100e3,
-            band_max_hz: 2500e3,
-            cwt: CwtConfig::default(),
-            bins: BinsConfig::default(),
-            hit: HitConfig::default(),
-        }
-    }
-}
-
-impl Default for CwtConfig {
-    fn default() -> Self {
-        CwtConfig {
-            f_min_hz: 10e3,
-            f_max_hz: 2500e3,
-            n_freqs: 250,
-            fwhm_periods: 2.0,
-        }
-    }
-}
-
-impl Default for BinsConfig {
-    fn default() -> Self {
-        BinsConfig {
-            window_s: 5e-6,
-            n_windows: 8,
-            band_hz: 100e3,
-        }
-    }
-}
-
-impl Default for HitConfig {
-    fn default() -> Self {
-        HitConfig {
-            threshold_db: 40.0,
-            use_record_threshold: true,
-        }
-    }
-}
-
-impl Default for CriteriaConfig {
-    fn default() -> Self {
-        CriteriaConfig {
-            bond_low_hz: 250e3,
-            bond_high_hz: 750e3,
-            bond_tolerance_hz: 150e3,
-            fibre_min_hz: 800e3,
-            fibre_max_duration_s: 5e-6,
-            fibre_max_arrival_s: 5e-6,
-            component_min_ratio: 0.05,
-            both_min_delay_s: 2e-6,
-            both_min_ratio: 0.25,
-            early_trigger_s: 10e-6,
-            late_front_s: 5e-6,
-            burst_gap_s: 5e-6,
-            burst_quiet_ratio: 0.25,
-            burst_level_ratio: 0.5,
-            clip_run: 3,
-            clip_count: 8,
-            clip_min_steps: 100.0,
-        }
-    }
-}
-
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(default, deny_unknown_fields)]
-pub struct IngestConfig {
-    /// Force one format for every input file (`auto` detects per file).
-    pub format: FormatChoice,
-    /// Sampling rate for files that do not carry one (plain text, CSV without a time column).
-    /// Thesis: 10 MHz.
-    pub sample_rate_hz: f64,
-    /// Pretrigger samples for files that do not carry one.
-    pub pretrigger_samples: u32,
-    /// Preamplifier gain (dB) to divide out of text/CSV/WAV volts (0 = already at the sensor).
-    pub gain_db: f64,
-    /// The longest record accepted, samples: a size read from a file (a Vallen `Samples`, a
-    /// WaveExplorer or WAV header) above it is a reject, checked before anything is
-    /// allocated. 50 M samples = 10 s at 5 MHz (200 MiB as f32).
-    pub max_samples_per_record: u64,
-    pub vallen: VallenConfig,
-    pub aewin: AewinConfig,
-    pub waveexplorer: WaveExplorerConfig,
-    pub mistras: MistrasConfig,
-}
-
-/// How MISTRAS `.DTA` parametric inputs (PID 1 = PARA1, …) map to load and extension.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(default, deny_unknown_fields)]
-pub struct MistrasConfig {
-    /// Parametric input carrying the load (PID, e.g. 1 for PARA1); 0 = no load channel.
-    pub load_param: u8,
-    /// Newtons per volt of that input.
-    pub load_n_per_v: f64,
-    /// Parametric input carrying the extension; 0 = none.
-    pub extension_param: u8,
-    /// Metres per volt of that input.
-    pub extension_m_per_v: f64,
-    /// Sizes of CHIDs the specification leaves open (reserved or undefined ones, e.g.
-    /// `31 = 2`), bytes. Without one, a single such CHID in a hit takes what the message
-    /// length leaves; two or more end the decoding of that message's features.
-    pub chid_sizes: std::collections::BTreeMap<String, usize>,
-    /// For a continuation file read alone (its setup is in the base file): the hit features
-    /// (CHIDs in record order), hit parametrics per hit and partial-power segments, used only
-    /// when the stream holds no hit definition of its own (a manifest note says so).
-    pub hit_chids: Vec<u8>,
-    pub hit_parametrics: usize,
-    pub partial_power_segments: usize,
-    /// …the waveform sample rate (Hz, 0 = none) and pretrigger (samples), used for channels
-    /// without a waveform setup (message 173,42);
-    pub sample_rate_hz: f64,
-    pub pretrigger_samples: u32,
-    /// …and the gain (dB) for channels without a gain message (23). Unset: 0 dB, noted.
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub gain_db: Option<f64>,
-}
-
-impl MistrasConfig {
-    /// [`Self::chid_sizes`] as (CHID, bytes); keys are checked by [`PipelineConfig::validate`].
-    pub fn size_overrides(&self) -> Vec<(u8, usize)> {
-        self.chid_sizes
-            .iter()
-            .filter_map(|(k, v)| k.trim().parse::<u8>().ok().map(|c| (c, *v)))
-            .collect()
-    }
-}
-
-impl Default for MistrasConfig {
-    fn default() -> Self {
-        MistrasConfig {
-            load_param: 0,
-            load_n_per_v: 1.0,
-            extension_param: 0,
-            extension_m_per_v: 1e-3,
-            chid_sizes: Default::default(),
-            hit_chids: Vec::new(),
-            hit_parametrics: 0,
-            partial_power_segments: 0,
-            sample_rate_hz: 0.0,
-            pretrigger_samples: 0,
-            gain_db: None,
-        }
-    }
-}
-
-/// How Vallen parametric inputs (PA0, PA1, …) map to the test machine's load and extension.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(default, deny_unknown_fields)]
-pub struct VallenConfig {
-    /// Parametric column carrying the load (e.g. "PA0"); empty = no load channel.
-    pub load_param: String,
-    /// Newtons per mV of that parametric input.
-    pub load_n_per_mv: f64,
-    /// Parametric column carrying the extension (e.g. "PA1"); empty = none.
-    pub extension_param: String,
-    /// Metres per mV of that parametric input.
-    pub extension_m_per_mv: f64,
-}
-
-/// MISTRAS AEwin ASCII exports carry neither rate nor pretrigger in the waveform files.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(default, deny_unknown_fields)]
-pub struct AewinConfig {
-    pub sample_rate_hz: f64,
-    pub pretrigger_samples: u32,
-    /// The exported volts include the preamplifier (typically 40 dB); divided out on read.
-    pub preamp_gain_db: f64,
-    /// AE clock minus test-machine clock, seconds (the two systems start separately).
-    pub log_time_offset_s: f64,
-}
-
-/// Digital Wave WaveExplorer text exports give the rate in their header, not the pretrigger.
-#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
-#[serde(default, deny_unknown_fields)]
-pub struct WaveExplorerConfig {
-    pub pretrigger_samples: u32,
-}
-
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct RunConfig {
@@ -658,54 +198,6 @@ pub struct RunConfig {
     pub row_group_rows: usize,
 }
 
-/// Checks that turn a hit into a reject row instead of a feature row.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(default, deny_unknown_fields)]
-pub struct ValidateConfig {
-    /// Fewer samples than this is a reject ("too short").
-    pub min_samples: usize,
-}
-
-impl Default for IngestConfig {
-    fn default() -> Self {
-        IngestConfig {
-            format: FormatChoice::Auto,
-            sample_rate_hz: 10e6,
-            pretrigger_samples: 0,
-            gain_db: 0.0,
-            max_samples_per_record: 50_000_000,
-            vallen: VallenConfig::default(),
-            aewin: AewinConfig::default(),
-            waveexplorer: WaveExplorerConfig::default(),
-            mistras: MistrasConfig::default(),
-        }
-    }
-}
-
-impl Default for VallenConfig {
-    fn default() -> Self {
-        VallenConfig {
-            load_param: String::new(),
-            load_n_per_mv: 1.0,
-            extension_param: String::new(),
-            extension_m_per_mv: 1e-6,
-        }
-    }
-}
-
-impl Default for AewinConfig {
-    fn default() -> Self {
-        // Values of the only AEwin export we have (aewin_cfrp_tensile: Start.m says
-        // Fs = 5 MHz, PT = 20 µs, 40 dB preamplifier).
-        AewinConfig {
-            sample_rate_hz: 5e6,
-            pretrigger_samples: 100,
-            preamp_gain_db: 40.0,
-            log_time_offset_s: 0.0,
-        }
-    }
-}
-
 impl Default for RunConfig {
     fn default() -> Self {
         RunConfig {
@@ -716,17 +208,58 @@ impl Default for RunConfig {
     }
 }
 
-impl Default for ValidateConfig {
-    fn default() -> Self {
-        ValidateConfig { min_samples: 16 }
+impl RunConfig {
+    fn check(&self) -> Result<(), SettingsError> {
+        for (key, v) in [
+            ("pipeline.batch_size", self.batch_size),
+            ("pipeline.queue_batches", self.queue_batches),
+            ("pipeline.row_group_rows", self.row_group_rows),
+        ] {
+            if v == 0 {
+                return Err(SettingsError::Run {
+                    key,
+                    rule: "must be ≥ 1",
+                    value: 0.0,
+                });
+            }
+        }
+        Ok(())
+    }
+}
+
+impl LiveConfig {
+    fn check(&self) -> Result<(), SettingsError> {
+        for (v, key) in [
+            (self.flush_s, "live.flush_s"),
+            (self.settle_s, "live.settle_s"),
+            (self.poll_s, "live.poll_s"),
+            (self.transient_wait_s, "live.transient_wait_s"),
+        ] {
+            if !(v.is_finite() && (0.0..=3600.0).contains(&v)) {
+                return Err(SettingsError::Run {
+                    key,
+                    rule: "must be 0–3600 seconds",
+                    value: v,
+                });
+            }
+        }
+        if self.poll_s <= 0.0 {
+            return Err(SettingsError::Run {
+                key: "live.poll_s",
+                rule: "must be above 0 seconds",
+                value: self.poll_s,
+            });
+        }
+        Ok(())
     }
 }
 
 /// A checked pipeline configuration (linfa's "validated hyper-parameters"): only
 /// [`PipelineConfig::check`] (and [`PipelineConfig::from_toml`], [`PipelineConfig::from_file`],
-/// which call it) makes one, so every stage that takes a `&ValidConfig` works on values that
-/// passed every check. It reads as a [`PipelineConfig`] (`Deref`); to change a value, take
-/// it out with [`ValidConfig::into_inner`] and check it again.
+/// which call it) makes one, after every room's own check passed, so every stage that takes
+/// a `&ValidConfig` works on values that passed them. It reads as a [`PipelineConfig`]
+/// (`Deref`); to change a value, take it out with [`ValidConfig::into_inner`] and check it
+/// again.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ValidConfig(PipelineConfig);
 
@@ -745,15 +278,6 @@ impl Default for ValidConfig {
     }
 }
 
-/// A finite, positive number, or the error naming the key.
-fn positive(v: f64, what: &str) -> Result<(), ConfigError> {
-    if v.is_finite() && v > 0.0 {
-        Ok(())
-    } else {
-        Err(ConfigError::Invalid(format!("{what} must be > 0, got {v}")))
-    }
-}
-
 impl ValidConfig {
     pub fn into_inner(self) -> PipelineConfig {
         self.0
@@ -767,11 +291,76 @@ impl ValidConfig {
     }
 }
 
+/// What the per-record transform reads (`FeatureExtractor::new(&cfg)`).
+impl From<&ValidConfig> for crate::features::settings::FeatureSettings {
+    fn from(c: &ValidConfig) -> Self {
+        crate::features::settings::FeatureSettings {
+            dsp: c.dsp.clone(),
+            criteria: c.criteria.clone(),
+            onset: c.onset.clone(),
+            validate: c.validate.clone(),
+        }
+    }
+}
+
+/// What the events step reads (`events::run_part(&tables, &cfg.into())`).
+impl From<&ValidConfig> for crate::events::settings::EventsSettings {
+    fn from(c: &ValidConfig) -> Self {
+        crate::events::settings::EventsSettings {
+            events: c.events.clone(),
+            location: c.location.clone(),
+            picker: c.onset.picker,
+            row_group_rows: c.pipeline.row_group_rows,
+        }
+    }
+}
+
 impl PipelineConfig {
-    /// Check every value serde cannot check: the configuration every stage may rely on.
+    /// Which rows analysis counts, as `[location] exclude_outside` says.
+    pub fn source_rows(&self) -> crate::store::SourceRows {
+        crate::store::SourceRows {
+            exclude_outside: self.location.exclude_outside,
+        }
+    }
+
+    /// Every room's check, in the file's order: the configuration every stage may rely on.
+    /// The rooms' checked values are the sections themselves (checking does not change a
+    /// value), so they are handed back whole.
     pub fn check(self) -> Result<ValidConfig, ConfigError> {
-        self.problems()?;
-        Ok(ValidConfig(self))
+        let PipelineConfig {
+            ingest,
+            pipeline,
+            validate,
+            dsp,
+            criteria,
+            onset,
+            events,
+            location,
+            evolution,
+            trend,
+            som,
+            report,
+            load,
+            live,
+        } = self;
+        pipeline.check()?;
+        live.check()?;
+        Ok(ValidConfig(PipelineConfig {
+            ingest: ingest.check()?.into_inner(),
+            pipeline,
+            validate,
+            dsp: dsp.check()?.into_inner(),
+            criteria: criteria.check()?.into_inner(),
+            onset: onset.check()?.into_inner(),
+            events: events.check()?.into_inner(),
+            location: location.check()?.into_inner(),
+            evolution: evolution.check()?.into_inner(),
+            trend: trend.check()?.into_inner(),
+            som: som.check()?.into_inner(),
+            report,
+            load: load.check()?.into_inner(),
+            live,
+        }))
     }
 
     /// Read and check a pipeline TOML file.
@@ -786,9 +375,9 @@ impl PipelineConfig {
                 message,
             },
             // A value out of range names the file it came from, like a syntax error.
-            ConfigError::Invalid(message) => ConfigError::Parse {
-                path: path.display().to_string(),
-                message,
+            ConfigError::Invalid { source, .. } => ConfigError::Invalid {
+                path: Some(path.display().to_string()),
+                source,
             },
             other => other,
         })
@@ -801,162 +390,6 @@ impl PipelineConfig {
             message: e.to_string().replace('\n', " "),
         })?;
         cfg.check()
-    }
-
-    /// The checks that serde cannot express.
-    fn problems(&self) -> Result<(), ConfigError> {
-        if self.ingest.max_samples_per_record == 0 {
-            return Err(ConfigError::Invalid(
-                "ingest.max_samples_per_record must be ≥ 1".into(),
-            ));
-        }
-        positive(self.ingest.sample_rate_hz, "ingest.sample_rate_hz")?;
-        positive(
-            self.ingest.aewin.sample_rate_hz,
-            "ingest.aewin.sample_rate_hz",
-        )?;
-        if self.som.label.trim().is_empty() {
-            return Err(ConfigError::Invalid(
-                "som.label must name a column of the features table".into(),
-            ));
-        }
-        if !(self.trend.alpha > 0.0 && self.trend.alpha < 1.0) {
-            return Err(ConfigError::Invalid(format!(
-                "trend.alpha must be in (0, 1), got {}",
-                self.trend.alpha
-            )));
-        }
-        if self.pipeline.batch_size == 0 {
-            return Err(ConfigError::Invalid(
-                "pipeline.batch_size must be ≥ 1".into(),
-            ));
-        }
-        if self.pipeline.queue_batches == 0 {
-            return Err(ConfigError::Invalid(
-                "pipeline.queue_batches must be ≥ 1".into(),
-            ));
-        }
-        if self.pipeline.row_group_rows == 0 {
-            return Err(ConfigError::Invalid(
-                "pipeline.row_group_rows must be ≥ 1".into(),
-            ));
-        }
-        let m = self.criteria.clip_min_steps;
-        if !(m.is_finite() && m >= 0.0) {
-            return Err(ConfigError::Invalid(format!(
-                "criteria.clip_min_steps must be a number ≥ 0, got {m}"
-            )));
-        }
-        let d = &self.dsp;
-        positive(d.band_hz, "dsp.band_hz")?;
-        positive(d.band_max_hz, "dsp.band_max_hz")?;
-        positive(d.cwt.f_min_hz, "dsp.cwt.f_min_hz")?;
-        positive(d.cwt.fwhm_periods, "dsp.cwt.fwhm_periods")?;
-        positive(d.bins.window_s, "dsp.bins.window_s")?;
-        positive(d.bins.band_hz, "dsp.bins.band_hz")?;
-        if d.cwt.f_max_hz < d.cwt.f_min_hz || d.cwt.n_freqs == 0 {
-            return Err(ConfigError::Invalid(
-                "dsp.cwt: need f_max_hz ≥ f_min_hz and n_freqs ≥ 1".into(),
-            ));
-        }
-        // The feature path sums at most 64 windows (a fixed edge table): more would leave
-        // the later bins silently zero.
-        if d.bins.n_windows == 0 || d.bins.n_windows > 64 {
-            return Err(ConfigError::Invalid(format!(
-                "dsp.bins.n_windows must be 1 to 64, got {}",
-                d.bins.n_windows
-            )));
-        }
-        let bands = d.band_max_hz / d.band_hz;
-        if (bands - bands.round()).abs() > 1e-9 || bands.round() > 1000.0 || bands.round() < 1.0 {
-            return Err(ConfigError::Invalid(format!(
-                "dsp.band_max_hz / dsp.band_hz must be a whole number of bands (≤ 1000), got {bands}"
-            )));
-        }
-        let bin_bands = d.band_max_hz / d.bins.band_hz;
-        if (bin_bands - bin_bands.round()).abs() > 1e-9 || bin_bands.round() < 1.0 {
-            return Err(ConfigError::Invalid(format!(
-                "dsp.band_max_hz / dsp.bins.band_hz must be a whole number, got {bin_bands}"
-            )));
-        }
-        sources::check(&self.onset, &self.events, &self.location)?;
-        sources::check_evolution(&self.evolution)?;
-        let l = &self.live;
-        for (v, name) in [
-            (l.flush_s, "live.flush_s"),
-            (l.settle_s, "live.settle_s"),
-            (l.poll_s, "live.poll_s"),
-            (l.transient_wait_s, "live.transient_wait_s"),
-        ] {
-            if !(v.is_finite() && (0.0..=3600.0).contains(&v)) {
-                return Err(ConfigError::Invalid(format!(
-                    "{name} must be 0–3600 seconds, got {v}"
-                )));
-            }
-        }
-        if l.poll_s <= 0.0 {
-            return Err(ConfigError::Invalid(format!(
-                "live.poll_s must be above 0 seconds, got {}",
-                l.poll_s
-            )));
-        }
-        let m = &self.ingest.mistras;
-        for (k, v) in &m.chid_sizes {
-            if k.trim().parse::<u8>().map_or(true, |c| c == 0) || *v > 4096 {
-                return Err(ConfigError::Invalid(format!(
-                    "ingest.mistras.chid_sizes: {k:?} = {v}: keys are CHIDs 1–255, sizes at most 4096 bytes"
-                )));
-            }
-        }
-        if !(m.sample_rate_hz >= 0.0 && m.sample_rate_hz.is_finite()) {
-            return Err(ConfigError::Invalid(format!(
-                "ingest.mistras.sample_rate_hz must be ≥ 0, got {}",
-                m.sample_rate_hz
-            )));
-        }
-        if m.partial_power_segments > 255 || m.hit_parametrics > 255 {
-            return Err(ConfigError::Invalid(
-                "ingest.mistras: partial_power_segments and hit_parametrics are at most 255".into(),
-            ));
-        }
-        let l = &self.load;
-        positive(l.time_scale_s, "load.time_scale_s")?;
-        positive(l.load_scale_n, "load.load_scale_n")?;
-        positive(l.extension_scale_m, "load.extension_scale_m")?;
-        for c in [
-            Some(&l.time_column),
-            Some(&l.load_column),
-            l.extension_column.as_ref(),
-        ]
-        .into_iter()
-        .flatten()
-        {
-            if matches!(c, ColumnRef::Index(0))
-                || matches!(c, ColumnRef::Name(n) if n.trim().is_empty())
-            {
-                return Err(ConfigError::Invalid(format!(
-                    "load: {c} is not a column (indices start at 1, names must not be empty)"
-                )));
-            }
-        }
-        if let Some((k, v)) = l.offset_s.iter().find(|(_, v)| !v.is_finite()) {
-            return Err(ConfigError::Invalid(format!(
-                "load.offset_s.{k} must be a finite number of seconds, got {v}"
-            )));
-        }
-        for p in [
-            &self.ingest.vallen.load_param,
-            &self.ingest.vallen.extension_param,
-        ] {
-            let well_formed =
-                p.is_empty() || (p.starts_with("PA") && p[2..].parse::<u32>().is_ok());
-            if !well_formed {
-                return Err(ConfigError::Invalid(format!(
-                    "ingest.vallen: parametric input must look like PA0, PA1, …; got {p:?}"
-                )));
-            }
-        }
-        Ok(())
     }
 
     /// Canonical TOML of the effective configuration (what the manifest records).

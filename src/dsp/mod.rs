@@ -9,6 +9,7 @@ pub mod cwt;
 pub mod filter;
 pub mod hit;
 pub mod pick;
+pub mod settings;
 pub mod spectrum;
 
 /// The smallest length ≥ `n` of the form 2^a·3^b: RustFFT's fastest sizes (measured here:

@@ -15,7 +15,7 @@
 //! opening an event (directly, or through a chain of such hits of the same source) can be
 //! counted as guard-suppressed.
 
-use crate::config::ChannelRole;
+use crate::model::ChannelRole;
 use std::collections::BTreeMap;
 
 /// vallenae's `HitFlags.AFTER_TIMEOUT`: the hit was started artificially after a hit timeout.

@@ -13,7 +13,8 @@
 //!   RMS of the distance-difference residuals, ‖(|p−s_k| − |p−s_1|) − v·(t_k − t_1)‖ / √(n−1)
 //!   over the n located hits in arrival order, metres.
 
-use crate::config::{LocationKind, ZoneSpec};
+use super::settings::ZoneSpec;
+use crate::model::LocationKind;
 
 /// One located hit: its sensor and arrival time.
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -15,6 +15,7 @@
 pub mod builder;
 pub mod locate;
 pub mod part;
+pub mod settings;
 pub mod setup;
 pub mod table;
 
@@ -94,15 +95,15 @@ impl EventsSummary {
             channel_roles: p
                 .roles
                 .iter()
-                .filter(|(_, r)| **r != crate::config::ChannelRole::Normal)
+                .filter(|(_, r)| **r != crate::model::ChannelRole::Normal)
                 .map(|(c, r)| (c.to_string(), format!("{r:?}").to_lowercase()))
                 .collect(),
             location: s.locator.as_ref().map(|l| {
                 format!(
                     "{}, {} m/s, {} sensors",
                     match l.kind {
-                        crate::config::LocationKind::Linear => "linear",
-                        crate::config::LocationKind::Planar => "planar",
+                        crate::model::LocationKind::Linear => "linear",
+                        crate::model::LocationKind::Planar => "planar",
                     },
                     l.velocity_m_s,
                     l.sensors.len()

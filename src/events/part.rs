@@ -4,10 +4,12 @@
 
 use super::builder::{self, Fate, HitIn};
 use super::locate::{self, Arrival, Status};
+use super::settings::EventsSettings;
 use super::setup::{self, Setup};
 use super::table::{events_table, EventRow};
 use super::{EventsError, EventsSummary};
-use crate::config::{ChannelRole, Picker, ValidConfig};
+use crate::dsp::settings::Picker;
+use crate::model::ChannelRole;
 use crate::store::{TableScan, TableSchema, TableWriter};
 use arrow::array::{ArrayRef, BooleanArray, Int64Array, StringArray};
 use std::collections::{BTreeSet, HashMap};
@@ -31,7 +33,7 @@ fn opt_i64(v: Option<f64>) -> Option<i64> {
 }
 
 /// Run the events step on one part.
-pub fn run_part(p: &PartTables, cfg: &ValidConfig) -> Result<EventsSummary, EventsError> {
+pub fn run_part(p: &PartTables, cfg: &EventsSettings) -> Result<EventsSummary, EventsError> {
     run_part_after(p, cfg, 0, &mut BTreeSet::new(), None)
 }
 
@@ -42,7 +44,7 @@ pub fn run_part(p: &PartTables, cfg: &ValidConfig) -> Result<EventsSummary, Even
 /// the part if one is known, closes its last event as it will in the whole experiment.
 pub fn run_part_after(
     p: &PartTables,
-    cfg: &ValidConfig,
+    cfg: &EventsSettings,
     events_before: u64,
     channels: &mut BTreeSet<u32>,
     next_hit: Option<(f64, u32)>,
@@ -118,12 +120,12 @@ pub fn run_part_after(
         vaex.as_ref().map(|(p, v)| (p.as_str(), v)),
         channels,
     );
-    let use_picker = cfg.onset.picker != Picker::None && feats.is_some();
+    let use_picker = cfg.picker != Picker::None && feats.is_some();
     let mut summary = EventsSummary::new(p.experiment, &s, use_picker, n as u64);
 
     let table = events_table();
-    let mut w = TableWriter::create(p.events, table.schema(), &[], cfg.pipeline.row_group_rows)
-        .map_err(store)?;
+    let mut w =
+        TableWriter::create(p.events, table.schema(), &[], cfg.row_group_rows).map_err(store)?;
     if !s.enabled {
         w.finish().map_err(store)?;
         return Ok(summary);
@@ -260,7 +262,7 @@ pub fn run_part_after(
     w.finish().map_err(store)?;
 
     // Fill the hit tables.
-    let rg = cfg.pipeline.row_group_rows;
+    let rg = cfg.row_group_rows;
     let columns = |ev: Vec<Option<i64>>,
                    fi: Vec<Option<bool>>,
                    zo: Vec<Option<&str>>|

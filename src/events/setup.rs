@@ -3,8 +3,9 @@
 //! the defaults; and whether events are built at all.
 
 use super::builder::Params;
-use crate::config::{ChannelRole, EventsConfig, LocationConfig, LocationKind, ZoneSpec};
+use super::settings::{EventsConfig, LocationConfig, ZoneSpec};
 use crate::ingest::vallen::vaex::VaexSetup;
+use crate::model::{ChannelRole, LocationKind};
 use std::collections::{BTreeMap, BTreeSet};
 
 /// DT1X when neither the TOML, nor a `.vaex`, nor a sensor layout says: 100 µs (a paper

@@ -15,7 +15,7 @@
 //! Every threshold is in `[criteria]` of the pipeline TOML; the numbers behind the decision
 //! are returned so they can be stored beside the label.
 
-use crate::config::CriteriaConfig;
+use super::settings::CriteriaConfig;
 use crate::dsp::hit::HitFeatures;
 use crate::model::Mechanism;
 

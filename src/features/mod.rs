@@ -11,17 +11,19 @@
 //! adding a feature is one [`ColumnSpec`] there and one value in [`FeatureExtractor::row`].
 
 pub mod criteria;
+pub mod settings;
 
-use crate::config::{Picker, PipelineConfig, ValidConfig};
 use crate::dsp::cwt::{Cwt, WaveletBank};
 use crate::dsp::hit::hit_features;
 use crate::dsp::pick::{self, PickScratch};
+use crate::dsp::settings::{DspConfig, Picker};
 use crate::dsp::spectrum::{band_column, power_ratios};
 use crate::dsp::{condition, hit::HitFeatures};
 use crate::model::{db_ae, AeRecord};
 use crate::store::{identity_table, table::s, ColType, ColumnSpec, Identity, Row, Table, Value};
 use criteria::{acquisition_fault, decide, Component, Components};
 use ndarray::Array2;
+use settings::{FeatureSettings, ValidateConfig};
 
 /// Why a record cannot become a feature row (stage `validate`).
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -44,14 +46,14 @@ pub enum FeatureError {
 
 /// Check a record before the transform: it must have samples, a rate, finite values and a
 /// pretrigger inside it.
-pub fn validate(r: &AeRecord, cfg: &PipelineConfig) -> Result<(), FeatureError> {
+pub fn validate(r: &AeRecord, v: &ValidateConfig) -> Result<(), FeatureError> {
     if r.samples.is_empty() {
         return Err(FeatureError::Empty);
     }
-    if r.samples.len() < cfg.validate.min_samples {
+    if r.samples.len() < v.min_samples {
         return Err(FeatureError::TooShort {
             samples: r.samples.len(),
-            min: cfg.validate.min_samples,
+            min: v.min_samples,
         });
     }
     if !(r.sample_rate_hz.is_finite() && r.sample_rate_hz > 0.0) {
@@ -86,10 +88,10 @@ pub struct BinGrid {
 }
 
 impl BinGrid {
-    pub fn from_config(cfg: &PipelineConfig) -> BinGrid {
-        let b = &cfg.dsp.bins;
+    pub fn of(dsp: &DspConfig) -> BinGrid {
+        let b = &dsp.bins;
         BinGrid {
-            n_bands: (cfg.dsp.band_max_hz / b.band_hz).round() as usize,
+            n_bands: (dsp.band_max_hz / b.band_hz).round() as usize,
             band_hz: b.band_hz,
             n_windows: b.n_windows,
             window_s: b.window_s,
@@ -119,10 +121,6 @@ impl BinGrid {
     }
 }
 
-fn n_ratio_bands(cfg: &PipelineConfig) -> usize {
-    (cfg.dsp.band_max_hz / cfg.dsp.band_hz).round() as usize
-}
-
 /// One row of `features.parquet`: the record's identity and what the DSP found in it.
 pub struct FeatureRow {
     pub id: Identity,
@@ -136,7 +134,7 @@ pub struct FeatureRow {
 
 /// The columns of `features.parquet` for a configuration, each with the cell it takes from a
 /// [`FeatureRow`]: the only place a feature column is declared.
-pub fn features_table(cfg: &PipelineConfig) -> Table<FeatureRow> {
+pub fn features_table(dsp: &DspConfig) -> Table<FeatureRow> {
     let f64c =
         |name: &str, unit: &str, doc: &str| ColumnSpec::new(name, ColType::Float64, unit, doc);
     let mut t = Table::new("features")
@@ -157,20 +155,20 @@ pub fn features_table(cfg: &PipelineConfig) -> Table<FeatureRow> {
         .col(f64c("rms_v", "V", "root mean square of the record"), |r| Value::F64(Some(r.an.hit.rms_v)))
         .col(f64c("peak_freq_hz", "Hz", "frequency of the largest power-spectrum bin (DC excluded); null for a flat record").nullable(), |r| Value::F64(r.an.peak_freq_hz))
         .col(f64c("centroid_freq_hz", "Hz", "power-weighted mean frequency of the spectrum up to fs/2; null for a flat record").nullable(), |r| Value::F64(r.an.centroid_freq_hz));
-    let nb = n_ratio_bands(cfg);
+    let nb = dsp.n_ratio_bands();
     for i in 0..nb {
-        let lo = i as f64 * cfg.dsp.band_hz / 1e3;
+        let lo = i as f64 * dsp.band_hz / 1e3;
         t = t.col(
             f64c(
-                &band_column(i, cfg.dsp.band_hz),
+                &band_column(i, dsp.band_hz),
                 "1",
-                &format!("power ratio W_{} (Eq. 4.5.4): power in [{lo}, {}) kHz / power in [0, {}) kHz; the {nb} sum to 1; null for a flat record", i + 1, lo + cfg.dsp.band_hz / 1e3, cfg.dsp.band_max_hz / 1e3),
+                &format!("power ratio W_{} (Eq. 4.5.4): power in [{lo}, {}) kHz / power in [0, {}) kHz; the {nb} sum to 1; null for a flat record", i + 1, lo + dsp.band_hz / 1e3, dsp.band_max_hz / 1e3),
             )
             .nullable(),
             move |r: &FeatureRow| Value::F64(r.an.ratios.get(i).copied()),
         );
     }
-    let g = BinGrid::from_config(cfg);
+    let g = BinGrid::of(dsp);
     let opt = |v: Option<Component>, f: fn(Component) -> f64| Value::F64(v.map(f));
     t.col_take(
         ColumnSpec::new(
@@ -247,20 +245,17 @@ fn words<'a>(items: impl ExactSizeIterator<Item = &'a str>) -> String {
 }
 
 /// Extra Parquet metadata of `features.parquet`: the bin layout and the CWT.
-pub fn features_metadata(cfg: &PipelineConfig) -> Vec<(String, String)> {
+pub fn features_metadata(dsp: &DspConfig) -> Vec<(String, String)> {
     vec![
-        (
-            "aepipe.tf_bins".into(),
-            BinGrid::from_config(cfg).describe(),
-        ),
+        ("aepipe.tf_bins".into(), BinGrid::of(dsp).describe()),
         (
             "aepipe.cwt".into(),
             serde_json::json!({
                 "wavelet": "complex Gabor (Morlet), analytic, amplitude-preserving",
-                "fwhm_periods": cfg.dsp.cwt.fwhm_periods,
-                "f_min_hz": cfg.dsp.cwt.f_min_hz,
-                "f_max_hz": cfg.dsp.cwt.f_max_hz,
-                "n_freqs": cfg.dsp.cwt.n_freqs,
+                "fwhm_periods": dsp.cwt.fwhm_periods,
+                "f_min_hz": dsp.cwt.f_min_hz,
+                "f_max_hz": dsp.cwt.f_max_hz,
+                "n_freqs": dsp.cwt.n_freqs,
             })
             .to_string(),
         ),
@@ -314,7 +309,7 @@ fn window_sums(row: &[f32], edges: &[usize], sums: &mut [f32; 64]) {
 
 /// Per-worker state for computing feature rows.
 pub struct FeatureExtractor {
-    cfg: ValidConfig,
+    cfg: FeatureSettings,
     picks: PickScratch,
     /// The table the rows are made for (its columns depend on the configuration).
     table: Table<FeatureRow>,
@@ -363,7 +358,11 @@ pub struct Onsets {
 impl Onsets {
     /// Run the four pickers of `[onset]` on the record's own samples (as recorded, volts:
     /// the input vallenae's pickers see), over the whole record or the configured window.
-    pub fn pick(r: &AeRecord, cfg: &crate::config::OnsetConfig, s: &mut PickScratch) -> Onsets {
+    pub fn pick(
+        r: &AeRecord,
+        cfg: &crate::dsp::settings::OnsetConfig,
+        s: &mut PickScratch,
+    ) -> Onsets {
         let n = r.samples.len();
         let (a, b) = match (cfg.window_before_s, cfg.window_after_s) {
             (Some(before), Some(after)) => {
@@ -388,25 +387,27 @@ impl Onsets {
 }
 
 impl FeatureExtractor {
-    pub fn new(cfg: &ValidConfig) -> FeatureExtractor {
+    /// A worker for the settings (those of a checked pipeline: `&ValidConfig` converts).
+    pub fn new(settings: impl Into<FeatureSettings>) -> FeatureExtractor {
+        let cfg: FeatureSettings = settings.into();
         let bank = WaveletBank::from_config(&cfg.dsp.cwt);
         FeatureExtractor {
             freqs: bank.freqs_hz.clone(),
-            table: features_table(cfg),
+            table: features_table(&cfg.dsp),
             picks: PickScratch::default(),
-            cfg: cfg.clone(),
-            grid: BinGrid::from_config(cfg),
+            grid: BinGrid::of(&cfg.dsp),
             cwt: Cwt::new(bank),
             cond: Vec::new(),
-            ratios: vec![0.0; n_ratio_bands(cfg)],
+            ratios: vec![0.0; cfg.dsp.n_ratio_bands()],
             bins: Vec::new(),
             peaks: Vec::new(),
             env: Vec::new(),
             row: Vec::new(),
+            cfg,
         }
     }
 
-    pub fn config(&self) -> &ValidConfig {
+    pub fn config(&self) -> &FeatureSettings {
         &self.cfg
     }
 
@@ -569,6 +570,7 @@ impl FeatureExtractor {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::config::{PipelineConfig, ValidConfig};
     use crate::model::Mechanism;
     use crate::synth::{waveform, HitSpec, Rng};
 
@@ -597,7 +599,7 @@ mod tests {
     #[test]
     fn row_matches_the_table_and_sums_to_one() {
         let cfg = ValidConfig::default();
-        let t = features_table(&cfg).schema();
+        let t = features_table(&cfg.dsp).schema();
         let spec = HitSpec::new(Mechanism::BondFailure);
         let r = rec(waveform(&spec, &mut Rng::new(1)), spec.pretrigger as u32);
         let row = FeatureExtractor::new(&cfg).row(&r);
@@ -623,7 +625,7 @@ mod tests {
         s[60] = 0.5 + 0.01;
         s[70] = 0.5 - 0.02;
         let row = FeatureExtractor::new(&cfg).row(&rec(s, 50));
-        let t = features_table(&cfg).schema();
+        let t = features_table(&cfg.dsp).schema();
         let Value::F64(Some(p)) = get(&row, &t, "peak_amplitude_v") else {
             panic!()
         };
@@ -688,7 +690,7 @@ mod tests {
     /// Sum a full-resolution CWT into the bins the way the thesis describes (independently of
     /// the windowed path).
     fn bins_from_full(cfg: &ValidConfig, r: &AeRecord) -> Vec<f64> {
-        let g = BinGrid::from_config(cfg);
+        let g = BinGrid::of(&cfg.dsp);
         let (freqs, p) = FeatureExtractor::new(cfg).full_cwt(r);
         let n = r.samples.len();
         let fs = r.sample_rate_hz;

@@ -10,7 +10,7 @@
 
 use super::sniff::{Head, Kind, Recogniser, Strength, Verdict};
 use super::{gain_factor, Source};
-use crate::config::{FormatChoice, IngestConfig};
+use crate::ingest::settings::{FormatChoice, IngestConfig};
 use crate::model::{AeRecord, Item, Reject, Stage};
 use std::path::Path;
 

@@ -3,8 +3,8 @@
 
 use super::sniff::{self, Kind as TextKind};
 use super::{dta, whole_file_reject, Format, Source};
-use crate::config::FormatChoice;
-use crate::config::IngestConfig;
+use crate::ingest::settings::FormatChoice;
+use crate::ingest::settings::IngestConfig;
 use crate::model::{Reject, Stage};
 use std::path::{Path, PathBuf};
 

@@ -9,7 +9,7 @@
 //! `parametric.parquet` rows. A missing or unreadable file is a note, never a lost hit.
 
 use super::{Source, TimeSeries};
-use crate::config::{ColumnRef, LoadConfig};
+use crate::ingest::settings::{ColumnRef, LoadConfig};
 use crate::model::{Item, Note, ParametricRow, ParametricSource, RecordType, Reject, Stage, Tally};
 use std::collections::{BTreeMap, VecDeque};
 use std::path::{Path, PathBuf};
@@ -209,9 +209,7 @@ impl Delimited {
 /// The load file of a source, its path resolved (`{experiment}`, `{stem}`, relative to the
 /// folder holding the experiment's recordings).
 pub fn path_for(src: &Source, cfg: &LoadConfig) -> Option<PathBuf> {
-    if cfg.file.is_empty() {
-        return None;
-    }
+    let file = cfg.file.as_ref()?;
     let first = src.all_files().next()?;
     let dir = first.parent().map(Path::to_path_buf).unwrap_or_default();
     let stem = if src.format == super::Format::VallenTxt {
@@ -228,8 +226,8 @@ pub fn path_for(src: &Source, cfg: &LoadConfig) -> Option<PathBuf> {
             .map(|s| s.to_string_lossy().to_string())
             .unwrap_or_default()
     };
-    let rel = cfg
-        .file
+    let rel = file
+        .to_string_lossy()
         .replace("{experiment}", &src.id)
         .replace("{stem}", &stem);
     let p = PathBuf::from(rel);

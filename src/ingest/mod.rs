@@ -12,14 +12,15 @@ mod discover;
 pub mod dta;
 pub mod loadfile;
 mod parquetfmt;
+pub mod settings;
 pub(crate) mod sniff;
 mod text;
 pub mod vallen;
 mod waveexplorer;
 pub mod wavfmt;
 
-use crate::config::{IngestConfig, PipelineConfig};
 use crate::model::{HitRow, Item, Reject, Stage};
+use settings::{IngestConfig, LoadConfig};
 use std::path::{Path, PathBuf};
 
 pub use aewin::MachineLog;
@@ -221,8 +222,12 @@ impl Iterator for Guarded {
 /// recording holds (parametric and marker rows, setup, notes, the reader's tally), in
 /// (experiment, channel, hit) order. The reader runs under a guard (a panic is a reject
 /// row); with `[load] file` set, the test machine's load file gives the load.
-pub fn open(src: &Source, cfg: &PipelineConfig) -> Box<dyn Iterator<Item = Item> + Send> {
-    loadfile::attach(open_recording(src, &cfg.ingest), src, &cfg.load)
+pub fn open(
+    src: &Source,
+    ingest: &IngestConfig,
+    load: &LoadConfig,
+) -> Box<dyn Iterator<Item = Item> + Send> {
+    loadfile::attach(open_recording(src, ingest), src, load)
 }
 
 /// [`open`] without the load file: what the recording itself holds.
@@ -236,13 +241,14 @@ pub fn open_recording(src: &Source, cfg: &IngestConfig) -> Box<dyn Iterator<Item
 pub fn open_window(
     src: &Source,
     w: &vallen::tail::Window,
-    cfg: &PipelineConfig,
+    ingest: &IngestConfig,
+    load: &LoadConfig,
 ) -> Box<dyn Iterator<Item = Item> + Send> {
-    let (w, c) = (w.clone(), cfg.ingest.clone());
+    let (w, c) = (w.clone(), ingest.clone());
     loadfile::attach(
         guarded(src, Box::new(move || vallen::tail::read(&w, &c))),
         src,
-        &cfg.load,
+        load,
     )
 }
 
@@ -251,9 +257,9 @@ pub fn open_window(
 pub fn with_load_file(
     items: Box<dyn Iterator<Item = Item> + Send>,
     src: &Source,
-    cfg: &PipelineConfig,
+    load: &LoadConfig,
 ) -> Box<dyn Iterator<Item = Item> + Send> {
-    loadfile::attach(items, src, &cfg.load)
+    loadfile::attach(items, src, load)
 }
 
 /// A reader opened on first use, a panic in it a reject row (the rest of the source

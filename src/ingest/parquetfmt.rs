@@ -2,7 +2,7 @@
 //! Read batch by batch; the rows carry their own experiment ids.
 
 use super::Source;
-use crate::config::IngestConfig;
+use crate::ingest::settings::IngestConfig;
 use crate::model::{AeRecord, Item, Reject, Stage};
 use crate::store;
 use arrow::array::{Array, AsArray, RecordBatch};

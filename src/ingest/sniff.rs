@@ -15,7 +15,7 @@
 //! columns, numeric lines), what it resembles and which format or `[ingest]` keys would
 //! read it; `aepipe inspect` prints the same line the manifest keeps.
 
-use crate::config::FormatChoice;
+use crate::ingest::settings::FormatChoice;
 use std::path::Path;
 
 /// How much of a file the sniffer reads.

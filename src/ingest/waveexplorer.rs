@@ -8,7 +8,7 @@
 
 use super::sniff::{cells, Head, Kind, Recogniser, Strength, Verdict};
 use super::{file_err, Source};
-use crate::config::{FormatChoice, IngestConfig};
+use crate::ingest::settings::{FormatChoice, IngestConfig};
 use crate::model::{AeRecord, Item, Reject, Stage};
 use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};

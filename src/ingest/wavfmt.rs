@@ -3,7 +3,7 @@
 //! `[ingest] gain_db` is divided out. The rate comes from the header.
 
 use super::{gain_factor, Source};
-use crate::config::IngestConfig;
+use crate::ingest::settings::IngestConfig;
 use crate::model::{AeRecord, Item, Reject, Stage};
 use std::path::Path;
 

@@ -180,7 +180,7 @@ fn vallen_bench(
     let cfg = ValidConfig::default()
         .with(|c| {
             c.report.enabled = false;
-            c.ingest.vallen.load_param = "PA0".into();
+            c.ingest.vallen.load_param = Some(crate::config::ParamInput(0));
             c.ingest.vallen.load_n_per_mv = 1.0;
         })
         .map_err(crate::workflow::WorkflowError::Config)?;

@@ -203,20 +203,18 @@ fn the_map(
     dir: &WatchDir,
     inputs: &[PathBuf],
 ) -> Result<Option<Model>, WatchError> {
-    if !cfg.som.model.is_empty() {
-        return Ok(Some(crate::som::tables::load_model(Path::new(
-            &cfg.som.model,
-        ))?));
-    }
-    if !cfg.som.enabled {
-        return Ok(None);
-    }
-    if cfg.som.train_on != crate::config::TrainOn::Reference {
-        return Err(WatchError::Map(
-            "[som] train_on = \"criteria\" trains on the finished test's own hits: give a map \
-             (--model DIR, or [som] model) to classify while it runs"
-                .into(),
-        ));
+    use crate::som::settings::MapSource;
+    match cfg.som.map_source() {
+        MapSource::Given(m) => return Ok(Some(crate::som::tables::load_model(m)?)),
+        _ if !cfg.som.enabled => return Ok(None),
+        MapSource::Criteria => {
+            return Err(WatchError::Map(
+                "[som] train_on = \"criteria\" trains on the finished test's own hits: give a \
+                 map (--model DIR, or [som] model) to classify while it runs"
+                    .into(),
+            ))
+        }
+        MapSource::Reference(_) => {}
     }
     let model_dir = dir.map();
     if model_dir.join("model.json").is_file() {
@@ -246,7 +244,7 @@ pub fn watch(
         Some(m) => {
             with_model = cfg
                 .clone()
-                .with(|c| c.som.model = m.display().to_string())
+                .with(|c| c.som.model = Some(m.clone()))
                 .map_err(crate::workflow::WorkflowError::Config)?;
             &with_model
         }
@@ -398,12 +396,14 @@ fn flush(
         let _ = std::fs::remove_dir_all(&scratch);
         std::fs::create_dir_all(&scratch).map_err(|e| crate::util::IoAt::new(&scratch, e))?;
         let items = sources.iter().flat_map(|p| match &p.part {
-            Some(follow::Part::Vallen(w)) => crate::ingest::open_window(&p.source, w, cfg),
+            Some(follow::Part::Vallen(w)) => {
+                crate::ingest::open_window(&p.source, w, &cfg.ingest, &cfg.load)
+            }
             Some(follow::Part::Dta { items, .. }) => {
                 let items = std::mem::take(&mut *items.lock().expect("not poisoned"));
-                crate::ingest::with_load_file(Box::new(items.into_iter()), &p.source, cfg)
+                crate::ingest::with_load_file(Box::new(items.into_iter()), &p.source, &cfg.load)
             }
-            None => crate::ingest::open(&p.source, cfg),
+            None => crate::ingest::open(&p.source, &cfg.ingest, &cfg.load),
         });
         let st = crate::pipeline::stream(
             items,
@@ -429,7 +429,7 @@ fn flush(
                 events: &stream.table(PartTable::Events, job),
                 vaex: sources.iter().find_map(|p| p.source.vaex()),
             },
-            cfg,
+            &cfg.into(),
             state.events.get(experiment).copied().unwrap_or(0),
             &mut channels,
             // The hit after the part's last hits (a later part of transients only has none).
@@ -458,7 +458,7 @@ fn flush(
                 std::slice::from_ref(&features),
                 Some(&cfg.som.label),
                 &cls_dir,
-                crate::store::SourceRows::of(cfg),
+                cfg.source_rows(),
                 cfg.som.read_erroneous,
             ) {
                 Ok(conf) => {

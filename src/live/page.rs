@@ -78,7 +78,7 @@ pub fn latest_record(
                 files: vec![last],
                 ..p.source.clone()
             };
-            crate::ingest::open(&src, cfg).find_map(|it| match it {
+            crate::ingest::open(&src, &cfg.ingest, &cfg.load).find_map(|it| match it {
                 Item::Record(r) => Some(r),
                 _ => None,
             })
@@ -96,7 +96,7 @@ pub fn draw_latest(
     r: &crate::model::AeRecord,
     slot: u32,
 ) -> Option<(String, String)> {
-    crate::features::validate(r, cfg).ok()?;
+    crate::features::validate(r, &cfg.validate).ok()?;
     let rel = format!("watch/live/latest-{}.png", slot as usize % CWTS);
     let png = dir.path().join(&rel);
     std::fs::create_dir_all(png.parent()?).ok()?;

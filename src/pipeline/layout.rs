@@ -57,7 +57,7 @@ impl PartTable {
 
     pub fn schema(self, job: StreamJob, cfg: &PipelineConfig) -> TableSchema {
         match (self, job) {
-            (PartTable::Main, StreamJob::Features) => features_table(cfg).schema(),
+            (PartTable::Main, StreamJob::Features) => features_table(&cfg.dsp).schema(),
             (PartTable::Main, StreamJob::Waveforms) => store::waveforms_table().schema(),
             (PartTable::Hits, _) => store::hits_table().schema(),
             (PartTable::Rejects, _) => store::rejects_table().schema(),

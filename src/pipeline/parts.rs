@@ -207,7 +207,9 @@ pub(crate) fn produce(
             None => {
                 let _ = std::fs::remove_dir_all(dir.path());
                 std::fs::create_dir_all(dir.path()).map_err(|e| IoAt::new(dir.path(), e))?;
-                let items = g.iter().flat_map(|s| ingest::open(s, cfg));
+                let items = g
+                    .iter()
+                    .flat_map(|s| ingest::open(s, &cfg.ingest, &cfg.load));
                 let st = stream(items, job, dir.path(), cfg, opts)?;
                 // Events need every hit of the experiment: a step after the stream, which
                 // writes events.parquet and fills the hit tables' event columns.
@@ -223,7 +225,7 @@ pub(crate) fn produce(
                         events: &dir.table(PartTable::Events, job),
                         vaex: g.iter().find_map(|s| s.vaex()),
                     },
-                    cfg,
+                    &cfg.into(),
                 )?;
                 let mut rec = want;
                 for t in PartTable::ALL {

@@ -90,7 +90,7 @@ fn process(
         Item::Record(r) => r,
         other => return Out::Item(other),
     };
-    if let Err(e) = validate(&rec, ex.config()) {
+    if let Err(e) = validate(&rec, &ex.config().validate) {
         return Out::Item(Item::Reject(Reject::of_record(
             &rec,
             Stage::Validate,
@@ -113,7 +113,7 @@ fn process(
                         .or_else(|| p.downcast_ref::<&str>().map(|s| s.to_string()))
                         .unwrap_or_default();
                     // The extractor may be mid-update: replace it.
-                    *ex = FeatureExtractor::new(ex.config());
+                    *ex = FeatureExtractor::new(ex.config().clone());
                     Out::Item(Item::Reject(Reject::of_record(
                         &rec,
                         Stage::Features,
@@ -151,7 +151,7 @@ pub(crate) fn table_metadata(
     ];
     let mut table_meta = meta.clone();
     if job == StreamJob::Features {
-        table_meta.extend(crate::features::features_metadata(cfg));
+        table_meta.extend(crate::features::features_metadata(&cfg.dsp));
     }
     (table_meta, meta)
 }

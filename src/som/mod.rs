@@ -12,6 +12,7 @@
 
 pub mod layout;
 pub mod profile;
+pub mod settings;
 pub mod tables;
 
 use crate::util::Rng;
@@ -149,7 +150,7 @@ pub struct SomParams {
     pub init: Init,
 }
 
-pub use crate::config::som_defaults as defaults;
+pub use settings::som_defaults as defaults;
 
 impl Default for SomParams {
     fn default() -> Self {

@@ -2,8 +2,8 @@
 //! files, classification of every hit and the confusion report of Table 5.4.
 
 use super::layout::{ClassifyDir, ModelDir};
+use super::settings::ReadErroneous;
 use super::{Init, Som, SomError, SomParams};
-use crate::config::ReadErroneous;
 use crate::model::Mechanism;
 use crate::store::{ColType, ColumnSpec, HitKey, SourceRows, Table, TableScan, TableWriter, Value};
 use ndarray::{Array2, ArrayView2};

@@ -24,13 +24,6 @@ pub struct SourceRows {
 }
 
 impl SourceRows {
-    /// As `[location] exclude_outside` of a pipeline says.
-    pub fn of(cfg: &crate::config::PipelineConfig) -> SourceRows {
-        SourceRows {
-            exclude_outside: cfg.location.exclude_outside,
-        }
-    }
-
     /// The rule as a Polars predicate over a table's `event_first` and `zone`: a hit in no
     /// event (`event_first` null: events not built) unless a guard suppressed it, or an
     /// event's first hit unless its event lies outside the zone (those two exclusions only

@@ -294,7 +294,7 @@ impl Library {
         let d = crate::ingest::discover(&[path.to_path_buf()], &cfg.ingest);
         let mut lib = Library::default();
         for src in &d.sources {
-            for it in crate::ingest::open(src, &cfg) {
+            for it in crate::ingest::open(src, &cfg.ingest, &cfg.load) {
                 let crate::model::Item::Record(r) = it else {
                     continue;
                 };

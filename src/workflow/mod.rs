@@ -46,15 +46,19 @@ pub enum WorkflowError {
     /// The hit asked for is not in the inputs, or cannot be analysed.
     #[error("{0}")]
     NoHit(String),
+    /// A map to train before the test (`aepipe watch`) needs `[som] train_on = "reference"`.
+    #[error("config: som.train_on is not \"reference\"")]
+    NotReferenceTraining,
 }
 
 impl crate::util::HasKind for WorkflowError {
     fn kind(&self) -> crate::util::ErrorKind {
         match self {
             WorkflowError::Merge(x) => x.kind(),
-            WorkflowError::Config(_) | WorkflowError::Input { .. } | WorkflowError::NoHit(_) => {
-                crate::util::ErrorKind::Usage
-            }
+            WorkflowError::Config(_)
+            | WorkflowError::Input { .. }
+            | WorkflowError::NoHit(_)
+            | WorkflowError::NotReferenceTraining => crate::util::ErrorKind::Usage,
             WorkflowError::Pipeline(x) => x.kind(),
             WorkflowError::Trend(x) => x.kind(),
             WorkflowError::Som(x) => x.kind(),
@@ -218,9 +222,7 @@ pub fn train_reference_map(
     job: &RunJob,
 ) -> Result<(crate::som::tables::Model, String), WorkflowError> {
     if job.config.som.train_on != crate::config::TrainOn::Reference {
-        return Err(WorkflowError::Config(crate::config::ConfigError::Invalid(
-            "som.train_on is not \"reference\"".into(),
-        )));
+        return Err(WorkflowError::NotReferenceTraining);
     }
     stages::train_stage(job, &[])
 }

@@ -85,12 +85,12 @@ fn draw_gallery(
     let mut ex = crate::features::FeatureExtractor::new(cfg);
     let d = crate::ingest::discover(inputs, &cfg.ingest);
     for src in &d.sources {
-        for it in crate::ingest::open(src, cfg) {
+        for it in crate::ingest::open(src, &cfg.ingest, &cfg.load) {
             let crate::model::Item::Record(r) = it else {
                 continue;
             };
             let key = (r.experiment.clone(), r.channel as i32, r.hit as i64);
-            if !want.contains(&key) || crate::features::validate(&r, cfg).is_err() {
+            if !want.contains(&key) || crate::features::validate(&r, &cfg.validate).is_err() {
                 continue;
             }
             let png = run.gallery_png(&key);
@@ -144,7 +144,7 @@ pub fn cwt_of_hit(
         .filter(|s| {
             experiment.is_none_or(|e| s.id == e || s.format == crate::ingest::Format::Parquet)
         })
-        .flat_map(|s| crate::ingest::open(s, cfg))
+        .flat_map(|s| crate::ingest::open(s, &cfg.ingest, &cfg.load))
         .find_map(|it| match it {
             crate::model::Item::Record(r)
                 if r.hit == hit
@@ -169,7 +169,7 @@ pub fn cwt_of_hit(
                 .join(", ")
         )));
     };
-    crate::features::validate(&rec, cfg)
+    crate::features::validate(&rec, &cfg.validate)
         .map_err(|e| WorkflowError::NoHit(format!("{}: {e}", rec.id())))?;
     let mut ex = crate::features::FeatureExtractor::new(cfg);
     let a = ex.analyse(&rec);

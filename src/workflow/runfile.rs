@@ -69,7 +69,7 @@ pub fn rebuild_report(dir: &Path) -> Result<PathBuf, WorkflowError> {
             &feats,
             Some(&config.som.label),
             sdir.path(),
-            crate::store::SourceRows::of(&config),
+            config.source_rows(),
             config.som.read_erroneous,
         )?;
         let existing = |p: PathBuf| p.is_file().then_some(p);

@@ -23,7 +23,7 @@ pub const TABLES: &[&str] = &[
 /// The schema of a written table by name (one of [`TABLES`]).
 pub fn table_schema(name: &str, cfg: &PipelineConfig) -> Option<crate::store::TableSchema> {
     Some(match name {
-        "features" => crate::features::features_table(cfg).schema(),
+        "features" => crate::features::features_table(&cfg.dsp).schema(),
         "waveforms" => crate::store::waveforms_table().schema(),
         "rejects" => crate::store::rejects_table().schema(),
         "hits" => crate::store::hits_table().schema(),

@@ -3,7 +3,7 @@
 
 use super::*;
 use crate::analysis::trend::TrendDir;
-use crate::config::TrainOn;
+use crate::config::{MapSource, TrainOn};
 use crate::som::layout::ClassifyDir;
 
 /// The trend statistics of the feature tables into `dir`, with a Fig. 4.18 plot per
@@ -17,7 +17,7 @@ pub(super) fn trend_stage(
         cutoff: cfg.trend.cutoff,
         alpha: cfg.trend.alpha,
         columns: vec![],
-        sources: crate::store::SourceRows::of(cfg),
+        sources: cfg.source_rows(),
     };
     let mut plots = Vec::new();
     let figures = cfg.report.series_figures;
@@ -53,15 +53,16 @@ pub(super) fn som_stage(
     let run = job.dir();
     let som_dir = run.som();
     let model_dir = run.som_model();
-    let (model, trained_on) = if cfg.som.model.is_empty() {
-        log.time("som training", || train_stage(job, feats))?
-    } else {
+    let (model, trained_on) = match cfg.som.map_source() {
         // A given map: copied into the run (its model folder), so the run stays whole.
-        log.time("som model", || -> Result<_, WorkflowError> {
-            let m = crate::som::tables::load_model(Path::new(&cfg.som.model))?;
+        MapSource::Given(given) => log.time("som model", || -> Result<_, WorkflowError> {
+            let m = crate::som::tables::load_model(given)?;
             crate::som::tables::save_model(&m, model_dir.path(), None)?;
-            Ok((m, format!("the given map {}", cfg.som.model)))
-        })?
+            Ok((m, format!("the given map {}", given.display())))
+        })?,
+        MapSource::Reference(_) | MapSource::Criteria => {
+            log.time("som training", || train_stage(job, feats))?
+        }
     };
     let confusion = log.time("classification", || -> Result<_, WorkflowError> {
         let confusion = classify_tables(
@@ -69,7 +70,7 @@ pub(super) fn som_stage(
             feats,
             Some(&cfg.som.label),
             som_dir.path(),
-            crate::store::SourceRows::of(cfg),
+            cfg.source_rows(),
             cfg.som.read_erroneous,
         )?;
         crate::plot::u_matrix_png(&som_dir.u_matrix(), &model.som)?;
@@ -97,14 +98,19 @@ pub(super) fn train_stage(
     use crate::som::tables::{train, TrainOptions, TrainingSet};
     let cfg = job.config;
     let run = job.dir();
-    let (train_paths, label, fraction, trained_on) = if cfg.som.train_on == TrainOn::Reference {
-        let lib = if cfg.som.reference_library.is_empty() {
-            let f = crate::sim::reference::ReferenceFile::default_library();
-            let dir = run.reference();
-            crate::sim::reference::build_library(&f.reference, dir.path(), job.progress)?;
-            dir.waveforms()
-        } else {
-            PathBuf::from(&cfg.som.reference_library)
+    let library = match cfg.som.train_on {
+        TrainOn::Reference => Some(cfg.som.reference_library.as_deref()),
+        TrainOn::Criteria => None,
+    };
+    let (train_paths, label, fraction, trained_on) = if let Some(named) = library {
+        let lib = match named {
+            Some(lib) => lib.to_path_buf(),
+            None => {
+                let f = crate::sim::reference::ReferenceFile::default_library();
+                let dir = run.reference();
+                crate::sim::reference::build_library(&f.reference, dir.path(), job.progress)?;
+                dir.waveforms()
+            }
         };
         // The library's features, with the run's own settings; its sensors record one
         // simulated source each, not a test, so no events.
@@ -154,7 +160,7 @@ pub(super) fn train_stage(
             seed: cfg.som.seed,
             ..Default::default()
         },
-        sources: crate::store::SourceRows::of(cfg),
+        sources: cfg.source_rows(),
         ..Default::default()
     };
     let model = train(&train_paths, run.som_model().path(), &o)?;

@@ -118,7 +118,7 @@ pub(super) fn scores(
             truth,
             &features.table_path,
             &features.events_path,
-            crate::store::SourceRows::of(cfg),
+            cfg.source_rows(),
         )?
     } else {
         None

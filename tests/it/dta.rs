@@ -14,7 +14,7 @@ fn items(inputs: &[PathBuf]) -> (Vec<HitRow>, Vec<AeRecord>, Vec<String>, Vec<St
     let d = aepipe::ingest::discover(inputs, &cfg.ingest);
     let (mut h, mut r, mut rej, mut notes) = (vec![], vec![], vec![], vec![]);
     for s in &d.sources {
-        for it in aepipe::ingest::open(s, &cfg) {
+        for it in aepipe::ingest::open(s, &cfg.ingest, &cfg.load) {
             match it {
                 Item::Hit(x) => h.push(*x),
                 Item::Record(x) => r.push(x),

@@ -149,7 +149,7 @@ fn run_classifies_against_truth_finds_the_trend_and_writes_a_report_a_browser_re
     // The experiment: 300 hits from its library, seed 9.
     aepipe::synth::synth_experiment(d.path(), "exp", 300, 9, Some(&lib), false).unwrap();
     let mut cfg = aepipe::demo::demo_config().into_inner();
-    cfg.som.reference_library = train.display().to_string();
+    cfg.som.reference_library = Some(train.clone());
     cfg.report.gallery_per_class = 2;
     let cfg = cfg.check().unwrap();
     let out = d.path().join("run");

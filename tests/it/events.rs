@@ -363,7 +363,7 @@ fn guard_sensors_suppress_grip_noise_and_leave_the_notchs_damage() {
     let (_, series) = aepipe::analysis::trend::read_series(
         std::slice::from_ref(&r.table_path),
         &[],
-        aepipe::store::SourceRows::of(&cfg),
+        cfg.source_rows(),
     )
     .unwrap();
     assert_eq!(series.len(), 1);

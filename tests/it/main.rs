@@ -182,7 +182,7 @@ pub fn read_all(
     let mut recs = Vec::new();
     let mut rejs = d.rejects;
     for s in &d.sources {
-        for it in aepipe::ingest::open(s, cfg) {
+        for it in aepipe::ingest::open(s, &cfg.ingest, &cfg.load) {
             match it {
                 aepipe::model::Item::Record(r) => recs.push(r),
                 aepipe::model::Item::Reject(r) => rejs.push(r),

@@ -22,8 +22,8 @@ fn synthetic(dir: &Path, id: &str, hits: usize, seed: u64) -> PathBuf {
 
 fn demo_cfg() -> aepipe::config::ValidConfig {
     let mut cfg = PipelineConfig::default();
-    cfg.ingest.vallen.load_param = "PA0".into();
-    cfg.ingest.vallen.extension_param = "PA1".into();
+    cfg.ingest.vallen.load_param = Some(aepipe::config::ParamInput(0));
+    cfg.ingest.vallen.extension_param = Some(aepipe::config::ParamInput(1));
     cfg.pipeline.batch_size = 7; // many small batches: ordering is exercised
     cfg.check().unwrap()
 }

@@ -105,8 +105,7 @@ fn a_300k_row_study_runs_in_bounded_memory_and_equals_the_small_computations() {
     use aepipe::analysis::trend::{read_series, select, trends};
     let feats = run.join("features/features.parquet");
     let cfg = aepipe::synth::demo_config();
-    let (columns, series) =
-        read_series(&[feats], &[], aepipe::store::SourceRows::of(&cfg)).unwrap();
+    let (columns, series) = read_series(&[feats], &[], cfg.source_rows()).unwrap();
     assert_eq!(series.len(), experiments);
     let (names, rows) = table_rows(&run.join("trend/trend.parquet"));
     let col = |n: &str| names.iter().position(|c| c == n).unwrap();

@@ -91,7 +91,7 @@ fn designed_trend_is_found_with_the_right_signs_end_to_end() {
     e.n_samples = 2048;
     e.write_vallen(&data).unwrap();
     let mut cfg = PipelineConfig::default();
-    cfg.ingest.vallen.load_param = "PA0".into();
+    cfg.ingest.vallen.load_param = Some(aepipe::config::ParamInput(0));
     let cfg = cfg.check().unwrap();
     let f = run(
         StreamJob::Features,

@@ -398,7 +398,7 @@ fn every_vallen_record_type_is_a_row_equal_to_what_vallenae_reads() {
     };
     let t = TempDir::new("vendor-vallen");
     let mut cfg = PipelineConfig::default();
-    cfg.ingest.vallen.load_param = "PA0".into();
+    cfg.ingest.vallen.load_param = Some(aepipe::config::ParamInput(0));
     let cfg = cfg.check().unwrap();
     for (dir, id) in [
         ("vallen/bearing", "bearing"),

@@ -26,7 +26,9 @@ pub fn trend(
     alpha: f64,
     exclude_outside: bool,
 ) -> PyResult<ArrowStream> {
-    let cutoff: Cutoff = cutoff.parse().map_err(errors::config)?;
+    let cutoff: Cutoff = cutoff
+        .parse()
+        .map_err(|e: aepipe::config::AnalysisSettingsError| errors::config(e.into()))?;
     let opts = TrendOptions {
         cutoff,
         alpha,

@@ -73,7 +73,7 @@ pub fn features_of_signals(
 ) -> PyResult<ArrowStream> {
     let cfg = config_of(config)?;
     let pool = pool(threads)?;
-    let table = features_table(&cfg);
+    let table = features_table(&cfg.dsp);
     let mut rows = Vec::with_capacity(signals.len());
     let mut line = progress.then(|| ProgressLine::new("signals"));
     for (c, chunk) in signals.chunks(CHUNK).enumerate() {
@@ -99,7 +99,7 @@ pub fn features_of_signals(
             })
             .collect();
         for r in &recs {
-            validate(r, &cfg)
+            validate(r, &cfg.validate)
                 .map_err(|e| errors::FeatureError::new_err(format!("signal {}: {e}", r.hit - 1)))?;
         }
         let cfg = &cfg;

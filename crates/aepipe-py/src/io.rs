@@ -93,7 +93,7 @@ fn read_all(
         .par_iter()
         .map(|s| {
             let (mut rows, mut rej) = (Vec::new(), Vec::new());
-            for it in ingest::open(s, cfg) {
+            for it in ingest::open(s, &cfg.ingest, &cfg.load) {
                 if control.is_cancelled() {
                     break;
                 }
@@ -179,7 +179,7 @@ pub fn read_hits(
 
 /// A record the feature stage accepts, or its reject.
 fn checked(r: AeRecord, cfg: &ValidConfig) -> Result<AeRecord, Reject> {
-    match aepipe::features::validate(&r, cfg) {
+    match aepipe::features::validate(&r, &cfg.validate) {
         Ok(()) => Ok(r),
         Err(e) => Err(Reject::of_record(
             &r,
@@ -346,7 +346,10 @@ pub fn iter_waveforms(
     let cfg = config_of(config)?;
     let (srcs, rejects) = sources(&paths, &cfg)?;
     let c = cfg.clone();
-    let items: Items = Box::new(srcs.into_iter().flat_map(move |s| ingest::open(&s, &c)));
+    let items: Items = Box::new(
+        srcs.into_iter()
+            .flat_map(move |s| ingest::open(&s, &c.ingest, &c.load)),
+    );
     Ok(WaveformIter {
         items: std::sync::Mutex::new(Some(items)),
         cfg,

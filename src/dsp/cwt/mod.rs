@@ -28,7 +28,7 @@
 mod across;
 mod banded;
 
-use crate::config::CwtConfig;
+use super::settings::CwtConfig;
 use rustfft::num_complex::Complex32;
 use rustfft::{Fft, FftPlanner};
 /// The caches' maps: keys are a few integers, hashed per frequency per record.

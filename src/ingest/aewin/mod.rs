@@ -15,7 +15,7 @@ mod log;
 
 use super::sniff::{self, Head, Kind, Recogniser, Strength, Verdict};
 use super::{gain_factor, text, Source};
-use crate::config::{FormatChoice, IngestConfig};
+use crate::ingest::settings::{FormatChoice, IngestConfig};
 use crate::model::{AeRecord, Item, Note, Reject, Stage};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};

@@ -23,7 +23,7 @@ pub use walker::{
 };
 
 use super::Source;
-use crate::config::{IngestConfig, MistrasConfig};
+use crate::ingest::settings::{IngestConfig, MistrasConfig};
 use crate::model::{
     AcquisitionSetup, AeRecord, ChannelSetup, HitRow, HitSource, Item, MarkerKind, MarkerRow, Note,
     ParametricRow, ParametricSource, RecordKind, RecordType, Reject, Stage, Tally,

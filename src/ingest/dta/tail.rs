@@ -15,7 +15,7 @@
 //! messages, counters and waiting pairs are as they were.
 
 use super::{chain_key, DtaSource};
-use crate::config::IngestConfig;
+use crate::ingest::settings::IngestConfig;
 use crate::ingest::{file_err, IngestError, Source};
 use crate::model::Item;
 use serde::{Deserialize, Serialize};

@@ -14,7 +14,7 @@
 //! its primary key: ordered output without asking SQLite to sort blobs, one waveform in memory.
 
 use super::{file_err, IngestError, Source};
-use crate::config::IngestConfig;
+use crate::ingest::settings::IngestConfig;
 use crate::model::{AeRecord, Item, Reject, Stage};
 use rusqlite::{Connection, OpenFlags, OptionalExtension};
 use std::collections::{HashMap, HashSet, VecDeque};

@@ -1,7 +1,7 @@
 //! The `.pridb`: hit index, acquisitions, parametric series and the hit rows.
 
 use super::{columns, open_ro, time_base};
-use crate::config::IngestConfig;
+use crate::ingest::settings::{IngestConfig, ParamInput};
 use crate::ingest::{file_err, IngestError, TimeSeries};
 use crate::model::{db_ae, HitRow, HitSource};
 use rusqlite::Connection;
@@ -108,11 +108,14 @@ impl Acquisitions {
 fn parametric_series(
     conn: &Connection,
     cols: &[String],
-    param: &str,
+    param: Option<ParamInput>,
     time_base: f64,
     scale: f64,
 ) -> TimeSeries {
-    if param.is_empty() || !cols.iter().any(|c| c == param) {
+    let Some(param) = param.map(ParamInput::column) else {
+        return TimeSeries::default();
+    };
+    if !cols.iter().any(|c| *c == param) {
         return TimeSeries::default();
     }
     let has_mv = columns(conn, "ae_params")
@@ -207,11 +210,11 @@ pub(super) fn load_series(
 ) -> (TimeSeries, TimeSeries) {
     let v = &cfg.vallen;
     (
-        parametric_series(conn, cols, &v.load_param, time_base, v.load_n_per_mv),
+        parametric_series(conn, cols, v.load_param, time_base, v.load_n_per_mv),
         parametric_series(
             conn,
             cols,
-            &v.extension_param,
+            v.extension_param,
             time_base,
             v.extension_m_per_mv,
         ),

@@ -4,7 +4,7 @@
 //! manifest's accounting.
 
 use super::{columns, open_ro};
-use crate::config::VallenConfig;
+use crate::ingest::settings::VallenConfig;
 use crate::ingest::IngestError;
 use crate::model::{
     db_ae, Item, MarkerKind, MarkerRow, ParametricRow, ParametricSource, RecordType,
@@ -340,8 +340,14 @@ impl SetRows {
                 experiment: self.experiment.clone(),
                 row: self.parametric_rows,
                 time_s: self.seconds(time),
-                load_n: value(&c.load_param).map(|v| v * c.load_n_per_mv),
-                extension_m: value(&c.extension_param).map(|v| v * c.extension_m_per_mv),
+                load_n: c
+                    .load_param
+                    .and_then(|p| value(&p.column()))
+                    .map(|v| v * c.load_n_per_mv),
+                extension_m: c
+                    .extension_param
+                    .and_then(|p| value(&p.column()))
+                    .map(|v| v * c.extension_m_per_mv),
                 inputs: (!inputs.is_empty()).then(|| serde_json::Value::Object(inputs).to_string()),
                 extra: (!extra.is_empty()).then(|| serde_json::Value::Object(extra).to_string()),
                 source: ParametricSource::Vallen,

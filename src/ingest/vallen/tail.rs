@@ -22,7 +22,7 @@
 use super::pridb::{Acquisitions, HitRows, PriInfo, TraiOffsets};
 use super::sets::{SetRows, SetWindow};
 use super::{columns, missing_reject, missing_rejects, open_ro, time_base, Reader};
-use crate::config::IngestConfig;
+use crate::ingest::settings::IngestConfig;
 use crate::ingest::{file_err, IngestError, Source, TimeSeries};
 use crate::model::{Item, Reject};
 use rusqlite::Connection;
@@ -162,9 +162,11 @@ impl Tail {
             return Err(file_err(&pridb_path, "no ae_data table (yet)"));
         }
         let v = &cfg.vallen;
-        let params: Vec<&String> = [&v.load_param, &v.extension_param]
+        let params: Vec<String> = [v.load_param, v.extension_param]
             .into_iter()
-            .filter(|p| !p.is_empty() && cols.iter().any(|c| c == *p))
+            .flatten()
+            .map(|p| p.column())
+            .filter(|p| cols.contains(p))
             .collect();
         let has_load = if params.is_empty() {
             "0".to_string()
@@ -750,7 +752,7 @@ mod tests {
     fn windows_of_a_growing_pair_are_the_offline_rows() {
         let (dir, w, src) = growing_pair("t");
         let mut cfg = IngestConfig::default();
-        cfg.vallen.load_param = "PA0".into();
+        cfg.vallen.load_param = Some(crate::ingest::settings::ParamInput(0));
         let e = crate::synth::Experiment::new("t", 36, 5);
         let recs: Vec<_> = e.records().collect();
         let hit = |k: usize| {

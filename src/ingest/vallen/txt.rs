@@ -8,7 +8,7 @@
 //! hit came, so its `time_s` is null. When the `.tradb` an export came from lies beside it,
 //! discovery passes the export over (the same transient is never read twice).
 
-use crate::config::{FormatChoice, IngestConfig};
+use crate::ingest::settings::{FormatChoice, IngestConfig};
 use crate::ingest::sniff::{self, Head, Kind, Recogniser, Strength, Verdict};
 use crate::ingest::{RecordError, Source};
 use crate::model::{AeRecord, Item, Note, Reject, Stage};

@@ -14,7 +14,7 @@
 //! A file larger than [`MAX_VAEX_BYTES`] or not XML is an error for the caller to report;
 //! an unknown element or attribute is ignored (a setup holds far more than this).
 
-use crate::config::{ChannelRole, LocationKind};
+use crate::model::{ChannelRole, LocationKind};
 use quick_xml::events::{BytesStart, Event};
 use quick_xml::Reader;
 use std::path::Path;

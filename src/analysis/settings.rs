@@ -1,0 +1,152 @@
+//! `[trend]` (ch. 4.5.5) and `[evolution]` (the damage evolution's windows): the analysis
+//! room's settings and their checks.
+
+use crate::util::Checked;
+use serde::{Deserialize, Serialize};
+
+/// What is wrong with `[trend]` or `[evolution]` (or a `--cutoff`): each variant names the
+/// key.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum AnalysisSettingsError {
+    #[error("cut-off '{0}': expected none, peak-load, time:SECONDS or hits:N")]
+    Cutoff(String),
+    #[error("trend.alpha must be in (0, 1), got {0}")]
+    Alpha(f64),
+    #[error("evolution.window must be at least 10 sources, got {0}")]
+    Window(usize),
+    #[error("evolution.completeness_db must be finite, got {0}")]
+    Completeness(f64),
+    #[error("{key} must be > 0, got {value}")]
+    NotPositive { key: &'static str, value: f64 },
+}
+
+/// Which hits enter the statistics (in TOML and on the command line: `none`, `peak-load`,
+/// `time:SECONDS`, `hits:N`).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(try_from = "String", into = "String")]
+pub enum Cutoff {
+    None,
+    /// Hits up to (and including) the one at the highest load.
+    PeakLoad,
+    /// Hits with `time_s ≤` this.
+    Time(f64),
+    /// The first N hits.
+    Hits(usize),
+}
+
+impl std::fmt::Display for Cutoff {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Cutoff::None => f.write_str("none"),
+            Cutoff::PeakLoad => f.write_str("peak-load"),
+            Cutoff::Time(t) => write!(f, "time:{t}"),
+            Cutoff::Hits(n) => write!(f, "hits:{n}"),
+        }
+    }
+}
+
+impl TryFrom<String> for Cutoff {
+    type Error = AnalysisSettingsError;
+    fn try_from(s: String) -> Result<Cutoff, AnalysisSettingsError> {
+        s.parse()
+    }
+}
+
+impl From<Cutoff> for String {
+    fn from(c: Cutoff) -> String {
+        c.to_string()
+    }
+}
+
+impl std::str::FromStr for Cutoff {
+    type Err = AnalysisSettingsError;
+    fn from_str(s: &str) -> Result<Cutoff, AnalysisSettingsError> {
+        let bad = || AnalysisSettingsError::Cutoff(s.to_string());
+        match s {
+            "none" => Ok(Cutoff::None),
+            "peak-load" => Ok(Cutoff::PeakLoad),
+            _ => match s.split_once(':') {
+                Some(("time", v)) => v.parse().map(Cutoff::Time).map_err(|_| bad()),
+                Some(("hits", v)) => v.parse().map(Cutoff::Hits).map_err(|_| bad()),
+                _ => Err(bad()),
+            },
+        }
+    }
+}
+
+/// The trend stage of `aepipe run` (ch. 4.5.5).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct TrendConfig {
+    pub enabled: bool,
+    /// `none`, `peak-load` (ch. 4.5.5: only hits before the load falls), `time:S`, `hits:N`.
+    pub cutoff: Cutoff,
+    /// Significance level (Table 4.2: 1 %).
+    pub alpha: f64,
+}
+
+impl Default for TrendConfig {
+    fn default() -> Self {
+        TrendConfig {
+            enabled: true,
+            cutoff: Cutoff::PeakLoad,
+            alpha: 0.01,
+        }
+    }
+}
+
+impl TrendConfig {
+    /// The checks serde cannot express.
+    pub fn check(self) -> Result<Checked<TrendConfig>, AnalysisSettingsError> {
+        if !(self.alpha > 0.0 && self.alpha < 1.0) {
+            return Err(AnalysisSettingsError::Alpha(self.alpha));
+        }
+        Ok(Checked::new(self))
+    }
+}
+
+/// `[evolution]`: the damage evolution's sliding windows (`evolution.parquet`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct EvolutionConfig {
+    /// Sources per window of the b- and Ib-value (the last `window` of a series).
+    pub window: usize,
+    /// The b-value's completeness threshold, dB_AE: amplitudes below it are left out of the
+    /// b-value (M_c = completeness_db / 20).
+    pub completeness_db: f64,
+    /// Shiotani's α₁ and α₂ of the Ib-value (1 and 1 in his papers).
+    pub ib_alpha1: f64,
+    pub ib_alpha2: f64,
+}
+
+impl Default for EvolutionConfig {
+    fn default() -> Self {
+        EvolutionConfig {
+            window: 50,
+            completeness_db: 40.0,
+            ib_alpha1: 1.0,
+            ib_alpha2: 1.0,
+        }
+    }
+}
+
+impl EvolutionConfig {
+    /// The checks serde cannot express.
+    pub fn check(self) -> Result<Checked<EvolutionConfig>, AnalysisSettingsError> {
+        if self.window < 10 {
+            return Err(AnalysisSettingsError::Window(self.window));
+        }
+        if !self.completeness_db.is_finite() {
+            return Err(AnalysisSettingsError::Completeness(self.completeness_db));
+        }
+        for (key, value) in [
+            ("evolution.ib_alpha1", self.ib_alpha1),
+            ("evolution.ib_alpha2", self.ib_alpha2),
+        ] {
+            if !(value.is_finite() && value > 0.0) {
+                return Err(AnalysisSettingsError::NotPositive { key, value });
+            }
+        }
+        Ok(Checked::new(self))
+    }
+}
