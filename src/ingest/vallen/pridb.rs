@@ -115,7 +115,7 @@ fn parametric_series(
     let Some(param) = param.map(ParamInput::column) else {
         return TimeSeries::default();
     };
-    if !cols.iter().any(|c| *c == param) {
+    if !cols.contains(&param) {
         return TimeSeries::default();
     }
     let has_mv = columns(conn, "ae_params")
