@@ -20,6 +20,7 @@
 //! from distributed micro-damage, the classic precursor of final failure.
 
 use super::settings::EvolutionConfig;
+use crate::model::columns as cols;
 use crate::store::{ColType, ColumnSpec, HitKey, Table, Value};
 
 /// One source of a series, in time order: the row that stands for it (an event's first hit,
@@ -176,7 +177,7 @@ impl<'a> Series<'a> {
 pub fn evolution_table() -> Table<EvolutionRow> {
     Table::new("evolution")
         .col(
-            ColumnSpec::new("experiment", ColType::Utf8, "", "experiment id"),
+            ColumnSpec::of(cols::EXPERIMENT, "", "experiment id"),
             |r: &EvolutionRow| Value::Str(Some(r.experiment.clone())),
         )
         .col(
@@ -190,7 +191,7 @@ pub fn evolution_table() -> Table<EvolutionRow> {
         )
         .col(
             ColumnSpec::new(
-                "channel",
+                cols::CHANNEL.name,
                 ColType::Int32,
                 "",
                 "the source's row: 0 for an event (its first hit's row in the profile), else the hit's channel",
@@ -198,16 +199,16 @@ pub fn evolution_table() -> Table<EvolutionRow> {
             |r| Value::I32(Some(r.key.1)),
         )
         .col(
-            ColumnSpec::new("hit", ColType::Int64, "", "the source's first hit"),
+            ColumnSpec::of(cols::HIT, "", "the source's first hit"),
             |r| Value::I64(Some(r.key.2)),
         )
         .col(
-            ColumnSpec::new("time_s", ColType::Float64, "s", "the source's time").nullable(),
+            ColumnSpec::of(cols::TIME_S, "s", "the source's time").nullable(),
             |r| Value::F64(r.time_s),
         )
         .col(
             ColumnSpec::new(
-                "load_n",
+                cols::LOAD_N.name,
                 ColType::Float64,
                 "N",
                 "test-machine load at the source (null: none)",

@@ -7,6 +7,7 @@
 //! a load channel; otherwise all hits, and the table says so.
 
 use super::stats::{linear_trend, LinearTrend, NoTrend, TrendFit};
+use crate::model::columns as cols;
 use crate::store::spill::{Dec, Enc, Sorted, Sorter, Span, Spill};
 use crate::store::{ColType, ColumnSpec, Table, TableWriter, Value};
 use crate::store::{SourceRows, StoreError, TableScan};
@@ -91,8 +92,8 @@ pub struct TrendRow {
 pub fn trend_table() -> Table<TrendRow> {
     let f = |n: &str, u: &str, d: &str| ColumnSpec::new(n, ColType::Float64, u, d).nullable();
     Table::new("trend")
-        .col(ColumnSpec::new("experiment", ColType::Utf8, "", "experiment id"), |t: &TrendRow| Value::Str(Some(t.experiment.clone())))
-        .col(ColumnSpec::new("channel", ColType::Int32, "", "sensor channel; 0: the experiment's events (one hit per event, whichever sensor heard it first)"), |t| Value::I32(Some(t.channel)))
+        .col(ColumnSpec::of(cols::EXPERIMENT, "", "experiment id"), |t: &TrendRow| Value::Str(Some(t.experiment.clone())))
+        .col(ColumnSpec::of(cols::CHANNEL, "", "sensor channel; 0: the experiment's events (one hit per event, whichever sensor heard it first)"), |t| Value::I32(Some(t.channel)))
         .col(ColumnSpec::new("column", ColType::Utf8, "", "the per-hit feature tested (y), e.g. pr_200_300khz"), |t| Value::Str(Some(t.column.clone())))
         .col(ColumnSpec::new("n", ColType::Int64, "", "hits used (after the cut-off)"), |t| Value::I64(Some(t.n as i64)))
         .col(ColumnSpec::new("cutoff", ColType::Utf8, "", "which hits were used: none, peak-load (up to hit N at L newtons), time ≤ S, first N hits"), |t| Value::Str(Some(t.cutoff.clone())))
@@ -161,25 +162,31 @@ pub fn read_series(
     for p in paths {
         let t = TableScan::open(p).map_err(read)?.sources(rows);
         t.require(
-            &["experiment", "channel", "hit", "time_s", "load_n"],
+            &[
+                cols::EXPERIMENT.name,
+                cols::CHANNEL.name,
+                cols::HIT.name,
+                cols::TIME_S.name,
+                cols::LOAD_N.name,
+            ],
             ": not an aepipe features table",
         )
         .map_err(read)?;
         columns = tested_columns(&t, p, &columns)?;
         let mut sel = vec![
-            col("experiment"),
-            col("channel"),
-            col("hit"),
-            col("time_s"),
-            col("load_n"),
+            col(cols::EXPERIMENT.name),
+            col(cols::CHANNEL.name),
+            col(cols::HIT.name),
+            col(cols::TIME_S.name),
+            col(cols::LOAD_N.name),
         ];
         sel.extend(columns.iter().map(|c| col(c.as_str())));
         sel.extend(t.event_first_col());
         let df = t.select(sel).map_err(read)?;
         let keys = t.hit_keys(&df).map_err(read)?;
         let first = t.event_first(&df).map_err(read)?;
-        let time = t.f64s(&df, "time_s").map_err(read)?;
-        let load = t.f64s(&df, "load_n").map_err(read)?;
+        let time = t.floats(&df, cols::TIME_S).map_err(read)?;
+        let load = t.floats(&df, cols::LOAD_N).map_err(read)?;
         let vals: Vec<Vec<Option<f64>>> = columns
             .iter()
             .map(|c| t.f64s(&df, c))
@@ -474,22 +481,34 @@ fn sorted_series(
     for p in paths {
         let t = TableScan::open(p).map_err(read)?.sources(rows);
         t.require(
-            &["experiment", "channel", "hit", "time_s", "load_n"],
+            &[
+                cols::EXPERIMENT.name,
+                cols::CHANNEL.name,
+                cols::HIT.name,
+                cols::TIME_S.name,
+                cols::LOAD_N.name,
+            ],
             ": not an aepipe features table",
         )
         .map_err(read)?;
         columns = tested_columns(&t, p, &columns)?;
-        let mut sel = vec!["experiment", "channel", "hit", "time_s", "load_n"];
+        let mut sel = vec![
+            cols::EXPERIMENT.name,
+            cols::CHANNEL.name,
+            cols::HIT.name,
+            cols::TIME_S.name,
+            cols::LOAD_N.name,
+        ];
         sel.extend(columns.iter().map(String::as_str));
-        if t.dtype("event_first").is_some() {
-            sel.push("event_first");
+        if t.dtype(cols::EVENT_FIRST.name).is_some() {
+            sel.push(cols::EVENT_FIRST.name);
         }
         for batch in t.batches(&sel) {
             let (_, df) = batch.map_err(read)?;
             let keys = t.hit_keys(&df).map_err(read)?;
             let first = t.event_first(&df).map_err(read)?;
-            let time = t.f64s(&df, "time_s").map_err(read)?;
-            let load = t.f64s(&df, "load_n").map_err(read)?;
+            let time = t.floats(&df, cols::TIME_S).map_err(read)?;
+            let load = t.floats(&df, cols::LOAD_N).map_err(read)?;
             let vals: Vec<Vec<Option<f64>>> = columns
                 .iter()
                 .map(|c| t.f64s(&df, c))

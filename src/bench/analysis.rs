@@ -9,6 +9,7 @@
 //! `aepipe merge` runs them, and each stage's time and peak resident memory are printed.
 
 use super::BenchError;
+use crate::model::columns as cols;
 use arrow::array::{
     Array, ArrayRef, Float64Array, Int64Array, ListArray, RecordBatch, StringArray,
 };
@@ -51,10 +52,12 @@ fn shifted(batch: &RecordBatch, s: &Shift) -> Result<RecordBatch, BenchError> {
     for (f, c) in schema.fields().iter().zip(batch.columns()) {
         let n = c.len();
         let new: ArrayRef = match f.name().as_str() {
-            "experiment" => Arc::new(StringArray::from(vec![s.experiment.as_str(); n])),
-            "hit" if s.hit != 0 => add_i64(c, s.hit)?,
-            "event" if s.event != 0 => add_i64(c, s.event)?,
-            "time_s" if s.time_s != 0.0 => {
+            name if name == cols::EXPERIMENT.name => {
+                Arc::new(StringArray::from(vec![s.experiment.as_str(); n]))
+            }
+            name if name == cols::HIT.name && s.hit != 0 => add_i64(c, s.hit)?,
+            name if name == cols::EVENT.name && s.event != 0 => add_i64(c, s.event)?,
+            name if name == cols::TIME_S.name && s.time_s != 0.0 => {
                 let a = c
                     .as_any()
                     .downcast_ref::<Float64Array>()
@@ -221,19 +224,19 @@ pub fn analysis(
     }
     let reps = rows.div_ceil(base_rows);
     let experiments = experiments.unwrap_or(reps).clamp(1, reps);
-    let hit_span = max_of(&fb, "hit") as i64;
-    let time_span = max_of(&fb, "time_s").ceil() + 1.0;
+    let hit_span = max_of(&fb, cols::HIT.name) as i64;
+    let time_span = max_of(&fb, cols::TIME_S.name).ceil() + 1.0;
     let (_, eb) = read_all(&bfeat.join("events.parquet"))?;
-    let event_span = max_of(&fb, "event").max(max_of(&eb, "event")) as i64;
+    let event_span = max_of(&fb, cols::EVENT.name).max(max_of(&eb, cols::EVENT.name)) as i64;
     // Repetitions are named after the base's experiment.
     let base_exp = fb
         .iter()
         .find_map(|b| {
-            let c = b.column_by_name("experiment")?;
+            let c = b.column_by_name(cols::EXPERIMENT.name)?;
             let s = c.as_any().downcast_ref::<StringArray>()?;
             (!s.is_empty()).then(|| s.value(0).to_string())
         })
-        .unwrap_or_else(|| "experiment".into());
+        .unwrap_or_else(|| cols::EXPERIMENT.name.into());
     // Repetition r belongs to experiment r·E/R and is its j-th.
     let mut shifts = Vec::with_capacity(reps as usize);
     let mut first_of = u64::MAX;

@@ -377,7 +377,7 @@ pub struct SomTrainArgs {
     #[arg(required = true)]
     pub features: Vec<PathBuf>,
     /// Column holding the training labels (criteria_label, or label for simulator truth)
-    #[arg(long, default_value = "criteria_label")]
+    #[arg(long, default_value = crate::model::columns::CRITERIA_LABEL.name)]
     pub label: String,
     #[arg(long)]
     pub out: PathBuf,

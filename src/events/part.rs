@@ -9,6 +9,7 @@ use super::setup::{self, Setup};
 use super::table::{events_table, EventRow};
 use super::{EventsError, EventsSummary};
 use crate::dsp::settings::Picker;
+use crate::model::columns as cols;
 use crate::model::ChannelRole;
 use crate::store::{TableScan, TableSchema, TableWriter};
 use arrow::array::{ArrayRef, BooleanArray, Int64Array, StringArray};
@@ -26,10 +27,6 @@ pub struct PartTables<'a> {
     pub events: &'a Path,
     /// The Vallen setup file beside the recording, if any.
     pub vaex: Option<&'a Path>,
-}
-
-fn opt_i64(v: Option<f64>) -> Option<i64> {
-    v.map(|x| x as i64)
 }
 
 /// Run the events step on one part.
@@ -53,43 +50,46 @@ pub fn run_part_after(
     // The hits: key, time, status and the link to their transient.
     let h = TableScan::open(p.hits).map_err(store)?;
     let df = h
-        .columns(&["channel", "hit", "time_s", "status", "transient"])
+        .columns(&[
+            cols::CHANNEL.name,
+            cols::HIT.name,
+            cols::TIME_S.name,
+            cols::STATUS.name,
+            cols::TRANSIENT.name,
+        ])
         .map_err(store)?;
     let ch: Vec<u32> = h
-        .f64s(&df, "channel")
+        .i32s(&df, cols::CHANNEL)
         .map_err(store)?
         .into_iter()
-        .map(|v| v.unwrap_or(0.0) as u32)
+        .map(|v| v.unwrap_or(0) as u32)
         .collect();
     let hit_no: Vec<i64> = h
-        .f64s(&df, "hit")
+        .i64s(&df, cols::HIT)
         .map_err(store)?
         .into_iter()
-        .map(|v| v.unwrap_or(0.0) as i64)
+        .map(|v| v.unwrap_or(0))
         .collect();
-    let time = h.f64s(&df, "time_s").map_err(store)?;
+    let time = h.floats(&df, cols::TIME_S).map_err(store)?;
     let status: Vec<i64> = h
-        .f64s(&df, "status")
+        .i64s(&df, cols::STATUS)
         .map_err(store)?
         .into_iter()
-        .map(|v| opt_i64(v).unwrap_or(0))
+        .map(|v| v.unwrap_or(0))
         .collect();
-    let transient: Vec<Option<i64>> = h
-        .f64s(&df, "transient")
-        .map_err(store)?
-        .into_iter()
-        .map(opt_i64)
-        .collect();
+    let transient: Vec<Option<i64>> = h.i64s(&df, cols::TRANSIENT).map_err(store)?;
     let n = ch.len();
 
     // The features: their key and arrival time (null without a picker).
     let feats = match &p.features {
         Some((path, _)) => {
             let f = TableScan::open(path).map_err(store)?;
-            let df = f.columns(&["channel", "hit", "arrival_s"]).map_err(store)?;
-            let fch = f.f64s(&df, "channel").map_err(store)?;
-            let fhit = f.f64s(&df, "hit").map_err(store)?;
-            let arr = f.f64s(&df, "arrival_s").map_err(store)?;
+            let df = f
+                .columns(&[cols::CHANNEL.name, cols::HIT.name, cols::ARRIVAL_S.name])
+                .map_err(store)?;
+            let fch = f.i32s(&df, cols::CHANNEL).map_err(store)?;
+            let fhit = f.i64s(&df, cols::HIT).map_err(store)?;
+            let arr = f.floats(&df, cols::ARRIVAL_S).map_err(store)?;
             Some((fch, fhit, arr))
         }
         None => None,
@@ -101,7 +101,7 @@ pub fn run_part_after(
             c.iter()
                 .zip(hh)
                 .enumerate()
-                .filter_map(|(i, (c, hh))| Some(((c.map(|v| v as u32)?, hh.map(|v| v as i64)?), i)))
+                .filter_map(|(i, (c, hh))| Some(((c.map(|v| v as u32)?, (*hh)?), i)))
                 .collect()
         })
         .unwrap_or_default();

@@ -19,6 +19,7 @@ use crate::dsp::pick::{self, PickScratch};
 use crate::dsp::settings::{DspConfig, Picker};
 use crate::dsp::spectrum::{band_column, power_ratios};
 use crate::dsp::{condition, hit::HitFeatures};
+use crate::model::columns as cols;
 use crate::model::{db_ae, AeRecord};
 use crate::store::{identity_table, table::s, ColType, ColumnSpec, Identity, Row, Table, Value};
 use criteria::{acquisition_fault, decide, Component, Components};
@@ -141,7 +142,7 @@ pub fn features_table(dsp: &DspConfig) -> Table<FeatureRow> {
         .embed(identity_table(), |r: &mut FeatureRow| &mut r.id)
         .col(ColumnSpec::new("source_file", ColType::Utf8, "", "file the samples were read from"), |r| s(&r.source_file))
         .col(f64c("peak_amplitude_v", "V", "largest absolute sample after removing the DC offset (the mean of the pretrigger; nothing is removed from a record without one)"), |r| Value::F64(Some(r.an.hit.amplitude_v)))
-        .col(f64c("peak_amplitude_db", "dB_AE", "peak amplitude in dB re 1 µV, 20·log10(peak_amplitude_v / 1 µV)"), |r| {
+        .col(f64c(cols::PEAK_AMPLITUDE_DB.name, "dB_AE", "peak amplitude in dB re 1 µV, 20·log10(peak_amplitude_v / 1 µV)"), |r| {
             let a = r.an.hit.amplitude_v;
             Value::F64(Some(if a > 0.0 { db_ae(a) } else { f64::NEG_INFINITY }))
         })
@@ -150,7 +151,7 @@ pub fn features_table(dsp: &DspConfig) -> Table<FeatureRow> {
         .col(f64c("rise_time_s", "s", "first threshold crossing to peak amplitude (vallenae); 0 if the threshold is never reached"), |r| Value::F64(Some(r.an.hit.rise_time_s)))
         .col(f64c("duration_s", "s", "first to last sample with absolute value ≥ threshold (ASTM E1316); 0 if never reached"), |r| Value::F64(Some(r.an.hit.duration_s)))
         .col(ColumnSpec::new("counts", ColType::Int64, "", "positive-going crossings of +threshold (vallenae)"), |r| Value::I64(Some(r.an.hit.counts)))
-        .col(f64c("energy_eu", "eu", "Σx²/fs over the record, 1 eu = 1e-14 V²s (vallenae)"), |r| Value::F64(Some(r.an.hit.energy_eu)))
+        .col(f64c(cols::ENERGY_EU.name, "eu", "Σx²/fs over the record, 1 eu = 1e-14 V²s (vallenae)"), |r| Value::F64(Some(r.an.hit.energy_eu)))
         .col(f64c("signal_strength_nvs", "nVs", "Σ|x|/fs over the record (vallenae)"), |r| Value::F64(Some(r.an.hit.signal_strength_nvs)))
         .col(f64c("rms_v", "V", "root mean square of the record"), |r| Value::F64(Some(r.an.hit.rms_v)))
         .col(f64c("peak_freq_hz", "Hz", "frequency of the largest power-spectrum bin (DC excluded); null for a flat record").nullable(), |r| Value::F64(r.an.peak_freq_hz))
@@ -187,7 +188,7 @@ pub fn features_table(dsp: &DspConfig) -> Table<FeatureRow> {
         .nullable(),
         |r| Value::F32s(r.an.bins.take()),
     )
-    .col(ColumnSpec::new("criteria_label", ColType::Utf8, "", &format!("ch. 4.7 label: {}", mechanism_list())), |r| s(r.an.label.as_str()))
+    .col(ColumnSpec::of(cols::CRITERIA_LABEL, "", &format!("ch. 4.7 label: {}", mechanism_list())), |r| s(r.an.label.as_str()))
     .col(ColumnSpec::new("criteria_reason", ColType::Utf8, "", "the numbers behind the label, in words"), |r| s(&r.an.reason))
     .col(ColumnSpec::new("quality_fault", ColType::Utf8, "", &format!("the time-domain quality check's finding (ch. 5.4's erroneous data; a column beside the 200 bins, which do not carry it): {}; null when the record looks sound. The SOM stage reads the map's erroneous area by it (som.read_erroneous)", fault_list())).nullable(), |r| Value::Str(r.an.fault.map(|f| f.as_str().to_string())))
     .col(f64c("dominant_freq_hz", "Hz", "CWT frequency with the largest |W|² in the bins' window; null when the window holds no power").nullable(), move |r| opt(r.an.components.dominant, |d| d.freq_hz))
@@ -203,7 +204,7 @@ pub fn features_table(dsp: &DspConfig) -> Table<FeatureRow> {
     .col(onset_col("onset_aic", "Akaike information criterion"), |r| idx(r.an.onsets.aic))
     .col(onset_col("onset_er", "energy ratio (windows of onset.win samples)"), |r| idx(r.an.onsets.er))
     .col(onset_col("onset_mer", "modified energy ratio, (ER·|x|)⁴ as vallenae 0.14 computes it"), |r| idx(r.an.onsets.mer))
-    .col(f64c("arrival_s", "s", "arrival time on the acquisition's clock by onset.picker: the record's first sample (time_s − pretrigger/rate) + the pick's index / rate; null without a picker (then events use the hit time)").nullable(), |r| Value::F64(r.arrival_s))
+    .col(f64c(cols::ARRIVAL_S.name, "s", "arrival time on the acquisition's clock by onset.picker: the record's first sample (time_s − pretrigger/rate) + the pick's index / rate; null without a picker (then events use the hit time)").nullable(), |r| Value::F64(r.arrival_s))
     .pipe(crate::store::table::with_event_columns)
 }
 
@@ -603,7 +604,7 @@ mod tests {
         let spec = HitSpec::new(Mechanism::BondFailure);
         let r = rec(waveform(&spec, &mut Rng::new(1)), spec.pretrigger as u32);
         let row = FeatureExtractor::new(&cfg).row(&r);
-        assert_eq!(row.len(), t.columns.len());
+        assert_eq!(row.cells().len(), t.columns.len());
         let ratios: f64 = (0..25)
             .map(|i| match get(&row, &t, &band_column(i, 100e3)) {
                 Value::F64(Some(v)) => v,

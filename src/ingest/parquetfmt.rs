@@ -3,6 +3,7 @@
 
 use super::Source;
 use crate::ingest::settings::IngestConfig;
+use crate::model::columns as cols;
 use crate::model::{AeRecord, Item, Reject, Stage};
 use crate::store;
 use arrow::array::{Array, AsArray, RecordBatch};
@@ -24,16 +25,16 @@ fn col<'a>(b: &'a RecordBatch, name: &str) -> Result<&'a dyn Array, String> {
 }
 
 fn records(b: &RecordBatch, path: &str) -> Result<Vec<AeRecord>, String> {
-    let exp = col(b, "experiment")?
+    let exp = col(b, cols::EXPERIMENT.name)?
         .as_string_opt::<i32>()
         .ok_or("experiment: expected string")?;
-    let ch = col(b, "channel")?
+    let ch = col(b, cols::CHANNEL.name)?
         .as_primitive_opt::<Int32Type>()
         .ok_or("channel: expected int32")?;
-    let hit = col(b, "hit")?
+    let hit = col(b, cols::HIT.name)?
         .as_primitive_opt::<Int64Type>()
         .ok_or("hit: expected int64")?;
-    let time = col(b, "time_s")?
+    let time = col(b, cols::TIME_S.name)?
         .as_primitive_opt::<Float64Type>()
         .ok_or("time_s: expected float64")?;
     let rate = col(b, "sample_rate_hz")?
@@ -42,13 +43,13 @@ fn records(b: &RecordBatch, path: &str) -> Result<Vec<AeRecord>, String> {
     let pre = col(b, "pretrigger_samples")?
         .as_primitive_opt::<Int32Type>()
         .ok_or("pretrigger_samples: expected int32")?;
-    let load = col(b, "load_n")?
+    let load = col(b, cols::LOAD_N.name)?
         .as_primitive_opt::<Float64Type>()
         .ok_or("load_n: expected float64")?;
-    let ext = col(b, "extension_m")?
+    let ext = col(b, cols::EXTENSION_M.name)?
         .as_primitive_opt::<Float64Type>()
         .ok_or("extension_m: expected float64")?;
-    let label = col(b, "label")?
+    let label = col(b, cols::LABEL.name)?
         .as_string_opt::<i32>()
         .ok_or("label: expected string")?;
     let thr = col(b, "threshold_v")?

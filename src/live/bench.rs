@@ -5,6 +5,7 @@
 
 use super::{WatchError, WatchOptions};
 use crate::config::ValidConfig;
+use crate::model::columns as cols;
 use std::path::Path;
 use std::sync::atomic::AtomicBool;
 use std::time::{Duration, Instant, SystemTime};
@@ -304,9 +305,10 @@ fn collect_lags(
             .map_err(|e| crate::util::IoAt::new(&part, e))?;
         let (_, _, batches) = crate::store::read_parquet(&part)?;
         for rb in batches {
-            let (Some(files), Some(hits)) =
-                (rb.column_by_name("source_file"), rb.column_by_name("hit"))
-            else {
+            let (Some(files), Some(hits)) = (
+                rb.column_by_name("source_file"),
+                rb.column_by_name(cols::HIT.name),
+            ) else {
                 continue;
             };
             let files = arrow::array::AsArray::as_string::<i32>(files.as_ref());

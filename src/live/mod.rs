@@ -21,6 +21,7 @@ mod page;
 mod state;
 
 use crate::config::ValidConfig;
+use crate::model::columns as cols;
 use crate::pipeline::{PartTable, StreamDir, StreamJob, StreamOptions};
 use crate::som::tables::Model;
 use crate::util::HasKind;
@@ -516,34 +517,36 @@ fn class_points(
     use polars::prelude::col;
     let f = TableScan::open(features)?;
     let df = f.select(vec![
-        col("channel"),
-        col("hit"),
-        col("time_s"),
-        col("load_n"),
+        col(cols::CHANNEL.name),
+        col(cols::HIT.name),
+        col(cols::TIME_S.name),
+        col(cols::LOAD_N.name),
     ])?;
-    let (fc, fh) = (f.f64s(&df, "channel")?, f.f64s(&df, "hit")?);
-    let (ft, fl) = (f.f64s(&df, "time_s")?, f.f64s(&df, "load_n")?);
+    let (fc, fh) = (f.i32s(&df, cols::CHANNEL)?, f.i64s(&df, cols::HIT)?);
+    let (ft, fl) = (f.floats(&df, cols::TIME_S)?, f.floats(&df, cols::LOAD_N)?);
     let at: std::collections::HashMap<(i64, i64), (Option<f64>, Option<f64>)> = fc
         .iter()
         .zip(&fh)
         .zip(ft.iter().zip(&fl))
-        .filter_map(|((c, h), (t, l))| {
-            Some(((c.map(|v| v as i64)?, h.map(|v| v as i64)?), (*t, *l)))
-        })
+        .filter_map(|((c, h), (t, l))| Some((((*c)? as i64, (*h)?), (*t, *l))))
         .collect();
     let c = TableScan::open(classification)?;
-    let df = c.select(vec![col("channel"), col("hit"), col("som_label")])?;
+    let df = c.select(vec![
+        col(cols::CHANNEL.name),
+        col(cols::HIT.name),
+        col(cols::SOM_LABEL.name),
+    ])?;
     let (cc, ch, cl) = (
-        c.f64s(&df, "channel")?,
-        c.f64s(&df, "hit")?,
-        c.strings(&df, "som_label")?,
+        c.i32s(&df, cols::CHANNEL)?,
+        c.i64s(&df, cols::HIT)?,
+        c.texts(&df, cols::SOM_LABEL)?,
     );
     Ok(cc
         .iter()
         .zip(&ch)
         .zip(cl)
         .filter_map(|((c, h), l)| {
-            let (t, load) = at.get(&(c.map(|v| v as i64)?, h.map(|v| v as i64)?))?;
+            let (t, load) = at.get(&((*c)? as i64, (*h)?))?;
             Some((l?, (*t)?, *load))
         })
         .collect())

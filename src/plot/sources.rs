@@ -5,17 +5,18 @@
 use super::{draw_legend, ensure_font, err, PlotError};
 use crate::analysis::evolution::EvolutionRow;
 use crate::config::ZoneSpec;
+use crate::model::Mechanism;
 use plotters::prelude::*;
 use std::path::Path;
 
 /// The classes' colours in every picture of classes (damage profile, location, evolution).
 pub fn class_colour(class: &str) -> RGBColor {
-    match class {
-        "bond_failure" => RGBColor(31, 119, 180),
-        "fibre_failure" => RGBColor(214, 39, 40),
-        "erroneous" => RGBColor(255, 127, 14),
-        "all" => RGBColor(0, 0, 0),
-        "outside the zone" => RGBColor(190, 190, 190),
+    match (Mechanism::parse(class), class) {
+        (Some(Mechanism::BondFailure), _) => RGBColor(31, 119, 180),
+        (Some(Mechanism::FibreFailure), _) => RGBColor(214, 39, 40),
+        (Some(Mechanism::Erroneous), _) => RGBColor(255, 127, 14),
+        (_, "all") => RGBColor(0, 0, 0),
+        (_, "outside the zone") => RGBColor(190, 190, 190),
         _ => RGBColor(120, 120, 120),
     }
 }
@@ -37,11 +38,11 @@ fn class_order(sources: &[LocatedSource]) -> Vec<String> {
     let mut c: Vec<String> = sources.iter().map(|s| s.class.clone()).collect();
     c.sort();
     c.dedup();
-    let rank = |s: &str| match s {
-        "bond_failure" => 0,
-        "fibre_failure" => 1,
-        "erroneous" => 2,
-        "outside the zone" => 4,
+    let rank = |s: &str| match (Mechanism::parse(s), s) {
+        (Some(Mechanism::BondFailure), _) => 0,
+        (Some(Mechanism::FibreFailure), _) => 1,
+        (Some(Mechanism::Erroneous), _) => 2,
+        (_, "outside the zone") => 4,
         _ => 3,
     };
     c.sort_by_key(|s| rank(s));

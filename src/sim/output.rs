@@ -4,6 +4,7 @@
 
 use super::model::ModelFile;
 use super::{Frame, SimError, SimOutput};
+use crate::model::columns as cols;
 use crate::store::{self, ColType, ColumnSpec, Table, TableWriter, Value};
 use sha2::Digest as _;
 use std::path::Path;
@@ -56,8 +57,12 @@ pub fn trajectory_table() -> Table<TrajectoryPoint> {
             ),
             |p| Value::I32(Some(p.node as i32)),
         )
-        .col(f("x_m", "m", "position"), |p| Value::F64(Some(p.r[0])))
-        .col(f("y_m", "m", "position"), |p| Value::F64(Some(p.r[1])))
+        .col(f(cols::X_M.name, "m", "position"), |p| {
+            Value::F64(Some(p.r[0]))
+        })
+        .col(f(cols::Y_M.name, "m", "position"), |p| {
+            Value::F64(Some(p.r[1]))
+        })
         .col(f("u_m_s", "m/s", "velocity, x"), |p| {
             Value::F64(Some(p.u[0]))
         })

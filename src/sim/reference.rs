@@ -6,6 +6,7 @@
 use super::model::SensorSpec;
 use super::scenario::{self, Params};
 use super::{output, simulate, SimError, SimOptions};
+use crate::model::columns as cols;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
@@ -365,8 +366,9 @@ pub fn merge_library(dir: &Path, out: &Path) -> Result<u64, SimError> {
             options: None,
         })
     };
-    let order = arrow::compute::lexsort_to_indices(&[key("hit")?, key("channel")?], None)
-        .map_err(|e| bad(e.to_string()))?;
+    let order =
+        arrow::compute::lexsort_to_indices(&[key(cols::HIT.name)?, key(cols::CHANNEL.name)?], None)
+            .map_err(|e| bad(e.to_string()))?;
     let all = arrow::compute::take_record_batch(&joined, &order).map_err(|e| bad(e.to_string()))?;
     std::fs::create_dir_all(out).map_err(|e| SimError::Io(format!("{}: {e}", out.display())))?;
     let meta = [(

@@ -3,6 +3,7 @@
 //! each class, so that "fibre failures occur before final fracture" can be read off a test.
 
 use super::SomError;
+use crate::model::columns as cols;
 use crate::model::Mechanism;
 use crate::store::spill::{Dec, Enc, Sorted, Sorter, Span, Spill};
 use crate::store::{ColType, ColumnSpec, HitKey, StoreError, Table, TableScan, Value};
@@ -21,20 +22,20 @@ pub const CLASSES: [Mechanism; 3] = [
 pub fn profile_table() -> Table<ProfileRow> {
     let mut t = Table::new("damage_profile")
         .col(
-            ColumnSpec::new("experiment", ColType::Utf8, "", "experiment id"),
+            ColumnSpec::of(cols::EXPERIMENT, "", "experiment id"),
             |r: &ProfileRow| Value::Str(Some(r.key.0.clone())),
         )
         .col(
-            ColumnSpec::new("channel", ColType::Int32, "", "sensor channel; 0: the experiment's events (one hit per event, whichever sensor heard it first)"),
+            ColumnSpec::of(cols::CHANNEL, "", "sensor channel; 0: the experiment's events (one hit per event, whichever sensor heard it first)"),
             |r| Value::I32(Some(r.key.1)),
         )
         .col(
-            ColumnSpec::new("hit", ColType::Int64, "", "hit number"),
+            ColumnSpec::of(cols::HIT, "", "hit number"),
             |r| Value::I64(Some(r.key.2)),
         )
         .col(
             ColumnSpec::new(
-                "time_s",
+                cols::TIME_S.name,
                 ColType::Float64,
                 "s",
                 "hit time (null: the format records none; rows are then in hit order)",
@@ -44,7 +45,7 @@ pub fn profile_table() -> Table<ProfileRow> {
         )
         .col(
             ColumnSpec::new(
-                "load_n",
+                cols::LOAD_N.name,
                 ColType::Float64,
                 "N",
                 "test-machine load at the hit (null: no load channel)",
@@ -54,7 +55,7 @@ pub fn profile_table() -> Table<ProfileRow> {
         )
         .col(
             ColumnSpec::new(
-                "extension_m",
+                cols::EXTENSION_M.name,
                 ColType::Float64,
                 "m",
                 "test-machine extension at the hit (null: none)",
@@ -335,7 +336,15 @@ struct ClassStream {
 impl ClassStream {
     fn open(path: &Path) -> Result<ClassStream, StoreError> {
         let t = TableScan::open(path)?;
-        t.require(&["experiment", "channel", "hit", "som_label"], "")?;
+        t.require(
+            &[
+                cols::EXPERIMENT.name,
+                cols::CHANNEL.name,
+                cols::HIT.name,
+                cols::SOM_LABEL.name,
+            ],
+            "",
+        )?;
         Ok(ClassStream {
             spans: t.batch_spans().into_iter(),
             t,
@@ -349,11 +358,16 @@ impl ClassStream {
             let Some(span) = self.spans.next() else {
                 return Ok(None);
             };
-            let sel = ["experiment", "channel", "hit", "som_label"];
+            let sel = [
+                cols::EXPERIMENT.name,
+                cols::CHANNEL.name,
+                cols::HIT.name,
+                cols::SOM_LABEL.name,
+            ];
             for b in self.t.span_reader(&span, &sel)? {
                 let (_, df) = b?;
                 let keys = self.t.hit_keys(&df)?;
-                let vals = self.t.strings(&df, "som_label")?;
+                let vals = self.t.texts(&df, cols::SOM_LABEL)?;
                 self.ready.extend(
                     keys.into_iter()
                         .zip(vals.into_iter().map(Option::unwrap_or_default)),
@@ -390,29 +404,33 @@ pub fn open(features: &Path, classification: &Path, spill_dir: &Path) -> Result<
     let t = TableScan::open(features).map_err(serr)?;
     t.require(
         &[
-            "experiment",
-            "channel",
-            "hit",
-            "time_s",
-            "load_n",
-            "extension_m",
+            cols::EXPERIMENT.name,
+            cols::CHANNEL.name,
+            cols::HIT.name,
+            cols::TIME_S.name,
+            cols::LOAD_N.name,
+            cols::EXTENSION_M.name,
         ],
         "for the damage profile",
     )
     .map_err(serr)?;
     let mut sel = vec![
-        "experiment",
-        "channel",
-        "hit",
-        "time_s",
-        "load_n",
-        "extension_m",
+        cols::EXPERIMENT.name,
+        cols::CHANNEL.name,
+        cols::HIT.name,
+        cols::TIME_S.name,
+        cols::LOAD_N.name,
+        cols::EXTENSION_M.name,
     ];
-    if t.dtype("event_first").is_some() {
-        sel.push("event_first");
+    if t.dtype(cols::EVENT_FIRST.name).is_some() {
+        sel.push(cols::EVENT_FIRST.name);
     }
     let has = |c: &str| t.dtype(c).is_some();
-    let optional = ["peak_amplitude_db", "energy_eu", "event"];
+    let optional = [
+        cols::PEAK_AMPLITUDE_DB.name,
+        cols::ENERGY_EU.name,
+        cols::EVENT.name,
+    ];
     for c in optional {
         if has(c) {
             sel.push(c);
@@ -435,10 +453,14 @@ pub fn open(features: &Path, classification: &Path, spill_dir: &Path) -> Result<
                 Ok(vec![None; df.height()])
             }
         };
-        let (amp, energy, event) = (opt("peak_amplitude_db")?, opt("energy_eu")?, opt("event")?);
-        let time = t.f64s(&df, "time_s").map_err(serr)?;
-        let load = t.f64s(&df, "load_n").map_err(serr)?;
-        let ext = t.f64s(&df, "extension_m").map_err(serr)?;
+        let (amp, energy, event) = (
+            opt(cols::PEAK_AMPLITUDE_DB.name)?,
+            opt(cols::ENERGY_EU.name)?,
+            opt(cols::EVENT.name)?,
+        );
+        let time = t.floats(&df, cols::TIME_S).map_err(serr)?;
+        let load = t.floats(&df, cols::LOAD_N).map_err(serr)?;
+        let ext = t.floats(&df, cols::EXTENSION_M).map_err(serr)?;
         for (i, k) in keys.into_iter().enumerate() {
             keys_seen.push(Key(k.clone()))?;
             let class = classes.take_if(&k).map_err(serr)?;

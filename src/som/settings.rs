@@ -1,6 +1,7 @@
 //! `[som]`: where the run's map comes from, its size, seed and label column, and how its
 //! erroneous area is read — the SOM room's settings and their checks.
 
+use crate::model::columns as cols;
 use crate::util::Checked;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
@@ -85,7 +86,7 @@ impl ReadErroneous {
 impl Default for SomConfig {
     fn default() -> Self {
         SomConfig {
-            label: "criteria_label".into(),
+            label: cols::CRITERIA_LABEL.name.into(),
             enabled: true,
             train_on: TrainOn::Reference,
             reference_library: None,

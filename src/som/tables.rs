@@ -4,6 +4,7 @@
 use super::layout::{ClassifyDir, ModelDir};
 use super::settings::ReadErroneous;
 use super::{Init, Som, SomError, SomParams};
+use crate::model::columns as cols;
 use crate::model::Mechanism;
 use crate::store::{ColType, ColumnSpec, HitKey, SourceRows, Table, TableScan, TableWriter, Value};
 use ndarray::{Array2, ArrayView2};
@@ -77,14 +78,14 @@ pub fn for_each_input(
     let mut dim = None;
     for p in paths {
         let t = TableScan::open(p).map_err(serr)?.sources(sources);
-        let mut need = vec!["experiment", "channel", "hit"];
+        let mut need = vec![cols::EXPERIMENT.name, cols::CHANNEL.name, cols::HIT.name];
         need.extend(label);
         t.require(&need, "").map_err(serr)?;
         let names: Vec<&str> = columns.iter().map(String::as_str).collect();
         t.require(&names, "").map_err(serr)?;
         // The label may be any column, a key column included (`--label experiment`), read as
         // text; a column named twice is read once (the batch reader selects each name once).
-        let mut sel: Vec<&str> = vec!["experiment", "channel", "hit"];
+        let mut sel: Vec<&str> = vec![cols::EXPERIMENT.name, cols::CHANNEL.name, cols::HIT.name];
         sel.extend(label);
         let has_quality = t.dtype(QUALITY).is_some();
         if has_quality {
@@ -323,7 +324,7 @@ impl Default for TrainOptions {
     fn default() -> Self {
         TrainOptions {
             columns: vec!["tf_bins".into()],
-            label: "criteria_label".into(),
+            label: cols::CRITERIA_LABEL.name.into(),
             standardise: false,
             rows: super::defaults::ROWS,
             cols: super::defaults::COLS,
@@ -547,16 +548,16 @@ pub struct Classified {
 /// `classification.parquet`: the SOM class of every hit.
 pub fn classification_table() -> Table<Classified> {
     Table::new("classification")
-        .col(ColumnSpec::new("experiment", ColType::Utf8, "", "experiment id"), |c: &Classified| Value::Str(Some(c.key.0.clone())))
-        .col(ColumnSpec::new("channel", ColType::Int32, "", "sensor channel"), |c| Value::I32(Some(c.key.1)))
-        .col(ColumnSpec::new("hit", ColType::Int64, "", "hit number"), |c| Value::I64(Some(c.key.2)))
+        .col(ColumnSpec::of(cols::EXPERIMENT, "", "experiment id"), |c: &Classified| Value::Str(Some(c.key.0.clone())))
+        .col(ColumnSpec::of(cols::CHANNEL, "", "sensor channel"), |c| Value::I32(Some(c.key.1)))
+        .col(ColumnSpec::of(cols::HIT, "", "hit number"), |c| Value::I64(Some(c.key.2)))
         .col(ColumnSpec::new("bmu_row", ColType::Int32, "", "row of the best-matching unit on the map"), |c| Value::I32(Some(c.bmu_row as i32)))
         .col(ColumnSpec::new("bmu_col", ColType::Int32, "", "column of the best-matching unit"), |c| Value::I32(Some(c.bmu_col as i32)))
         .col(ColumnSpec::new("bmu_distance", ColType::Float64, "1", "Euclidean distance of the hit's vector to its BMU (in the model's, possibly standardised, units)"), |c| Value::F64(Some(c.bmu_distance)))
-        .col(ColumnSpec::new("som_label", ColType::Utf8, "", "the class the SOM stage assigns: with som.read_erroneous = quality-check (default) on a map with an erroneous area, erroneous when quality_fault is set, else the label of the nearest node not labelled erroneous; otherwise (read_erroneous = map, or no quality_fault column in the features) node_label"), |c| Value::Str(Some(c.som_label.clone())))
-        .col(ColumnSpec::new("node_label", ColType::Utf8, "", "label of the BMU node: the map's own reading (ch. 5.4)"), |c| Value::Str(Some(c.node_label.clone())))
+        .col(ColumnSpec::of(cols::SOM_LABEL, "", "the class the SOM stage assigns: with som.read_erroneous = quality-check (default) on a map with an erroneous area, erroneous when quality_fault is set, else the label of the nearest node not labelled erroneous; otherwise (read_erroneous = map, or no quality_fault column in the features) node_label"), |c| Value::Str(Some(c.som_label.clone())))
+        .col(ColumnSpec::of(cols::NODE_LABEL, "", "label of the BMU node: the map's own reading (ch. 5.4)"), |c| Value::Str(Some(c.node_label.clone())))
         .col(ColumnSpec::new("quality_fault", ColType::Utf8, "", "the features' time-domain quality finding (features.quality_fault); null when sound or when the features do not state it").nullable(), |c| Value::Str(c.quality_fault.clone()))
-        .col(ColumnSpec::new("reference_label", ColType::Utf8, "", "the hit's label in the reference column (e.g. criteria_label or label); null if none").nullable(), |c| Value::Str(c.reference_label.clone()))
+        .col(ColumnSpec::of(cols::REFERENCE_LABEL, "", "the hit's label in the reference column (e.g. criteria_label or label); null if none").nullable(), |c| Value::Str(c.reference_label.clone()))
 }
 
 /// The confusion report: for each SOM class, how its hits split over reference groups.

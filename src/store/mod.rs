@@ -9,6 +9,7 @@
 //! Writes are atomic: a table is written to `.NAME.tmp-PID` beside its final path and renamed
 //! only by [`TableWriter::finish`]; an interrupted run leaves no file under the final name.
 
+use crate::model::columns::{kind, Col};
 use arrow::array::{
     ArrayRef, BooleanBuilder, FixedSizeListBuilder, Float32Builder, Float64Builder, Int32Builder,
     Int64Builder, ListBuilder, RecordBatch, StringBuilder,
@@ -58,6 +59,27 @@ impl crate::util::HasKind for StoreError {
             | StoreError::Schema { .. } => crate::util::ErrorKind::Failed,
         }
     }
+}
+
+/// The Arrow type of a column kind.
+pub trait KindType {
+    const TYPE: ColType;
+}
+
+impl KindType for kind::Str {
+    const TYPE: ColType = ColType::Utf8;
+}
+impl KindType for kind::I32 {
+    const TYPE: ColType = ColType::Int32;
+}
+impl KindType for kind::I64 {
+    const TYPE: ColType = ColType::Int64;
+}
+impl KindType for kind::F64 {
+    const TYPE: ColType = ColType::Float64;
+}
+impl KindType for kind::Bool {
+    const TYPE: ColType = ColType::Bool;
 }
 
 /// The column types aepipe writes.
@@ -161,6 +183,12 @@ impl ColumnSpec {
         }
     }
 
+    /// A column of `col`'s name and kind (`crate::model::columns`): its declaration and its
+    /// readers share the one constant.
+    pub fn of<K: KindType>(col: Col<K>, unit: &str, doc: &str) -> ColumnSpec {
+        ColumnSpec::new(col.name, K::TYPE, unit, doc)
+    }
+
     /// The same column, allowed to be null.
     pub fn nullable(mut self) -> ColumnSpec {
         self.nullable = true;
@@ -222,7 +250,28 @@ pub enum Value {
     F64s(Option<Vec<f64>>),
 }
 
-pub type Row = Vec<Value>;
+/// One row's cells in its table's column order. Only a table's declaration makes one
+/// ([`table::Table::row`]), so no code lays cells out by position by hand.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Row(Vec<Value>);
+
+impl Row {
+    pub(crate) fn new(cells: Vec<Value>) -> Row {
+        Row(cells)
+    }
+
+    /// The cells, in the table's column order.
+    pub fn cells(&self) -> &[Value] {
+        &self.0
+    }
+}
+
+impl std::ops::Index<usize> for Row {
+    type Output = Value;
+    fn index(&self, i: usize) -> &Value {
+        &self.0[i]
+    }
+}
 
 /// Build one Arrow column from the `col`-th cell of every row.
 fn build_column(spec: &ColumnSpec, col: usize, rows: &[Row]) -> Result<ArrayRef, String> {
@@ -330,11 +379,11 @@ pub struct RowError(pub String);
 
 pub fn rows_to_batch(table: &TableSchema, rows: &[Row]) -> Result<RecordBatch, RowError> {
     for (i, r) in rows.iter().enumerate() {
-        if r.len() != table.columns.len() {
+        if r.cells().len() != table.columns.len() {
             return Err(RowError(format!(
                 "table {}: row {i} has {} cells, schema has {} columns",
                 table.name,
-                r.len(),
+                r.cells().len(),
                 table.columns.len()
             )));
         }
@@ -672,7 +721,7 @@ mod tests {
     #[test]
     fn wrong_cell_type_is_an_error_not_a_panic() {
         let t = rejects_table().schema();
-        let row = vec![Value::I32(Some(1)); 6];
+        let row = Row::new(vec![Value::I32(Some(1)); 6]);
         let err = rows_to_batch(&t, &[row]).unwrap_err();
         assert!(err.to_string().contains("experiment"), "{err}");
     }

@@ -6,6 +6,7 @@
 //! (or any set of numeric columns) as an `ndarray` matrix, one row per hit.
 
 use super::StoreError;
+use crate::model::columns::{self as cols, kind, Col};
 use ndarray::Array2;
 use polars::prelude::*;
 use std::path::{Path, PathBuf};
@@ -29,8 +30,12 @@ impl SourceRows {
     /// event's first hit unless its event lies outside the zone (those two exclusions only
     /// with `exclude_outside`).
     pub fn keep(&self) -> Expr {
-        let zone = |z: &str| col("zone").eq(lit(z.to_string())).fill_null(lit(false));
-        let first = || col("event_first");
+        let zone = |z: &str| {
+            col(cols::ZONE.name)
+                .eq(lit(z.to_string()))
+                .fill_null(lit(false))
+        };
+        let first = || col(cols::EVENT_FIRST.name);
         if self.exclude_outside {
             first()
                 .is_null()
@@ -188,7 +193,7 @@ impl TableScan {
         let e = |m: &dyn std::fmt::Display| read_err(&self.path, m);
         let mut names: Vec<&str> = columns.to_vec();
         if self.filter.is_some() {
-            names.extend(["event_first", "zone"]);
+            names.extend([cols::EVENT_FIRST.name, cols::ZONE.name]);
         }
         self.require(&names, "")?;
         names.sort_unstable();
@@ -225,7 +230,9 @@ impl TableScan {
     /// Only the rows that count as sources ([`SourceRows`]); a table without the event
     /// columns is left whole.
     pub fn sources(mut self, rows: SourceRows) -> TableScan {
-        if self.schema.get("event_first").is_none() || self.schema.get("zone").is_none() {
+        if self.schema.get(cols::EVENT_FIRST.name).is_none()
+            || self.schema.get(cols::ZONE.name).is_none()
+        {
             return self;
         }
         self.filter = Some(rows.keep());
@@ -235,8 +242,8 @@ impl TableScan {
     /// `event_first` of every row of a frame that selected it (all null when the table has
     /// no such column).
     pub fn event_first(&self, df: &DataFrame) -> Result<Vec<Option<bool>>, StoreError> {
-        match df.column("event_first") {
-            Ok(_) => self.bools(df, "event_first"),
+        match df.column(cols::EVENT_FIRST.name) {
+            Ok(_) => self.flags(df, cols::EVENT_FIRST),
             Err(_) => Ok(vec![None; df.height()]),
         }
     }
@@ -252,7 +259,9 @@ impl TableScan {
 
     /// `col("event_first")` when the table has it (for a selection list).
     pub fn event_first_col(&self) -> Option<Expr> {
-        self.schema.get("event_first").map(|_| col("event_first"))
+        self.schema
+            .get(cols::EVENT_FIRST.name)
+            .map(|_| col(cols::EVENT_FIRST.name))
     }
 
     /// Column names in table order.
@@ -315,14 +324,17 @@ impl TableScan {
     pub fn hit_keys(&self, df: &DataFrame) -> Result<Vec<HitKey>, StoreError> {
         let e = |x: PolarsError| self.err(x);
         let exp = df
-            .column("experiment")
+            .column(cols::EXPERIMENT.name)
             .and_then(|c| c.str().cloned())
             .map_err(e)?;
         let ch = df
-            .column("channel")
+            .column(cols::CHANNEL.name)
             .and_then(|c| c.i32().cloned())
             .map_err(e)?;
-        let hit = df.column("hit").and_then(|c| c.i64().cloned()).map_err(e)?;
+        let hit = df
+            .column(cols::HIT.name)
+            .and_then(|c| c.i64().cloned())
+            .map_err(e)?;
         Ok((0..df.height())
             .map(|i| {
                 (
@@ -332,6 +344,56 @@ impl TableScan {
                 )
             })
             .collect())
+    }
+
+    /// An integer column read as integers (a `channel`, `hit`, `event` key; nulls as `None`).
+    pub fn i64s(&self, df: &DataFrame, c: Col<kind::I64>) -> Result<Vec<Option<i64>>, StoreError> {
+        self.ints(df, c.name)
+    }
+
+    /// A 32-bit integer column (nulls as `None`).
+    pub fn i32s(&self, df: &DataFrame, c: Col<kind::I32>) -> Result<Vec<Option<i32>>, StoreError> {
+        Ok(self
+            .ints(df, c.name)?
+            .into_iter()
+            .map(|v| v.map(|v| v as i32))
+            .collect())
+    }
+
+    fn ints(&self, df: &DataFrame, name: &str) -> Result<Vec<Option<i64>>, StoreError> {
+        let c = df
+            .column(name)
+            .and_then(|c| c.cast(&DataType::Int64))
+            .and_then(|c| c.i64().cloned())
+            .map_err(|e| self.err(format!("{name}: {e}")))?;
+        Ok((0..c.len()).map(|i| c.get(i)).collect())
+    }
+
+    /// A float column (nulls as `None`).
+    pub fn floats(
+        &self,
+        df: &DataFrame,
+        c: Col<kind::F64>,
+    ) -> Result<Vec<Option<f64>>, StoreError> {
+        self.f64s(df, c.name)
+    }
+
+    /// A text column (nulls as `None`).
+    pub fn texts(
+        &self,
+        df: &DataFrame,
+        c: Col<kind::Str>,
+    ) -> Result<Vec<Option<String>>, StoreError> {
+        self.strings(df, c.name)
+    }
+
+    /// A boolean column (nulls as `None`).
+    pub fn flags(
+        &self,
+        df: &DataFrame,
+        c: Col<kind::Bool>,
+    ) -> Result<Vec<Option<bool>>, StoreError> {
+        self.bools(df, c.name)
     }
 
     /// A string column (nulls as `None`).
@@ -375,7 +437,12 @@ impl TableScan {
         column: &str,
         mut f: impl FnMut(HitKey, String) -> Result<(), E>,
     ) -> Result<(), E> {
-        let sel = ["experiment", "channel", "hit", column];
+        let sel = [
+            cols::EXPERIMENT.name,
+            cols::CHANNEL.name,
+            cols::HIT.name,
+            column,
+        ];
         self.require(&sel, "")?;
         for batch in self.batches(&sel) {
             let (_, df) = batch?;

@@ -7,6 +7,7 @@
 //! (a waveform's samples, a record's bins) into its cell instead of copying it.
 
 use super::{ColType, ColumnSpec, Row, TableSchema, Value};
+use crate::model::columns as cols;
 use crate::model::{AeRecord, HitRow, MarkerRow, ParametricRow, RecordKind, Reject};
 use std::sync::Arc;
 
@@ -96,7 +97,7 @@ impl<T: 'static> Table<T> {
 
     /// The cells of one row, in column order.
     pub fn row(&self, mut t: T) -> Row {
-        self.cols.iter().map(|(_, get)| get(&mut t)).collect()
+        Row::new(self.cols.iter().map(|(_, get)| get(&mut t)).collect())
     }
 }
 
@@ -145,16 +146,16 @@ impl Identity {
 /// The identity columns (see [`Identity`]).
 pub fn identity_table() -> Table<Identity> {
     Table::new("identity")
-        .col(ColumnSpec::new("experiment", ColType::Utf8, "", "experiment id: file stem of a Vallen pair or multi-hit file, folder name for one-hit-per-file folders; when two experiments of a batch would share one, their path below the input folder (`a/bearing`, `b/bearing`)"), |r: &Identity| s(&r.experiment))
-        .col(ColumnSpec::new("channel", ColType::Int32, "", "sensor channel as numbered by the acquisition system (0 = unknown)"), |r| Value::I32(Some(r.channel as i32)))
-        .col(ColumnSpec::new("hit", ColType::Int64, "", "transient number inside the experiment, 1-based: Vallen TRAI (plus the largest TRAI of the earlier acquisitions after a restart; a pause keeps TRAI), a Vallen TXT export's Trai, MISTRAS waveform #, AEwin hit # (name or header), WaveExplorer event #; hits.parquet links each hit to it"), |r| Value::I64(Some(r.hit as i64)))
-        .col(ColumnSpec::new("time_s", ColType::Float64, "s", "trigger time since the start of the acquisition (null: the format does not record it)").nullable(), |r| Value::F64(r.time_s))
+        .col(ColumnSpec::of(cols::EXPERIMENT, "", "experiment id: file stem of a Vallen pair or multi-hit file, folder name for one-hit-per-file folders; when two experiments of a batch would share one, their path below the input folder (`a/bearing`, `b/bearing`)"), |r: &Identity| s(&r.experiment))
+        .col(ColumnSpec::of(cols::CHANNEL, "", "sensor channel as numbered by the acquisition system (0 = unknown)"), |r| Value::I32(Some(r.channel as i32)))
+        .col(ColumnSpec::of(cols::HIT, "", "transient number inside the experiment, 1-based: Vallen TRAI (plus the largest TRAI of the earlier acquisitions after a restart; a pause keeps TRAI), a Vallen TXT export's Trai, MISTRAS waveform #, AEwin hit # (name or header), WaveExplorer event #; hits.parquet links each hit to it"), |r| Value::I64(Some(r.hit as i64)))
+        .col(ColumnSpec::of(cols::TIME_S, "s", "trigger time since the start of the acquisition (null: the format does not record it)").nullable(), |r| Value::F64(r.time_s))
         .col(ColumnSpec::new("sample_rate_hz", ColType::Float64, "Hz", "sampling rate"), |r| Value::F64(Some(r.sample_rate_hz)))
         .col(ColumnSpec::new("pretrigger_samples", ColType::Int32, "samples", "samples recorded before the trigger"), |r| Value::I32(Some(r.pretrigger as i32)))
         .col(ColumnSpec::new("n_samples", ColType::Int32, "samples", "record length"), |r| Value::I32(Some(r.n_samples as i32)))
-        .col(ColumnSpec::new("load_n", ColType::Float64, "N", "test-machine load at the hit time (null: no load channel)").nullable(), |r| Value::F64(r.load_n))
-        .col(ColumnSpec::new("extension_m", ColType::Float64, "m", "test-machine extension at the hit time (null: none)").nullable(), |r| Value::F64(r.extension_m))
-        .col(ColumnSpec::new("label", ColType::Utf8, "", "ground-truth or user label (simulator mechanism, hand label); null if none").nullable(), |r| Value::Str(r.label.clone()))
+        .col(ColumnSpec::of(cols::LOAD_N, "N", "test-machine load at the hit time (null: no load channel)").nullable(), |r| Value::F64(r.load_n))
+        .col(ColumnSpec::of(cols::EXTENSION_M, "m", "test-machine extension at the hit time (null: none)").nullable(), |r| Value::F64(r.extension_m))
+        .col(ColumnSpec::of(cols::LABEL, "", "ground-truth or user label (simulator mechanism, hand label); null if none").nullable(), |r| Value::Str(r.label.clone()))
         .col(ColumnSpec::new("threshold_v", ColType::Float64, "V", "detection threshold the acquisition used (Vallen Thr); null if not recorded").nullable(), |r| Value::F64(r.threshold_v))
         .col(ColumnSpec::new("record_kind", ColType::Utf8, "", "`hit`: the waveform of a hit (hits.parquet links to it, or the format has no hit list); `standalone`: a waveform no hit points to (a MISTRAS waveform message without its hit, e.g. an automatic sensor test; a .tradb transient no .pridb hit links to)"), |r| s(r.kind.as_str()))
 }
@@ -205,7 +206,7 @@ pub fn waveforms_table() -> Table<WaveformRow> {
 /// The reject table: every hit (or file) that did not become a feature row.
 pub fn rejects_table() -> Table<Reject> {
     Table::new("rejects")
-        .col(ColumnSpec::new("experiment", ColType::Utf8, "", "experiment id (empty when the file could not be assigned to one)"), |r: &Reject| s(&r.experiment))
+        .col(ColumnSpec::of(cols::EXPERIMENT, "", "experiment id (empty when the file could not be assigned to one)"), |r: &Reject| s(&r.experiment))
         .col(ColumnSpec::new("source_file", ColType::Utf8, "", "the input file"), |r| s(&r.source_file))
         .col(ColumnSpec::new("record_id", ColType::Utf8, "", "which record (`ch1 hit 17`, `TRAI 12`, `event 3`); empty for a whole file"), |r| s(&r.record_id))
         .col(ColumnSpec::new("stage", ColType::Utf8, "", "pipeline stage: discover, read, validate or features"), |r| s(r.stage.as_str()))
@@ -220,18 +221,18 @@ pub fn hits_table() -> Table<HitRow> {
         ColumnSpec::new(name, ColType::Float64, unit, doc).nullable()
     };
     Table::new("hits")
-        .col(ColumnSpec::new("experiment", ColType::Utf8, "", "experiment id"), |h: &HitRow| s(&h.experiment))
+        .col(ColumnSpec::of(cols::EXPERIMENT, "", "experiment id"), |h: &HitRow| s(&h.experiment))
         .col(ColumnSpec::new("acquisition", ColType::Int32, "", "1-based acquisition in the experiment (a Vallen database restarted into the same file holds several)"), |h| Value::I32(Some(h.acquisition as i32)))
-        .col(ColumnSpec::new("channel", ColType::Int32, "", "sensor channel"), |h| Value::I32(Some(h.channel as i32)))
-        .col(ColumnSpec::new("hit", ColType::Int64, "", "1-based order of the hit in its experiment, as the system stored the hits"), |h| Value::I64(Some(h.hit as i64)))
-        .col(f("time_s", "s", "hit time since the start of the acquisition"), |h| Value::F64(h.time_s))
+        .col(ColumnSpec::of(cols::CHANNEL, "", "sensor channel"), |h| Value::I32(Some(h.channel as i32)))
+        .col(ColumnSpec::of(cols::HIT, "", "1-based order of the hit in its experiment, as the system stored the hits"), |h| Value::I64(Some(h.hit as i64)))
+        .col(f(cols::TIME_S.name, "s", "hit time since the start of the acquisition"), |h| Value::F64(h.time_s))
         .col(f("amplitude_db", "dB_AE", "peak amplitude, dB re 1 µV at the sensor"), |h| Value::F64(h.amplitude_db))
         .col(f("threshold_db", "dB_AE", "detection threshold"), |h| Value::F64(h.threshold_db))
         .col(f("rise_time_s", "s", "rise time"), |h| Value::F64(h.rise_time_s))
         .col(f("duration_s", "s", "duration"), |h| Value::F64(h.duration_s))
         .col(ColumnSpec::new("counts", ColType::Int64, "", "threshold crossings").nullable(), |h| Value::I64(h.counts))
         .col(ColumnSpec::new("counts_to_peak", ColType::Int64, "", "crossings up to the peak").nullable(), |h| Value::I64(h.counts_to_peak))
-        .col(f("energy_eu", "eu", "Vallen energy (1 eu = 1e-14 V²s)"), |h| Value::F64(h.energy_eu))
+        .col(f(cols::ENERGY_EU.name, "eu", "Vallen energy (1 eu = 1e-14 V²s)"), |h| Value::F64(h.energy_eu))
         .col(f("energy_counts", "", "MISTRAS energy counts (ENER)"), |h| Value::F64(h.energy_counts))
         .col(f("abs_energy_aj", "aJ", "MISTRAS absolute energy"), |h| Value::F64(h.abs_energy_aj))
         .col(f("signal_strength_vs", "V·s", "signal strength"), |h| Value::F64(h.signal_strength_vs))
@@ -239,27 +240,27 @@ pub fn hits_table() -> Table<HitRow> {
         .col(f("avg_freq_hz", "Hz", "average frequency (counts / duration)"), |h| Value::F64(h.avg_freq_hz))
         .col(f("centroid_freq_hz", "Hz", "frequency centroid"), |h| Value::F64(h.centroid_freq_hz))
         .col(f("peak_freq_hz", "Hz", "peak frequency"), |h| Value::F64(h.peak_freq_hz))
-        .col(f("load_n", "N", "test-machine load at the hit"), |h| Value::F64(h.load_n))
-        .col(f("extension_m", "m", "test-machine extension at the hit"), |h| Value::F64(h.extension_m))
+        .col(f(cols::LOAD_N.name, "N", "test-machine load at the hit"), |h| Value::F64(h.load_n))
+        .col(f(cols::EXTENSION_M.name, "m", "test-machine extension at the hit"), |h| Value::F64(h.extension_m))
         .col(ColumnSpec::new("parametric", ColType::Utf8, "", "the hit's parametric inputs as a JSON object of volts").nullable(), |h| Value::Str(h.parametric.clone()))
-        .col(ColumnSpec::new("transient", ColType::Int64, "", "`hit` of this hit's transient in features/waveforms/rejects; null: no transient").nullable(), |h| Value::I64(h.transient.map(|t| t as i64)))
-        .col(ColumnSpec::new("trai", ColType::Int64, "", "Vallen TRAI as stored").nullable(), |h| Value::I64(h.trai))
+        .col(ColumnSpec::of(cols::TRANSIENT, "", "`hit` of this hit's transient in features/waveforms/rejects; null: no transient").nullable(), |h| Value::I64(h.transient.map(|t| t as i64)))
+        .col(ColumnSpec::of(cols::TRAI, "", "Vallen TRAI as stored").nullable(), |h| Value::I64(h.trai))
         .col(ColumnSpec::new("vendor_features", ColType::Utf8, "", "further features the system recorded, a JSON object under the vendor's names and units (Vallen .trfdb, other MISTRAS CHIDs)").nullable(), |h| Value::Str(h.vendor_features.clone()))
         .col(ColumnSpec::new("source", ColType::Utf8, "", "who recorded the features: vallen, mistras, aewin, or record (a format without a hit list)"), |h| s(h.source.as_str()))
         .col(ColumnSpec::new("source_file", ColType::Utf8, "", "the file the hit came from"), |h| s(&h.source_file))
-        .col(ColumnSpec::new("status", ColType::Int64, "", "the system's hit flags as stored (Vallen `Status`: bit 8 = started after a hit timeout, which never opens an event; bit 4 = saturation); null: not recorded").nullable(), |h| Value::I64(h.status))
+        .col(ColumnSpec::of(cols::STATUS, "", "the system's hit flags as stored (Vallen `Status`: bit 8 = started after a hit timeout, which never opens an event; bit 4 = saturation); null: not recorded").nullable(), |h| Value::I64(h.status))
         .pipe(with_event_columns)
 }
 
 /// The columns the events step fills on `hits.parquet` and `features.parquet`, null until
 /// it runs (and for an experiment without events).
-pub const EVENT_COLUMNS: [&str; 3] = ["event", "event_first", "zone"];
+pub const EVENT_COLUMNS: [&str; 3] = [cols::EVENT.name, cols::EVENT_FIRST.name, cols::ZONE.name];
 
 /// Append [`EVENT_COLUMNS`] to a hit-keyed table.
 pub fn with_event_columns<T: 'static>(t: Table<T>) -> Table<T> {
-    t.col(ColumnSpec::new("event", ColType::Int64, "", "1-based event of the experiment this hit belongs to (events.parquet); null: in no event, or events not built").nullable(), |_| Value::I64(None))
-        .col(ColumnSpec::new("event_first", ColType::Bool, "", "true for the hit that opened its event (the first-hit channel's): the one hit per source that trend, SOM and class counts use when events are built; false for the event's other hits and for hits in no event; null: events not built").nullable(), |_| Value::Bool(None))
-        .col(ColumnSpec::new("zone", ColType::Utf8, "", "`inside` / `outside` [location] zone (the event's), `guard` (a guard channel's hit in no event, or a hit a guard sensor kept from opening one); null: no zone, not located, or events not built").nullable(), |_| Value::Str(None))
+    t.col(ColumnSpec::of(cols::EVENT, "", "1-based event of the experiment this hit belongs to (events.parquet); null: in no event, or events not built").nullable(), |_| Value::I64(None))
+        .col(ColumnSpec::of(cols::EVENT_FIRST, "", "true for the hit that opened its event (the first-hit channel's): the one hit per source that trend, SOM and class counts use when events are built; false for the event's other hits and for hits in no event; null: events not built").nullable(), |_| Value::Bool(None))
+        .col(ColumnSpec::of(cols::ZONE, "", "`inside` / `outside` [location] zone (the event's), `guard` (a guard channel's hit in no event, or a hit a guard sensor kept from opening one); null: no zone, not located, or events not built").nullable(), |_| Value::Str(None))
 }
 
 /// `parametric.parquet`: the parametric / time-driven rows of every source, as recorded, with
@@ -269,11 +270,11 @@ pub fn parametric_table() -> Table<ParametricRow> {
         ColumnSpec::new(name, ColType::Float64, unit, doc).nullable()
     };
     Table::new("parametric")
-        .col(ColumnSpec::new("experiment", ColType::Utf8, "", "experiment id"), |r: &ParametricRow| s(&r.experiment))
+        .col(ColumnSpec::of(cols::EXPERIMENT, "", "experiment id"), |r: &ParametricRow| s(&r.experiment))
         .col(ColumnSpec::new("row", ColType::Int64, "", "1-based order of the row in its experiment and source"), |r| Value::I64(Some(r.row as i64)))
-        .col(f("time_s", "s", "time since the start of the acquisition (for a load file: its own time × `time_scale_s` + the experiment's `[load.offset_s]`)"), |r| Value::F64(r.time_s))
-        .col(f("load_n", "N", "the load this row gives (`[ingest.vallen]`/`[ingest.mistras]` mapping of a parametric input, or `[load]`); null: not mapped"), |r| Value::F64(r.load_n))
-        .col(f("extension_m", "m", "the extension this row gives; null: not mapped"), |r| Value::F64(r.extension_m))
+        .col(f(cols::TIME_S.name, "s", "time since the start of the acquisition (for a load file: its own time × `time_scale_s` + the experiment's `[load.offset_s]`)"), |r| Value::F64(r.time_s))
+        .col(f(cols::LOAD_N.name, "N", "the load this row gives (`[ingest.vallen]`/`[ingest.mistras]` mapping of a parametric input, or `[load]`); null: not mapped"), |r| Value::F64(r.load_n))
+        .col(f(cols::EXTENSION_M.name, "m", "the extension this row gives; null: not mapped"), |r| Value::F64(r.extension_m))
         .col(ColumnSpec::new("inputs", ColType::Utf8, "", "the raw inputs, a JSON object under the vendor's names: Vallen `PA0`… in mV, MISTRAS `PARA1`… in V, a load file's columns in its own units").nullable(), |r| Value::Str(r.inputs.clone()))
         .col(ColumnSpec::new("extra", ColType::Utf8, "", "further fields of the record, JSON: Vallen `PCTD`, `PCTA`, `Status`; MISTRAS time-driven channel features by channel (`{\"3\": {\"ASL\": 25}}`)").nullable(), |r| Value::Str(r.extra.clone()))
         .col(ColumnSpec::new("source", ColType::Utf8, "", "vallen (SetType 1), mistras (message 2 or 3), load_file (`[load]`), machine_log (AEwin Specimen_RawData)"), |r| s(r.source.as_str()))
@@ -287,15 +288,15 @@ pub fn markers_table() -> Table<MarkerRow> {
         ColumnSpec::new(name, ColType::Float64, unit, doc).nullable()
     };
     Table::new("markers")
-        .col(ColumnSpec::new("experiment", ColType::Utf8, "", "experiment id"), |r: &MarkerRow| s(&r.experiment))
+        .col(ColumnSpec::of(cols::EXPERIMENT, "", "experiment id"), |r: &MarkerRow| s(&r.experiment))
         .col(ColumnSpec::new("row", ColType::Int64, "", "1-based order of the row in its experiment"), |r| Value::I64(Some(r.row as i64)))
-        .col(f("time_s", "s", "time since the start of the acquisition"), |r| Value::F64(r.time_s))
+        .col(f(cols::TIME_S.name, "s", "time since the start of the acquisition"), |r| Value::F64(r.time_s))
         .col(ColumnSpec::new("kind", ColType::Utf8, "", "label, datetime, section (Vallen SetType 4, 5, 6; MISTRAS comment 7 and test start 99 as label and datetime), status (Vallen SetType 3), start, stop, pause, abort (MISTRAS 128, 129, 130, 15)"), |r| s(r.kind.as_str()))
-        .col(ColumnSpec::new("channel", ColType::Int32, "", "status rows: the channel").nullable(), |r| Value::I32(r.channel.map(|c| c as i32)))
+        .col(ColumnSpec::of(cols::CHANNEL, "", "status rows: the channel").nullable(), |r| Value::I32(r.channel.map(|c| c as i32)))
         .col(ColumnSpec::new("number", ColType::Int64, "", "Vallen marker number").nullable(), |r| Value::I64(r.number))
         .col(ColumnSpec::new("text", ColType::Utf8, "", "label text or date/time as recorded").nullable(), |r| Value::Str(r.text.clone()))
         .col(f("threshold_db", "dB_AE", "status rows: the channel's threshold"), |r| Value::F64(r.threshold_db))
-        .col(f("energy_eu", "eu", "status rows: energy since the last status (1 eu = 1e-14 V²s)"), |r| Value::F64(r.energy_eu))
+        .col(f(cols::ENERGY_EU.name, "eu", "status rows: energy since the last status (1 eu = 1e-14 V²s)"), |r| Value::F64(r.energy_eu))
         .col(f("rms_v", "V", "status rows: RMS"), |r| Value::F64(r.rms_v))
         .col(f("signal_strength_vs", "V·s", "status rows: signal strength"), |r| Value::F64(r.signal_strength_vs))
         .col(ColumnSpec::new("flags", ColType::Int64, "", "status rows: the record's status flags as stored").nullable(), |r| Value::I64(r.flags))
@@ -315,7 +316,7 @@ mod tests {
             time_s: Some(1.5),
             ..Default::default()
         });
-        assert_eq!(row.len(), t.schema().columns.len());
+        assert_eq!(row.cells().len(), t.schema().columns.len());
         let batch = super::super::rows_to_batch(&t.schema(), &[row]).unwrap();
         assert_eq!(batch.num_rows(), 1);
         for schema in [

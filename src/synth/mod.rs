@@ -6,6 +6,7 @@
 //! lasting longer; a fibre failure is a short (< 5 µs) pulse above 800 kHz at the start.
 //! This is a signal model, not the physical simulator (that is the `sim` room's job).
 
+use crate::model::columns as cols;
 use crate::model::{AeRecord, Mechanism};
 
 pub mod strip;
@@ -570,7 +571,7 @@ pub fn truth_table() -> crate::store::Table<TruthRow> {
     crate::store::Table::new("truth")
         .col(
             ColumnSpec::new(
-                "experiment",
+                cols::EXPERIMENT.name,
                 ColType::Utf8,
                 "",
                 "experiment id (the Vallen file stem)",
@@ -578,20 +579,20 @@ pub fn truth_table() -> crate::store::Table<TruthRow> {
             |t: &TruthRow| Value::Str(Some(t.experiment.clone())),
         )
         .col(
-            ColumnSpec::new("channel", ColType::Int32, "", "sensor channel"),
+            ColumnSpec::of(cols::CHANNEL, "", "sensor channel"),
             |t| Value::I32(Some(t.channel as i32)),
         )
         .col(
-            ColumnSpec::new("hit", ColType::Int64, "", "hit number (Vallen TRAI)"),
+            ColumnSpec::of(cols::HIT, "", "hit number (Vallen TRAI)"),
             |t| Value::I64(Some(t.hit as i64)),
         )
         .col(
-            ColumnSpec::new("time_s", ColType::Float64, "s", "hit time"),
+            ColumnSpec::of(cols::TIME_S, "s", "hit time"),
             |t| Value::F64(t.time_s),
         )
         .col(
             ColumnSpec::new(
-                "mechanism",
+                cols::MECHANISM.name,
                 ColType::Utf8,
                 "",
                 &format!("what made the hit: {}", classes.join(", ")),
@@ -609,7 +610,7 @@ pub fn truth_table() -> crate::store::Table<TruthRow> {
         )
         .col(
             ColumnSpec::new(
-                "event",
+                cols::EVENT.name,
                 ColType::Int64,
                 "",
                 "the source the hit belongs to, 1-based in time order: the hits of one source at the test's sensors share it (the truth behind events.parquet)",
@@ -618,7 +619,7 @@ pub fn truth_table() -> crate::store::Table<TruthRow> {
         )
         .col(
             ColumnSpec::new(
-                "source_x_m",
+                cols::SOURCE_X_M.name,
                 ColType::Float64,
                 "m",
                 "where the source is along the strip (the notch at 0; the sensors' coordinates of the pipeline's [location]); null: a one-sensor test",
@@ -628,7 +629,7 @@ pub fn truth_table() -> crate::store::Table<TruthRow> {
         )
         .col(
             ColumnSpec::new(
-                "source_kind",
+                cols::SOURCE_KIND.name,
                 ColType::Utf8,
                 "",
                 "specimen (paper damage in the gauge section) or grip (grip and machine noise beyond the sensors)",

@@ -1,15 +1,17 @@
 //! Pictures: what the report shows besides the summary (the CWT gallery), and `aepipe cwt`.
 
 use super::*;
+use crate::model::columns as cols;
 
 /// Read what the report shows besides the summary (the hits per class and experiment, the
 /// gallery's choice, the manifest) and draw the CWT gallery (one pass over the inputs). The
 /// label columns are read a batch at a time: nothing per hit is kept.
 pub(super) fn gather(s: &RunSummary) -> Result<Gathered, WorkflowError> {
     let per = s.config.report.gallery_per_class;
-    let (criteria, by_criteria) = count_labels(&s.features.table_path, "criteria_label", per)?;
+    let (criteria, by_criteria) =
+        count_labels(&s.features.table_path, cols::CRITERIA_LABEL.name, per)?;
     let (som, by_som) = match &s.som {
-        Some(m) => count_labels(&m.classification, "som_label", per)?,
+        Some(m) => count_labels(&m.classification, cols::SOM_LABEL.name, per)?,
         None => (BTreeMap::new(), crate::report::GalleryChoice::new(per)),
     };
     let (by, chosen) = if som.is_empty() {

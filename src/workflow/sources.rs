@@ -5,6 +5,7 @@
 use super::*;
 use crate::analysis::evolution::{EvolutionParams, EvolutionRow, Series, Source};
 use crate::analysis::trend::thin_every;
+use crate::model::columns as cols;
 use crate::plot::sources::LocatedSource;
 use crate::som::layout::ClassifyDir;
 use crate::som::profile::{ProfileRow, ProfileSummary};
@@ -315,20 +316,26 @@ pub(super) fn location_stage(
         return Ok(Vec::new());
     }
     let ev = TableScan::open(events)?;
-    let sel = ["experiment", "event", "x_m", "y_m", "zone"];
+    let sel = [
+        cols::EXPERIMENT.name,
+        cols::EVENT.name,
+        cols::X_M.name,
+        cols::Y_M.name,
+        cols::ZONE.name,
+    ];
     let mut located: Sorter<Located> = Sorter::new(som_dir.path());
     let mut seq = 0u64;
     for batch in ev.batches(&sel) {
         let (_, df) = batch?;
-        let exps = ev.strings(&df, "experiment")?;
-        let numbers = ev.f64s(&df, "event")?;
-        let (xs, ys) = (ev.f64s(&df, "x_m")?, ev.f64s(&df, "y_m")?);
-        let zones = ev.strings(&df, "zone")?;
+        let exps = ev.texts(&df, cols::EXPERIMENT)?;
+        let numbers = ev.i64s(&df, cols::EVENT)?;
+        let (xs, ys) = (ev.floats(&df, cols::X_M)?, ev.floats(&df, cols::Y_M)?);
+        let zones = ev.texts(&df, cols::ZONE)?;
         for i in 0..df.height() {
             if let (Some(exp), Some(n), Some(x)) = (&exps[i], numbers[i], xs[i]) {
                 located.push(Located {
                     experiment: exp.clone(),
-                    event: n as i64,
+                    event: n,
                     seq,
                     x_m: x,
                     y_m: ys[i],

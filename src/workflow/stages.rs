@@ -4,6 +4,7 @@
 use super::*;
 use crate::analysis::trend::TrendDir;
 use crate::config::{MapSource, TrainOn};
+use crate::model::columns as cols;
 use crate::som::layout::ClassifyDir;
 
 /// The trend statistics of the feature tables into `dir`, with a Fig. 4.18 plot per
@@ -127,7 +128,7 @@ pub(super) fn train_stage(
         )?;
         (
             vec![rep.table_path],
-            "label".to_string(),
+            cols::LABEL.name.to_string(),
             1.0,
             format!("reference library {} (simulated labels)", lib.display()),
         )
@@ -136,7 +137,7 @@ pub(super) fn train_stage(
             feats.to_vec(),
             cfg.som.label.clone(),
             cfg.som.fraction,
-            if cfg.som.label == "criteria_label" {
+            if cfg.som.label == cols::CRITERIA_LABEL.name {
                 format!(
                     "{:.0} % of the run's hits, criteria labels (ch. 5.4)",
                     100.0 * cfg.som.fraction

@@ -1,6 +1,7 @@
 //! Scoring the SOM's classes against a synthetic experiment's ground truth.
 
 use super::*;
+use crate::model::columns as cols;
 
 /// A hit's key and a label, sortable by the key, then by which table it came from and its
 /// row there (a key a table repeats keeps its file order).
@@ -63,8 +64,8 @@ pub(super) fn score_truth(
 ) -> Result<TruthScore, WorkflowError> {
     let dir = classification.parent().unwrap_or(Path::new("."));
     let mut sorter = crate::store::spill::Sorter::new(dir);
-    push_labels(&mut sorter, truth, "mechanism", 0)?;
-    push_labels(&mut sorter, classification, "som_label", 1)?;
+    push_labels(&mut sorter, truth, cols::MECHANISM.name, 0)?;
+    push_labels(&mut sorter, classification, cols::SOM_LABEL.name, 1)?;
     let sorted = sorter.finish()?;
     let mut s = TruthScore {
         path: truth.to_path_buf(),
@@ -138,70 +139,77 @@ pub(super) fn score_sources(
 ) -> Result<Option<crate::report::SourceScore>, WorkflowError> {
     use polars::prelude::col;
     let t = TableScan::open(truth)?;
-    if t.require(&["event", "source_x_m", "source_kind"], "")
-        .is_err()
+    if t.require(
+        &[
+            cols::EVENT.name,
+            cols::SOURCE_X_M.name,
+            cols::SOURCE_KIND.name,
+        ],
+        "",
+    )
+    .is_err()
     {
         return Ok(None);
     }
     let df = t.select(vec![
-        col("experiment"),
-        col("channel"),
-        col("hit"),
-        col("event"),
-        col("source_x_m"),
-        col("source_kind"),
+        col(cols::EXPERIMENT.name),
+        col(cols::CHANNEL.name),
+        col(cols::HIT.name),
+        col(cols::EVENT.name),
+        col(cols::SOURCE_X_M.name),
+        col(cols::SOURCE_KIND.name),
     ])?;
     let keys = t.hit_keys(&df)?;
-    let src = t.f64s(&df, "event")?;
-    let sx = t.f64s(&df, "source_x_m")?;
-    let kind = t.strings(&df, "source_kind")?;
+    let src = t.i64s(&df, cols::EVENT)?;
+    let sx = t.floats(&df, cols::SOURCE_X_M)?;
+    let kind = t.texts(&df, cols::SOURCE_KIND)?;
     // Source → (x, kind, its hits).
     // (experiment, source) → (source_x_m, source_kind, its hits)
     type Truths = BTreeMap<(String, i64), (Option<f64>, String, Vec<HitKey>)>;
     let mut sources: Truths = BTreeMap::new();
     for (i, k) in keys.into_iter().enumerate() {
-        let id = (k.0.clone(), src[i].unwrap_or(0.0) as i64);
+        let id = (k.0.clone(), src[i].unwrap_or(0));
         let e = sources
             .entry(id)
             .or_insert_with(|| (sx[i], kind[i].clone().unwrap_or_default(), Vec::new()));
         e.2.push(k);
     }
     let f = TableScan::open(features)?;
-    f.require(&["event", "event_first", "zone"], "")?;
+    f.require(
+        &[cols::EVENT.name, cols::EVENT_FIRST.name, cols::ZONE.name],
+        "",
+    )?;
     let df = f.select(vec![
-        col("experiment"),
-        col("channel"),
-        col("hit"),
-        col("event"),
+        col(cols::EXPERIMENT.name),
+        col(cols::CHANNEL.name),
+        col(cols::HIT.name),
+        col(cols::EVENT.name),
         rows.keep().alias("counts"),
     ])?;
     let fk = f.hit_keys(&df)?;
-    let fev = f.f64s(&df, "event")?;
+    let fev = f.i64s(&df, cols::EVENT)?;
     let counts = f.bools(&df, "counts")?;
     let hit: BTreeMap<HitKey, (Option<i64>, bool)> = fk
         .into_iter()
         .enumerate()
-        .map(|(i, k)| (k, (fev[i].map(|v| v as i64), counts[i].unwrap_or(false))))
+        .map(|(i, k)| (k, (fev[i], counts[i].unwrap_or(false))))
         .collect();
     let e = TableScan::open(events)?;
     let df = e.select(vec![
-        col("experiment"),
-        col("event"),
-        col("x_m"),
-        col("n_hits"),
+        col(cols::EXPERIMENT.name),
+        col(cols::EVENT.name),
+        col(cols::X_M.name),
+        col(cols::N_HITS.name),
     ])?;
-    let eexp = e.strings(&df, "experiment")?;
-    let eev = e.f64s(&df, "event")?;
-    let ex = e.f64s(&df, "x_m")?;
-    let en = e.f64s(&df, "n_hits")?;
+    let eexp = e.texts(&df, cols::EXPERIMENT)?;
+    let eev = e.i64s(&df, cols::EVENT)?;
+    let ex = e.floats(&df, cols::X_M)?;
+    let en = e.i32s(&df, cols::N_HITS)?;
     let event: BTreeMap<(String, i64), (Option<f64>, usize)> = (0..df.height())
         .map(|i| {
             (
-                (
-                    eexp[i].clone().unwrap_or_default(),
-                    eev[i].unwrap_or(0.0) as i64,
-                ),
-                (ex[i], en[i].unwrap_or(0.0) as usize),
+                (eexp[i].clone().unwrap_or_default(), eev[i].unwrap_or(0)),
+                (ex[i], en[i].unwrap_or(0) as usize),
             )
         })
         .collect();

@@ -4,6 +4,8 @@
 //! SI units inside: seconds, hertz, volts, newtons, metres. Nothing in here depends on any
 //! other module of the crate.
 
+pub mod columns;
+
 use std::fmt;
 
 /// One acoustic-emission hit: a transient waveform and what is known about it.
