@@ -282,7 +282,7 @@ pub fn run_part_after(
         let m = fch.len();
         let (mut fe, mut ff, mut fz) = (vec![None; m], vec![Some(false); m], vec![None; m]);
         for r in 0..m {
-            let key = fch[r].zip(fhit[r]).map(|(c, hh)| (c as u32, hh as i64));
+            let key = fch[r].zip(fhit[r]).map(|(c, hh)| (c as u32, hh));
             if let Some(&i) = key.and_then(|k| hit_row.get(&k)) {
                 fe[r] = ev_of[i];
                 ff[r] = first[i];
