@@ -406,43 +406,34 @@ fn flush(
             }
             None => crate::ingest::open(&p.source, &cfg.ingest, &cfg.load),
         });
-        let st = crate::pipeline::stream(
-            items,
-            StreamJob::Features,
-            &scratch,
-            cfg,
-            &StreamOptions::with_threads(threads),
-        )?;
         let k = state.parts;
         let stream = StreamDir::new(&scratch);
-        // Events of the part: its sources are cut where no event spans the cut (growing
-        // pairs and chains), so these are the whole experiment's, numbered on.
-        let mut channels = state.channels.get(experiment).cloned().unwrap_or_default();
-        let job = StreamJob::Features;
-        let ev = crate::events::run_part_after(
-            &crate::events::PartTables {
-                experiment,
-                hits: &stream.table(PartTable::Hits, job),
-                features: Some((
-                    stream.table(PartTable::Main, job).as_path(),
-                    PartTable::Main.schema(job, cfg),
-                )),
-                events: &stream.table(PartTable::Events, job),
-                vaex: sources.iter().find_map(|p| p.source.vaex()),
-            },
-            &cfg.into(),
-            state.events.get(experiment).copied().unwrap_or(0),
-            &mut channels,
+        // Its sources are cut where no event spans the cut (growing pairs and chains), so
+        // the part's events are the whole experiment's, numbered on.
+        let mut after = crate::pipeline::Continuation {
+            events_before: state.events.get(experiment).copied().unwrap_or(0),
+            channels: state.channels.remove(experiment).unwrap_or_default(),
             // The hit after the part's last hits (a later part of transients only has none).
-            sources
+            next_hit: sources
                 .iter()
                 .rev()
                 .filter_map(|p| p.part.as_ref())
                 .find(|p| p.hits() > 0)
                 .and_then(|p| p.next_hit()),
+        };
+        let run = crate::pipeline::run_part(
+            experiment,
+            items,
+            sources.iter().find_map(|p| p.source.vaex()),
+            StreamJob::Features,
+            &scratch,
+            cfg,
+            &StreamOptions::with_threads(threads),
+            &mut after,
         )?;
-        *state.events.entry(experiment.clone()).or_default() += ev.events;
-        state.channels.insert(experiment.clone(), channels);
+        let (st, ev) = (run.stats, run.events);
+        state.events.insert(experiment.clone(), after.events_before);
+        state.channels.insert(experiment.clone(), after.channels);
         f.events += ev.events;
         let tables = dir.tables();
         // A flush writes a part of every table a part of `aepipe run` has.

@@ -200,6 +200,7 @@ pub fn run(
 mod counts;
 pub mod layout;
 mod manifest;
+mod part;
 mod parts;
 mod shard;
 mod stream;
@@ -208,6 +209,7 @@ pub use counts::{Counts, RecordCounts, StreamStats, MAX_NOTES};
 pub use layout::{PartDir, PartTable, StreamDir};
 pub(crate) use manifest::assemble;
 pub use manifest::{InputFile, Manifest};
+pub use part::{run_part, Continuation, PartRun};
 use parts::produce;
 pub(crate) use parts::{Part, Produced};
 pub use shard::{merge, read_shards, MergeError, ShardExperiment, ShardManifest};

@@ -5,7 +5,7 @@
 use super::counts::PartStats;
 use super::layout::{PartDir, PartTable, StreamDir};
 use super::manifest::InputFile;
-use super::{stream, PipelineError, StreamJob, StreamOptions};
+use super::{PipelineError, StreamJob, StreamOptions};
 use crate::config::ValidConfig;
 use crate::ingest::{self, Discovery, Source};
 use crate::model::Reject;
@@ -210,22 +210,15 @@ pub(crate) fn produce(
                 let items = g
                     .iter()
                     .flat_map(|s| ingest::open(s, &cfg.ingest, &cfg.load));
-                let st = stream(items, job, dir.path(), cfg, opts)?;
-                // Events need every hit of the experiment: a step after the stream, which
-                // writes events.parquet and fills the hit tables' event columns.
-                let features_schema = PartTable::Main.schema(job, cfg);
-                let ev = crate::events::run_part(
-                    &crate::events::PartTables {
-                        experiment: &id,
-                        hits: &dir.table(PartTable::Hits, job),
-                        features: (job == StreamJob::Features)
-                            .then(|| (dir.table(PartTable::Main, job), features_schema))
-                            .as_ref()
-                            .map(|(p, s)| (p.as_path(), s.clone())),
-                        events: &dir.table(PartTable::Events, job),
-                        vaex: g.iter().find_map(|s| s.vaex()),
-                    },
-                    &cfg.into(),
+                let run = super::part::run_part(
+                    &id,
+                    items,
+                    g.iter().find_map(|s| s.vaex()),
+                    job,
+                    dir.path(),
+                    cfg,
+                    opts,
+                    &mut super::part::Continuation::whole(),
                 )?;
                 let mut rec = want;
                 for t in PartTable::ALL {
@@ -233,8 +226,8 @@ pub(crate) fn produce(
                     let (_, h) = file_digest(&p).map_err(|e| IoAt::new(&p, e))?;
                     rec.outputs.push((t.file_name(job).to_string(), h));
                 }
-                rec.stats = PartStats::of(&st);
-                rec.stats.events = Some(ev);
+                rec.stats = PartStats::of(&run.stats);
+                rec.stats.events = Some(run.events);
                 let text = serde_json::to_string_pretty(&rec).expect("part record serialises");
                 write_atomic(&dir.record(), text.as_bytes())?;
                 rec
