@@ -54,7 +54,7 @@ pub fn summarise(src: &Source, cfg: &PipelineConfig) -> Summary {
         companions: src
             .companions
             .iter()
-            .map(|p| p.display().to_string())
+            .map(|p| p.path.display().to_string())
             .collect(),
         min_len: usize::MAX,
         ..Default::default()

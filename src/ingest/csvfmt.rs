@@ -292,6 +292,15 @@ fn read_per_hit(path: &Path, cfg: &IngestConfig) -> Result<(Vec<f32>, f64, u32),
     Ok((v, rate, pre))
 }
 
+/// CSV, one hit per file, numbered by their place in the folder.
+pub(crate) const PER_HIT_FORMAT: crate::ingest::FormatSpec = crate::ingest::FormatSpec {
+    name: "csv (one hit per file)",
+    one_hit_per_file: true,
+    numbered_by_place: true,
+    follow: crate::ingest::Follow::PerFile,
+    open: open_per_hit,
+};
+
 pub fn open_per_hit(src: &Source, cfg: &IngestConfig) -> Box<dyn Iterator<Item = Item> + Send> {
     let experiment = src.id.clone();
     let cfg = cfg.clone();
@@ -463,6 +472,15 @@ impl Iterator for LongReader {
         }))
     }
 }
+
+/// CSV long tables: one file, a hit column.
+pub(crate) const LONG_FORMAT: crate::ingest::FormatSpec = crate::ingest::FormatSpec {
+    name: "csv (long table)",
+    one_hit_per_file: false,
+    numbered_by_place: false,
+    follow: crate::ingest::Follow::Whole,
+    open: open_long,
+};
 
 pub fn open_long(src: &Source, cfg: &IngestConfig) -> Box<dyn Iterator<Item = Item> + Send> {
     let path = src.files[0].clone();

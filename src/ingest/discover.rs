@@ -2,10 +2,11 @@
 //! grouping files into sources, and naming the sources uniquely are one function each.
 
 use super::sniff::{self, Kind as TextKind};
-use super::{dta, whole_file_reject, Format, Source};
+use super::{aewin, dta, vallen, whole_file_reject, Format, Source};
 use crate::ingest::settings::FormatChoice;
 use crate::ingest::settings::IngestConfig;
 use crate::model::{Reject, Stage};
+use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
 
 /// What [`discover`] found.
@@ -313,210 +314,123 @@ fn classify(
     kinds
 }
 
-/// The files into sources: Vallen pairs by base path, MISTRAS chains by (folder, base
-/// name), one-hit-per-file folders by (folder, format) — AEwin files by (folder, test),
-/// with the test's hit list and machine log as companions — Vallen TXT exports by (folder,
-/// database) unless that database is read; multi-hit files are sources of their own.
-fn group(kinds: Vec<(PathBuf, Kind)>, d: &mut Discovery) {
-    // Vallen pairs by (folder, stem).
-    let mut vallen: std::collections::BTreeMap<PathBuf, (Option<PathBuf>, Option<PathBuf>)> =
-        Default::default();
-    // One-hit-per-file groups by (folder, format, test): the test only for AEwin files.
-    let mut groups: std::collections::BTreeMap<(PathBuf, Format, Option<String>), Vec<PathBuf>> =
-        Default::default();
-    // Vallen TXT exports by their database's base path.
-    let mut exports: std::collections::BTreeMap<PathBuf, Vec<PathBuf>> = Default::default();
-    let mut logs = Vec::new();
-    let mut hitlists = Vec::new();
-    // MISTRAS chains by (folder, base name).
-    let mut chains: std::collections::BTreeMap<(PathBuf, String), Vec<PathBuf>> =
-        Default::default();
+/// The files of a discovery, sorted by what they become.
+#[derive(Default)]
+struct Sorted {
+    pairs: vallen::Pairs,
+    /// Vallen TXT exports by their database's base path.
+    exports: BTreeMap<PathBuf, Vec<PathBuf>>,
+    /// One-hit-per-file groups by (folder, format, test): the test only for AEwin files.
+    per_hit: BTreeMap<(PathBuf, Format, Option<String>), Vec<PathBuf>>,
+    /// MISTRAS chains by (folder, base name).
+    chains: BTreeMap<(PathBuf, String), Vec<PathBuf>>,
+    /// Files that are a source each (WaveExplorer, a long CSV, a waveforms table).
+    single: Vec<Source>,
+    /// Companions waiting for their AEwin test.
+    hit_lists: Vec<PathBuf>,
+    logs: Vec<PathBuf>,
+}
+
+/// Each file to the group its kind says.
+fn sort(kinds: Vec<(PathBuf, Kind)>) -> Sorted {
+    let mut s = Sorted::default();
     for (p, k) in kinds {
         let parent = p.parent().map(Path::to_path_buf).unwrap_or_default();
-        match k {
+        let group = match k {
             Kind::Pridb => {
                 let base = p.with_extension("");
-                vallen.entry(base).or_default().0 = Some(p);
+                s.pairs.entry(base).or_default().0 = Some(p);
+                continue;
             }
             Kind::Tradb => {
                 let base = p.with_extension("");
-                vallen.entry(base).or_default().1 = Some(p);
+                s.pairs.entry(base).or_default().1 = Some(p);
+                continue;
             }
-            Kind::Parquet => d.sources.push(Source {
-                id: stem(&p),
-                format: Format::Parquet,
-                files: vec![p],
-                companions: vec![],
-                first_hit: 0,
-            }),
-            Kind::Text(TextKind::WaveExplorer) => d.sources.push(Source {
-                id: stem(&p),
-                format: Format::WaveExplorer,
-                files: vec![p],
-                companions: vec![],
-                first_hit: 0,
-            }),
-            Kind::Text(TextKind::CsvLong) => d.sources.push(Source {
-                id: stem(&p),
-                format: Format::CsvLong,
-                files: vec![p],
-                companions: vec![],
-                first_hit: 0,
-            }),
-            Kind::Wav => groups
-                .entry((parent, Format::Wav, None))
-                .or_default()
-                .push(p),
-            Kind::Text(TextKind::CsvPerHit) => groups
-                .entry((parent, Format::CsvPerHit, None))
-                .or_default()
-                .push(p),
-            Kind::Text(TextKind::Text) => groups
-                .entry((parent, Format::Text, None))
-                .or_default()
-                .push(p),
-            Kind::Text(TextKind::AewinWave { test }) => groups
-                .entry((parent, Format::Aewin, test))
-                .or_default()
-                .push(p),
+            Kind::Parquet => {
+                s.single
+                    .push(Source::of(stem(&p), Format::Parquet, vec![p]));
+                continue;
+            }
+            Kind::Text(TextKind::WaveExplorer) => {
+                s.single
+                    .push(Source::of(stem(&p), Format::WaveExplorer, vec![p]));
+                continue;
+            }
+            Kind::Text(TextKind::CsvLong) => {
+                s.single
+                    .push(Source::of(stem(&p), Format::CsvLong, vec![p]));
+                continue;
+            }
             Kind::Text(TextKind::VallenTxt { datafile }) => {
-                exports.entry(parent.join(datafile)).or_default().push(p)
+                s.exports.entry(parent.join(datafile)).or_default().push(p);
+                continue;
             }
-            Kind::Dta => chains
-                .entry((parent, dta::chain_key(&p).0))
-                .or_default()
-                .push(p),
-            Kind::Text(TextKind::MachineLog) => logs.push(p),
-            Kind::Text(TextKind::AewinHitList) => hitlists.push(p),
+            Kind::Dta => {
+                let key = (parent, dta::chain_key(&p).0);
+                s.chains.entry(key).or_default().push(p);
+                continue;
+            }
+            Kind::Text(TextKind::MachineLog) => {
+                s.logs.push(p);
+                continue;
+            }
+            Kind::Text(TextKind::AewinHitList) => {
+                s.hit_lists.push(p);
+                continue;
+            }
+            Kind::Wav => (Format::Wav, None),
+            Kind::Text(TextKind::CsvPerHit) => (Format::CsvPerHit, None),
+            Kind::Text(TextKind::Text) => (Format::Text, None),
+            Kind::Text(TextKind::AewinWave { test }) => (Format::Aewin, test),
             Kind::Other(_) => unreachable!("filtered above"),
-        }
+        };
+        s.per_hit
+            .entry((parent, group.0, group.1))
+            .or_default()
+            .push(p);
     }
-    for (base, (pri, tra)) in vallen.clone() {
-        let id = base
-            .file_name()
-            .map(|s| s.to_string_lossy().to_string())
-            .unwrap_or_default();
-        match (pri, tra) {
-            (pri, Some(tra)) => {
-                // The .pridb first; a VisualAE .trfdb beside it is read too (its features
-                // join the hit rows), so it is a companion, not a passed-over file.
-                let mut companions: Vec<PathBuf> = pri.into_iter().collect();
-                let trf = base.with_extension("trfdb");
-                if !companions.is_empty() && trf.is_file() {
-                    d.skipped.retain(|(p, _)| p != &trf);
-                    companions.push(trf);
-                }
-                adopt_vaex(&base, &mut d.skipped, &mut companions);
-                d.sources.push(Source {
-                    id,
-                    format: Format::Vallen,
-                    files: vec![tra],
-                    companions,
-                    first_hit: 0,
-                })
-            }
-            // A .pridb alone: its hits' waveforms are missing. The reader turns each hit
-            // that should have a transient record into a reject row.
-            (Some(pri), None) => {
-                let mut companions = vec![pri];
-                adopt_vaex(&base, &mut d.skipped, &mut companions);
-                d.sources.push(Source {
-                    id,
-                    format: Format::Vallen,
-                    files: vec![],
-                    companions,
-                    first_hit: 0,
-                })
-            }
-            (None, None) => {}
-        }
-    }
-    for (base, files) in exports {
-        // The .tradb they came from is read: the exports would be its transients again.
-        if let Some((_, Some(tra))) = vallen.get(&base) {
-            for p in files {
-                d.skipped.push((
-                    p,
-                    format!(
-                        "a Vallen TXT export of a transient of {}, which lies beside it and is read instead (the same transient is not read twice)",
-                        tra.display()
-                    ),
-                ));
-            }
-            continue;
-        }
-        d.sources.push(Source {
-            id: base
-                .file_name()
-                .map(|s| s.to_string_lossy().to_string())
-                .unwrap_or_default(),
-            format: Format::VallenTxt,
-            files,
-            companions: vec![],
-            first_hit: 0,
-        });
-    }
-    for ((_, id), mut files) in chains {
-        files.sort_by_key(|p| dta::chain_key(p).1);
-        d.sources.push(Source {
-            id,
-            format: Format::Mistras,
-            files,
-            companions: vec![],
-            first_hit: 0,
-        });
-    }
-    let mut used_logs = vec![false; logs.len()];
-    let mut used_lists = vec![false; hitlists.len()];
-    for ((dir, format, test), mut members) in groups {
-        members.sort_by_key(|p| natural_key(&p.file_name().unwrap_or_default().to_string_lossy()));
+    s
+}
+
+/// The files into sources, each format's way (its reader module groups them): Vallen
+/// pairs with their companions by role, Vallen TXT exports by database (unless it is
+/// read), MISTRAS chains, one-hit-per-file folders by (folder, format) — AEwin files by
+/// (folder, test) with the test's hit list and machine log — and single-file sources.
+fn group(kinds: Vec<(PathBuf, Kind)>, d: &mut Discovery) {
+    let s = sort(kinds);
+    d.sources.extend(s.single);
+    d.sources
+        .extend(vallen::pair_sources(&s.pairs, &mut d.skipped));
+    d.sources.extend(vallen::txt::export_sources(
+        s.exports,
+        &s.pairs,
+        &mut d.skipped,
+    ));
+    d.sources.extend(dta::chain_sources(s.chains));
+    let mut used = BTreeSet::new();
+    for ((dir, format, test), mut files) in s.per_hit {
+        files.sort_by_key(|p| natural_key(&p.file_name().unwrap_or_default().to_string_lossy()));
         let id = test.unwrap_or_else(|| {
             dir.file_name()
                 .map(|s| s.to_string_lossy().to_string())
-                .unwrap_or_else(|| dir_name(&members[0]))
+                .unwrap_or_else(|| dir_name(&files[0]))
         });
-        let mut companions = Vec::new();
+        let mut src = Source::of(id, format, files);
         if format == Format::Aewin {
-            // Hit list `<ID>.TXT` beside the folder; machine log `Specimen_RawData_<n>.csv`
-            // whose number appears in the experiment id, in the folder or beside it.
-            for (i, h) in hitlists.iter().enumerate() {
-                if stem(h) == id && (h.parent() == dir.parent() || h.parent() == Some(&dir)) {
-                    companions.push(h.clone());
-                    used_lists[i] = true;
-                }
-            }
-            for (i, l) in logs.iter().enumerate() {
-                let digits: String = stem(l).chars().filter(|c| c.is_ascii_digit()).collect();
-                if !digits.is_empty()
-                    && id.contains(&digits)
-                    && (l.parent() == dir.parent() || l.parent() == Some(&dir))
-                {
-                    companions.push(l.clone());
-                    used_logs[i] = true;
-                }
-            }
+            aewin::adopt_companions(&mut src, &dir, &s.hit_lists, &s.logs, &mut used);
         }
-        d.sources.push(Source {
-            id,
-            format,
-            files: members,
-            companions,
-            first_hit: 0,
-        });
+        d.sources.push(src);
     }
-    for (i, l) in logs.into_iter().enumerate() {
-        if !used_logs[i] {
-            d.skipped.push((
-                l,
-                "test-machine log with no AEwin experiment to attach to".into(),
-            ));
-        }
+    for l in s.logs.into_iter().filter(|l| !used.contains(l)) {
+        d.skipped.push((
+            l,
+            "test-machine log with no AEwin experiment to attach to".into(),
+        ));
     }
-    for (i, h) in hitlists.into_iter().enumerate() {
-        if !used_lists[i] {
-            d.skipped
-                .push((h, "AEwin hit list with no waveform folder beside it".into()));
-        }
+    for h in s.hit_lists.into_iter().filter(|h| !used.contains(h)) {
+        d.skipped
+            .push((h, "AEwin hit list with no waveform folder beside it".into()));
     }
 }
 
@@ -599,14 +513,5 @@ fn unique_ids(sources: &mut [Source], roots: &std::collections::HashMap<PathBuf,
             *n += 1;
             sources[i].id = if *n == 1 { id } else { format!("{id}-{n}") };
         }
-    }
-}
-
-/// The VisualAE setup beside a Vallen file (it gives the event builder and location): a
-/// companion of the source, not a passed-over file.
-fn adopt_vaex(base: &Path, skipped: &mut Vec<(PathBuf, String)>, companions: &mut Vec<PathBuf>) {
-    if let Some(vaex) = super::vallen::vaex::beside(base) {
-        skipped.retain(|(p, _)| p != &vaex);
-        companions.push(vaex);
     }
 }

@@ -81,36 +81,91 @@ pub enum Format {
     VallenTxt,
 }
 
+/// How `aepipe watch` follows a format's recordings while the acquisition writes them.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Follow {
+    /// New files of a folder, each once it has settled, numbered on from the ones before.
+    PerFile,
+    /// A Vallen pair, set by set as its `.pridb` and `.tradb` grow.
+    GrowingPair,
+    /// A MISTRAS `.DTA` chain, message by message as it is appended to.
+    GrowingChain,
+    /// The whole recording, once all its files have settled.
+    Whole,
+}
+
+/// What a format is, declared once by its reader module: its name, how its experiments
+/// are made of files, how `aepipe watch` follows it, and its reader.
+pub struct FormatSpec {
+    /// The name the manifest and `aepipe inspect` use.
+    pub name: &'static str,
+    /// An experiment is a folder (or test) of one-hit files.
+    pub one_hit_per_file: bool,
+    /// A one-hit file's hit number is its place in its folder (a source of only some of
+    /// the files numbers them on from [`Source::first_hit`]).
+    pub numbered_by_place: bool,
+    pub follow: Follow,
+    /// The reader: records, hits, rejects and the rest, in order.
+    pub open: fn(&Source, &IngestConfig) -> Items,
+}
+
 impl Format {
+    /// The format's declaration (in its reader module).
+    pub fn spec(self) -> &'static FormatSpec {
+        match self {
+            Format::Vallen => &vallen::FORMAT,
+            Format::Aewin => &aewin::FORMAT,
+            Format::WaveExplorer => &waveexplorer::FORMAT,
+            Format::Wav => &wavfmt::FORMAT,
+            Format::CsvPerHit => &csvfmt::PER_HIT_FORMAT,
+            Format::CsvLong => &csvfmt::LONG_FORMAT,
+            Format::Text => &text::FORMAT,
+            Format::Parquet => &parquetfmt::FORMAT,
+            Format::Mistras => &dta::FORMAT,
+            Format::VallenTxt => &vallen::txt::FORMAT,
+        }
+    }
+
     /// Formats whose experiment is a folder of one-hit files (its id is the folder's name).
     pub fn one_hit_per_file(self) -> bool {
-        matches!(
-            self,
-            Format::Aewin | Format::Wav | Format::CsvPerHit | Format::Text
-        )
+        self.spec().one_hit_per_file
     }
 
     /// One-hit-per-file formats whose hit number is the file's place in its folder (an AEwin
     /// file carries its own in its name): a source of only some of its files numbers them
     /// on from [`Source::first_hit`].
     pub fn numbered_by_place(self) -> bool {
-        matches!(self, Format::Wav | Format::CsvPerHit | Format::Text)
+        self.spec().numbered_by_place
     }
 
     pub fn as_str(self) -> &'static str {
-        match self {
-            Format::Vallen => "vallen",
-            Format::Aewin => "aewin",
-            Format::WaveExplorer => "waveexplorer",
-            Format::Wav => "wav",
-            Format::CsvPerHit => "csv (one hit per file)",
-            Format::CsvLong => "csv (long table)",
-            Format::Text => "text (one hit per file)",
-            Format::Parquet => "parquet (waveforms)",
-            Format::Mistras => "mistras dta",
-            Format::VallenTxt => "vallen txt export",
-        }
+        self.spec().name
     }
+}
+
+/// What a companion file is to its source.
+#[derive(
+    Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, serde::Serialize, serde::Deserialize,
+)]
+#[serde(rename_all = "snake_case")]
+pub enum Role {
+    /// A Vallen `.pridb`: the hit rows, parametric and marker rows.
+    HitIndex,
+    /// A VisualAE `.trfdb`: features per transient.
+    TransientFeatures,
+    /// A VisualAE `.vaex`: the event builder and location setup.
+    Setup,
+    /// An AEwin hit list `<test>.TXT`.
+    HitList,
+    /// A test machine's log (`Specimen_RawData_<n>.csv`).
+    MachineLog,
+}
+
+/// A file a source reads besides its waveform files, with its role.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct Companion {
+    pub role: Role,
+    pub path: PathBuf,
 }
 
 /// One unit of reading: an experiment (or a waveforms table), with the files it needs.
@@ -121,8 +176,9 @@ pub struct Source {
     pub format: Format,
     /// The waveform files, in reading order.
     pub files: Vec<PathBuf>,
-    /// Companion files: Vallen `.pridb`, AEwin hit list and machine log.
-    pub companions: Vec<PathBuf>,
+    /// Companion files, by role: a Vallen `.pridb`, `.trfdb` and `.vaex`, an AEwin hit list
+    /// and machine log.
+    pub companions: Vec<Companion>,
     /// Hits before the first of `files` in a one-hit-per-file source (WAV, CSV per hit,
     /// plain text): its files are hits `first_hit + 1 …`. 0 for a whole source; a watcher
     /// reading a folder's new files sets it to the files it read before.
@@ -130,22 +186,44 @@ pub struct Source {
 }
 
 impl Source {
-    /// The Vallen VisualAE setup (`.vaex`) beside the source, if discovery found one.
-    pub fn vaex(&self) -> Option<&Path> {
-        self.companions
-            .iter()
-            .find(|p| {
-                p.extension()
-                    .is_some_and(|e| e.eq_ignore_ascii_case("vaex"))
-            })
-            .map(PathBuf::as_path)
+    /// A source of `files` alone.
+    pub fn of(id: String, format: Format, files: Vec<PathBuf>) -> Source {
+        Source {
+            id,
+            format,
+            files,
+            companions: vec![],
+            first_hit: 0,
+        }
     }
 
-    /// Whether the source stores its hits apart from its transients (a Vallen `.pridb`);
-    /// then its reader yields the hit rows, otherwise every transient is also its hit.
+    /// The companion of `role`, if the source has one (the first).
+    pub fn companion(&self, role: Role) -> Option<&Path> {
+        self.companions
+            .iter()
+            .find(|c| c.role == role)
+            .map(|c| c.path.as_path())
+    }
+
+    /// Every companion of `role`.
+    pub fn companions_of(&self, role: Role) -> impl Iterator<Item = &Path> {
+        self.companions
+            .iter()
+            .filter(move |c| c.role == role)
+            .map(|c| c.path.as_path())
+    }
+
+    /// The Vallen VisualAE setup (`.vaex`) beside the source, if discovery found one.
+    pub fn vaex(&self) -> Option<&Path> {
+        self.companion(Role::Setup)
+    }
+
+    /// Whether the source stores its hits apart from its transients (a Vallen `.pridb`, a
+    /// MISTRAS stream); then its reader yields the hit rows, otherwise every transient is
+    /// also its hit.
     pub fn has_hit_list(&self) -> bool {
         match self.format {
-            Format::Vallen => !self.companions.is_empty(),
+            Format::Vallen => self.companion(Role::HitIndex).is_some(),
             Format::Mistras => true,
             _ => false,
         }
@@ -153,7 +231,9 @@ impl Source {
 
     /// Every file this source reads (for the manifest).
     pub fn all_files(&self) -> impl Iterator<Item = &PathBuf> {
-        self.files.iter().chain(self.companions.iter())
+        self.files
+            .iter()
+            .chain(self.companions.iter().map(|c| &c.path))
     }
 }
 
@@ -168,10 +248,12 @@ pub(crate) fn whole_file_reject(p: &Path, stage: Stage, reason: String) -> Rejec
     }
 }
 
+/// What a reader yields: records, hits, rejects and the rest, in order.
+pub type Items = Box<dyn Iterator<Item = Item> + Send>;
+
 /// A reader under a guard: a panic inside it (while it opens its files or reads a record)
 /// becomes one reject row for the rest of its source (stage `read`, the panic's message),
 /// and the batch goes on with the next source.
-type Items = Box<dyn Iterator<Item = Item> + Send>;
 
 struct Guarded {
     open: Option<Box<dyn FnOnce() -> Items + Send>>,
@@ -289,19 +371,8 @@ fn guarded(
     }))
 }
 
-fn open_format(src: &Source, cfg: &IngestConfig) -> Box<dyn Iterator<Item = Item> + Send> {
-    match src.format {
-        Format::Vallen => vallen::open(src, cfg),
-        Format::Aewin => aewin::open(src, cfg),
-        Format::WaveExplorer => waveexplorer::open(src, cfg),
-        Format::Wav => wavfmt::open(src, cfg),
-        Format::CsvPerHit => csvfmt::open_per_hit(src, cfg),
-        Format::CsvLong => csvfmt::open_long(src, cfg),
-        Format::Text => text::open(src, cfg),
-        Format::Parquet => parquetfmt::open(src, cfg),
-        Format::Mistras => dta::open(src, cfg),
-        Format::VallenTxt => vallen::txt::open(src, cfg),
-    }
+fn open_format(src: &Source, cfg: &IngestConfig) -> Items {
+    (src.format.spec().open)(src, cfg)
 }
 
 /// A time series (test-machine load or extension) sampled at increasing times, read by

@@ -138,6 +138,15 @@ impl Iterator for Reader {
     }
 }
 
+/// aepipe's own `waveforms.parquet`.
+pub(crate) const FORMAT: crate::ingest::FormatSpec = crate::ingest::FormatSpec {
+    name: "parquet (waveforms)",
+    one_hit_per_file: false,
+    numbered_by_place: false,
+    follow: crate::ingest::Follow::Whole,
+    open: open,
+};
+
 pub fn open(src: &Source, _cfg: &IngestConfig) -> Box<dyn Iterator<Item = Item> + Send> {
     let path = &src.files[0];
     match store::open_parquet(path, 64) {

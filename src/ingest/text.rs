@@ -78,6 +78,15 @@ pub(crate) fn read_values(path: &Path) -> Result<Vec<f64>, super::RecordError> {
     Ok(out)
 }
 
+/// Plain text, one value per line, one hit per file.
+pub(crate) const FORMAT: crate::ingest::FormatSpec = crate::ingest::FormatSpec {
+    name: "text (one hit per file)",
+    one_hit_per_file: true,
+    numbered_by_place: true,
+    follow: crate::ingest::Follow::PerFile,
+    open: open,
+};
+
 pub fn open(src: &Source, cfg: &IngestConfig) -> Box<dyn Iterator<Item = Item> + Send> {
     let experiment = src.id.clone();
     let rate = cfg.sample_rate_hz;

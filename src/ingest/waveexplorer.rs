@@ -224,6 +224,15 @@ impl Iterator for Reader {
     }
 }
 
+/// Digital Wave WaveExplorer exports: many events in one file.
+pub(crate) const FORMAT: crate::ingest::FormatSpec = crate::ingest::FormatSpec {
+    name: "waveexplorer",
+    one_hit_per_file: false,
+    numbered_by_place: false,
+    follow: crate::ingest::Follow::Whole,
+    open: open,
+};
+
 pub fn open(src: &Source, cfg: &IngestConfig) -> Box<dyn Iterator<Item = Item> + Send> {
     let path = src.files[0].clone();
     let reject = |reason: String| -> Box<dyn Iterator<Item = Item> + Send> {

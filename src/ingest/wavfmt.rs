@@ -45,6 +45,15 @@ fn read_wav(path: &Path, max_samples: u64) -> Result<(f64, Vec<Vec<f32>>), Strin
     Ok((spec.sample_rate as f64, chans))
 }
 
+/// WAV files, one hit per file, numbered by their place in the folder.
+pub(crate) const FORMAT: crate::ingest::FormatSpec = crate::ingest::FormatSpec {
+    name: "wav",
+    one_hit_per_file: true,
+    numbered_by_place: true,
+    follow: crate::ingest::Follow::PerFile,
+    open: open,
+};
+
 pub fn open(src: &Source, cfg: &IngestConfig) -> Box<dyn Iterator<Item = Item> + Send> {
     let experiment = src.id.clone();
     let gain = gain_factor(cfg.gain_db) as f32;

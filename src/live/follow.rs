@@ -6,7 +6,7 @@ use super::state::State;
 use crate::config::ValidConfig;
 use crate::ingest::dta::tail::{DtaTail, Position as DtaPosition};
 use crate::ingest::vallen::tail::{Position, Tail, Window};
-use crate::ingest::{Format, Source};
+use crate::ingest::{Follow, Source};
 use crate::model::Item;
 use std::collections::{HashMap, HashSet};
 use std::path::{Path, PathBuf};
@@ -75,9 +75,13 @@ impl Pending {
     }
 }
 
-/// A Vallen source with its `.pridb`: followed while it grows.
-fn grows(s: &Source) -> bool {
-    s.format == Format::Vallen && s.has_hit_list()
+/// How a source is followed: as its format declares, a Vallen pair only with its `.pridb`
+/// (a `.tradb` alone is read whole once it has settled).
+fn follow_of(s: &Source) -> Follow {
+    match s.format.spec().follow {
+        Follow::GrowingPair if !s.has_hit_list() => Follow::Whole,
+        f => f,
+    }
 }
 
 /// A file as last seen: its size and modification time, and since when they have been so.
@@ -172,7 +176,8 @@ impl Follower {
         let now = Instant::now();
         let mut out = Vec::new();
         for s in d.sources {
-            if s.format.numbered_by_place() {
+            let follow = follow_of(&s);
+            if follow == Follow::PerFile {
                 let mut new = Vec::new();
                 let mut newest = None;
                 let mut held = false;
@@ -214,10 +219,10 @@ impl Follower {
                 if self.whole.contains(&s.id) {
                     continue;
                 }
-                if grows(&s) && self.follow(&s, cfg, &mut out) {
+                if follow == Follow::GrowingPair && self.follow(&s, cfg, &mut out) {
                     continue;
                 }
-                if s.format == Format::Mistras && self.follow_dta(&s, cfg, room, &mut out) {
+                if follow == Follow::GrowingChain && self.follow_dta(&s, cfg, room, &mut out) {
                     continue;
                 }
                 let mut newest = None;

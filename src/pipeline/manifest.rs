@@ -291,7 +291,7 @@ pub(crate) fn assemble(
                 companions: s
                     .companions
                     .iter()
-                    .map(|p| p.display().to_string())
+                    .map(|c| c.path.display().to_string())
                     .collect(),
                 acquisition: stats
                     .setups

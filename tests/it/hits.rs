@@ -289,7 +289,9 @@ fn the_steel_plate_trfdb_features_join_its_hits_by_trai() {
     let d = aepipe::ingest::discover(std::slice::from_ref(&dir), &cfg.ingest);
     let src = d.sources.iter().find(|s| s.id == "sample").unwrap();
     assert!(
-        src.companions.iter().any(|p| p.ends_with("sample.trfdb")),
+        src.companions
+            .iter()
+            .any(|c| c.path.ends_with("sample.trfdb")),
         "{src:?}"
     );
     assert!(d.skipped.iter().all(|(p, _)| !p.ends_with("sample.trfdb")));

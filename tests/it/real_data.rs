@@ -233,7 +233,7 @@ fn folders_of_companion_files_are_passed_over_not_rejected() {
         assert!(d
             .sources
             .iter()
-            .any(|s| s.companions.iter().any(|p| p.ends_with(name))));
+            .any(|s| s.companions.iter().any(|c| c.path.ends_with(name))));
     }
     // But a file named explicitly that is not a recording is a reject with a reason.
     let d = discover(&[real.join("vallen/steel_plate/sample.vaex")], &cfg.ingest);

@@ -14,7 +14,7 @@ pub mod header;
 mod log;
 
 use super::sniff::{self, Head, Kind, Recogniser, Strength, Verdict};
-use super::{gain_factor, text, Source};
+use super::{gain_factor, text, Role, Source};
 use crate::ingest::settings::{FormatChoice, IngestConfig};
 use crate::model::{AeRecord, Item, Note, Reject, Stage};
 use std::collections::BTreeMap;
@@ -156,6 +156,44 @@ pub(crate) const MACHINE_LOG_RECOGNISER: Recogniser = Recogniser {
     },
     forced: sniff::never,
 };
+
+/// The companions of an AEwin test in `dir`: its hit list `<test>.TXT` and a machine log
+/// `Specimen_RawData_<n>.csv` whose number appears in the test's name, each in the folder or
+/// beside it. Those taken are marked in `used`.
+pub(crate) fn adopt_companions(
+    src: &mut Source,
+    dir: &Path,
+    hit_lists: &[PathBuf],
+    logs: &[PathBuf],
+    used: &mut std::collections::BTreeSet<PathBuf>,
+) {
+    use super::Companion;
+    let near = |p: &Path| p.parent() == dir.parent() || p.parent() == Some(dir);
+    let stem = |p: &Path| {
+        p.file_stem()
+            .map(|s| s.to_string_lossy().to_string())
+            .unwrap_or_default()
+    };
+    for h in hit_lists {
+        if stem(h) == src.id && near(h) {
+            src.companions.push(Companion {
+                role: Role::HitList,
+                path: h.clone(),
+            });
+            used.insert(h.clone());
+        }
+    }
+    for l in logs {
+        let digits: String = stem(l).chars().filter(|c| c.is_ascii_digit()).collect();
+        if !digits.is_empty() && src.id.contains(&digits) && near(l) {
+            src.companions.push(Companion {
+                role: Role::MachineLog,
+                path: l.clone(),
+            });
+            used.insert(l.clone());
+        }
+    }
+}
 
 /// One waveform file: its channel, hit and time as its name or header say.
 #[derive(Debug, Clone)]
@@ -356,6 +394,15 @@ impl Iterator for Reader {
     }
 }
 
+/// MISTRAS AEwin waveform exports, one file per hit: an experiment is a test in a folder.
+pub(crate) const FORMAT: crate::ingest::FormatSpec = crate::ingest::FormatSpec {
+    name: "aewin",
+    one_hit_per_file: true,
+    numbered_by_place: false,
+    follow: crate::ingest::Follow::Whole,
+    open: open,
+};
+
 pub fn open(src: &Source, cfg: &IngestConfig) -> Box<dyn Iterator<Item = Item> + Send> {
     let mut first = Vec::new();
     let mut files: Vec<WaveFile> = src
@@ -366,8 +413,8 @@ pub fn open(src: &Source, cfg: &IngestConfig) -> Box<dyn Iterator<Item = Item> +
         .collect();
     files.sort_by_key(|f| (f.channel, f.hit, f.name_time_us));
     let mut log = MachineLog::default();
-    for c in &src.companions {
-        if looks_like_machine_log(&super::head(c, sniff::HEAD_BYTES).unwrap_or_default()) {
+    for c in src.companions_of(Role::MachineLog) {
+        {
             match MachineLog::read(c) {
                 Ok(mut l) => {
                     // The log's rows, on the AE clock (AE time = log time + offset).

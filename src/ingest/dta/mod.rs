@@ -666,6 +666,27 @@ impl Iterator for DtaSource {
     }
 }
 
+/// The sources of the `.DTA` files discovery found, by (folder, base name): one chain each,
+/// its files in chain order (`X.DTA`, `X__2.DTA`, …).
+pub(crate) fn chain_sources(chains: BTreeMap<(PathBuf, String), Vec<PathBuf>>) -> Vec<Source> {
+    chains
+        .into_iter()
+        .map(|((_, id), mut files)| {
+            files.sort_by_key(|p| chain_key(p).1);
+            Source::of(id, crate::ingest::Format::Mistras, files)
+        })
+        .collect()
+}
+
+/// MISTRAS binary `.DTA` streams, a chain read as one, followed message by message.
+pub(crate) const FORMAT: crate::ingest::FormatSpec = crate::ingest::FormatSpec {
+    name: "mistras dta",
+    one_hit_per_file: false,
+    numbered_by_place: false,
+    follow: crate::ingest::Follow::GrowingChain,
+    open: open,
+};
+
 /// Open a MISTRAS source: its files as one chain, in chain order.
 pub fn open(src: &Source, cfg: &IngestConfig) -> Box<dyn Iterator<Item = Item> + Send> {
     Box::new(open_source(src, cfg))

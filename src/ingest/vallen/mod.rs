@@ -382,6 +382,66 @@ impl Iterator for Reader {
     }
 }
 
+/// Vallen AMSY `.pridb` (hits, parametric, markers) + `.tradb` (transients): followed set by set while it grows.
+pub(crate) const FORMAT: crate::ingest::FormatSpec = crate::ingest::FormatSpec {
+    name: "vallen",
+    one_hit_per_file: false,
+    numbered_by_place: false,
+    follow: crate::ingest::Follow::GrowingPair,
+    open: open,
+};
+
+/// Vallen pairs found by discovery: base path (folder + stem) → (`.pridb`, `.tradb`).
+pub(crate) type Pairs = std::collections::BTreeMap<PathBuf, (Option<PathBuf>, Option<PathBuf>)>;
+
+/// The sources of the pairs discovery found: the `.tradb` is the waveform file, the
+/// `.pridb` the hit index, a `.trfdb` beside a `.pridb` the transients' features and a
+/// `.vaex` beside either the setup (those two are read, so they are taken off `skipped`). A
+/// `.pridb` alone is a source too: its reader makes each hit that should have a transient a
+/// reject row.
+pub(crate) fn pair_sources(pairs: &Pairs, skipped: &mut Vec<(PathBuf, String)>) -> Vec<Source> {
+    use super::{Companion, Format, Role};
+    let mut out = Vec::new();
+    for (base, (pri, tra)) in pairs {
+        if pri.is_none() && tra.is_none() {
+            continue;
+        }
+        let mut companions = Vec::new();
+        if let Some(pri) = pri {
+            companions.push(Companion {
+                role: Role::HitIndex,
+                path: pri.clone(),
+            });
+            let trf = base.with_extension("trfdb");
+            if tra.is_some() && trf.is_file() {
+                skipped.retain(|(p, _)| p != &trf);
+                companions.push(Companion {
+                    role: Role::TransientFeatures,
+                    path: trf,
+                });
+            }
+        }
+        if let Some(vaex) = vaex::beside(base) {
+            skipped.retain(|(p, _)| p != &vaex);
+            companions.push(Companion {
+                role: Role::Setup,
+                path: vaex,
+            });
+        }
+        out.push(Source {
+            id: base
+                .file_name()
+                .map(|s| s.to_string_lossy().to_string())
+                .unwrap_or_default(),
+            format: Format::Vallen,
+            files: tra.iter().cloned().collect(),
+            companions,
+            first_hit: 0,
+        });
+    }
+    out
+}
+
 /// Open a Vallen source: the hit rows of its `.pridb` (every acquisition), then its
 /// transient records in (channel, transient number) order, then a reject for each hit whose
 /// transient the `.tradb` lacks.
@@ -442,7 +502,7 @@ fn open_with(
     decode: bool,
 ) -> Box<dyn Iterator<Item = Item> + Send> {
     let experiment = src.id.clone();
-    let pridb = src.companions.first().cloned();
+    let pridb = src.companion(super::Role::HitIndex).map(Path::to_path_buf);
     let tradb = src.files.first().cloned();
     let mut first: Vec<Item> = Vec::new();
     let file_reject = |p: &Path, reason: String| Reject {

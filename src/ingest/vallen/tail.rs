@@ -151,9 +151,8 @@ impl Tail {
     /// watcher committed; the default for a new one).
     pub fn open(src: &Source, from: Position, cfg: &IngestConfig) -> Result<Tail, IngestError> {
         let pridb_path = src
-            .companions
-            .first()
-            .cloned()
+            .companion(crate::ingest::Role::HitIndex)
+            .map(Path::to_path_buf)
             .ok_or_else(|| file_err(Path::new(&src.id), "no .pridb to follow"))?;
         let tradb_path = src.files.first().cloned().unwrap_or_default();
         let pridb = open_live(&pridb_path)?;
@@ -726,7 +725,10 @@ mod tests {
             id: id.into(),
             format: crate::ingest::Format::Vallen,
             files: vec![tradb],
-            companions: vec![pridb],
+            companions: vec![crate::ingest::Companion {
+                role: crate::ingest::Role::HitIndex,
+                path: pridb,
+            }],
             first_hit: 0,
         };
         (dir, w, src)

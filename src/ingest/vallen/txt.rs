@@ -91,6 +91,37 @@ pub(crate) const RECOGNISER: Recogniser = Recogniser {
     forced: sniff::never,
 };
 
+/// The sources of the TXT exports discovery found, by their database's base path: one per
+/// database, unless that database's `.tradb` is read (then the exports would be its
+/// transients again: each is passed over, saying so).
+pub(crate) fn export_sources(
+    exports: BTreeMap<PathBuf, Vec<PathBuf>>,
+    pairs: &super::Pairs,
+    skipped: &mut Vec<(PathBuf, String)>,
+) -> Vec<Source> {
+    let mut out = Vec::new();
+    for (base, files) in exports {
+        if let Some((_, Some(tra))) = pairs.get(&base) {
+            for p in files {
+                skipped.push((
+                    p,
+                    format!(
+                        "a Vallen TXT export of a transient of {}, which lies beside it and is read instead (the same transient is not read twice)",
+                        tra.display()
+                    ),
+                ));
+            }
+            continue;
+        }
+        let id = base
+            .file_name()
+            .map(|s| s.to_string_lossy().to_string())
+            .unwrap_or_default();
+        out.push(Source::of(id, crate::ingest::Format::VallenTxt, files));
+    }
+    out
+}
+
 /// `Time (microsec)` → seconds per unit; `Amplitude (mV)` → volts per unit.
 fn unit_of(cell: &str) -> Option<&str> {
     let a = cell.find(['(', '['])?;
@@ -256,6 +287,15 @@ impl Iterator for Reader {
         })
     }
 }
+
+/// Vallen TXT exports of transients, grouped by the database they came from.
+pub(crate) const FORMAT: crate::ingest::FormatSpec = crate::ingest::FormatSpec {
+    name: "vallen txt export",
+    one_hit_per_file: false,
+    numbered_by_place: false,
+    follow: crate::ingest::Follow::Whole,
+    open: open,
+};
 
 /// Read a source of exports: one record (or reject row) per file, in (channel, TRAI) order,
 /// the order the `.tradb` reader gives its transients.
