@@ -144,7 +144,7 @@ pub(crate) const FORMAT: crate::ingest::FormatSpec = crate::ingest::FormatSpec {
     one_hit_per_file: false,
     numbered_by_place: false,
     follow: crate::ingest::Follow::Whole,
-    open: open,
+    open,
 };
 
 pub fn open(src: &Source, _cfg: &IngestConfig) -> Box<dyn Iterator<Item = Item> + Send> {

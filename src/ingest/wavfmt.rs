@@ -51,7 +51,7 @@ pub(crate) const FORMAT: crate::ingest::FormatSpec = crate::ingest::FormatSpec {
     one_hit_per_file: true,
     numbered_by_place: true,
     follow: crate::ingest::Follow::PerFile,
-    open: open,
+    open,
 };
 
 pub fn open(src: &Source, cfg: &IngestConfig) -> Box<dyn Iterator<Item = Item> + Send> {

@@ -684,7 +684,7 @@ pub(crate) const FORMAT: crate::ingest::FormatSpec = crate::ingest::FormatSpec {
     one_hit_per_file: false,
     numbered_by_place: false,
     follow: crate::ingest::Follow::GrowingChain,
-    open: open,
+    open,
 };
 
 /// Open a MISTRAS source: its files as one chain, in chain order.

@@ -388,7 +388,7 @@ pub(crate) const FORMAT: crate::ingest::FormatSpec = crate::ingest::FormatSpec {
     one_hit_per_file: false,
     numbered_by_place: false,
     follow: crate::ingest::Follow::GrowingPair,
-    open: open,
+    open,
 };
 
 /// Vallen pairs found by discovery: base path (folder + stem) → (`.pridb`, `.tradb`).

@@ -294,7 +294,7 @@ pub(crate) const FORMAT: crate::ingest::FormatSpec = crate::ingest::FormatSpec {
     one_hit_per_file: false,
     numbered_by_place: false,
     follow: crate::ingest::Follow::Whole,
-    open: open,
+    open,
 };
 
 /// Read a source of exports: one record (or reject row) per file, in (channel, TRAI) order,
