@@ -254,7 +254,6 @@ pub type Items = Box<dyn Iterator<Item = Item> + Send>;
 /// A reader under a guard: a panic inside it (while it opens its files or reads a record)
 /// becomes one reject row for the rest of its source (stage `read`, the panic's message),
 /// and the batch goes on with the next source.
-
 struct Guarded {
     open: Option<Box<dyn FnOnce() -> Items + Send>>,
     inner: Option<Items>,
