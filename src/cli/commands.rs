@@ -484,21 +484,7 @@ fn bench(which: BenchCmd) -> Result<Outcome> {
             let t = crate::bench::sim_mesh(repeats)?;
             println!("mesh3x3-bond-failure, 250×250 grid, 40 µs (relaxation + 4 000 implicit steps + 400 FDTD steps): median {t:.3} s");
         }
-        BenchCmd::Som(BenchSomArgs {
-            inputs,
-            peers,
-            python,
-            repeats,
-        }) => {
-            let (t, qe, te) = crate::bench::som_bench(&inputs, repeats)?;
-            println!("aepipe SOM (1 thread): median {t:.4} s, QE {qe:.4}, TE8 {te:.4}");
-            if let Some(peers) = peers {
-                match crate::bench::run_minisom(&python, &peers) {
-                    Ok((pt, pqe)) => println!("MiniSom (same run): median {pt:.4} s, QE {pqe:.4} -> aepipe is {:.1}x faster, QE {:+.2} %", pt / t, (qe / pqe - 1.0) * 100.0),
-                    Err(e) => println!("MiniSom failed: {e}"),
-                }
-            }
-        }
+        BenchCmd::Som(a) => bench_som(a)?,
         BenchCmd::Cwt(BenchCwtArgs {
             inputs,
             peers,
@@ -513,46 +499,7 @@ fn bench(which: BenchCmd) -> Result<Outcome> {
                 print::cwt_peers(&ours, &python, &peers);
             }
         }
-        BenchCmd::Stream(BenchStreamArgs {
-            hits,
-            samples,
-            no_pretrigger,
-            linwave,
-            threads,
-            out,
-        }) => {
-            let w = if linwave {
-                crate::bench::Workload::LinWave
-            } else {
-                crate::bench::Workload::Fixed {
-                    len: samples,
-                    pretrigger: !no_pretrigger,
-                }
-            };
-            println!(
-                "streaming synthetic hits through the feature pipeline ({}; threads: {})",
-                w.describe(),
-                if threads == 0 {
-                    crate::util::num_cpus()
-                } else {
-                    threads
-                }
-            );
-            println!(
-                "{:>10} {:>10} {:>12} {:>14}",
-                "hits", "seconds", "hits/s", "peak RSS MiB"
-            );
-            let mut sizes = vec![hits / 100, hits / 10, hits];
-            sizes.retain(|&n| n > 0);
-            sizes.dedup();
-            for n in sizes {
-                let p = crate::bench::stream_point(n, w, threads, &out)?;
-                println!(
-                    "{:>10} {:>10.2} {:>12.0} {:>14.1}",
-                    p.hits, p.seconds, p.hits_per_s, p.peak_rss_mb
-                );
-            }
-        }
+        BenchCmd::Stream(a) => bench_stream(a)?,
         BenchCmd::Analysis(BenchAnalysisArgs {
             rows,
             experiments,
@@ -592,4 +539,68 @@ fn bench(which: BenchCmd) -> Result<Outcome> {
         }
     }
     Ok(Outcome::Success)
+}
+
+/// `aepipe bench som`: time our SOM and, given the peers' folder, MiniSom on the same run.
+fn bench_som(a: BenchSomArgs) -> Result<()> {
+    let BenchSomArgs {
+        inputs,
+        peers,
+        python,
+        repeats,
+    } = a;
+    let (t, qe, te) = crate::bench::som_bench(&inputs, repeats)?;
+    println!("aepipe SOM (1 thread): median {t:.4} s, QE {qe:.4}, TE8 {te:.4}");
+    if let Some(peers) = peers {
+        match crate::bench::run_minisom(&python, &peers) {
+            Ok((pt, pqe)) => println!("MiniSom (same run): median {pt:.4} s, QE {pqe:.4} -> aepipe is {:.1}x faster, QE {:+.2} %", pt / t, (qe / pqe - 1.0) * 100.0),
+            Err(e) => println!("MiniSom failed: {e}"),
+        }
+    }
+    Ok(())
+}
+
+/// `aepipe bench stream`: stream a hundredth, a tenth and all of the hits through the
+/// feature pipeline and print the speed and peak memory of each.
+fn bench_stream(a: BenchStreamArgs) -> Result<()> {
+    let BenchStreamArgs {
+        hits,
+        samples,
+        no_pretrigger,
+        linwave,
+        threads,
+        out,
+    } = a;
+    let w = if linwave {
+        crate::bench::Workload::LinWave
+    } else {
+        crate::bench::Workload::Fixed {
+            len: samples,
+            pretrigger: !no_pretrigger,
+        }
+    };
+    println!(
+        "streaming synthetic hits through the feature pipeline ({}; threads: {})",
+        w.describe(),
+        if threads == 0 {
+            crate::util::num_cpus()
+        } else {
+            threads
+        }
+    );
+    println!(
+        "{:>10} {:>10} {:>12} {:>14}",
+        "hits", "seconds", "hits/s", "peak RSS MiB"
+    );
+    let mut sizes = vec![hits / 100, hits / 10, hits];
+    sizes.retain(|&n| n > 0);
+    sizes.dedup();
+    for n in sizes {
+        let p = crate::bench::stream_point(n, w, threads, &out)?;
+        println!(
+            "{:>10} {:>10.2} {:>12.0} {:>14.1}",
+            p.hits, p.seconds, p.hits_per_s, p.peak_rss_mb
+        );
+    }
+    Ok(())
 }

@@ -154,6 +154,18 @@ pub fn acquisition_fault(
             ),
         );
     };
+    if let Some(f) = clipped(raw, c) {
+        return Some(f);
+    }
+    if let Some(f) = mistimed(first, fs, pretrigger, c) {
+        return Some(f);
+    }
+    two_bursts(cond, fs, hit, c)
+}
+
+/// The clipped fault: a long run or many samples at the extreme, far above the quantisation step.
+fn clipped(raw: &[f32], c: &CriteriaConfig) -> Option<Fault> {
+    let fault = |kind, reason| Some(Fault { kind, reason });
     // Clipped: a run of samples sitting at the raw record's extreme value, or many samples
     // at it (a fast wave clipped a little above its rail touches it for 2–3 samples a
     // half-cycle), where the extreme is far above the quantisation step (a weak record in
@@ -205,6 +217,12 @@ pub fn acquisition_fault(
             }
         }
     }
+    None
+}
+
+/// The trigger-timing faults: the threshold first reached well before or after the trigger.
+fn mistimed(first: usize, fs: f64, pretrigger: usize, c: &CriteriaConfig) -> Option<Fault> {
+    let fault = |kind, reason| Some(Fault { kind, reason });
     let early = (c.early_trigger_s * fs).round() as usize;
     if pretrigger > early && first < pretrigger - early {
         return fault(
@@ -225,6 +243,12 @@ pub fn acquisition_fault(
             ),
         );
     }
+    None
+}
+
+/// The two-bursts fault: a second burst after a quiet gap on the conditioned 1 µs envelope.
+fn two_bursts(cond: &[f32], fs: f64, hit: &HitFeatures, c: &CriteriaConfig) -> Option<Fault> {
+    let fault = |kind, reason| Some(Fault { kind, reason });
     // Two bursts, on a 1 µs block-maximum envelope.
     let block = ((1e-6 * fs).round() as usize).max(1);
     let env = cond

@@ -238,19 +238,8 @@ pub fn watch(
     stop: &AtomicBool,
     mut say: impl FnMut(&str),
 ) -> Result<WatchSummary, WatchError> {
-    // A given map is `[som] model`: the state's hash covers it (a restart with another map
-    // is refused) and the final run uses it as `aepipe run` would.
-    let with_model;
-    let cfg = match &o.model {
-        Some(m) => {
-            with_model = cfg
-                .clone()
-                .with(|c| c.som.model = Some(m.clone()))
-                .map_err(crate::workflow::WorkflowError::Config)?;
-            &with_model
-        }
-        None => cfg,
-    };
+    let with_model = with_given_map(cfg, o)?;
+    let cfg = with_model.as_ref().unwrap_or(cfg);
     let dir = WatchDir::new(out);
     std::fs::create_dir_all(dir.path().join("watch"))
         .map_err(|e| crate::util::IoAt::new(dir.path(), e))?;
@@ -318,16 +307,7 @@ pub fn watch(
         std::thread::sleep(Duration::from_secs_f64(cfg.live.poll_s));
     }
     let last = if o.until_idle_s.is_some() && o.offline_at_end && !stopped_by_signal {
-        say(&format!(
-            "idle: running the finished files as aepipe run does into {}",
-            dir.last().display()
-        ));
-        Some(crate::workflow::run(&crate::workflow::RunJob::new(
-            cfg,
-            inputs,
-            &dir.last(),
-            o.threads,
-        ))?)
+        Some(run_finished(cfg, inputs, &dir, o, &mut say)?)
     } else {
         None
     };
@@ -336,6 +316,41 @@ pub fn watch(
         last,
         stopped_by_signal,
     })
+}
+
+/// The configuration with the given map (`--model`) as `[som] model`, if one is given.
+fn with_given_map(cfg: &ValidConfig, o: &WatchOptions) -> Result<Option<ValidConfig>, WatchError> {
+    // A given map is `[som] model`: the state's hash covers it (a restart with another map
+    // is refused) and the final run uses it as `aepipe run` would.
+    Ok(match &o.model {
+        Some(m) => Some(
+            cfg.clone()
+                .with(|c| c.som.model = Some(m.clone()))
+                .map_err(crate::workflow::WorkflowError::Config)?,
+        ),
+        None => None,
+    })
+}
+
+/// At the end of the test, run the finished files as `aepipe run` does (`DIR/final`), so
+/// the final tables are the offline run's.
+fn run_finished(
+    cfg: &ValidConfig,
+    inputs: &[PathBuf],
+    dir: &WatchDir,
+    o: &WatchOptions,
+    say: &mut impl FnMut(&str),
+) -> Result<crate::workflow::RunSummary, WatchError> {
+    say(&format!(
+        "idle: running the finished files as aepipe run does into {}",
+        dir.last().display()
+    ));
+    Ok(crate::workflow::run(&crate::workflow::RunJob::new(
+        cfg,
+        inputs,
+        &dir.last(),
+        o.threads,
+    ))?)
 }
 
 /// One-hit-per-file records in one flush at most: a burst of 20 000 files is committed in
@@ -396,31 +411,10 @@ fn flush(
     for (experiment, sources) in &by_exp {
         let _ = std::fs::remove_dir_all(&scratch);
         std::fs::create_dir_all(&scratch).map_err(|e| crate::util::IoAt::new(&scratch, e))?;
-        let items = sources.iter().flat_map(|p| match &p.part {
-            Some(follow::Part::Vallen(w)) => {
-                crate::ingest::open_window(&p.source, w, &cfg.ingest, &cfg.load)
-            }
-            Some(follow::Part::Dta { items, .. }) => {
-                let items = std::mem::take(&mut *items.lock().expect("not poisoned"));
-                crate::ingest::with_load_file(Box::new(items.into_iter()), &p.source, &cfg.load)
-            }
-            None => crate::ingest::open(&p.source, &cfg.ingest, &cfg.load),
-        });
+        let items = part_items(sources, cfg);
         let k = state.parts;
         let stream = StreamDir::new(&scratch);
-        // Its sources are cut where no event spans the cut (growing pairs and chains), so
-        // the part's events are the whole experiment's, numbered on.
-        let mut after = crate::pipeline::Continuation {
-            events_before: state.events.get(experiment).copied().unwrap_or(0),
-            channels: state.channels.remove(experiment).unwrap_or_default(),
-            // The hit after the part's last hits (a later part of transients only has none).
-            next_hit: sources
-                .iter()
-                .rev()
-                .filter_map(|p| p.part.as_ref())
-                .find(|p| p.hits() > 0)
-                .and_then(|p| p.next_hit()),
-        };
+        let mut after = continuation(state, experiment, sources);
         let run = crate::pipeline::run_part(
             experiment,
             items,
@@ -444,31 +438,7 @@ fn flush(
         }
         if let Some(m) = model {
             let features = tables.hive_file(PartTable::Main, StreamJob::Features, experiment, k);
-            let cls_dir = scratch.join("som");
-            match crate::som::tables::classify_tables(
-                m,
-                std::slice::from_ref(&features),
-                Some(&cfg.som.label),
-                &cls_dir,
-                cfg.source_rows(),
-                cfg.som.read_erroneous,
-            ) {
-                Ok(conf) => {
-                    for ((class, _), n) in &conf.counts {
-                        *f.classes.entry(class.clone()).or_default() += *n as u64;
-                    }
-                    let part = dir.classification_part(experiment, k);
-                    move_into(
-                        &crate::som::layout::ClassifyDir::new(&cls_dir).classification(),
-                        &part,
-                    )?;
-                    f.points.extend(class_points(&part, &features)?);
-                }
-                // A part whose rows are all unusable for the map (flat records): no
-                // classification part. Any other error of the map is the run's.
-                Err(crate::som::SomError::NoUsableRows) => {}
-                Err(e) => return Err(e.into()),
-            }
+            classify_part(m, cfg, dir, experiment, k, features, &mut f)?;
         }
         state.parts += 1;
         f.hits += st.hits;
@@ -482,6 +452,99 @@ fn flush(
         }
     }
     let _ = std::fs::remove_dir_all(&scratch);
+    commit_flush(dir, state, &mut f, t0, newest_write)?;
+    Ok(f)
+}
+
+/// The records of one experiment's pending sources, each read as far as it is pending (a
+/// window of a growing Vallen pair, the items a MISTRAS chain held, or the whole source).
+fn part_items<'a>(
+    sources: &'a [follow::Pending],
+    cfg: &'a ValidConfig,
+) -> impl Iterator<Item = crate::model::Item> + Send + 'a {
+    sources.iter().flat_map(|p| match &p.part {
+        Some(follow::Part::Vallen(w)) => {
+            crate::ingest::open_window(&p.source, w, &cfg.ingest, &cfg.load)
+        }
+        Some(follow::Part::Dta { items, .. }) => {
+            let items = std::mem::take(&mut *items.lock().expect("not poisoned"));
+            crate::ingest::with_load_file(Box::new(items.into_iter()), &p.source, &cfg.load)
+        }
+        None => crate::ingest::open(&p.source, &cfg.ingest, &cfg.load),
+    })
+}
+
+/// Where the experiment's part goes on from (its channels taken out of the state until the
+/// part gives them back), so that its events continue the experiment's.
+fn continuation(
+    state: &mut State,
+    experiment: &str,
+    sources: &[follow::Pending],
+) -> crate::pipeline::Continuation {
+    // Its sources are cut where no event spans the cut (growing pairs and chains), so
+    // the part's events are the whole experiment's, numbered on.
+    crate::pipeline::Continuation {
+        events_before: state.events.get(experiment).copied().unwrap_or(0),
+        channels: state.channels.remove(experiment).unwrap_or_default(),
+        // The hit after the part's last hits (a later part of transients only has none).
+        next_hit: sources
+            .iter()
+            .rev()
+            .filter_map(|p| p.part.as_ref())
+            .find(|p| p.hits() > 0)
+            .and_then(|p| p.next_hit()),
+    }
+}
+
+/// Classify the experiment's features part `k` (already in place) with the map: its
+/// classification part moved into place, its classes counted and its points kept for the
+/// page.
+fn classify_part(
+    m: &Model,
+    cfg: &ValidConfig,
+    dir: &WatchDir,
+    experiment: &str,
+    k: u32,
+    features: PathBuf,
+    f: &mut Flush,
+) -> Result<(), WatchError> {
+    let cls_dir = dir.scratch().join("som");
+    match crate::som::tables::classify_tables(
+        m,
+        std::slice::from_ref(&features),
+        Some(&cfg.som.label),
+        &cls_dir,
+        cfg.source_rows(),
+        cfg.som.read_erroneous,
+    ) {
+        Ok(conf) => {
+            for ((class, _), n) in &conf.counts {
+                *f.classes.entry(class.clone()).or_default() += *n as u64;
+            }
+            let part = dir.classification_part(experiment, k);
+            move_into(
+                &crate::som::layout::ClassifyDir::new(&cls_dir).classification(),
+                &part,
+            )?;
+            f.points.extend(class_points(&part, &features)?);
+        }
+        // A part whose rows are all unusable for the map (flat records): no
+        // classification part. Any other error of the map is the run's.
+        Err(crate::som::SomError::NoUsableRows) => {}
+        Err(e) => return Err(e.into()),
+    }
+    Ok(())
+}
+
+/// Commit the flush: add its counts to the state and write the state (last), then the
+/// flush's totals, speed and lag as of the commit.
+fn commit_flush(
+    dir: &WatchDir,
+    state: &mut State,
+    f: &mut Flush,
+    t0: Instant,
+    newest_write: Option<SystemTime>,
+) -> Result<(), WatchError> {
     state.flushes += 1;
     state.hits += f.hits;
     state.rows += f.rows;
@@ -495,7 +558,7 @@ fn flush(
     f.lag_s = newest_write
         .and_then(|w| SystemTime::now().duration_since(w).ok())
         .map_or(0.0, |d| d.as_secs_f64());
-    Ok(f)
+    Ok(())
 }
 
 /// Each classified row's (class, time, load): the classification part joined with the

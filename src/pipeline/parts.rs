@@ -112,27 +112,7 @@ pub(crate) fn produce(
         skipped,
     } = ingest::discover(inputs, &cfg.ingest);
     if sources.is_empty() {
-        // A run that reads nothing is the input's fault, never an empty table.
-        let mut passed_over: Vec<String> = discover_rejects
-            .iter()
-            .map(|r| format!("{}: {}", r.source_file, r.reason))
-            .chain(
-                skipped
-                    .iter()
-                    .map(|(p, why)| format!("{}: {why}", p.display())),
-            )
-            .collect();
-        if passed_over.is_empty() {
-            passed_over.push("(no files)".into());
-        }
-        return Err(PipelineError::NothingToRead {
-            inputs: inputs
-                .iter()
-                .map(|p| p.display().to_string())
-                .collect::<Vec<_>>()
-                .join(", "),
-            passed_over,
-        });
+        return Err(nothing_to_read(inputs, &discover_rejects, &skipped));
     }
     if let Some(sh) = opts.shard {
         sources.retain(|s| sh.owns(&s.id));
@@ -140,26 +120,7 @@ pub(crate) fn produce(
     let t_discover = t0.elapsed().as_secs_f64();
 
     let t1 = Instant::now();
-    let files: Vec<(PathBuf, &Source)> = sources
-        .iter()
-        .flat_map(|s| s.all_files().map(move |f| (f.clone(), s)))
-        .collect();
-    let digested: Vec<InputFile> = files
-        .par_iter()
-        .map(|(f, s)| {
-            let (size_bytes, sha256) = match file_digest(f) {
-                Ok((n, h)) => (Some(n), h),
-                Err(e) => (None, format!("unreadable: {e}")),
-            };
-            InputFile {
-                path: f.display().to_string(),
-                experiment: s.id.clone(),
-                format: s.format.as_str().to_string(),
-                size_bytes,
-                sha256,
-            }
-        })
-        .collect();
+    let (files, digested) = digest_inputs(&sources);
     let t_hash = t1.elapsed().as_secs_f64();
     let input_hash: BTreeMap<&Path, &str> = files
         .iter()
@@ -174,28 +135,7 @@ pub(crate) fn produce(
     for g in sources.chunk_by(|a, b| a.id == b.id) {
         let id = g[0].id.clone();
         let dir = out.part(&id);
-        let want = PartRecord {
-            tool_version: env!("CARGO_PKG_VERSION").into(),
-            job: job.name().into(),
-            config_sha256: config_sha256.clone(),
-            experiment: id.clone(),
-            inputs: g
-                .iter()
-                .flat_map(|s| s.all_files())
-                .map(|f| {
-                    (
-                        f.display().to_string(),
-                        input_hash
-                            .get(f.as_path())
-                            .copied()
-                            .unwrap_or("")
-                            .to_string(),
-                    )
-                })
-                .collect(),
-            outputs: Vec::new(),
-            stats: PartStats::default(),
-        };
+        let want = wanted_record(job, &config_sha256, &id, g, &input_hash);
         let reused = if opts.resume {
             reusable_part(&dir, &want)
         } else {
@@ -204,34 +144,7 @@ pub(crate) fn produce(
         let reused_flag = reused.is_some();
         let rec = match reused {
             Some(rec) => rec,
-            None => {
-                let _ = std::fs::remove_dir_all(dir.path());
-                std::fs::create_dir_all(dir.path()).map_err(|e| IoAt::new(dir.path(), e))?;
-                let items = g
-                    .iter()
-                    .flat_map(|s| ingest::open(s, &cfg.ingest, &cfg.load));
-                let run = super::part::run_part(
-                    &id,
-                    items,
-                    g.iter().find_map(|s| s.vaex()),
-                    job,
-                    dir.path(),
-                    cfg,
-                    opts,
-                    &mut super::part::Continuation::whole(),
-                )?;
-                let mut rec = want;
-                for t in PartTable::ALL {
-                    let p = dir.table(t, job);
-                    let (_, h) = file_digest(&p).map_err(|e| IoAt::new(&p, e))?;
-                    rec.outputs.push((t.file_name(job).to_string(), h));
-                }
-                rec.stats = PartStats::of(&run.stats);
-                rec.stats.events = Some(run.events);
-                let text = serde_json::to_string_pretty(&rec).expect("part record serialises");
-                write_atomic(&dir.record(), text.as_bytes())?;
-                rec
-            }
+            None => stream_part(g, &id, &dir, want, job, cfg, opts)?,
         };
         parts.push(Part {
             tables: PartTable::ALL.map(|t| dir.table(t, job)),
@@ -253,4 +166,133 @@ pub(crate) fn produce(
         t_stream: t2.elapsed().as_secs_f64(),
         sources,
     })
+}
+
+/// The error of a run whose inputs hold no source, listing what discovery passed over and
+/// why (or "(no files)").
+fn nothing_to_read(
+    inputs: &[PathBuf],
+    discover_rejects: &[Reject],
+    skipped: &[(PathBuf, String)],
+) -> PipelineError {
+    // A run that reads nothing is the input's fault, never an empty table.
+    let mut passed_over: Vec<String> = discover_rejects
+        .iter()
+        .map(|r| format!("{}: {}", r.source_file, r.reason))
+        .chain(
+            skipped
+                .iter()
+                .map(|(p, why)| format!("{}: {why}", p.display())),
+        )
+        .collect();
+    if passed_over.is_empty() {
+        passed_over.push("(no files)".into());
+    }
+    PipelineError::NothingToRead {
+        inputs: inputs
+            .iter()
+            .map(|p| p.display().to_string())
+            .collect::<Vec<_>>()
+            .join(", "),
+        passed_over,
+    }
+}
+
+/// Every file of the owned sources (with its source) and its manifest entry, digested in
+/// parallel (an unreadable file is recorded, not an error), in the sources' order.
+fn digest_inputs(sources: &[Source]) -> (Vec<(PathBuf, &Source)>, Vec<InputFile>) {
+    let files: Vec<(PathBuf, &Source)> = sources
+        .iter()
+        .flat_map(|s| s.all_files().map(move |f| (f.clone(), s)))
+        .collect();
+    let digested: Vec<InputFile> = files
+        .par_iter()
+        .map(|(f, s)| {
+            let (size_bytes, sha256) = match file_digest(f) {
+                Ok((n, h)) => (Some(n), h),
+                Err(e) => (None, format!("unreadable: {e}")),
+            };
+            InputFile {
+                path: f.display().to_string(),
+                experiment: s.id.clone(),
+                format: s.format.as_str().to_string(),
+                size_bytes,
+                sha256,
+            }
+        })
+        .collect();
+    (files, digested)
+}
+
+/// The record a part of experiment `id` (sources `g`) must match to be reused: this tool,
+/// job, configuration and the inputs' hashes; no outputs or counts yet.
+fn wanted_record(
+    job: StreamJob,
+    config_sha256: &str,
+    id: &str,
+    g: &[Source],
+    input_hash: &BTreeMap<&Path, &str>,
+) -> PartRecord {
+    PartRecord {
+        tool_version: env!("CARGO_PKG_VERSION").into(),
+        job: job.name().into(),
+        config_sha256: config_sha256.to_string(),
+        experiment: id.to_string(),
+        inputs: g
+            .iter()
+            .flat_map(|s| s.all_files())
+            .map(|f| {
+                (
+                    f.display().to_string(),
+                    input_hash
+                        .get(f.as_path())
+                        .copied()
+                        .unwrap_or("")
+                        .to_string(),
+                )
+            })
+            .collect(),
+        outputs: Vec::new(),
+        stats: PartStats::default(),
+    }
+}
+
+/// Stream experiment `id` (sources `g`) into a fresh part folder, then record its tables'
+/// hashes and counts in `want` and write it as `part.json`, last, so only a finished part
+/// is ever reused.
+fn stream_part(
+    g: &[Source],
+    id: &str,
+    dir: &PartDir,
+    want: PartRecord,
+    job: StreamJob,
+    cfg: &ValidConfig,
+    opts: &StreamOptions,
+) -> Result<PartRecord, PipelineError> {
+    let _ = std::fs::remove_dir_all(dir.path());
+    std::fs::create_dir_all(dir.path()).map_err(|e| IoAt::new(dir.path(), e))?;
+    let items = g
+        .iter()
+        .flat_map(|s| ingest::open(s, &cfg.ingest, &cfg.load));
+    let run = super::part::run_part(
+        id,
+        items,
+        g.iter().find_map(|s| s.vaex()),
+        job,
+        dir.path(),
+        cfg,
+        opts,
+        &mut super::part::Continuation::whole(),
+    )?;
+    let mut rec = want;
+    for t in PartTable::ALL {
+        let p = dir.table(t, job);
+        let (_, h) = file_digest(&p).map_err(|e| IoAt::new(&p, e))?;
+        rec.outputs.push((t.file_name(job).to_string(), h));
+    }
+    rec.stats = PartStats::of(&run.stats);
+    rec.stats.events = Some(run.events);
+    let text = serde_json::to_string_pretty(&rec).expect("part record serialises");
+    write_atomic(&dir.record(), text.as_bytes())?;
+    Ok(rec)
 }

@@ -6,6 +6,7 @@ use super::{draw_legend, ensure_font, err, PlotError};
 use crate::analysis::evolution::EvolutionRow;
 use crate::config::ZoneSpec;
 use crate::model::Mechanism;
+use plotters::coord::types::RangedCoordf64;
 use plotters::prelude::*;
 use std::path::Path;
 
@@ -116,6 +117,35 @@ pub fn location_png(
             )
         });
     }
+    draw_stacked_bars(&mut c, path, &classes, &counts, nb, lo, width)?;
+    for (ch, pos) in sensors {
+        if let Some(&x) = pos.first() {
+            c.draw_series([TriangleMarker::new((mm(x), ymax * 0.03), 9, BLACK.filled())])
+                .map_err(&e)?;
+            c.draw_series([Text::new(
+                format!("ch{ch}"),
+                (mm(x) + 0.4, ymax * 0.08),
+                ("sans-serif", 14),
+            )])
+            .map_err(&e)?;
+        }
+    }
+    draw_legend(&mut c, SeriesLabelPosition::UpperRight, path)?;
+    root.present().map_err(&e)?;
+    Ok(())
+}
+
+/// Each class's bars (`counts[class][bin]`) stacked on the ones before, one legend entry each.
+fn draw_stacked_bars(
+    c: &mut ChartContext<'_, BitMapBackend<'_>, Cartesian2d<RangedCoordf64, RangedCoordf64>>,
+    path: &Path,
+    classes: &[String],
+    counts: &[Vec<u32>],
+    nb: usize,
+    lo: f64,
+    width: f64,
+) -> Result<(), PlotError> {
+    let e = err(path);
     let mut base = vec![0u32; nb];
     for (k, class) in classes.iter().enumerate() {
         let colour = class_colour(class);
@@ -140,20 +170,6 @@ pub fn location_png(
             .label(format!("{class} ({total})"))
             .legend(move |(x, y)| Rectangle::new([(x, y - 5), (x + 20, y + 5)], colour.filled()));
     }
-    for (ch, pos) in sensors {
-        if let Some(&x) = pos.first() {
-            c.draw_series([TriangleMarker::new((mm(x), ymax * 0.03), 9, BLACK.filled())])
-                .map_err(&e)?;
-            c.draw_series([Text::new(
-                format!("ch{ch}"),
-                (mm(x) + 0.4, ymax * 0.08),
-                ("sans-serif", 14),
-            )])
-            .map_err(&e)?;
-        }
-    }
-    draw_legend(&mut c, SeriesLabelPosition::UpperRight, path)?;
-    root.present().map_err(&e)?;
     Ok(())
 }
 
@@ -254,77 +270,129 @@ pub fn evolution_png(
     let mut classes: Vec<&str> = rows.iter().map(|r| r.class.as_str()).collect();
     classes.sort_unstable();
     classes.dedup();
-    let series =
-        |c: &str| -> Vec<&EvolutionRow> { rows.iter().filter(|r| r.class == c).copied().collect() };
     let tmax = rows.iter().filter_map(|r| r.time_s).fold(1e-9, f64::max);
     let lmax = rows.iter().filter_map(|r| r.load_n).fold(0.0, f64::max);
     let nmax = rows.iter().map(|r| r.cum_sources).max().unwrap_or(1).max(1) as f64 * 1.05;
     let root = BitMapBackend::new(path, (1000, 900)).into_drawing_area();
     root.fill(&WHITE).map_err(&e)?;
     let parts = root.split_evenly((3, 1));
+    let cumulative = Cumulative {
+        experiment,
+        sampled: &sampled,
+        rows,
+        classes: &classes,
+        tmax,
+        lmax,
+        nmax,
+        peak_time_s,
+    };
     // (1) against time, (2) against load.
     for (k, area) in parts.iter().take(2).enumerate() {
         let against_load = k == 1;
-        if against_load && lmax <= 0.0 {
-            area.draw(&Text::new(
-                "no load recorded: nothing to draw against load",
-                (20, 40),
-                ("sans-serif", 16),
-            ))
-            .map_err(&e)?;
-            continue;
-        }
-        let xmax = if against_load { lmax * 1.02 } else { tmax };
-        let mut c = ChartBuilder::on(area)
-            .caption(
-                if against_load {
-                    format!("{experiment}: cumulative sources against load{sampled}")
-                } else {
-                    format!("{experiment}: cumulative sources against time{sampled}")
-                },
-                ("sans-serif", 16),
-            )
-            .margin(10)
-            .x_label_area_size(35)
-            .y_label_area_size(60)
-            .build_cartesian_2d(0.0..xmax, 0.0..nmax)
-            .map_err(&e)?;
-        c.configure_mesh()
-            .x_desc(if against_load { "load (N)" } else { "time (s)" })
-            .y_desc("sources")
-            .draw()
-            .map_err(&e)?;
-        for class in &classes {
-            let colour = class_colour(class);
-            let s = series(class);
-            let last = s
-                .last()
-                .map(|r| (r.cum_sources, r.cum_hits))
-                .unwrap_or((0, 0));
-            let pts: Vec<(f64, f64)> = s
-                .iter()
-                .filter_map(|r| {
-                    let x = if against_load { r.load_n } else { r.time_s };
-                    x.map(|x| (x, r.cum_sources as f64))
-                })
-                .collect();
-            c.draw_series(LineSeries::new(pts, colour.stroke_width(2)))
-                .map_err(&e)?
-                .label(format!("{class}: {} sources, {} hits", last.0, last.1))
-                .legend(move |(x, y)| {
-                    PathElement::new([(x, y), (x + 20, y)], colour.stroke_width(2))
-                });
-        }
-        if let (false, Some(t)) = (against_load, peak_time_s) {
-            c.draw_series(LineSeries::new([(t, 0.0), (t, nmax)], BLACK.mix(0.5)))
-                .map_err(&e)?
-                .label("peak load")
-                .legend(|(x, y)| PathElement::new([(x, y), (x + 20, y)], BLACK.mix(0.5)));
-        }
-        draw_legend(&mut c, SeriesLabelPosition::UpperLeft, path)?;
+        cumulative_panel(area, path, &cumulative, against_load)?;
     }
     // (3) b and Ib of all sources.
-    let all = series("all");
+    let all = class_series(rows, "all");
+    b_value_panel(&parts[2], path, &all, window, tmax, peak_time_s)?;
+    root.present().map_err(&e)?;
+    Ok(())
+}
+
+/// The rows of one class, in order: one line of a panel ("all": the b- and Ib-values).
+fn class_series<'a>(rows: &[&'a EvolutionRow], c: &str) -> Vec<&'a EvolutionRow> {
+    rows.iter().filter(|r| r.class == c).copied().collect()
+}
+
+/// What both cumulative panels of [`evolution_png`] share: rows, classes, axes, peak time.
+struct Cumulative<'a> {
+    experiment: &'a str,
+    /// The captions' note that only every n-th source is drawn (empty when all are).
+    sampled: &'a str,
+    rows: &'a [&'a EvolutionRow],
+    classes: &'a [&'a str],
+    tmax: f64,
+    lmax: f64,
+    nmax: f64,
+    peak_time_s: Option<f64>,
+}
+
+/// One cumulative panel, against time or against load (a note when no load was recorded).
+fn cumulative_panel(
+    area: &DrawingArea<BitMapBackend<'_>, plotters::coord::Shift>,
+    path: &Path,
+    p: &Cumulative<'_>,
+    against_load: bool,
+) -> Result<(), PlotError> {
+    let e = err(path);
+    let (experiment, sampled, nmax) = (p.experiment, p.sampled, p.nmax);
+    if against_load && p.lmax <= 0.0 {
+        area.draw(&Text::new(
+            "no load recorded: nothing to draw against load",
+            (20, 40),
+            ("sans-serif", 16),
+        ))
+        .map_err(&e)?;
+        return Ok(());
+    }
+    let xmax = if against_load { p.lmax * 1.02 } else { p.tmax };
+    let mut c = ChartBuilder::on(area)
+        .caption(
+            if against_load {
+                format!("{experiment}: cumulative sources against load{sampled}")
+            } else {
+                format!("{experiment}: cumulative sources against time{sampled}")
+            },
+            ("sans-serif", 16),
+        )
+        .margin(10)
+        .x_label_area_size(35)
+        .y_label_area_size(60)
+        .build_cartesian_2d(0.0..xmax, 0.0..nmax)
+        .map_err(&e)?;
+    c.configure_mesh()
+        .x_desc(if against_load { "load (N)" } else { "time (s)" })
+        .y_desc("sources")
+        .draw()
+        .map_err(&e)?;
+    for class in p.classes {
+        let colour = class_colour(class);
+        let s = class_series(p.rows, class);
+        let last = s
+            .last()
+            .map(|r| (r.cum_sources, r.cum_hits))
+            .unwrap_or((0, 0));
+        let pts: Vec<(f64, f64)> = s
+            .iter()
+            .filter_map(|r| {
+                let x = if against_load { r.load_n } else { r.time_s };
+                x.map(|x| (x, r.cum_sources as f64))
+            })
+            .collect();
+        c.draw_series(LineSeries::new(pts, colour.stroke_width(2)))
+            .map_err(&e)?
+            .label(format!("{class}: {} sources, {} hits", last.0, last.1))
+            .legend(move |(x, y)| PathElement::new([(x, y), (x + 20, y)], colour.stroke_width(2)));
+    }
+    if let (false, Some(t)) = (against_load, p.peak_time_s) {
+        c.draw_series(LineSeries::new([(t, 0.0), (t, nmax)], BLACK.mix(0.5)))
+            .map_err(&e)?
+            .label("peak load")
+            .legend(|(x, y)| PathElement::new([(x, y), (x + 20, y)], BLACK.mix(0.5)));
+    }
+    draw_legend(&mut c, SeriesLabelPosition::UpperLeft, path)?;
+    Ok(())
+}
+
+/// The b- and Ib-value of all sources over time (a note when too few), the peak load marked.
+fn b_value_panel(
+    area: &DrawingArea<BitMapBackend<'_>, plotters::coord::Shift>,
+    path: &Path,
+    all: &[&EvolutionRow],
+    window: usize,
+    tmax: f64,
+    peak_time_s: Option<f64>,
+) -> Result<(), PlotError> {
+    let e = err(path);
     let vals = all
         .iter()
         .flat_map(|r| [r.b_value, r.ib_value])
@@ -334,16 +402,15 @@ pub fn evolution_png(
         (a.min(v), b.max(v))
     });
     if !vlo.is_finite() {
-        parts[2]
-            .draw(&Text::new(
-                format!("fewer than {window} sources: no b-value window"),
-                (20, 40),
-                ("sans-serif", 16),
-            ))
-            .map_err(&e)?;
+        area.draw(&Text::new(
+            format!("fewer than {window} sources: no b-value window"),
+            (20, 40),
+            ("sans-serif", 16),
+        ))
+        .map_err(&e)?;
     } else {
         let pad = 0.1 * (vhi - vlo).max(0.1);
-        let mut c = ChartBuilder::on(&parts[2])
+        let mut c = ChartBuilder::on(area)
             .caption(
                 format!("b-value (Aki) and Ib-value (Shiotani), windows of {window} sources"),
                 ("sans-serif", 16),
@@ -388,6 +455,5 @@ pub fn evolution_png(
         }
         draw_legend(&mut c, SeriesLabelPosition::UpperLeft, path)?;
     }
-    root.present().map_err(&e)?;
     Ok(())
 }

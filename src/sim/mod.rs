@@ -264,6 +264,48 @@ pub struct SimJob {
 pub fn run_job(job: &SimJob) -> Result<Vec<String>, SimError> {
     let io = |e: std::io::Error| SimError::Io(format!("{}: {e}", job.out.display()));
     std::fs::create_dir_all(&job.out).map_err(io)?;
+    let models = job_models(job)?;
+    let mut lines = Vec::new();
+    let mut outs = Vec::new();
+    for (hit, (m, _, json)) in models.iter().enumerate() {
+        let t0 = std::time::Instant::now();
+        let out = simulate(m, &job.run)?;
+        let secs = t0.elapsed().as_secs_f64();
+        lines.push(format!(
+            "{} {json}: {} masses, {} springs, {} steps of {:e} s ({:?}) in {secs:.2} s; relaxation {} steps{}",
+            m.name,
+            m.nodes.len(),
+            m.springs.len(),
+            m.system.iterations,
+            m.system.dt,
+            m.system.solver,
+            out.relaxed.steps,
+            if out.relaxed.converged { String::new() } else { format!(" (NOT converged, residual {:.1e})", out.relaxed.residual) },
+        ));
+        sensor_lines(m, &out, &mut lines);
+        write_run_files(job, hit, models.len() > 1, m, &out, &mut lines)?;
+        outs.push(out);
+    }
+    let runs: Vec<output::Run> = models
+        .iter()
+        .zip(&outs)
+        .enumerate()
+        .map(|(k, ((m, source, json), out))| output::Run {
+            model: m,
+            out,
+            source: source.clone(),
+            params: json.clone(),
+            hit: k as u64 + 1,
+            acq: &job.acquisition,
+            faults: Vec::new(),
+        })
+        .collect();
+    write_sensor_signals(job, &runs, &mut lines)?;
+    Ok(lines)
+}
+
+/// The job's models, one per sweep value, with source and parameters: all built before a run.
+fn job_models(job: &SimJob) -> Result<Vec<(ModelFile, String, String)>, SimError> {
     let values: Vec<Option<(String, f64)>> = match &job.sweep {
         Some((k, lo, hi)) if lo <= hi => (*lo..=*hi).map(|v| Some((k.clone(), v as f64))).collect(),
         Some((k, lo, hi)) => {
@@ -293,90 +335,83 @@ pub fn run_job(job: &SimJob) -> Result<Vec<String>, SimError> {
         }
         models.push((m, source, params.to_json()));
     }
-    let mut lines = Vec::new();
-    let mut outs = Vec::new();
-    for (hit, (m, _, json)) in models.iter().enumerate() {
-        let t0 = std::time::Instant::now();
-        let out = simulate(m, &job.run)?;
-        let secs = t0.elapsed().as_secs_f64();
+    Ok(models)
+}
+
+/// A run's lines on its signals: each sensor's frequency and peak, or a node's frequency.
+fn sensor_lines(m: &ModelFile, out: &SimOutput, lines: &mut Vec<String>) {
+    for (k, s) in out.sensors.iter().enumerate() {
+        let (i, j) = (m.sensors[k].i, m.sensors[k].j);
+        let s = match &m.grid {
+            Some(g) => output::band_limited(s, g),
+            None => s.clone(),
+        };
+        let peak = s.iter().fold(0.0f64, |a, v| a.max(v.abs()));
         lines.push(format!(
-            "{} {json}: {} masses, {} springs, {} steps of {:e} s ({:?}) in {secs:.2} s; relaxation {} steps{}",
-            m.name,
-            m.nodes.len(),
-            m.springs.len(),
-            m.system.iterations,
-            m.system.dt,
-            m.system.solver,
-            out.relaxed.steps,
-            if out.relaxed.converged { String::new() } else { format!(" (NOT converged, residual {:.1e})", out.relaxed.residual) },
+            "  sensor {} at cell ({i}, {j}): dominant {:.1} kHz, peak {peak:.3e} Pa (band-limited to the grid)",
+            k + 1,
+            dominant_frequency(&s, out.sample_rate_hz) / 1e3
         ));
-        for (k, s) in out.sensors.iter().enumerate() {
-            let (i, j) = (m.sensors[k].i, m.sensors[k].j);
-            let s = match &m.grid {
-                Some(g) => output::band_limited(s, g),
-                None => s.clone(),
-            };
-            let peak = s.iter().fold(0.0f64, |a, v| a.max(v.abs()));
-            lines.push(format!(
-                "  sensor {} at cell ({i}, {j}): dominant {:.1} kHz, peak {peak:.3e} Pa (band-limited to the grid)",
-                k + 1,
-                dominant_frequency(&s, out.sample_rate_hz) / 1e3
-            ));
-        }
-        if out.sensors.is_empty() {
-            if let Some((node, f)) = node_frequency(m, &out) {
-                lines.push(format!(
-                    "  no sensors; node {node} oscillates at {f:.4} Hz (zero crossings of y)"
-                ));
-            }
-        }
-        if !out.trajectory.is_empty() {
-            let p = job.out.join(if models.len() > 1 {
-                format!("trajectories_{}.parquet", hit + 1)
-            } else {
-                "trajectories.parquet".into()
-            });
-            let n = output::write_trajectories(&p, &out.trajectory)?;
-            lines.push(format!("  {n} trajectory rows → {}", p.display()));
-        }
-        if !out.snapshots.is_empty() {
-            let dir = job.out.join("snapshots");
-            std::fs::create_dir_all(&dir).map_err(io)?;
-            let g = m.grid.as_ref().expect("snapshots need a grid");
-            let max = out
-                .snapshots
-                .iter()
-                .flat_map(|(_, p)| p.iter())
-                .fold(0.0f64, |a, v| a.max(v.abs()));
-            for (t, p) in &out.snapshots {
-                let f = dir.join(format!("p_{}_{:08.3}us.png", hit + 1, t * 1e6));
-                output::snapshot_png(&f, p, g.nx, g.ny, max)?;
-            }
-            lines.push(format!(
-                "  {} field snapshots (±{max:.2e} Pa) → {}",
-                out.snapshots.len(),
-                dir.display()
-            ));
-        }
-        outs.push(out);
     }
-    let runs: Vec<output::Run> = models
-        .iter()
-        .zip(&outs)
-        .enumerate()
-        .map(|(k, ((m, source, json), out))| output::Run {
-            model: m,
-            out,
-            source: source.clone(),
-            params: json.clone(),
-            hit: k as u64 + 1,
-            acq: &job.acquisition,
-            faults: Vec::new(),
-        })
-        .collect();
+    if out.sensors.is_empty() {
+        if let Some((node, f)) = node_frequency(m, out) {
+            lines.push(format!(
+                "  no sensors; node {node} oscillates at {f:.4} Hz (zero crossings of y)"
+            ));
+        }
+    }
+}
+
+/// Write a run's trajectories and snapshots if kept (numbered when `several`), with lines.
+fn write_run_files(
+    job: &SimJob,
+    hit: usize,
+    several: bool,
+    m: &ModelFile,
+    out: &SimOutput,
+    lines: &mut Vec<String>,
+) -> Result<(), SimError> {
+    let io = |e: std::io::Error| SimError::Io(format!("{}: {e}", job.out.display()));
+    if !out.trajectory.is_empty() {
+        let p = job.out.join(if several {
+            format!("trajectories_{}.parquet", hit + 1)
+        } else {
+            "trajectories.parquet".into()
+        });
+        let n = output::write_trajectories(&p, &out.trajectory)?;
+        lines.push(format!("  {n} trajectory rows → {}", p.display()));
+    }
+    if !out.snapshots.is_empty() {
+        let dir = job.out.join("snapshots");
+        std::fs::create_dir_all(&dir).map_err(io)?;
+        let g = m.grid.as_ref().expect("snapshots need a grid");
+        let max = out
+            .snapshots
+            .iter()
+            .flat_map(|(_, p)| p.iter())
+            .fold(0.0f64, |a, v| a.max(v.abs()));
+        for (t, p) in &out.snapshots {
+            let f = dir.join(format!("p_{}_{:08.3}us.png", hit + 1, t * 1e6));
+            output::snapshot_png(&f, p, g.nx, g.ny, max)?;
+        }
+        lines.push(format!(
+            "  {} field snapshots (±{max:.2e} Pa) → {}",
+            out.snapshots.len(),
+            dir.display()
+        ));
+    }
+    Ok(())
+}
+
+/// Write the sensors' signals to `waveforms.parquet` when any run has some, with a line.
+fn write_sensor_signals(
+    job: &SimJob,
+    runs: &[output::Run],
+    lines: &mut Vec<String>,
+) -> Result<(), SimError> {
     if runs.iter().any(|r| !r.out.sensors.is_empty()) {
         let p = job.out.join("waveforms.parquet");
-        let n = output::write_waveforms(&p, &runs)?;
+        let n = output::write_waveforms(&p, runs)?;
         let sensors: usize = runs.iter().map(|r| r.out.sensors.len()).sum();
         let silent = sensors as u64 - n;
         lines.push(format!(
@@ -392,7 +427,7 @@ pub fn run_job(job: &SimJob) -> Result<Vec<String>, SimError> {
             }
         ));
     }
-    Ok(lines)
+    Ok(())
 }
 
 /// Frequency of the free node that moves most in y, from the zero crossings of its

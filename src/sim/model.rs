@@ -258,6 +258,20 @@ fn bad(msg: String) -> SimError {
 impl ModelFile {
     /// Check every index, length and the acoustic stability condition once.
     pub fn check(&self) -> Result<(), SimError> {
+        self.check_system()?;
+        let n = self.nodes.len();
+        self.check_nodes_and_springs(n)?;
+        self.check_damage(n)?;
+        if let Some(g) = &self.grid {
+            self.check_grid(g)?;
+        } else if !self.sensors.is_empty() {
+            return Err(bad("sensors need a grid".into()));
+        }
+        Ok(())
+    }
+
+    /// `[system]`'s sizes and steps, and the node count, bounded before anything is allocated.
+    fn check_system(&self) -> Result<(), SimError> {
         let s = &self.system;
         // Sizes are claims of an input file: bounded before anything is allocated or looped.
         if s.iterations > MAX_ITERATIONS {
@@ -284,7 +298,11 @@ impl ModelFile {
         if self.nodes.is_empty() {
             return Err(bad("the model has no nodes".into()));
         }
-        let n = self.nodes.len();
+        Ok(())
+    }
+
+    /// Nodes' masses, springs' nodes and sizes, and the nodes of initial conditions and forces.
+    fn check_nodes_and_springs(&self, n: usize) -> Result<(), SimError> {
         for (i, nd) in self.nodes.iter().enumerate() {
             if !(nd.mass > 0.0 && nd.mass.is_finite() && nd.x.is_finite() && nd.y.is_finite()) {
                 return Err(bad(format!("node {i}: mass must be > 0 and x, y finite")));
@@ -320,6 +338,11 @@ impl ModelFile {
                 return Err(bad(format!("force on node {} of {n}", f.node)));
             }
         }
+        Ok(())
+    }
+
+    /// Every damage event: its node (of `n`) joins two fibres, or its spring exists.
+    fn check_damage(&self, n: usize) -> Result<(), SimError> {
         for d in &self.damage {
             match d {
                 DamageSpec::Bond { node, .. } if *node >= n => {
@@ -348,61 +371,57 @@ impl ModelFile {
                 _ => {}
             }
         }
-        if let Some(g) = &self.grid {
-            if g.nx.checked_mul(g.ny).is_none_or(|c| c > MAX_GRID_CELLS) {
+        Ok(())
+    }
+
+    /// The grid's size, shape and step, the acoustic stability condition and the sensors' cells.
+    fn check_grid(&self, g: &GridSpec) -> Result<(), SimError> {
+        let s = &self.system;
+        if g.nx.checked_mul(g.ny).is_none_or(|c| c > MAX_GRID_CELLS) {
+            return Err(bad(format!(
+                "grid: {} × {} cells exceed the limit of {MAX_GRID_CELLS}",
+                g.nx, g.ny
+            )));
+        }
+        if g.nx < 8 || g.ny < 8 || g.x2 <= g.x1 || g.y2 <= g.y1 || g.x1.is_nan() || g.y1.is_nan() {
+            return Err(bad(
+                "grid: need x2 > x1, y2 > y1 and at least 8×8 cells".into()
+            ));
+        }
+        if ((g.dx() - g.dy()) / g.dx()).abs() > 1e-6 {
+            return Err(bad(format!(
+                "grid: cells must be square (Δx = {:e}, Δy = {:e})",
+                g.dx(),
+                g.dy()
+            )));
+        }
+        let ratio = g.dt / s.dt;
+        if (ratio - ratio.round()).abs() > 1e-6 || ratio.round() < 1.0 {
+            return Err(bad(format!(
+                "grid.dt {:e} must be a whole multiple of system.dt {:e}",
+                g.dt, s.dt
+            )));
+        }
+        let a = g.alpha();
+        let (limit, name) = match g.order {
+            Order::Second => (
+                std::f64::consts::FRAC_1_SQRT_2,
+                "1/√2 (2nd order, Eq. 3.3.12)",
+            ),
+            Order::Fourth => ((3.0f64 / 8.0).sqrt(), "√(3/8) (4th order, Eq. 3.3.14)"),
+        };
+        if a >= limit {
+            return Err(bad(format!(
+                "grid: unstable, α = c·Δt/Δh = {a:.4} must be < {name}; reduce dt or refine less"
+            )));
+        }
+        for (k, se) in self.sensors.iter().enumerate() {
+            if se.i >= g.nx || se.j >= g.ny {
                 return Err(bad(format!(
-                    "grid: {} × {} cells exceed the limit of {MAX_GRID_CELLS}",
-                    g.nx, g.ny
+                    "sensor {k}: cell ({}, {}) outside the {}×{} grid",
+                    se.i, se.j, g.nx, g.ny
                 )));
             }
-            if g.nx < 8
-                || g.ny < 8
-                || g.x2 <= g.x1
-                || g.y2 <= g.y1
-                || g.x1.is_nan()
-                || g.y1.is_nan()
-            {
-                return Err(bad(
-                    "grid: need x2 > x1, y2 > y1 and at least 8×8 cells".into()
-                ));
-            }
-            if ((g.dx() - g.dy()) / g.dx()).abs() > 1e-6 {
-                return Err(bad(format!(
-                    "grid: cells must be square (Δx = {:e}, Δy = {:e})",
-                    g.dx(),
-                    g.dy()
-                )));
-            }
-            let ratio = g.dt / s.dt;
-            if (ratio - ratio.round()).abs() > 1e-6 || ratio.round() < 1.0 {
-                return Err(bad(format!(
-                    "grid.dt {:e} must be a whole multiple of system.dt {:e}",
-                    g.dt, s.dt
-                )));
-            }
-            let a = g.alpha();
-            let (limit, name) = match g.order {
-                Order::Second => (
-                    std::f64::consts::FRAC_1_SQRT_2,
-                    "1/√2 (2nd order, Eq. 3.3.12)",
-                ),
-                Order::Fourth => ((3.0f64 / 8.0).sqrt(), "√(3/8) (4th order, Eq. 3.3.14)"),
-            };
-            if a >= limit {
-                return Err(bad(format!(
-                    "grid: unstable, α = c·Δt/Δh = {a:.4} must be < {name}; reduce dt or refine less"
-                )));
-            }
-            for (k, se) in self.sensors.iter().enumerate() {
-                if se.i >= g.nx || se.j >= g.ny {
-                    return Err(bad(format!(
-                        "sensor {k}: cell ({}, {}) outside the {}×{} grid",
-                        se.i, se.j, g.nx, g.ny
-                    )));
-                }
-            }
-        } else if !self.sensors.is_empty() {
-            return Err(bad("sensors need a grid".into()));
         }
         Ok(())
     }

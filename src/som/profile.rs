@@ -402,6 +402,32 @@ pub struct Profile {
 pub fn open(features: &Path, classification: &Path, spill_dir: &Path) -> Result<Profile, SomError> {
     let serr = SomError::Store;
     let t = TableScan::open(features).map_err(serr)?;
+    let sel = profile_columns(&t)?;
+    let mut classes = ClassStream::open(classification).map_err(serr)?;
+    let mut sorting = Sorting::new(spill_dir);
+    for batch in t.batches(&sel) {
+        let (_, df) = batch.map_err(serr)?;
+        let columns = BatchColumns::read(&t, &df)?;
+        sorting.push_batch(columns, &mut classes)?;
+    }
+    check_all_joined(&mut classes, features, classification)?;
+    let Sorting {
+        mut series,
+        events,
+        keys_seen,
+        ..
+    } = sorting;
+    check_keys_once(keys_seen, features)?;
+    count_event_hits(events, &mut series)?;
+    let sorted = series.finish()?;
+    let groups = sorted.groups(|r| (r.experiment.clone(), r.channel))?;
+    Ok(Profile { sorted, groups })
+}
+
+/// The features' columns the profile reads: the required ones (checked, else the error
+/// says what the damage profile needs), then whichever optional ones the table has.
+fn profile_columns(t: &TableScan) -> Result<Vec<&'static str>, SomError> {
+    let serr = SomError::Store;
     t.require(
         &[
             cols::EXPERIMENT.name,
@@ -436,19 +462,32 @@ pub fn open(features: &Path, classification: &Path, spill_dir: &Path) -> Result<
             sel.push(c);
         }
     }
-    let mut classes = ClassStream::open(classification).map_err(serr)?;
-    let mut series: Sorter<Rec> = Sorter::new(spill_dir);
-    let mut events: Sorter<EventRow> = Sorter::new(spill_dir);
-    // The join below pairs the two tables' rows by key in order, which needs each key once.
-    let mut keys_seen: Sorter<Key> = Sorter::new(spill_dir);
-    let mut seq = 0u64;
-    for batch in t.batches(&sel) {
-        let (_, df) = batch.map_err(serr)?;
-        let keys = t.hit_keys(&df).map_err(serr)?;
-        let first = t.event_first(&df).map_err(serr)?;
+    Ok(sel)
+}
+
+/// One batch of the features' columns the profile reads (an optional column the table
+/// lacks reads as nulls), so that each row's record can be made from it.
+struct BatchColumns {
+    keys: Vec<HitKey>,
+    first: Vec<Option<bool>>,
+    amp: Vec<Option<f64>>,
+    energy: Vec<Option<f64>>,
+    event: Vec<Option<f64>>,
+    time: Vec<Option<f64>>,
+    load: Vec<Option<f64>>,
+    ext: Vec<Option<f64>>,
+}
+
+impl BatchColumns {
+    /// Read the columns of batch `df` of the features table `t`.
+    fn read(t: &TableScan, df: &polars::prelude::DataFrame) -> Result<BatchColumns, SomError> {
+        let serr = SomError::Store;
+        let has = |c: &str| t.dtype(c).is_some();
+        let keys = t.hit_keys(df).map_err(serr)?;
+        let first = t.event_first(df).map_err(serr)?;
         let opt = |c: &str| -> Result<Vec<Option<f64>>, SomError> {
             if has(c) {
-                t.f64s(&df, c).map_err(serr)
+                t.f64s(df, c).map_err(serr)
             } else {
                 Ok(vec![None; df.height()])
             }
@@ -458,48 +497,111 @@ pub fn open(features: &Path, classification: &Path, spill_dir: &Path) -> Result<
             opt(cols::ENERGY_EU.name)?,
             opt(cols::EVENT.name)?,
         );
-        let time = t.floats(&df, cols::TIME_S).map_err(serr)?;
-        let load = t.floats(&df, cols::LOAD_N).map_err(serr)?;
-        let ext = t.floats(&df, cols::EXTENSION_M).map_err(serr)?;
-        for (i, k) in keys.into_iter().enumerate() {
-            keys_seen.push(Key(k.clone()))?;
+        let time = t.floats(df, cols::TIME_S).map_err(serr)?;
+        let load = t.floats(df, cols::LOAD_N).map_err(serr)?;
+        let ext = t.floats(df, cols::EXTENSION_M).map_err(serr)?;
+        Ok(BatchColumns {
+            keys,
+            first,
+            amp,
+            energy,
+            event,
+            time,
+            load,
+            ext,
+        })
+    }
+
+    /// The profile record of row `i` (key `k`, number `seq` in the table), classified as
+    /// `class`, in its series with its event.
+    fn rec(&self, i: usize, k: &HitKey, seq: u64, event_no: Option<i64>, class: String) -> Rec {
+        let first = &self.first;
+        Rec {
+            channel: crate::store::group_channel(k.1, first[i]),
+            time_s: self.time[i],
+            hit: k.2,
+            seq,
+            hit_channel: k.1,
+            load_n: self.load[i],
+            extension_m: self.ext[i],
+            amplitude_db: self.amp[i],
+            energy_eu: self.energy[i],
+            event: event_no,
+            first: first[i],
+            class,
+            source_hits: 1,
+            experiment: k.0.clone(),
+        }
+    }
+}
+
+/// What the features' rows are sorted into as they stream (each within its own memory
+/// budget): the classified rows outside events into their series, every event's rows, and
+/// every key, numbered by `seq`, their position in the table.
+struct Sorting {
+    series: Sorter<Rec>,
+    events: Sorter<EventRow>,
+    keys_seen: Sorter<Key>,
+    seq: u64,
+}
+
+impl Sorting {
+    /// Empty sorters spilling under `spill_dir`.
+    fn new(spill_dir: &Path) -> Sorting {
+        let series: Sorter<Rec> = Sorter::new(spill_dir);
+        let events: Sorter<EventRow> = Sorter::new(spill_dir);
+        // The join below pairs the two tables' rows by key in order, which needs each key once.
+        let keys_seen: Sorter<Key> = Sorter::new(spill_dir);
+        Sorting {
+            series,
+            events,
+            keys_seen,
+            seq: 0,
+        }
+    }
+
+    /// Sort one batch's rows, each joined with its class from `classes` (the next
+    /// classified row, if it is this one).
+    fn push_batch(
+        &mut self,
+        mut c: BatchColumns,
+        classes: &mut ClassStream,
+    ) -> Result<(), SomError> {
+        let serr = SomError::Store;
+        for (i, k) in std::mem::take(&mut c.keys).into_iter().enumerate() {
+            self.keys_seen.push(Key(k.clone()))?;
             let class = classes.take_if(&k).map_err(serr)?;
-            let event_no = event[i].map(|e| e as i64);
-            let rec = class.map(|class| Rec {
-                channel: crate::store::group_channel(k.1, first[i]),
-                time_s: time[i],
-                hit: k.2,
-                seq,
-                hit_channel: k.1,
-                load_n: load[i],
-                extension_m: ext[i],
-                amplitude_db: amp[i],
-                energy_eu: energy[i],
-                event: event_no,
-                first: first[i],
-                class,
-                source_hits: 1,
-                experiment: k.0.clone(),
-            });
+            let event_no = c.event[i].map(|e| e as i64);
+            let rec = class.map(|class| c.rec(i, &k, self.seq, event_no, class));
             match event_no {
                 // Hits per event, over every row (all sensors, classified or not): an event's
                 // rows meet in the event sort, which also carries the classified one along.
-                Some(e) => events.push(EventRow {
+                Some(e) => self.events.push(EventRow {
                     experiment: k.0,
                     event: e,
-                    seq,
+                    seq: self.seq,
                     rec: rec.map(Box::new),
                 })?,
                 None => {
                     if let Some(r) = rec {
-                        series.push(r)?;
+                        self.series.push(r)?;
                     }
                 }
             }
-            seq += 1;
+            self.seq += 1;
         }
+        Ok(())
     }
-    if let Some((k, _)) = classes.peek().map_err(serr)? {
+}
+
+/// Fail if a classified row is left over after the features' last row: the classification
+/// was not made from this features table.
+fn check_all_joined(
+    classes: &mut ClassStream,
+    features: &Path,
+    classification: &Path,
+) -> Result<(), SomError> {
+    if let Some((k, _)) = classes.peek().map_err(SomError::Store)? {
         return Err(SomError::Data(format!(
             "{}: hit ({}, {}, {}) is not among the rows of {} in their order (the \
              classification was not made from this features table)",
@@ -510,8 +612,11 @@ pub fn open(features: &Path, classification: &Path, spill_dir: &Path) -> Result<
             features.display()
         )));
     }
-    // One pass over the events' rows in order: each event's run, counted, then its
-    // classified rows (a few hits an event) into the series.
+    Ok(())
+}
+
+/// Fail on a key the features table holds twice (the join by key in order needs each once).
+fn check_keys_once(keys_seen: Sorter<Key>, features: &Path) -> Result<(), SomError> {
     let mut last: Option<Key> = None;
     for k in keys_seen.finish()?.iter() {
         let k = k?;
@@ -526,6 +631,14 @@ pub fn open(features: &Path, classification: &Path, spill_dir: &Path) -> Result<
         }
         last = Some(k);
     }
+    Ok(())
+}
+
+/// Count each event's hits (its run in the sorted events' rows) into its classified
+/// first row's `source_hits`, and move the event's classified rows into the series.
+fn count_event_hits(events: Sorter<EventRow>, series: &mut Sorter<Rec>) -> Result<(), SomError> {
+    // One pass over the events' rows in order: each event's run, counted, then its
+    // classified rows (a few hits an event) into the series.
     let events = events.finish()?;
     let mut run: Vec<EventRow> = Vec::new();
     let flush = |run: &mut Vec<EventRow>, series: &mut Sorter<Rec>| -> Result<(), SomError> {
@@ -546,15 +659,13 @@ pub fn open(features: &Path, classification: &Path, spill_dir: &Path) -> Result<
             .last()
             .is_some_and(|l| (l.experiment.as_str(), l.event) != (r.experiment.as_str(), r.event))
         {
-            flush(&mut run, &mut series)?;
+            flush(&mut run, series)?;
         }
         run.push(r);
     }
-    flush(&mut run, &mut series)?;
+    flush(&mut run, series)?;
     drop(events);
-    let sorted = series.finish()?;
-    let groups = sorted.groups(|r| (r.experiment.clone(), r.channel))?;
-    Ok(Profile { sorted, groups })
+    Ok(())
 }
 
 impl Profile {

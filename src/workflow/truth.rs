@@ -137,82 +137,11 @@ pub(super) fn score_sources(
     events: &Path,
     rows: crate::store::SourceRows,
 ) -> Result<Option<crate::report::SourceScore>, WorkflowError> {
-    use polars::prelude::col;
-    let t = TableScan::open(truth)?;
-    if t.require(
-        &[
-            cols::EVENT.name,
-            cols::SOURCE_X_M.name,
-            cols::SOURCE_KIND.name,
-        ],
-        "",
-    )
-    .is_err()
-    {
+    let Some(sources) = truth_sources(truth)? else {
         return Ok(None);
-    }
-    let df = t.select(vec![
-        col(cols::EXPERIMENT.name),
-        col(cols::CHANNEL.name),
-        col(cols::HIT.name),
-        col(cols::EVENT.name),
-        col(cols::SOURCE_X_M.name),
-        col(cols::SOURCE_KIND.name),
-    ])?;
-    let keys = t.hit_keys(&df)?;
-    let src = t.i64s(&df, cols::EVENT)?;
-    let sx = t.floats(&df, cols::SOURCE_X_M)?;
-    let kind = t.texts(&df, cols::SOURCE_KIND)?;
-    // Source → (x, kind, its hits).
-    // (experiment, source) → (source_x_m, source_kind, its hits)
-    type Truths = BTreeMap<(String, i64), (Option<f64>, String, Vec<HitKey>)>;
-    let mut sources: Truths = BTreeMap::new();
-    for (i, k) in keys.into_iter().enumerate() {
-        let id = (k.0.clone(), src[i].unwrap_or(0));
-        let e = sources
-            .entry(id)
-            .or_insert_with(|| (sx[i], kind[i].clone().unwrap_or_default(), Vec::new()));
-        e.2.push(k);
-    }
-    let f = TableScan::open(features)?;
-    f.require(
-        &[cols::EVENT.name, cols::EVENT_FIRST.name, cols::ZONE.name],
-        "",
-    )?;
-    let df = f.select(vec![
-        col(cols::EXPERIMENT.name),
-        col(cols::CHANNEL.name),
-        col(cols::HIT.name),
-        col(cols::EVENT.name),
-        rows.keep().alias("counts"),
-    ])?;
-    let fk = f.hit_keys(&df)?;
-    let fev = f.i64s(&df, cols::EVENT)?;
-    let counts = f.bools(&df, "counts")?;
-    let hit: BTreeMap<HitKey, (Option<i64>, bool)> = fk
-        .into_iter()
-        .enumerate()
-        .map(|(i, k)| (k, (fev[i], counts[i].unwrap_or(false))))
-        .collect();
-    let e = TableScan::open(events)?;
-    let df = e.select(vec![
-        col(cols::EXPERIMENT.name),
-        col(cols::EVENT.name),
-        col(cols::X_M.name),
-        col(cols::N_HITS.name),
-    ])?;
-    let eexp = e.texts(&df, cols::EXPERIMENT)?;
-    let eev = e.i64s(&df, cols::EVENT)?;
-    let ex = e.floats(&df, cols::X_M)?;
-    let en = e.i32s(&df, cols::N_HITS)?;
-    let event: BTreeMap<(String, i64), (Option<f64>, usize)> = (0..df.height())
-        .map(|i| {
-            (
-                (eexp[i].clone().unwrap_or_default(), eev[i].unwrap_or(0)),
-                (ex[i], en[i].unwrap_or(0) as usize),
-            )
-        })
-        .collect();
+    };
+    let hit = feature_hits(features, rows)?;
+    let event = event_sizes(events)?;
     let mut s = crate::report::SourceScore {
         sources: sources.len(),
         events: event.len(),
@@ -254,4 +183,105 @@ pub(super) fn score_sources(
     s.median_error_m = q(0.5);
     s.p90_error_m = q(0.9);
     Ok(Some(s))
+}
+
+/// Source → (x, kind, its hits).
+/// (experiment, source) → (source_x_m, source_kind, its hits)
+type Truths = BTreeMap<(String, i64), (Option<f64>, String, Vec<HitKey>)>;
+
+/// The truth's sources with their position, kind and hits; None when the truth table has
+/// no source columns (nothing to score the events against).
+fn truth_sources(truth: &Path) -> Result<Option<Truths>, WorkflowError> {
+    use polars::prelude::col;
+    let t = TableScan::open(truth)?;
+    if t.require(
+        &[
+            cols::EVENT.name,
+            cols::SOURCE_X_M.name,
+            cols::SOURCE_KIND.name,
+        ],
+        "",
+    )
+    .is_err()
+    {
+        return Ok(None);
+    }
+    let df = t.select(vec![
+        col(cols::EXPERIMENT.name),
+        col(cols::CHANNEL.name),
+        col(cols::HIT.name),
+        col(cols::EVENT.name),
+        col(cols::SOURCE_X_M.name),
+        col(cols::SOURCE_KIND.name),
+    ])?;
+    let keys = t.hit_keys(&df)?;
+    let src = t.i64s(&df, cols::EVENT)?;
+    let sx = t.floats(&df, cols::SOURCE_X_M)?;
+    let kind = t.texts(&df, cols::SOURCE_KIND)?;
+    let mut sources: Truths = BTreeMap::new();
+    for (i, k) in keys.into_iter().enumerate() {
+        let id = (k.0.clone(), src[i].unwrap_or(0));
+        let e = sources
+            .entry(id)
+            .or_insert_with(|| (sx[i], kind[i].clone().unwrap_or_default(), Vec::new()));
+        e.2.push(k);
+    }
+    Ok(Some(sources))
+}
+
+/// Each hit of `features.parquet`: its aepipe event and whether it counts (`rows`), to
+/// follow a source's hits into the events.
+fn feature_hits(
+    features: &Path,
+    rows: crate::store::SourceRows,
+) -> Result<BTreeMap<HitKey, (Option<i64>, bool)>, WorkflowError> {
+    use polars::prelude::col;
+    let f = TableScan::open(features)?;
+    f.require(
+        &[cols::EVENT.name, cols::EVENT_FIRST.name, cols::ZONE.name],
+        "",
+    )?;
+    let df = f.select(vec![
+        col(cols::EXPERIMENT.name),
+        col(cols::CHANNEL.name),
+        col(cols::HIT.name),
+        col(cols::EVENT.name),
+        rows.keep().alias("counts"),
+    ])?;
+    let fk = f.hit_keys(&df)?;
+    let fev = f.i64s(&df, cols::EVENT)?;
+    let counts = f.bools(&df, "counts")?;
+    Ok(fk
+        .into_iter()
+        .enumerate()
+        .map(|(i, k)| (k, (fev[i], counts[i].unwrap_or(false))))
+        .collect())
+}
+
+/// (experiment, event) → (x_m, n_hits)
+type EventSizes = BTreeMap<(String, i64), (Option<f64>, usize)>;
+
+/// Each event of `events.parquet` by (experiment, event): its position and number of hits,
+/// to tell whether it holds exactly one source's hits and where it was located.
+fn event_sizes(events: &Path) -> Result<EventSizes, WorkflowError> {
+    use polars::prelude::col;
+    let e = TableScan::open(events)?;
+    let df = e.select(vec![
+        col(cols::EXPERIMENT.name),
+        col(cols::EVENT.name),
+        col(cols::X_M.name),
+        col(cols::N_HITS.name),
+    ])?;
+    let eexp = e.texts(&df, cols::EXPERIMENT)?;
+    let eev = e.i64s(&df, cols::EVENT)?;
+    let ex = e.floats(&df, cols::X_M)?;
+    let en = e.i32s(&df, cols::N_HITS)?;
+    Ok((0..df.height())
+        .map(|i| {
+            (
+                (eexp[i].clone().unwrap_or_default(), eev[i].unwrap_or(0)),
+                (ex[i], en[i].unwrap_or(0) as usize),
+            )
+        })
+        .collect())
 }

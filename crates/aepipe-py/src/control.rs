@@ -1,7 +1,8 @@
 //! Long calls: the work runs on a worker thread without the interpreter, and the calling
 //! thread wakes every 100 ms to look for Ctrl-C and to draw the progress line. Ctrl-C asks
 //! the job to stop (`JobControl::cancel`: the core checks it per record, simulation run or
-//! stage), waits at most 0.9 s for it to let go of its files, and raises
+//! stage), waits at most 0.8 s for it to let go of its files (so the call returns within
+//! 0.9 s of the signal whatever the job is doing), and raises
 //! `KeyboardInterrupt`.
 
 use crate::errors;
@@ -13,7 +14,7 @@ use std::time::{Duration, Instant};
 /// How often the caller looks for Ctrl-C and redraws the progress line.
 const TICK: Duration = Duration::from_millis(100);
 /// How long a cancelled job may take to stop before the call returns anyway.
-const GRACE: Duration = Duration::from_millis(900);
+const GRACE: Duration = Duration::from_millis(800);
 
 /// A progress line on Python's `sys.stderr` (so that it shows in a notebook too):
 /// "N unit, R/s, T s", redrawn in place.

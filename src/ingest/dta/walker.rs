@@ -207,6 +207,49 @@ fn ticks6(b: &[u8]) -> u64 {
     le(&b[..6])
 }
 
+/// A message that should carry a record but cannot be read as one (a reject, not a gap).
+fn bad_message(mid: u8, at: u64, why: String) -> Option<Message> {
+    Some(Message::Bad(DtaBad {
+        mid,
+        offset: at,
+        why,
+    }))
+}
+
+/// A waveform of sub-function `s` (`d`: after that byte), its samples sized by the message.
+fn wave_message(at: u64, s: u8, d: &[u8]) -> Option<Message> {
+    let bad = |why: String| bad_message(173, at, why);
+    // Sub-function 1 is the digital AE waveform: time, channel, alignment
+    // byte, then int16 samples to the end of the message (real files carry no
+    // sample count). Other sub-functions with a waveform's layout are read
+    // the same way; the source notes which.
+    if d.len() < 8 {
+        return bad(format!(
+            "waveform message (173,{s}) of {} bytes: no time and channel",
+            d.len()
+        ));
+    }
+    let data = &d[8..];
+    if !data.len().is_multiple_of(2) {
+        return bad(format!(
+            "waveform message (173,{s}) with an odd number ({}) of sample bytes",
+            data.len()
+        ));
+    }
+    if data.is_empty() {
+        return bad(format!("waveform message (173,{s}) without samples"));
+    }
+    Some(Message::Wave(DtaWave {
+        subid: s,
+        ticks: ticks6(d),
+        channel: d[6],
+        counts: data
+            .chunks_exact(2)
+            .map(|c| i16::from_le_bytes([c[0], c[1]]))
+            .collect(),
+    }))
+}
+
 impl<R: Read> MessageReader<R> {
     /// `len` is the file's size: no message may claim more than what is left of it.
     pub fn new(r: R, len: u64) -> MessageReader<R> {
@@ -297,13 +340,7 @@ impl<R: Read> MessageReader<R> {
         };
         let subid = (mid == 173).then(|| b.first().copied()).flatten();
         *self.counts.entry(count_key(mid, subid)).or_default() += 1;
-        let bad = |why: String| {
-            Some(Message::Bad(DtaBad {
-                mid,
-                offset: at,
-                why,
-            }))
-        };
+        let bad = |why: String| bad_message(mid, at, why);
         match mid {
             1 => {
                 if b.len() < 7 {
@@ -320,46 +357,7 @@ impl<R: Read> MessageReader<R> {
                 }
                 Some(Message::Parametric(self.demand(mid, b)))
             }
-            173 => match subid {
-                None => bad("waveform message without a sub-function".into()),
-                Some(42) => {
-                    self.wave_setup(&b[1..]);
-                    None
-                }
-                Some(29) => None, // waveform filter definition (172/173,29)
-                Some(s) => {
-                    // Sub-function 1 is the digital AE waveform: time, channel, alignment
-                    // byte, then int16 samples to the end of the message (real files carry no
-                    // sample count). Other sub-functions with a waveform's layout are read
-                    // the same way; the source notes which.
-                    let d = &b[1..];
-                    if d.len() < 8 {
-                        return bad(format!(
-                            "waveform message (173,{s}) of {} bytes: no time and channel",
-                            d.len()
-                        ));
-                    }
-                    let data = &d[8..];
-                    if !data.len().is_multiple_of(2) {
-                        return bad(format!(
-                            "waveform message (173,{s}) with an odd number ({}) of sample bytes",
-                            data.len()
-                        ));
-                    }
-                    if data.is_empty() {
-                        return bad(format!("waveform message (173,{s}) without samples"));
-                    }
-                    Some(Message::Wave(DtaWave {
-                        subid: s,
-                        ticks: ticks6(d),
-                        channel: d[6],
-                        counts: data
-                            .chunks_exact(2)
-                            .map(|c| i16::from_le_bytes([c[0], c[1]]))
-                            .collect(),
-                    }))
-                }
-            },
+            173 => self.decode_173(at, subid, b),
             7 => Some(Message::Marker(DtaMarker {
                 mid,
                 ticks: None,
@@ -386,31 +384,11 @@ impl<R: Read> MessageReader<R> {
                 None
             }
             41 => {
-                // PVERN (2), text: product name CR/LF version.
-                if b.len() > 2 {
-                    let s = String::from_utf8_lossy(&b[2..]);
-                    let lines: Vec<&str> = s
-                        .split(['\r', '\n'])
-                        .map(|l| l.trim_matches(|c: char| c == '\0' || c == '\u{1a}').trim())
-                        .filter(|l| !l.is_empty())
-                        .collect();
-                    self.setup.product = Some(lines.join(" "));
-                }
+                self.product_version(b);
                 None
             }
             42 => {
-                // MVERN (2), then sub-messages `u16 LSUB, u8 SUBID, body`, each an embedded
-                // message; the walk stays inside this message's own length.
-                let mut p = 2.min(b.len());
-                while p + 3 <= b.len() {
-                    let lsub = le(&b[p..p + 2]) as usize;
-                    if lsub == 0 || p + 2 + lsub > b.len() {
-                        break; // the rest of this message only
-                    }
-                    let sub = &b[p + 2..p + 2 + lsub];
-                    self.setup_message(sub[0], &sub[1..]);
-                    p += 2 + lsub;
-                }
+                self.setup_block(b);
                 None
             }
             211 => {
@@ -428,6 +406,50 @@ impl<R: Read> MessageReader<R> {
                 self.setup_message(mid, b);
                 None
             }
+        }
+    }
+
+    /// Message 173 by sub-function: a waveform, the waveform setup, or a filter (skipped).
+    fn decode_173(&mut self, at: u64, subid: Option<u8>, b: &[u8]) -> Option<Message> {
+        let bad = |why: String| bad_message(173, at, why);
+        match subid {
+            None => bad("waveform message without a sub-function".into()),
+            Some(42) => {
+                self.wave_setup(&b[1..]);
+                None
+            }
+            Some(29) => None, // waveform filter definition (172/173,29)
+            Some(s) => wave_message(at, s, &b[1..]),
+        }
+    }
+
+    /// Message 41: the product and its version, one line of text, into the setup.
+    fn product_version(&mut self, b: &[u8]) {
+        // PVERN (2), text: product name CR/LF version.
+        if b.len() > 2 {
+            let s = String::from_utf8_lossy(&b[2..]);
+            let lines: Vec<&str> = s
+                .split(['\r', '\n'])
+                .map(|l| l.trim_matches(|c: char| c == '\0' || c == '\u{1a}').trim())
+                .filter(|l| !l.is_empty())
+                .collect();
+            self.setup.product = Some(lines.join(" "));
+        }
+    }
+
+    /// Message 42: its embedded setup messages, walked within its own length only.
+    fn setup_block(&mut self, b: &[u8]) {
+        // MVERN (2), then sub-messages `u16 LSUB, u8 SUBID, body`, each an embedded
+        // message; the walk stays inside this message's own length.
+        let mut p = 2.min(b.len());
+        while p + 3 <= b.len() {
+            let lsub = le(&b[p..p + 2]) as usize;
+            if lsub == 0 || p + 2 + lsub > b.len() {
+                break; // the rest of this message only
+            }
+            let sub = &b[p + 2..p + 2 + lsub];
+            self.setup_message(sub[0], &sub[1..]);
+            p += 2 + lsub;
         }
     }
 

@@ -505,15 +505,85 @@ fn open_with(
     let pridb = src.companion(super::Role::HitIndex).map(Path::to_path_buf);
     let tradb = src.files.first().cloned();
     let mut first: Vec<Item> = Vec::new();
-    let file_reject = |p: &Path, reason: String| Reject {
+    let (info, hits) = open_hit_index(pridb.as_deref(), cfg, &experiment, &mut first);
+    let pridb_name = pridb
+        .as_ref()
+        .map(|p| p.display().to_string())
+        .unwrap_or_default();
+    let offsets = TraiOffsets::new(&info.acq_max_trai);
+    // VisualAE features beside the .pridb (X.trfdb), joined to the hits by TRAI.
+    let trf = open_features(pridb.as_deref(), &experiment, &mut first);
+    // Markers, parametric and status rows, and what the .pridb holds by set type.
+    let (sets, mut read) = open_set_rows(
+        pridb.as_deref(),
+        hits.is_some(),
+        &experiment,
+        info.time_base,
+        cfg,
+        &mut first,
+    );
+    let has_pridb = hits.is_some();
+    let t = open_transients(
+        tradb,
+        decode,
+        &info,
+        &offsets,
+        &experiment,
+        &pridb_name,
+        &mut first,
+    );
+    // The transients the files tell of: every record of the .tradb, and every one a .pridb
+    // hit promises that the .tradb lacks.
+    read.insert(
+        crate::model::RecordType::Transient,
+        t.in_tradb + t.tail.len() as u64,
+    );
+    let last: VecDeque<Item> = if decode {
+        last_items(&experiment, pridb.as_ref().unwrap_or(&t.tradb), read)
+    } else {
+        VecDeque::new()
+    };
+    let r = Reader {
+        experiment,
+        hits,
+        sets,
+        has_pridb,
+        last,
+        pending_hits: VecDeque::new(),
+        tradb: t.tradb,
+        conn: t.conn,
+        time_base: t.time_base,
+        keys: t.keys,
+        have: t.have,
+        offsets,
+        info,
+        tail: t.tail,
+        max_samples: cfg.max_samples_per_record,
+        trf,
+    };
+    Box::new(first.into_iter().chain(r))
+}
+
+/// The reject of a whole file of a source: what `reason` says is lost with it.
+fn file_reject(experiment: &str, p: &Path, reason: String) -> Reject {
+    Reject {
         record_type: crate::model::RecordType::File,
-        experiment: experiment.clone(),
+        experiment: experiment.to_string(),
         source_file: p.display().to_string(),
         record_id: String::new(),
         stage: Stage::Read,
         reason,
-    };
-    let (info, hits) = match &pridb {
+    }
+}
+
+/// The `.pridb`'s info and hit rows, or none and a reject in `first` (the transients go on).
+fn open_hit_index(
+    pridb: Option<&Path>,
+    cfg: &IngestConfig,
+    experiment: &str,
+    first: &mut Vec<Item>,
+) -> (PriInfo, Option<HitRows>) {
+    match pridb {
         Some(p) => match read_pridb(p, cfg).and_then(|i| {
             let h = HitRows::open(p, i.time_base)?;
             Ok((i, h))
@@ -521,6 +591,7 @@ fn open_with(
             Ok((i, h)) => (i, Some(h)),
             Err(e) => {
                 first.push(Item::Reject(file_reject(
+                    experiment,
                     p,
                     format!("hits and load ignored: {e}"),
                 )));
@@ -528,22 +599,21 @@ fn open_with(
             }
         },
         None => (PriInfo::default(), None),
-    };
-    let pridb_name = pridb
-        .as_ref()
-        .map(|p| p.display().to_string())
-        .unwrap_or_default();
-    let missing = |info: &PriInfo, have: &HashSet<(i64, i64, i64)>, why: &str| {
-        missing_rejects(&experiment, &pridb_name, &info.link, have, why)
-    };
-    let offsets = TraiOffsets::new(&info.acq_max_trai);
-    // VisualAE features beside the .pridb (X.trfdb), joined to the hits by TRAI.
-    let trf = match pridb.as_ref().map(|p| p.with_extension("trfdb")) {
+    }
+}
+
+/// The `.trfdb` features by TRAI, or none and a note in `first` (the hits stand without them).
+fn open_features(
+    pridb: Option<&Path>,
+    experiment: &str,
+    first: &mut Vec<Item>,
+) -> HashMap<i64, String> {
+    match pridb.map(|p| p.with_extension("trfdb")) {
         Some(t) if t.is_file() => match read_trfdb(&t) {
             Ok(m) => m,
             Err(e) => {
                 first.push(Item::Note(crate::model::Note {
-                    experiment: experiment.clone(),
+                    experiment: experiment.to_string(),
                     source_file: t.display().to_string(),
                     message: format!("features not joined: {e}"),
                 }));
@@ -551,16 +621,30 @@ fn open_with(
             }
         },
         _ => HashMap::new(),
-    };
-    // Markers, parametric and status rows, and what the .pridb holds by set type.
-    let (sets, mut read) = match (&pridb, hits.is_some()) {
-        (Some(p), true) => match sets::SetRows::open(p, &experiment, info.time_base, &cfg.vallen) {
+    }
+}
+
+/// The `.pridb`'s marker, parametric and status rows and set counts, or a reject in `first`.
+fn open_set_rows(
+    pridb: Option<&Path>,
+    has_hits: bool,
+    experiment: &str,
+    time_base: f64,
+    cfg: &IngestConfig,
+    first: &mut Vec<Item>,
+) -> (
+    Option<sets::SetRows>,
+    std::collections::BTreeMap<crate::model::RecordType, u64>,
+) {
+    match (pridb, has_hits) {
+        (Some(p), true) => match sets::SetRows::open(p, experiment, time_base, &cfg.vallen) {
             Ok(s) => {
                 let counts = open_ro(p).map(|c| sets::set_counts(&c)).unwrap_or_default();
                 (Some(s), counts)
             }
             Err(e) => {
                 first.push(Item::Reject(file_reject(
+                    experiment,
                     p,
                     format!("parametric, status and marker rows ignored: {e}"),
                 )));
@@ -568,93 +652,97 @@ fn open_with(
             }
         },
         _ => (None, Default::default()),
-    };
-    let has_pridb = hits.is_some();
-    let reader = |tradb: PathBuf,
-                  conn: Option<Connection>,
-                  time_base: f64,
-                  keys: VecDeque<(i64, u64, i64, i64)>,
-                  have: HashSet<(i64, i64, i64)>,
-                  tail: VecDeque<Reject>,
-                  info: PriInfo,
-                  last: VecDeque<Item>| Reader {
-        experiment: experiment.clone(),
-        hits,
-        sets,
-        has_pridb,
-        last,
-        pending_hits: VecDeque::new(),
-        tradb,
-        conn,
-        time_base,
-        keys,
-        have,
-        offsets: offsets.clone(),
-        info,
-        tail,
-        max_samples: cfg.max_samples_per_record,
-        trf: trf.clone(),
+    }
+}
+
+/// What [`open_transients`] hands the [`Reader`]: the `.tradb`'s keys and the missing rejects.
+struct Transients {
+    tradb: PathBuf,
+    conn: Option<Connection>,
+    time_base: f64,
+    keys: VecDeque<(i64, u64, i64, i64)>,
+    have: HashSet<(i64, i64, i64)>,
+    tail: VecDeque<Reject>,
+    /// How many records the `.tradb` holds (0 when it is missing or unreadable).
+    in_tradb: u64,
+}
+
+/// List the `.tradb`'s transients (each fetched by its key later) and reject the hits it lacks.
+fn open_transients(
+    tradb: Option<PathBuf>,
+    decode: bool,
+    info: &PriInfo,
+    offsets: &TraiOffsets,
+    experiment: &str,
+    pridb_name: &str,
+    first: &mut Vec<Item>,
+) -> Transients {
+    let missing = |have: &HashSet<(i64, i64, i64)>, why: &str| {
+        missing_rejects(experiment, pridb_name, &info.link, have, why)
     };
     // The transients to read (none when the .tradb is missing or unreadable; then every
     // transient a hit promises is a reject that says why).
-    let no_transients = |why: &str| {
-        (
-            None,
-            1e7,
-            VecDeque::new(),
-            HashSet::new(),
-            missing(&info, &HashSet::new(), why),
-        )
+    let no_transients = |tradb: PathBuf, why: &str| Transients {
+        tradb,
+        conn: None,
+        time_base: 1e7,
+        keys: VecDeque::new(),
+        have: HashSet::new(),
+        tail: missing(&HashSet::new(), why),
+        in_tradb: 0,
     };
-    let mut in_tradb = 0u64;
-    let (tradb, (conn, tb, keys, have, tail)) = match tradb {
-        None => (PathBuf::new(), no_transients("no .tradb beside the .pridb")),
+    match tradb {
+        None => no_transients(PathBuf::new(), "no .tradb beside the .pridb"),
         Some(tradb) => match list_transients(&tradb) {
             Ok((conn, raw)) => {
-                in_tradb = raw.len() as u64;
+                let in_tradb = raw.len() as u64;
                 let have: HashSet<(i64, i64, i64)> = raw.iter().map(|k| (k.3, k.2, k.1)).collect();
-                let mut keys = transient_keys(&raw, &info, &offsets);
-                let tail = missing(&info, &have, "it is not in the .tradb");
+                let mut keys = transient_keys(&raw, info, offsets);
+                let tail = missing(&have, "it is not in the .tradb");
                 if !decode {
                     keys.clear();
                 }
                 let tb = time_base(&conn, "tr_globalinfo");
-                (tradb, (Some(conn), tb, keys.into(), have, tail))
+                Transients {
+                    tradb,
+                    conn: Some(conn),
+                    time_base: tb,
+                    keys: keys.into(),
+                    have,
+                    tail,
+                    in_tradb,
+                }
             }
             Err(e) => {
-                first.push(Item::Reject(file_reject(&tradb, e.to_string())));
-                (tradb, no_transients("the .tradb cannot be read"))
+                first.push(Item::Reject(file_reject(experiment, &tradb, e.to_string())));
+                no_transients(tradb, "the .tradb cannot be read")
             }
         },
-    };
-    // The transients the files tell of: every record of the .tradb, and every one a .pridb
-    // hit promises that the .tradb lacks.
-    read.insert(
-        crate::model::RecordType::Transient,
-        in_tradb + tail.len() as u64,
-    );
-    let last: VecDeque<Item> = if decode {
-        let mut vendor = std::collections::BTreeMap::new();
-        for (t, n) in &read {
-            vendor.insert(format!("{t}"), *n);
-        }
-        VecDeque::from([
-            Item::Setup(Box::new(crate::model::AcquisitionSetup {
-                experiment: experiment.clone(),
-                source_file: pridb.as_ref().unwrap_or(&tradb).display().to_string(),
-                vendor_records: vendor,
-                ..Default::default()
-            })),
-            Item::Tally(crate::model::Tally {
-                experiment: experiment.clone(),
-                read,
-            }),
-        ])
-    } else {
-        VecDeque::new()
-    };
-    let r = reader(tradb, conn, tb, keys, have, tail, info, last);
-    Box::new(first.into_iter().chain(r))
+    }
+}
+
+/// The setup (records by type) and the tally: the items emitted once everything else is out.
+fn last_items(
+    experiment: &str,
+    source_file: &Path,
+    read: std::collections::BTreeMap<crate::model::RecordType, u64>,
+) -> VecDeque<Item> {
+    let mut vendor = std::collections::BTreeMap::new();
+    for (t, n) in &read {
+        vendor.insert(format!("{t}"), *n);
+    }
+    VecDeque::from([
+        Item::Setup(Box::new(crate::model::AcquisitionSetup {
+            experiment: experiment.to_string(),
+            source_file: source_file.display().to_string(),
+            vendor_records: vendor,
+            ..Default::default()
+        })),
+        Item::Tally(crate::model::Tally {
+            experiment: experiment.to_string(),
+            read,
+        }),
+    ])
 }
 
 /// The rejects of the hits (`link`: (TRAI, channel, time) → acquisition) whose transient
