@@ -403,3 +403,128 @@ fn no_string_errors_in_public_functions() {
     }
     assert!(bad.is_empty(), "{}", bad.join("\n"));
 }
+
+/// The code of a file before its tests (an inline `#[cfg(test)]` module, or none for a
+/// `tests.rs`), its comment lines left out.
+fn code_without_tests(f: &Path) -> String {
+    if f.file_name().is_some_and(|n| n == "tests.rs") {
+        return String::new();
+    }
+    let text = std::fs::read_to_string(f).unwrap();
+    text.split("#[cfg(test)]").next().unwrap_or("").to_string()
+}
+
+/// Each function's length in lines, from its `fn` line to its closing brace (comments
+/// included; braces inside strings, chars and `//` comments do not count).
+fn function_lengths(code: &str) -> Vec<(String, usize)> {
+    let lines: Vec<&str> = code.lines().collect();
+    let mut out = Vec::new();
+    for (i, l) in lines.iter().enumerate() {
+        let t = l.trim_start();
+        let head = t
+            .trim_start_matches("pub(crate) ")
+            .trim_start_matches("pub(super) ")
+            .trim_start_matches("pub ")
+            .trim_start_matches("const ")
+            .trim_start_matches("unsafe ");
+        let Some(rest) = head.strip_prefix("fn ") else {
+            continue;
+        };
+        let name: String = rest
+            .chars()
+            .take_while(|c| c.is_alphanumeric() || *c == '_')
+            .collect();
+        let (mut depth, mut started) = (0i64, false);
+        for (j, line) in lines.iter().enumerate().skip(i) {
+            let mut in_str = false;
+            let mut prev = ' ';
+            let body = line.split("//").next().unwrap_or("");
+            for c in body.chars() {
+                match c {
+                    '"' if prev != '\\' => in_str = !in_str,
+                    '{' if !in_str => {
+                        depth += 1;
+                        started = true;
+                    }
+                    '}' if !in_str => depth -= 1,
+                    _ => {}
+                }
+                prev = c;
+            }
+            if started && depth == 0 {
+                out.push((name.clone(), j - i + 1));
+                break;
+            }
+            if !started && body.trim_end().ends_with(';') {
+                break;
+            }
+        }
+    }
+    out
+}
+
+/// A function a newcomer has to read whole fits on a screen or two: none is longer than
+/// 120 lines (a long one is split into named steps).
+#[test]
+fn no_function_is_longer_than_120_lines() {
+    let mut files = Vec::new();
+    rust_files(&src(), &mut files);
+    let mut long = Vec::new();
+    for f in &files {
+        for (name, n) in function_lengths(&code_without_tests(f)) {
+            if n > 120 {
+                long.push(format!("{}: {name} {n} lines", f.display()));
+            }
+        }
+    }
+    assert!(long.is_empty(), "{}", long.join("\n"));
+    // The measure itself: a planted 130-line function is found, a brace in a string is not
+    // counted.
+    let planted = format!(
+        "fn big() {{\n    let s = \"}}\";\n{}}}\n",
+        "    x();\n".repeat(127)
+    );
+    assert_eq!(function_lengths(&planted), [("big".to_string(), 130)]);
+}
+
+/// A file grows into a room before it passes 900 lines of code (its tests aside).
+#[test]
+fn no_source_file_is_longer_than_900_lines_without_its_tests() {
+    let mut files = Vec::new();
+    rust_files(&src(), &mut files);
+    let long: Vec<String> = files
+        .iter()
+        .map(|f| (f, code_without_tests(f).lines().count()))
+        .filter(|(_, n)| *n > 900)
+        .map(|(f, n)| format!("{}: {n} lines", f.display()))
+        .collect();
+    assert!(long.is_empty(), "{}", long.join("\n"));
+}
+
+/// The mechanisms' names are spelled only in `model` (`Mechanism::as_str`, the column
+/// constants): elsewhere the code names the variant.
+#[test]
+fn class_names_come_only_from_model() {
+    let mut files = Vec::new();
+    rust_files(&src(), &mut files);
+    let mut found = Vec::new();
+    for f in files.iter().filter(|f| !f.starts_with(src().join("model"))) {
+        for l in code_without_tests(f).lines() {
+            if l.trim_start().starts_with("//") {
+                continue;
+            }
+            for name in [
+                "bond_failure",
+                "fibre_failure",
+                "erroneous",
+                "both",
+                "criteria_label",
+            ] {
+                if l.contains(&format!("\"{name}\"")) {
+                    found.push(format!("{}: {}", f.display(), l.trim()));
+                }
+            }
+        }
+    }
+    assert!(found.is_empty(), "{}", found.join("\n"));
+}
