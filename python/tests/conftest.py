@@ -107,3 +107,25 @@ def labelled_features(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, P
     cfg.write_text("[ingest]\npretrigger_samples = 500\n")
     aepipe_cli("features", "--quiet", "--config", cfg, "--out", d / "out", folder)
     return d / "out" / "features.parquet", cfg
+
+
+def feed_fifo(fifo: Path, data: bytes, stop, fed: list | None = None) -> None:
+    """Serve `data` to every reader that opens the named pipe `fifo`, until `stop` is set
+    (discovery, the input hashes and the reader each open it once). A test's job that reads
+    the pipe can go on only once this runs: what the test releases, not a timing."""
+    import time
+
+    while not stop.is_set():
+        try:
+            fd = os.open(fifo, os.O_WRONLY | os.O_NONBLOCK)
+        except OSError:  # no reader yet
+            time.sleep(0.005)
+            continue
+        try:
+            os.write(fd, data)
+            if fed is not None:
+                fed.append(1)
+        except OSError:  # the reader let go first
+            pass
+        finally:
+            os.close(fd)

@@ -14,7 +14,7 @@ import polars as pl
 import pytest
 
 import aepipe
-from conftest import aepipe_cli, synthetic_signals, wav_folder
+from conftest import aepipe_cli, feed_fifo, synthetic_signals, wav_folder
 
 IDENTITY = {"experiment", "channel", "hit", "time_s", "source_file"}
 
@@ -98,23 +98,7 @@ def test_a_long_call_releases_the_interpreter(tmp_path: Path) -> None:
     # A record of 64 samples, one value per line.
     VALUES = "".join(f"{np.sin(0.3 * k) * 1e-3:.6f}\n" for k in range(64)).encode()
 
-    def feed() -> None:
-        # Discovery, the input hashes and the reader each open the pipe once.
-        while not stop.is_set():
-            try:
-                fd = os.open(fifo, os.O_WRONLY | os.O_NONBLOCK)
-            except OSError:  # no reader yet
-                time.sleep(0.005)
-                continue
-            try:
-                os.write(fd, VALUES)
-                fed.append(1)
-            except OSError:  # the reader let go first
-                pass
-            finally:
-                os.close(fd)
-
-    feeder = threading.Thread(target=feed, daemon=True)
+    feeder = threading.Thread(target=feed_fifo, args=(fifo, VALUES, stop, fed), daemon=True)
     feeder.start()
     faulthandler.dump_traceback_later(120, exit=True)
     try:

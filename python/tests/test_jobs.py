@@ -15,7 +15,7 @@ import polars as pl
 import pytest
 
 import aepipe
-from conftest import ROOT, aepipe_cli, synthetic_signals, wav_folder
+from conftest import ROOT, aepipe_cli, feed_fifo, synthetic_signals, wav_folder
 
 
 def test_simulate_equals_the_command_lines_waveforms(tmp_path: Path) -> None:
@@ -114,22 +114,8 @@ def test_a_long_call_returns_on_ctrl_c_within_a_second_and_cleans_up(tmp_path: P
         fifo = Path(d) / "gate" / "hit.txt"
         os.mkfifo(fifo)
         stop = threading.Event()
-
-        def feed() -> None:
-            while not stop.is_set():
-                try:
-                    fd = os.open(fifo, os.O_WRONLY | os.O_NONBLOCK)
-                except OSError:  # no reader yet
-                    time.sleep(0.005)
-                    continue
-                try:
-                    os.write(fd, b"0.1\n0.2\n-0.1\n0.05\n")
-                except OSError:  # the reader let go first
-                    pass
-                finally:
-                    os.close(fd)
-
-        feeder = threading.Thread(target=feed, daemon=True)
+        values = "".join(f"{0.1 * (k % 7) - 0.3:.2f}\n" for k in range(64)).encode()
+        feeder = threading.Thread(target=feed_fifo, args=(fifo, values, stop), daemon=True)
         at.clear()
         threading.Thread(target=interrupt_later, args=(0.3, at, feeder.start), daemon=True).start()
         try:

@@ -428,19 +428,7 @@ pub fn open(features: &Path, classification: &Path, spill_dir: &Path) -> Result<
 /// says what the damage profile needs), then whichever optional ones the table has.
 fn profile_columns(t: &TableScan) -> Result<Vec<&'static str>, SomError> {
     let serr = SomError::Store;
-    t.require(
-        &[
-            cols::EXPERIMENT.name,
-            cols::CHANNEL.name,
-            cols::HIT.name,
-            cols::TIME_S.name,
-            cols::LOAD_N.name,
-            cols::EXTENSION_M.name,
-        ],
-        "for the damage profile",
-    )
-    .map_err(serr)?;
-    let mut sel = vec![
+    let required = [
         cols::EXPERIMENT.name,
         cols::CHANNEL.name,
         cols::HIT.name,
@@ -448,6 +436,9 @@ fn profile_columns(t: &TableScan) -> Result<Vec<&'static str>, SomError> {
         cols::LOAD_N.name,
         cols::EXTENSION_M.name,
     ];
+    t.require(&required, "for the damage profile")
+        .map_err(serr)?;
+    let mut sel = required.to_vec();
     if t.dtype(cols::EVENT_FIRST.name).is_some() {
         sel.push(cols::EVENT_FIRST.name);
     }
