@@ -113,7 +113,7 @@ def pick_energy_ratio(
 ) -> tuple[npt.NDArray[np.float32], int]: ...
 def trend(
     paths: list[str], cutoff: str = "peak-load", columns: list[str] | None = None, alpha: float = 0.01,
-    exclude_outside: bool = False,
+    exclude_outside: bool = False, min_load_span_n: float = 1.0,
 ) -> ArrowStream: ...
 def som_fit(
     x: npt.NDArray[np.float64],

@@ -22,6 +22,7 @@ def trend(
     columns: Sequence[str] | None = None,
     alpha: float = 0.01,
     exclude_outside: bool = False,
+    min_load_span_n: float = 1.0,
 ) -> pl.DataFrame:
     """The trend statistics of each experiment and channel (``trend.parquet``'s rows):
     Pearson's r of each power ratio (or ``columns``) against the AE number, its p value,
@@ -31,7 +32,9 @@ def trend(
     ``features.parquet``) or paths to feature tables. ``cutoff`` is ``"peak-load"`` (hits up
     to the one at the highest load), ``"none"``, ``"time:SECONDS"`` or ``"hits:N"``. Where
     events were built, each event counts once (channel 0); ``exclude_outside`` also leaves
-    out events outside the configured zone.
+    out events outside the configured zone. A load channel spanning less than
+    ``min_load_span_n`` newtons, or within its own noise, is no load: no peak-load cut (the
+    ``cutoff`` column says why).
 
     >>> t = aepipe.trend(aepipe.features("test.pridb"), cutoff="none")   # doctest: +SKIP
     >>> t.filter(pl.col("significant")).select("column", "r", "p")        # doctest: +SKIP
@@ -41,11 +44,13 @@ def trend(
         with tempfile.TemporaryDirectory(prefix="aepipe-trend-") as d:
             p = os.path.join(d, "features.parquet")
             features_df.write_parquet(p)
-            stream = _aepipe.trend([p], cutoff, cols, float(alpha), exclude_outside)
+            stream = _aepipe.trend([p], cutoff, cols, float(alpha), exclude_outside, float(min_load_span_n))
             return pl.DataFrame(stream)
     if not is_paths(features_df):
         raise TypeError("features_df must be a polars.DataFrame or paths to feature tables")
-    stream = _aepipe.trend(paths_arg(features_df), cutoff, cols, float(alpha), exclude_outside)
+    stream = _aepipe.trend(
+        paths_arg(features_df), cutoff, cols, float(alpha), exclude_outside, float(min_load_span_n)
+    )
     return pl.DataFrame(stream)
 
 

@@ -5,6 +5,7 @@
 //! are plain, tested Rust in [`stats`].
 
 pub mod evolution;
+pub mod load;
 pub mod settings;
 pub mod stats;
 pub mod trend;

@@ -12,6 +12,8 @@ pub enum AnalysisSettingsError {
     Cutoff(String),
     #[error("trend.alpha must be in (0, 1), got {0}")]
     Alpha(f64),
+    #[error("trend.min_load_span_n must be a number of newtons ≥ 0, got {0}")]
+    MinLoadSpan(f64),
     #[error("evolution.window must be at least 10 sources, got {0}")]
     Window(usize),
     #[error("evolution.completeness_db must be finite, got {0}")]
@@ -83,6 +85,11 @@ pub struct TrendConfig {
     pub cutoff: Cutoff,
     /// Significance level (Table 4.2: 1 %).
     pub alpha: f64,
+    /// The smallest span a load channel needs to count as a load, N: a channel spanning
+    /// less (or within its own noise, see `analysis::load`) is treated as absent — no
+    /// peak-load cut, no profile against load. 1 N is far below any paper strip's breaking
+    /// load and above the noise of an unloaded machine's channel; 0 leaves only the noise test.
+    pub min_load_span_n: f64,
 }
 
 impl Default for TrendConfig {
@@ -91,6 +98,7 @@ impl Default for TrendConfig {
             enabled: true,
             cutoff: Cutoff::PeakLoad,
             alpha: 0.01,
+            min_load_span_n: 1.0,
         }
     }
 }
@@ -100,6 +108,9 @@ impl TrendConfig {
     pub fn check(self) -> Result<Checked<TrendConfig>, AnalysisSettingsError> {
         if !(self.alpha > 0.0 && self.alpha < 1.0) {
             return Err(AnalysisSettingsError::Alpha(self.alpha));
+        }
+        if !(self.min_load_span_n.is_finite() && self.min_load_span_n >= 0.0) {
+            return Err(AnalysisSettingsError::MinLoadSpan(self.min_load_span_n));
         }
         Ok(Checked::new(self))
     }

@@ -6,6 +6,7 @@
 //! begins to decrease"): by default only the hits up to the peak load when the experiment has
 //! a load channel; otherwise all hits, and the table says so.
 
+use super::load::{LoadCheck, LoadVerdict};
 use super::stats::{linear_trend, LinearTrend, NoTrend, TrendFit};
 use crate::model::columns as cols;
 use crate::store::spill::{Dec, Enc, Sorted, Sorter, Span, Spill};
@@ -46,6 +47,8 @@ pub struct TrendOptions {
     /// Which rows count: with events built, one hit per event (the series of the
     /// experiment's events, channel 0), zone-filtered with `exclude_outside`.
     pub sources: SourceRows,
+    /// A load channel spanning less, or within its noise, is no load (`trend.min_load_span_n`).
+    pub min_load_span_n: f64,
 }
 
 impl Default for TrendOptions {
@@ -53,6 +56,7 @@ impl Default for TrendOptions {
         TrendOptions {
             cutoff: Cutoff::PeakLoad,
             alpha: 0.01,
+            min_load_span_n: 1.0,
             columns: Vec::new(),
             sources: SourceRows::default(),
         }
@@ -96,7 +100,7 @@ pub fn trend_table() -> Table<TrendRow> {
         .col(ColumnSpec::of(cols::CHANNEL, "", "sensor channel; 0: the experiment's events (one hit per event, whichever sensor heard it first)"), |t| Value::I32(Some(t.channel)))
         .col(ColumnSpec::new("column", ColType::Utf8, "", "the per-hit feature tested (y), e.g. pr_200_300khz"), |t| Value::Str(Some(t.column.clone())))
         .col(ColumnSpec::new("n", ColType::Int64, "", "hits used (after the cut-off)"), |t| Value::I64(Some(t.n as i64)))
-        .col(ColumnSpec::new("cutoff", ColType::Utf8, "", "which hits were used: none, peak-load (up to hit N at L newtons), time ≤ S, first N hits"), |t| Value::Str(Some(t.cutoff.clone())))
+        .col(ColumnSpec::new("cutoff", ColType::Utf8, "", "which hits were used: none, peak-load (up to hit N at L newtons), time ≤ S, first N hits; `none (all hits): …` says why a peak-load cut was not made (no load channel, or one that spans less than trend.min_load_span_n or stays within its noise)"), |t| Value::Str(Some(t.cutoff.clone())))
         .col(f("r", "1", "Pearson's correlation coefficient of y against x = AE number (Eq. 4.5.5); null with a note when undefined"), |t| Value::F64(t.fit.map(|f| f.r)))
         .col(f("p", "1", "two-sided p value of H0: no correlation (Student t, n − 2 degrees of freedom)"), |t| Value::F64(t.fit.map(|f| f.p)))
         .col(f("slope", "1/AE", "m of the least-squares line y = m·x + c (Table 4.3)"), |t| Value::F64(t.fit.map(|f| f.slope)))
@@ -224,19 +228,23 @@ pub fn read_series(
 }
 
 /// How many leading hits of a series the cut-off keeps, and the description.
-pub fn select(s: &TrendSeries, cutoff: Cutoff) -> Selection {
+pub fn select(s: &TrendSeries, cutoff: Cutoff, min_load_span_n: f64) -> Selection {
     let rows = (0..s.hit.len()).map(|i| (s.hit[i], s.time_s[i], s.load_n[i]));
-    select_from(&s.experiment, s.channel, rows, cutoff)
+    select_from(&s.experiment, s.channel, rows, cutoff, min_load_span_n)
 }
 
 /// [`select`] over a series' (hit, time, load) rows in hit order, as they stream by (one
-/// pass, nothing kept).
+/// pass, a few kilobytes kept). A peak-load cut needs a load: a load channel that spans
+/// less than `min_load_span_n` or stays within its noise ([`LoadCheck`]) is treated as
+/// absent, and the cut-off says why.
 pub fn select_from(
     experiment: &str,
     channel: i32,
     rows: impl Iterator<Item = (i64, Option<f64>, Option<f64>)>,
     cutoff: Cutoff,
+    min_load_span_n: f64,
 ) -> Selection {
+    let mut load_check = LoadCheck::new();
     let (mut total, mut last) = (0usize, None);
     // The first largest load (the fold keeps an earlier row on a tie), its row and time.
     let mut peak: Option<(usize, f64, i64, Option<f64>)> = None;
@@ -248,6 +256,7 @@ pub fn select_from(
         total += 1;
         last = Some(hit);
         if let Some(l) = load {
+            load_check.push(l);
             if !matches!(peak, Some((_, ml, _, _)) if ml >= l) {
                 peak = Some((i, l, hit, time));
             }
@@ -280,15 +289,21 @@ pub fn select_from(
     };
     match cutoff {
         Cutoff::None => {}
-        Cutoff::PeakLoad => match peak {
-            Some((i, l, hit, time)) => {
+        Cutoff::PeakLoad => match (peak, load_check.verdict(min_load_span_n)) {
+            (Some(_), LoadVerdict::Noise(why)) => {
+                sel.cutoff = format!("none (all hits): {why}");
+                sel.note = Some(format!(
+                    "--cutoff peak-load asked, but {why}: no load, all hits used"
+                ));
+            }
+            (Some((i, l, hit, time)), _) => {
                 sel.hits_used = i + 1;
                 sel.last_hit = Some(hit);
                 sel.peak_load_n = Some(l);
                 sel.peak_load_time_s = time;
                 sel.cutoff = format!("peak-load: hits up to {hit} at {l:.6} N");
             }
-            None => {
+            (None, _) => {
                 sel.cutoff = "none (all hits): no load channel".into();
                 sel.note = Some("--cutoff peak-load asked, but the experiment has no load channel: all hits used".into());
             }
@@ -726,6 +741,7 @@ pub fn run_trend_with<E: From<TrendError> + From<StoreError>>(
                 .map_while(Result::ok)
                 .map(|r| (r.hit, r.time_s, r.load_n)),
             opts.cutoff,
+            opts.min_load_span_n,
         );
         if sel.hits_total as u64 != span.len {
             // A record that did not read back (map_while stopped): say which file.
@@ -847,15 +863,15 @@ mod tests {
     #[test]
     fn cutoffs() {
         let s = series(&[Some(1.0), Some(3.0), Some(5.0), Some(4.0), Some(2.0)]);
-        let sel = select(&s, Cutoff::PeakLoad);
+        let sel = select(&s, Cutoff::PeakLoad, 1.0);
         assert_eq!(
             (sel.hits_used, sel.last_hit, sel.peak_load_n),
             (3, Some(3), Some(5.0))
         );
-        assert_eq!(select(&s, Cutoff::Time(1.5)).hits_used, 2);
-        assert_eq!(select(&s, Cutoff::Hits(4)).hits_used, 4);
-        assert_eq!(select(&s, Cutoff::Hits(40)).hits_used, 5);
-        let none = select(&series(&[None, None, None]), Cutoff::PeakLoad);
+        assert_eq!(select(&s, Cutoff::Time(1.5), 1.0).hits_used, 2);
+        assert_eq!(select(&s, Cutoff::Hits(4), 1.0).hits_used, 4);
+        assert_eq!(select(&s, Cutoff::Hits(40), 1.0).hits_used, 5);
+        let none = select(&series(&[None, None, None]), Cutoff::PeakLoad, 1.0);
         assert_eq!(none.hits_used, 3);
         assert!(none.note.unwrap().contains("no load channel"));
         assert_eq!("time:2.5".parse::<Cutoff>().unwrap(), Cutoff::Time(2.5));
@@ -865,7 +881,7 @@ mod tests {
     #[test]
     fn too_few_hits_is_a_null_with_a_reason() {
         let s = series(&[Some(1.0), Some(3.0), Some(5.0), Some(4.0)]);
-        let sel = select(&s, Cutoff::Hits(2));
+        let sel = select(&s, Cutoff::Hits(2), 1.0);
         let t = &trends(&s, &["pr_x".into()], &sel, 0.01)[0];
         assert!(t.fit.is_none() && !t.significant);
         assert!(t.note.as_ref().unwrap().contains("n = 2 < 3"));

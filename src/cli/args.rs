@@ -212,6 +212,10 @@ pub struct TrendArgs {
     /// Significance level
     #[arg(long, default_value_t = 0.01)]
     pub alpha: f64,
+    /// A load channel spanning less than this, N, or within its own noise, is no load: no
+    /// peak-load cut (`[trend] min_load_span_n`)
+    #[arg(long, default_value_t = 1.0)]
+    pub min_load_span_n: f64,
     /// Columns to test (default: every pr_* power ratio), e.g. peak_freq_hz,centroid_freq_hz
     #[arg(long, value_delimiter = ',')]
     pub columns: Vec<String>,

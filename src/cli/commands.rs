@@ -361,6 +361,7 @@ fn trend(a: TrendArgs) -> Result<Outcome> {
     let opts = trend::TrendOptions {
         cutoff: a.cutoff,
         alpha: a.alpha,
+        min_load_span_n: a.min_load_span_n,
         columns: a.columns,
         sources: crate::store::SourceRows::default(),
     };

@@ -541,6 +541,23 @@ fn profile_section(h: &mut String, s: &RunSummary) {
         }
     }
     h.push_str("</table>");
+    // A series whose load channel is no load has no profile against load: say why.
+    let no_load: Vec<String> = m
+        .profile
+        .iter()
+        .filter_map(|p| {
+            let why = p.load_note.as_ref()?;
+            Some(format!("{} ch{}: {why}", p.experiment, p.channel))
+        })
+        .collect();
+    if !no_load.is_empty() {
+        let _ = write!(
+            h,
+            "<p>No load, so no peak and no profile against load, for {} series: {}.</p>",
+            no_load.len(),
+            esc(&no_load.join("; "))
+        );
+    }
     figures(h, &m.profile_plots, "damage profile", "");
 }
 

@@ -3,6 +3,7 @@
 //! each class, so that "fibre failures occur before final fracture" can be read off a test.
 
 use super::SomError;
+use crate::analysis::load::{LoadCheck, LoadVerdict};
 use crate::model::columns as cols;
 use crate::model::Mechanism;
 use crate::store::spill::{Dec, Enc, Sorted, Sorter, Span, Spill};
@@ -48,7 +49,7 @@ pub fn profile_table() -> Table<ProfileRow> {
                 cols::LOAD_N.name,
                 ColType::Float64,
                 "N",
-                "test-machine load at the hit (null: no load channel)",
+                "test-machine load at the hit (null: no load channel, or one that is no load: it spans less than trend.min_load_span_n or stays within its noise)",
             )
             .nullable(),
             |r| Value::F64(r.load_n),
@@ -136,6 +137,9 @@ pub struct ProfileSummary {
     pub last_fibre_s: Option<f64>,
     /// Time of the last hit, s (final fracture is at or after it).
     pub last_hit_s: Option<f64>,
+    /// Why the series' load channel is treated as absent (it spans less than
+    /// `trend.min_load_span_n`, or stays within its noise): no peak, no profile against load.
+    pub load_note: Option<String>,
 }
 
 impl ProfileSummary {
@@ -149,9 +153,10 @@ impl ProfileSummary {
                 format!("{c} {n}")
             });
         }
-        let peak = match (self.peak_load_n, self.peak_time_s) {
-            (Some(l), Some(t)) => format!("peak load {l:.1} N at {t:.1} s; "),
-            (Some(l), None) => format!("peak load {l:.1} N; "),
+        let peak = match (self.peak_load_n, self.peak_time_s, &self.load_note) {
+            (Some(l), Some(t), _) => format!("peak load {l:.1} N at {t:.1} s; "),
+            (Some(l), None, _) => format!("peak load {l:.1} N; "),
+            (None, _, Some(why)) => format!("no load ({why}); "),
             _ => String::new(),
         };
         format!(
@@ -672,22 +677,34 @@ impl Profile {
 
     /// Emit series `g`: `row` gets each row in time order (hit order where there is no
     /// time), with the running counts; returns its summary. Two passes: the peak load first.
+    /// A load channel that spans less than `min_load_span_n` or stays within its noise
+    /// ([`LoadCheck`]) is no load: the rows' load is left out (null) and there is no peak.
     pub fn emit<E: From<SomError>>(
         &self,
         g: usize,
+        min_load_span_n: f64,
         mut row: impl FnMut(&ProfileRow) -> Result<(), E>,
     ) -> Result<ProfileSummary, E> {
         let ((experiment, channel), span) = &self.groups[g];
         let serr = SomError::Store;
         // The first largest finite load, and where it is.
         let mut peak: Option<(u64, f64, Option<f64>)> = None;
+        let mut load_check = LoadCheck::new();
         for (pos, r) in self.sorted.span_iter(*span).enumerate() {
             let r = r.map_err(serr)?;
             if let Some(l) = r.load_n.filter(|l| l.is_finite()) {
+                load_check.push(l);
                 if !matches!(peak, Some((_, ml, _)) if ml >= l) {
                     peak = Some((pos as u64, l, r.time_s));
                 }
             }
+        }
+        let load_note = match load_check.verdict(min_load_span_n) {
+            LoadVerdict::Noise(why) => Some(why),
+            LoadVerdict::Absent | LoadVerdict::Load => None,
+        };
+        if load_note.is_some() {
+            peak = None;
         }
         let mut counts = [0u64; OTHER + 1];
         let mut summary = ProfileSummary {
@@ -698,6 +715,7 @@ impl Profile {
             classes: BTreeMap::new(),
             last_fibre_s: None,
             last_hit_s: None,
+            load_note: load_note.clone(),
         };
         for (pos, r) in self.sorted.span_iter(*span).enumerate() {
             let r = r.map_err(serr)?;
@@ -716,7 +734,7 @@ impl Profile {
             row(&ProfileRow {
                 key: (r.experiment, r.channel, r.hit),
                 time_s: r.time_s,
-                load_n: r.load_n,
+                load_n: r.load_n.filter(|_| load_note.is_none()),
                 extension_m: r.extension_m,
                 class: r.class,
                 before_peak_load: before,

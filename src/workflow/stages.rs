@@ -17,6 +17,7 @@ pub(super) fn trend_stage(
     let opts = crate::analysis::trend::TrendOptions {
         cutoff: cfg.trend.cutoff,
         alpha: cfg.trend.alpha,
+        min_load_span_n: cfg.trend.min_load_span_n,
         columns: vec![],
         sources: cfg.source_rows(),
     };
@@ -271,7 +272,7 @@ pub(super) fn profile_stage(
         let every = crate::analysis::trend::thin_every(n);
         let mut drawn: Vec<(usize, ProfileRow)> = Vec::new();
         let mut i = 0usize;
-        let summary = prof.emit(g, |r| {
+        let summary = prof.emit(g, cfg.trend.min_load_span_n, |r| {
             w.push(table.row(r.clone()))?;
             evolution.push(r)?;
             classes.push(r)?;

@@ -247,7 +247,7 @@ fn every_import_points_down_the_readmes_direction() {
     // own tier, and a room the direction does not know.
     let mut planted = g.clone();
     planted.get_mut("store").unwrap().insert("pipeline".into());
-    planted.get_mut("som").unwrap().insert("analysis".into());
+    planted.get_mut("features").unwrap().insert("events".into());
     planted.insert("gallery".into(), ["model".to_string()].into());
     let found = against_direction(&planted, &tiers);
     assert_eq!(found.len(), 3, "{found:?}");
@@ -260,7 +260,7 @@ fn every_import_points_down_the_readmes_direction() {
     assert!(
         found
             .iter()
-            .any(|b| b.starts_with("som (tier 4) uses analysis")),
+            .any(|b| b.starts_with("features (tier 3) uses events")),
         "{found:?}"
     );
 }

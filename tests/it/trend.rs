@@ -207,3 +207,148 @@ fn missing_load_falls_back_to_all_hits_and_says_so() {
     .unwrap();
     assert!(err.to_string().contains("no column nope"), "{err}");
 }
+
+/// A Vallen pair of 40 hits over 4 s whose PA0 channel carries `load(t)` (N per mV = 1).
+fn pair_with_load(
+    dir: &std::path::Path,
+    id: &str,
+    load: impl Fn(f64) -> f64,
+) -> std::path::PathBuf {
+    use aepipe::ingest::vallen::{write_pair, HitToWrite};
+    let sig: Vec<Vec<f32>> = (0..40)
+        .map(|k| {
+            (0..1024)
+                .map(|i| {
+                    let on = if i >= 200 { 1.0 } else { 0.0 };
+                    on * 0.02
+                        * (1.0 + (k % 5) as f32)
+                        * (i as f32 * 0.16).sin()
+                        * (-((i as f32 - 200.0).max(0.0)) / 300.0).exp()
+                })
+                .collect()
+        })
+        .collect();
+    let hits = sig.iter().enumerate().map(|(k, s)| HitToWrite {
+        channel: 1,
+        trai: k as u64 + 1,
+        time_s: 0.1 * (k + 1) as f64,
+        sample_rate_hz: 10e6,
+        pretrigger: 200,
+        samples_v: s,
+        restart: false,
+        transient: true,
+    });
+    let par: Vec<(f64, f64, f64)> = (0..=90)
+        .map(|i| {
+            let t = i as f64 * 0.05;
+            (t, load(t), 0.0)
+        })
+        .collect();
+    std::fs::create_dir_all(dir).unwrap();
+    write_pair(&dir.join(id), hits, &par, 1e-3, 1e-3).unwrap();
+    dir.to_path_buf()
+}
+
+/// A load channel of noise is no load: no peak-load cut, all hits tested, and the cut-off
+/// says why; the same test with a real load (a ramp to 50 N and the break) is cut at its peak.
+#[test]
+fn a_load_channel_of_noise_gives_no_peak_load_cut() {
+    let t = TempDir::new("noise-load");
+    let mut rng = Rng::new(3);
+    let noise: Vec<f64> = (0..=90).map(|_| 0.3 * rng.normal()).collect();
+    let data = pair_with_load(&t.path().join("noise"), "noise", |t| {
+        noise[(t / 0.05).round() as usize]
+    });
+    let ramp = pair_with_load(&t.path().join("ramp"), "ramp", |t| {
+        if t <= 3.0 {
+            50.0 * t / 3.0
+        } else {
+            2.0
+        }
+    });
+    let cfg = aepipe::config::ValidConfig::default()
+        .with(|c| {
+            c.ingest.vallen.load_param = Some(aepipe::config::ParamInput(0));
+            c.events.enabled = Some(false);
+        })
+        .unwrap();
+    for (dir, cut) in [(data, false), (ramp, true)] {
+        let out = dir.join("f");
+        let r = run(
+            StreamJob::Features,
+            std::slice::from_ref(&dir),
+            &out,
+            &cfg,
+            &StreamOptions::with_threads(1),
+        )
+        .unwrap();
+        let rep = run_trend(
+            &[r.table_path],
+            &out.join("trend"),
+            &TrendOptions {
+                cutoff: Cutoff::PeakLoad,
+                ..Default::default()
+            },
+        )
+        .unwrap();
+        let sel = &rep.selections[0];
+        if cut {
+            assert!(sel.hits_used < sel.hits_total, "{sel:?}");
+            assert!(sel.cutoff.starts_with("peak-load"), "{sel:?}");
+            assert!((sel.peak_load_n.unwrap() - 50.0).abs() < 2.0, "{sel:?}");
+        } else {
+            assert_eq!((sel.hits_used, sel.hits_total), (40, 40), "{sel:?}");
+            assert!(
+                sel.cutoff
+                    .starts_with("none (all hits): the load channel spans")
+                    && sel.cutoff.contains("within its noise"),
+                "{sel:?}"
+            );
+            assert_eq!(sel.peak_load_n, None);
+        }
+    }
+}
+
+/// The real pencil-lead breaks on CFRP plates: their PA0 holds no load (constant, or a few
+/// ADC codes below 1 N), so the trend tests every source.
+#[test]
+fn the_real_cfrp_plate_tests_have_no_load_and_every_hit_is_tested() {
+    let Some(real) =
+        crate::real_data("the_real_cfrp_plate_tests_have_no_load_and_every_hit_is_tested")
+    else {
+        return;
+    };
+    let t = TempDir::new("cfrp-load");
+    let cfg = PipelineConfig::from_file(
+        &std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("pipelines/notched-paper.toml"),
+    )
+    .unwrap();
+    let r = run(
+        StreamJob::Features,
+        &[real.join("plb_cfrp_vallen")],
+        &t.path().join("f"),
+        &cfg,
+        &StreamOptions::with_threads(2),
+    )
+    .unwrap();
+    let rep = run_trend(
+        &[r.table_path],
+        &t.path().join("trend"),
+        &TrendOptions {
+            cutoff: Cutoff::PeakLoad,
+            min_load_span_n: cfg.trend.min_load_span_n,
+            sources: cfg.source_rows(),
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    assert_eq!(rep.selections.len(), 3, "{:?}", rep.selections);
+    for sel in &rep.selections {
+        assert_eq!(sel.hits_used, sel.hits_total, "{sel:?}");
+        assert!(
+            sel.cutoff
+                .starts_with("none (all hits): the load channel spans"),
+            "{sel:?}"
+        );
+    }
+}

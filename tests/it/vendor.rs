@@ -658,7 +658,7 @@ fn the_test_machines_load_file_gives_each_hit_its_load_and_moves_the_peak_load_c
     assert_eq!(series.len(), 1);
     assert_eq!(series[0].channel, 0);
     for s in &series {
-        let sel = aepipe::analysis::trend::select(s, aepipe::config::Cutoff::PeakLoad);
+        let sel = aepipe::analysis::trend::select(s, aepipe::config::Cutoff::PeakLoad, 1.0);
         // Up to and including the row of the largest load (the file's peak, AE 17 s).
         let loads: Vec<f64> = s.load_n.iter().map(|l| l.unwrap_or(f64::MIN)).collect();
         let peak = (0..loads.len()).fold(0, |m, i| if loads[i] > loads[m] { i } else { m });

@@ -17,7 +17,7 @@ use std::path::PathBuf;
 /// `trend.parquet`'s rows for feature tables (files written by aepipe, or by the Python
 /// layer from a frame).
 #[pyfunction]
-#[pyo3(signature = (paths, cutoff="peak-load".to_string(), columns=None, alpha=0.01, exclude_outside=false))]
+#[pyo3(signature = (paths, cutoff="peak-load".to_string(), columns=None, alpha=0.01, exclude_outside=false, min_load_span_n=1.0))]
 pub fn trend(
     py: Python<'_>,
     paths: Vec<PathBuf>,
@@ -25,6 +25,7 @@ pub fn trend(
     columns: Option<Vec<String>>,
     alpha: f64,
     exclude_outside: bool,
+    min_load_span_n: f64,
 ) -> PyResult<ArrowStream> {
     let cutoff: Cutoff = cutoff
         .parse()
@@ -34,6 +35,7 @@ pub fn trend(
         alpha,
         columns: columns.unwrap_or_default(),
         sources: SourceRows { exclude_outside },
+        min_load_span_n,
     };
     let dir = TempDir::new()?;
     let out = dir.path().to_path_buf();
