@@ -200,6 +200,34 @@ class Som:
         m, ok = _matrix(X, self._cols_for(X))
         return float(self._fitted().quantization_error(m[ok]))
 
+    def novelty_threshold(self, quantile: float = 0.99) -> float | None:
+        """The distance beyond which a row is unlike the map's references.
+
+        The conformal ``quantile`` of the distances of training rows held out of the
+        map by 5-fold cross-validation (as ``[som] novelty_quantile``); None for a map
+        without calibration (fewer than 10 rows). Compare with the distances of
+        ``distances`` to flag novel rows (``novel`` does).
+        """
+        return self._fitted().novelty_threshold(quantile)
+
+    def distances(self, X: np.ndarray | pl.DataFrame) -> np.ndarray:
+        """Each row's quantisation error: its distance to its best-matching node (NaN for
+        a row with a null or non-finite value)."""
+        model = self._fitted()
+        m, ok = _matrix(X, self._cols_for(X))
+        out = np.full(m.shape[0], np.nan)
+        if ok.any():
+            out[ok] = model.bmu(m[ok])[1]
+        return out
+
+    def novel(self, X: np.ndarray | pl.DataFrame, quantile: float = 0.99) -> np.ndarray | None:
+        """True for rows beyond ``novelty_threshold(quantile)`` (False for unusable rows,
+        whose ``distances`` are NaN); None for a map without calibration."""
+        t = self.novelty_threshold(quantile)
+        if t is None:
+            return None
+        return self.distances(X) > t
+
     def topographic_error(self, X: np.ndarray | pl.DataFrame) -> float:
         """Share of the (usable) rows whose two best nodes are not grid neighbours."""
         m, ok = _matrix(X, self._cols_for(X))

@@ -125,3 +125,23 @@ def test_trend_equals_the_command_line_and_scipys_linregress(tmp_path: Path, lab
     part = aepipe.trend(f, cutoff="hits:40", columns=["pr_200_300khz", "peak_freq_hz"])
     assert sorted(part["column"].to_list()) == ["peak_freq_hz", "pr_200_300khz"]
     assert set(part["n"].to_list()) == {40}
+
+
+def test_novelty_flags_a_cloud_the_map_never_saw_and_few_fresh_draws_of_its_own() -> None:
+    rng = np.random.default_rng(11)
+    train = np.vstack([rng.normal(0, 0.3, (150, 4)), rng.normal(3, 0.3, (150, 4))])
+    som = aepipe.Som(5, 5, seed=2).fit(train)
+    t = som.novelty_threshold(0.99)
+    assert t is not None and t > 0
+    # The threshold is calibrated on held-out rows: above the training rows' own mean.
+    assert t > som.quantization_error(train)
+    assert som.novelty_threshold(1.0) >= t >= som.novelty_threshold(0.5)
+    fresh = np.vstack([rng.normal(0, 0.3, (1000, 4)), rng.normal(3, 0.3, (1000, 4))])
+    assert som.novel(fresh).sum() <= 60  # ~1 % expected of 2000
+    far = rng.normal(-4, 0.3, (200, 4))
+    assert som.novel(far).all()
+    np.testing.assert_array_equal(som.distances(far) > t, som.novel(far))
+    with pytest.raises(ValueError, match="quantile"):
+        som.novelty_threshold(0.0)
+    # Too few rows to hold any out: no calibration, and it says so.
+    assert aepipe.Som(2, 2, seed=1).fit(train[:8]).novelty_threshold(0.99) is None

@@ -422,6 +422,20 @@ pub struct SomClassifyArgs {
     /// node's class) or map (the BMU's label alone, as the thesis)
     #[arg(long, value_enum, default_value_t = ReadErroneousArg::QualityCheck)]
     pub read_erroneous: ReadErroneousArg,
+    /// A hit farther from its node than this conformal quantile of the held-out references'
+    /// distances is unlike_references (0 < q ≤ 1; as [som] novelty_quantile)
+    #[arg(long, default_value_t = crate::som::settings::som_defaults::NOVELTY_QUANTILE, value_parser = novelty_quantile)]
+    pub novelty_quantile: f64,
+}
+
+/// `--novelty-quantile`: a number in (0, 1].
+fn novelty_quantile(s: &str) -> Result<f64, String> {
+    let q: f64 = s.parse().map_err(|e| format!("{s}: {e}"))?;
+    if q > 0.0 && q <= 1.0 {
+        Ok(q)
+    } else {
+        Err(format!("{q} is not in (0, 1]"))
+    }
 }
 
 #[derive(clap::Args)]

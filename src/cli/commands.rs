@@ -433,6 +433,7 @@ fn som(which: SomCmd) -> Result<Outcome> {
             out,
             reference,
             read_erroneous,
+            novelty_quantile,
         }) => {
             let m = load_model(&model)?;
             let reference = reference.unwrap_or_else(|| m.label_column.clone());
@@ -442,9 +443,13 @@ fn som(which: SomCmd) -> Result<Outcome> {
                 Some(&reference),
                 &out,
                 crate::store::SourceRows::default(),
-                read_erroneous.into(),
+                crate::som::tables::ClassifyRules {
+                    read: read_erroneous.into(),
+                    novelty_quantile,
+                },
             )?;
             println!("{}", conf.reading.describe());
+            println!("{}", conf.novelty.describe());
             println!(
                 "SOM class (rows) against {reference} (columns), share of the SOM class's hits:"
             );

@@ -44,6 +44,8 @@ pub enum SettingsError {
     Analysis(#[from] AnalysisSettingsError),
     #[error(transparent)]
     Som(#[from] SomSettingsError),
+    #[error(transparent)]
+    CrackMode(#[from] crate::model::crack::CrackModeError),
     /// `[pipeline]` or `[live]`.
     #[error("{key} {rule}, got {value}")]
     Run {
@@ -114,6 +116,8 @@ pub struct PipelineConfig {
     pub validate: ValidateConfig,
     pub dsp: DspConfig,
     pub criteria: CriteriaConfig,
+    /// The RA–AF crack-mode line (`features`/`hits` `crack_mode`).
+    pub crack_mode: crate::model::crack::CrackModeConfig,
     /// Arrival-time picking (`features.parquet` onset columns and `arrival_s`).
     pub onset: OnsetConfig,
     /// Hits → events (the event builder) and where their sources are.
@@ -297,6 +301,7 @@ impl From<&ValidConfig> for crate::features::settings::FeatureSettings {
         crate::features::settings::FeatureSettings {
             dsp: c.dsp.clone(),
             criteria: c.criteria.clone(),
+            crack_mode: c.crack_mode,
             onset: c.onset.clone(),
             validate: c.validate.clone(),
         }
@@ -333,6 +338,7 @@ impl PipelineConfig {
             validate,
             dsp,
             criteria,
+            crack_mode,
             onset,
             events,
             location,
@@ -345,12 +351,14 @@ impl PipelineConfig {
         } = self;
         pipeline.check()?;
         live.check()?;
+        crack_mode.check().map_err(SettingsError::from)?;
         Ok(ValidConfig(PipelineConfig {
             ingest: ingest.check()?.into_inner(),
             pipeline,
             validate,
             dsp: dsp.check()?.into_inner(),
             criteria: criteria.check()?.into_inner(),
+            crack_mode,
             onset: onset.check()?.into_inner(),
             events: events.check()?.into_inner(),
             location: location.check()?.into_inner(),
@@ -459,6 +467,14 @@ mod tests {
         assert!(PipelineConfig::from_toml("[pipeline]\nbatch_size = 0\n").is_err());
         assert!(PipelineConfig::from_toml("[criteria]\nclip_min_steps = -1.0\n").is_err());
         assert!(PipelineConfig::from_toml("[criteria]\nclip_min_steps = nan\n").is_err());
+        for q in ["0.0", "1.5", "-0.1", "nan"] {
+            let t = format!("[som]\nnovelty_quantile = {q}\n");
+            let e = PipelineConfig::from_toml(&t).unwrap_err();
+            assert!(e.to_string().contains("novelty_quantile"), "{q}: {e}");
+        }
+        let c = PipelineConfig::from_toml("[som]\nnovelty_quantile = 1.0\n").unwrap();
+        assert_eq!(c.som.novelty_quantile, 1.0);
+        assert!(c.to_toml().contains("novelty_quantile = 1.0"));
     }
 
     #[test]

@@ -451,7 +451,7 @@ fn fill_hit_tables(
     // The hits' own columns last, moved rather than copied.
     crate::store::rewrite::replace_columns(
         p.hits,
-        &crate::store::hits_table().schema(),
+        &crate::store::hits_table(Default::default()).schema(),
         &event_columns(ev_of, first, zone),
         rg,
     )

@@ -20,6 +20,7 @@ use crate::dsp::settings::{DspConfig, Picker};
 use crate::dsp::spectrum::{band_column, power_ratios};
 use crate::dsp::{condition, hit::HitFeatures};
 use crate::model::columns as cols;
+use crate::model::crack::{af_khz, crack_mode, ra_ms_per_v, CrackModeConfig};
 use crate::model::{db_ae, AeRecord};
 use crate::store::{identity_table, table::s, ColType, ColumnSpec, Identity, Row, Table, Value};
 use criteria::{acquisition_fault, decide, Component, Components};
@@ -135,7 +136,9 @@ pub struct FeatureRow {
 
 /// The columns of `features.parquet` for a configuration, each with the cell it takes from a
 /// [`FeatureRow`]: the only place a feature column is declared.
-pub fn features_table(dsp: &DspConfig) -> Table<FeatureRow> {
+pub fn features_table(dsp: &DspConfig, crack: CrackModeConfig) -> Table<FeatureRow> {
+    let ra = |r: &FeatureRow| ra_ms_per_v(r.an.hit.rise_time_s, r.an.hit.amplitude_v);
+    let af = |r: &FeatureRow| af_khz(r.an.hit.counts, r.an.hit.duration_s);
     let f64c =
         |name: &str, unit: &str, doc: &str| ColumnSpec::new(name, ColType::Float64, unit, doc);
     let mut t = Table::new("features")
@@ -151,6 +154,9 @@ pub fn features_table(dsp: &DspConfig) -> Table<FeatureRow> {
         .col(f64c("rise_time_s", "s", "first threshold crossing to peak amplitude (vallenae); 0 if the threshold is never reached"), |r| Value::F64(Some(r.an.hit.rise_time_s)))
         .col(f64c("duration_s", "s", "first to last sample with absolute value ≥ threshold (ASTM E1316); 0 if never reached"), |r| Value::F64(Some(r.an.hit.duration_s)))
         .col(ColumnSpec::new("counts", ColType::Int64, "", "positive-going crossings of +threshold (vallenae)"), |r| Value::I64(Some(r.an.hit.counts)))
+        .col(f64c("ra_ms_per_v", "ms/V", "RA value: rise_time_s over peak_amplitude_v (JCMS-IIIB5706); null for a record without amplitude").nullable(), move |r| Value::F64(ra(r)))
+        .col(f64c("af_khz", "kHz", "average frequency: counts over duration_s; null when the threshold was never crossed (duration 0)").nullable(), move |r| Value::F64(af(r)))
+        .col(ColumnSpec::new("crack_mode", ColType::Utf8, "", "tensile above the line af_khz = crack_mode.af_per_ra × ra_ms_per_v (default 1 kHz per ms/V, Ohno & Ohtsu 2010), shear on or below it; null where RA or AF is").nullable(), move |r| Value::Str(crack_mode(ra(r), af(r), crack.af_per_ra).map(|m| m.as_str().to_string())))
         .col(f64c(cols::ENERGY_EU.name, "eu", "Σx²/fs over the record, 1 eu = 1e-14 V²s (vallenae)"), |r| Value::F64(Some(r.an.hit.energy_eu)))
         .col(f64c("signal_strength_nvs", "nVs", "Σ|x|/fs over the record (vallenae)"), |r| Value::F64(Some(r.an.hit.signal_strength_nvs)))
         .col(f64c("rms_v", "V", "root mean square of the record"), |r| Value::F64(Some(r.an.hit.rms_v)))
@@ -394,7 +400,7 @@ impl FeatureExtractor {
         let bank = WaveletBank::from_config(&cfg.dsp.cwt);
         FeatureExtractor {
             freqs: bank.freqs_hz.clone(),
-            table: features_table(&cfg.dsp),
+            table: features_table(&cfg.dsp, cfg.crack_mode),
             picks: PickScratch::default(),
             grid: BinGrid::of(&cfg.dsp),
             cwt: Cwt::new(bank),
@@ -600,7 +606,7 @@ mod tests {
     #[test]
     fn row_matches_the_table_and_sums_to_one() {
         let cfg = ValidConfig::default();
-        let t = features_table(&cfg.dsp).schema();
+        let t = features_table(&cfg.dsp, cfg.crack_mode).schema();
         let spec = HitSpec::new(Mechanism::BondFailure);
         let r = rec(waveform(&spec, &mut Rng::new(1)), spec.pretrigger as u32);
         let row = FeatureExtractor::new(&cfg).row(&r);
@@ -626,7 +632,7 @@ mod tests {
         s[60] = 0.5 + 0.01;
         s[70] = 0.5 - 0.02;
         let row = FeatureExtractor::new(&cfg).row(&rec(s, 50));
-        let t = features_table(&cfg.dsp).schema();
+        let t = features_table(&cfg.dsp, cfg.crack_mode).schema();
         let Value::F64(Some(p)) = get(&row, &t, "peak_amplitude_v") else {
             panic!()
         };

@@ -11,6 +11,7 @@ use serde::{Deserialize, Serialize};
 pub struct FeatureSettings {
     pub dsp: DspConfig,
     pub criteria: CriteriaConfig,
+    pub crack_mode: crate::model::crack::CrackModeConfig,
     pub onset: OnsetConfig,
     pub validate: ValidateConfig,
 }

@@ -515,7 +515,7 @@ fn classify_part(
         Some(&cfg.som.label),
         &cls_dir,
         cfg.source_rows(),
-        cfg.som.read_erroneous,
+        crate::som::tables::ClassifyRules::of(&cfg.som),
     ) {
         Ok(conf) => {
             for ((class, _), n) in &conf.counts {

@@ -5,6 +5,7 @@
 //! other module of the crate.
 
 pub mod columns;
+pub mod crack;
 
 use std::fmt;
 
@@ -530,6 +531,11 @@ impl fmt::Display for Mechanism {
         f.write_str(self.as_str())
     }
 }
+
+/// The SOM class of a hit farther from the map than its novelty threshold (`[som]
+/// novelty_quantile`): like none of the references the map was labelled with. Its nearest
+/// node's class stays in `node_label`; counts keep it apart from the mechanisms.
+pub const UNLIKE_REFERENCES: &str = "unlike_references";
 
 /// Amplitude in dB re 1 µV (dB_AE), the AE convention: `20·log10(|v| / 1 µV)`.
 pub fn db_ae(volts: f64) -> f64 {

@@ -57,9 +57,11 @@ impl PartTable {
 
     pub fn schema(self, job: StreamJob, cfg: &PipelineConfig) -> TableSchema {
         match (self, job) {
-            (PartTable::Main, StreamJob::Features) => features_table(&cfg.dsp).schema(),
+            (PartTable::Main, StreamJob::Features) => {
+                features_table(&cfg.dsp, cfg.crack_mode).schema()
+            }
             (PartTable::Main, StreamJob::Waveforms) => store::waveforms_table().schema(),
-            (PartTable::Hits, _) => store::hits_table().schema(),
+            (PartTable::Hits, _) => store::hits_table(Default::default()).schema(),
             (PartTable::Rejects, _) => store::rejects_table().schema(),
             (PartTable::Parametric, _) => store::parametric_table().schema(),
             (PartTable::Markers, _) => store::markers_table().schema(),

@@ -193,7 +193,7 @@ impl JobWriters {
             rejects: mk(PartTable::Rejects)?,
             parametric: mk(PartTable::Parametric)?,
             markers: mk(PartTable::Markers)?,
-            hit_rows: store::hits_table(),
+            hit_rows: store::hits_table(cfg.crack_mode),
             reject_rows: store::rejects_table(),
             parametric_rows: store::parametric_table(),
             marker_rows: store::markers_table(),

@@ -416,7 +416,7 @@ pub fn damage_profile_png(
     summary: &crate::som::profile::ProfileSummary,
     every: usize,
 ) -> Result<(), PlotError> {
-    use crate::som::profile::CLASSES;
+    use crate::som::profile::{slot_names, SLOTS};
     ensure_font()?;
     let e = err(path);
     let x_of = |i: usize, r: &crate::som::profile::ProfileRow| r.time_s.unwrap_or(i as f64);
@@ -466,17 +466,13 @@ pub fn damage_profile_png(
         .y_desc("share of the class's hits so far")
         .draw()
         .map_err(&e)?;
-    let last = rows.last().map(|(_, r)| r.counts).unwrap_or([0; 4]);
-    let names: Vec<String> = CLASSES
-        .iter()
-        .map(|s| s.to_string())
-        .chain(["other".to_string()])
-        .collect();
-    for k in 0..4 {
+    let last = rows.last().map(|(_, r)| r.counts).unwrap_or([0; SLOTS]);
+    let names = slot_names();
+    for k in 0..SLOTS {
         if last[k] == 0 {
             continue;
         }
-        let colour = sources::class_colour(&names[k]);
+        let colour = sources::class_colour(names[k]);
         c.draw_series(LineSeries::new(
             rows.iter()
                 .map(|(i, r)| (x_of(*i, r), r.counts[k] as f64 / last[k] as f64)),

@@ -16,6 +16,7 @@ pub fn class_colour(class: &str) -> RGBColor {
         (Some(Mechanism::BondFailure), _) => RGBColor(31, 119, 180),
         (Some(Mechanism::FibreFailure), _) => RGBColor(214, 39, 40),
         (Some(Mechanism::Erroneous), _) => RGBColor(255, 127, 14),
+        (_, crate::model::UNLIKE_REFERENCES) => RGBColor(148, 103, 189),
         (_, "all") => RGBColor(0, 0, 0),
         (_, "outside the zone") => RGBColor(190, 190, 190),
         _ => RGBColor(120, 120, 120),

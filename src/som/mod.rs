@@ -10,8 +10,10 @@
 //! Hyper-parameters are checked once into [`SomParams::check`] → [`ValidParams`] (linfa's
 //! way), then [`Som::fit`] trains and [`Som::bmu`] / [`Som::classify`] predict.
 
+pub mod classify;
 mod codebook;
 pub mod layout;
+pub mod novelty;
 pub mod profile;
 pub mod settings;
 pub mod tables;

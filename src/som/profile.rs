@@ -11,8 +11,9 @@ use crate::store::{ColType, ColumnSpec, HitKey, StoreError, Table, TableScan, Va
 use std::collections::BTreeMap;
 use std::path::Path;
 
-/// The classes with a column of their own; any other class (e.g. `unclassified` from a map
-/// labelled by criteria) counts in `n_other`.
+/// The classes with a column of their own; the hits unlike the references count in
+/// `n_unlike_references`, any other class (e.g. `unclassified` from a map labelled by
+/// criteria) in `n_other`.
 pub const CLASSES: [Mechanism; 3] = [
     Mechanism::BondFailure,
     Mechanism::FibreFailure,
@@ -91,6 +92,15 @@ pub fn profile_table() -> Table<ProfileRow> {
     }
     t.col(
         ColumnSpec::new(
+            "n_unlike_references",
+            ColType::Int64,
+            "hits",
+            "hits unlike the map's references (classification.novel) up to and including this one; counted apart from the mechanisms",
+        ),
+        |r| Value::I64(Some(r.counts[UNLIKE] as i64)),
+    )
+    .col(
+        ColumnSpec::new(
             "n_other",
             ColType::Int64,
             "hits",
@@ -100,8 +110,23 @@ pub fn profile_table() -> Table<ProfileRow> {
     )
 }
 
+/// The slot of the hits unlike the references in [`ProfileRow::counts`].
+pub const UNLIKE: usize = CLASSES.len();
 /// The slot of "any other class" in [`ProfileRow::counts`].
-pub const OTHER: usize = CLASSES.len();
+pub const OTHER: usize = CLASSES.len() + 1;
+/// Slots of [`ProfileRow::counts`].
+pub const SLOTS: usize = OTHER + 1;
+
+/// The name of each slot of [`ProfileRow::counts`]: the [`CLASSES`], `unlike_references`,
+/// `other`.
+pub fn slot_names() -> [&'static str; SLOTS] {
+    let mut n = [crate::model::UNLIKE_REFERENCES; SLOTS];
+    for (k, c) in CLASSES.iter().enumerate() {
+        n[k] = c.as_str();
+    }
+    n[OTHER] = "other";
+    n
+}
 
 /// One classified hit of the profile.
 #[derive(Debug, Clone, PartialEq)]
@@ -112,8 +137,9 @@ pub struct ProfileRow {
     pub extension_m: Option<f64>,
     pub class: String,
     pub before_peak_load: Option<bool>,
-    /// Running counts of [`CLASSES`], then "other" (at [`OTHER`]).
-    pub counts: [u64; OTHER + 1],
+    /// Running counts of [`CLASSES`], the hits unlike the references (at [`UNLIKE`]), then
+    /// "other" (at [`OTHER`]).
+    pub counts: [u64; SLOTS],
     /// Not columns of the profile; what the damage evolution adds up: the row's peak
     /// amplitude (dB_AE) and energy (eu), and the hits of its source (an event's; 1 for a
     /// hit outside events).
@@ -169,6 +195,9 @@ impl ProfileSummary {
 }
 
 fn slot(class: &str) -> usize {
+    if class == crate::model::UNLIKE_REFERENCES {
+        return UNLIKE;
+    }
     Mechanism::parse(class)
         .and_then(|m| CLASSES.iter().position(|c| *c == m))
         .unwrap_or(OTHER)
@@ -706,7 +735,7 @@ impl Profile {
         if load_note.is_some() {
             peak = None;
         }
-        let mut counts = [0u64; OTHER + 1];
+        let mut counts = [0u64; SLOTS];
         let mut summary = ProfileSummary {
             experiment: experiment.clone(),
             channel: *channel,

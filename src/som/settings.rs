@@ -11,6 +11,8 @@ use std::path::{Path, PathBuf};
 pub enum SomSettingsError {
     #[error("som.label must name a column of the features table")]
     NoLabel,
+    #[error("som.novelty_quantile must be in (0, 1], not {0}")]
+    NoveltyQuantile(f64),
 }
 
 /// What the SOM of `aepipe run` is trained on (ch. 5).
@@ -60,6 +62,10 @@ pub struct SomConfig {
     /// nearest node labelled otherwise; `map` — the BMU's label alone, as the thesis read
     /// it (ch. 5.4).
     pub read_erroneous: ReadErroneous,
+    /// Novelty (issue 39): a hit farther from its node than this conformal quantile of the
+    /// distances of references held out of the map (`som::novelty`) is `unlike_references`.
+    /// 0 < q ≤ 1; 1 marks only hits beyond every held-out reference.
+    pub novelty_quantile: f64,
 }
 
 /// How the SOM stage reads the map's erroneous area (`[som] read_erroneous`).
@@ -96,6 +102,7 @@ impl Default for SomConfig {
             cols: som_defaults::COLS,
             seed: som_defaults::SEED,
             read_erroneous: ReadErroneous::default(),
+            novelty_quantile: som_defaults::NOVELTY_QUANTILE,
         }
     }
 }
@@ -113,6 +120,8 @@ pub mod som_defaults {
     pub const FRACTION: f64 = 0.1;
     /// The seed of `som train`'s training-set draw (a run draws with [`SEED`]).
     pub const TRAINING_SEED: u64 = 5;
+    /// `[som] novelty_quantile`: a reference-like hit is novel with chance ≤ 1 %.
+    pub const NOVELTY_QUANTILE: f64 = 0.99;
 }
 
 /// Where the run's map comes from: `[som] model`, else `train_on` and `reference_library`.
@@ -132,6 +141,9 @@ impl SomConfig {
     pub fn check(self) -> Result<Checked<SomConfig>, SomSettingsError> {
         if self.label.trim().is_empty() {
             return Err(SomSettingsError::NoLabel);
+        }
+        if !(self.novelty_quantile > 0.0 && self.novelty_quantile <= 1.0) {
+            return Err(SomSettingsError::NoveltyQuantile(self.novelty_quantile));
         }
         Ok(Checked::new(self))
     }

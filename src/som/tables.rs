@@ -1,12 +1,11 @@
 //! The SOM workflow on feature tables: inputs, the balanced training set of ch. 5.4, model
 //! files, classification of every hit and the confusion report of Table 5.4.
 
-use super::layout::{ClassifyDir, ModelDir};
-use super::settings::ReadErroneous;
+use super::layout::ModelDir;
 use super::{Init, Som, SomError, SomParams};
 use crate::model::columns as cols;
 use crate::model::Mechanism;
-use crate::store::{ColType, ColumnSpec, HitKey, SourceRows, Table, TableScan, TableWriter, Value};
+use crate::store::{HitKey, SourceRows, TableScan};
 use ndarray::{Array2, ArrayView2};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -301,6 +300,11 @@ pub struct Model {
     /// Class → rows that labelled the nodes (empty: the training rows did).
     #[serde(default)]
     pub calibration: Composition,
+    /// The held-out distances the novelty threshold is read from (`None`: a map written
+    /// before novelty, trained on fewer than `novelty::MIN_ROWS` distinct rows, or read
+    /// from a SOM_PAK codebook, which replaced the map the calibration measured).
+    #[serde(default)]
+    pub novelty: Option<super::novelty::Novelty>,
     pub tool_version: String,
 }
 
@@ -376,22 +380,7 @@ pub fn train(paths: &[PathBuf], out: &Path, o: &TrainOptions) -> Result<Model, S
             .collect();
         draw_training_of(&as_str, &o.training)?
     };
-    // Pass 2: the drawn rows' features, in the draw's order (a row drawn twice is twice).
-    let mut wanted: Vec<(usize, usize)> =
-        rows.iter().enumerate().map(|(pos, &i)| (i, pos)).collect();
-    wanted.sort_unstable();
-    let mut data = Array2::<f64>::zeros((rows.len(), dim));
-    let (mut next, mut base) = (0usize, 0usize);
-    for_each_input(paths, &o.columns, None, o.sources, |b| {
-        let n = b.keys.len();
-        while next < wanted.len() && wanted[next].0 < base + n {
-            let (i, pos) = wanted[next];
-            data.row_mut(pos).assign(&b.data.row(i - base));
-            next += 1;
-        }
-        base += n;
-        Ok(())
-    })?;
+    let (mut data, group) = read_drawn(paths, o, &rows, dim)?;
     let labels: Vec<String> = rows
         .iter()
         .map(|&i| names[row_labels[i].expect("training rows are labelled") as usize].clone())
@@ -411,6 +400,9 @@ pub fn train(paths: &[PathBuf], out: &Path, o: &TrainOptions) -> Result<Model, S
     .check()?;
     let mut som = Som::fit(&params, data.view())?;
     som.label_nodes(data.view(), &labels)?;
+    // Held-out distances for the novelty threshold (the same parameters and seed, fold by
+    // fold; the map above is not changed by it).
+    let novelty = super::novelty::Novelty::calibrate(&params, data.view(), &rows, &group, o.seed)?;
     let mut calibration = Composition::new();
     if o.training.calibrate {
         // Pass 3: every labelled row not excluded votes, class-balanced, in row order.
@@ -448,10 +440,44 @@ pub fn train(paths: &[PathBuf], out: &Path, o: &TrainOptions) -> Result<Model, S
         training: o.training.clone(),
         composition: comp,
         calibration,
+        novelty,
         tool_version: env!("CARGO_PKG_VERSION").into(),
     };
     save_model(&model, out, Some((data.view(), &labels)))?;
     Ok(model)
+}
+
+/// Pass 2 of [`train`]: the drawn rows' features, in the draw's order (a row drawn twice is
+/// twice), and each drawn row's source, (experiment, hit) numbered: a library's sensors
+/// record one simulated source each, and the novelty calibration holds a source's rows out
+/// together.
+fn read_drawn(
+    paths: &[PathBuf],
+    o: &TrainOptions,
+    rows: &[usize],
+    dim: usize,
+) -> Result<(Array2<f64>, Vec<usize>), SomError> {
+    let mut wanted: Vec<(usize, usize)> =
+        rows.iter().enumerate().map(|(pos, &i)| (i, pos)).collect();
+    wanted.sort_unstable();
+    let mut data = Array2::<f64>::zeros((rows.len(), dim));
+    let mut sources: BTreeMap<(String, i64), usize> = BTreeMap::new();
+    let mut group = vec![0usize; rows.len()];
+    let (mut next, mut base) = (0usize, 0usize);
+    for_each_input(paths, &o.columns, None, o.sources, |b| {
+        let n = b.keys.len();
+        while next < wanted.len() && wanted[next].0 < base + n {
+            let (i, pos) = wanted[next];
+            data.row_mut(pos).assign(&b.data.row(i - base));
+            let (e, _, h) = &b.keys[i - base];
+            let k = sources.len();
+            group[pos] = *sources.entry((e.clone(), *h)).or_insert(k);
+            next += 1;
+        }
+        base += n;
+        Ok(())
+    })?;
+    Ok((data, group))
 }
 
 /// Write a model folder: `model.json` (everything `load_model` reads), `model.cod` (the
@@ -516,6 +542,8 @@ pub fn load_model(path: &Path) -> Result<Model, SomError> {
             log: None,
             ..som
         };
+        // The calibration measured aepipe's map, not this one.
+        m.novelty = None;
     }
     let src = if is_cod { path } else { json.as_path() };
     m.som.check().map_err(|e| ferr(src, e))?;
@@ -527,270 +555,12 @@ pub fn load_model(path: &Path) -> Result<Model, SomError> {
             return Err(ferr(src, "the scaling holds a zero or non-finite value"));
         }
     }
+    if let Some(n) = &m.novelty {
+        n.check().map_err(|e| ferr(src, e))?;
+    }
     Ok(m)
 }
 
-/// One classified hit: a row of `classification.parquet`.
-#[derive(Debug, Clone, PartialEq)]
-pub struct Classified {
-    pub key: HitKey,
-    pub bmu_row: usize,
-    pub bmu_col: usize,
-    pub bmu_distance: f64,
-    pub som_label: String,
-    /// The BMU's own label (what the map alone says).
-    pub node_label: String,
-    /// The features' quality finding (`None`: sound, or not stated).
-    pub quality_fault: Option<String>,
-    pub reference_label: Option<String>,
-}
-
-/// `classification.parquet`: the SOM class of every hit.
-pub fn classification_table() -> Table<Classified> {
-    Table::new("classification")
-        .col(ColumnSpec::of(cols::EXPERIMENT, "", "experiment id"), |c: &Classified| Value::Str(Some(c.key.0.clone())))
-        .col(ColumnSpec::of(cols::CHANNEL, "", "sensor channel"), |c| Value::I32(Some(c.key.1)))
-        .col(ColumnSpec::of(cols::HIT, "", "hit number"), |c| Value::I64(Some(c.key.2)))
-        .col(ColumnSpec::new("bmu_row", ColType::Int32, "", "row of the best-matching unit on the map"), |c| Value::I32(Some(c.bmu_row as i32)))
-        .col(ColumnSpec::new("bmu_col", ColType::Int32, "", "column of the best-matching unit"), |c| Value::I32(Some(c.bmu_col as i32)))
-        .col(ColumnSpec::new("bmu_distance", ColType::Float64, "1", "Euclidean distance of the hit's vector to its BMU (in the model's, possibly standardised, units)"), |c| Value::F64(Some(c.bmu_distance)))
-        .col(ColumnSpec::of(cols::SOM_LABEL, "", "the class the SOM stage assigns: with som.read_erroneous = quality-check (default) on a map with an erroneous area, erroneous when quality_fault is set, else the label of the nearest node not labelled erroneous; otherwise (read_erroneous = map, or no quality_fault column in the features) node_label"), |c| Value::Str(Some(c.som_label.clone())))
-        .col(ColumnSpec::of(cols::NODE_LABEL, "", "label of the BMU node: the map's own reading (ch. 5.4)"), |c| Value::Str(Some(c.node_label.clone())))
-        .col(ColumnSpec::new("quality_fault", ColType::Utf8, "", "the features' time-domain quality finding (features.quality_fault); null when sound or when the features do not state it").nullable(), |c| Value::Str(c.quality_fault.clone()))
-        .col(ColumnSpec::of(cols::REFERENCE_LABEL, "", "the hit's label in the reference column (e.g. criteria_label or label); null if none").nullable(), |c| Value::Str(c.reference_label.clone()))
-}
-
-/// The confusion report: for each SOM class, how its hits split over reference groups.
-#[derive(Debug, Clone, Default)]
-pub struct Confusion {
-    /// (SOM class, reference group) → hits.
-    pub counts: BTreeMap<(String, String), usize>,
-    pub correct: usize,
-    pub total: usize,
-    /// Reference group → hits per map node (for the hit maps).
-    pub hits: BTreeMap<String, Vec<f64>>,
-    /// How the erroneous area was read, and what that changed.
-    pub reading: Reading,
-}
-
-/// What reading the map's erroneous area by the quality check did in one classification.
-#[derive(Debug, Clone, Default, PartialEq, Eq)]
-pub struct Reading {
-    /// The reading in force: `quality-check` or `map` (the configured one, or `map` when the
-    /// map has no erroneous area).
-    pub rule: String,
-    /// Hits the quality check called erroneous.
-    pub faults: usize,
-    /// Hits the map alone called erroneous and the quality check found sound (read as
-    /// their nearest other class).
-    pub reread: usize,
-    /// Hits whose features did not state their quality (read by the map alone).
-    pub unknown: usize,
-}
-
-impl Reading {
-    /// One sentence for the terminal and the report.
-    pub fn describe(&self) -> String {
-        if self.rule != ReadErroneous::QualityCheck.as_str() {
-            return "erroneous read by the map alone (the BMU's label, as the thesis)".into();
-        }
-        let mut s = format!(
-            "erroneous read by the time-domain quality check: {} hits with a quality_fault; {} sound hits on erroneous nodes read as their nearest other node's class",
-            self.faults, self.reread
-        );
-        if self.unknown > 0 {
-            s += &format!(
-                "; {} hits without quality_fault read by the map alone",
-                self.unknown
-            );
-        }
-        s
-    }
-}
-
-impl Confusion {
-    pub fn accuracy(&self) -> Option<f64> {
-        (self.total > 0).then(|| self.correct as f64 / self.total as f64)
-    }
-
-    /// Table 5.4 orientation: rows = SOM class, columns = reference group, cells = share of
-    /// the SOM class's hits (and the count), plus the overall accuracy.
-    pub fn format(&self) -> String {
-        let som: Vec<&String> = self
-            .counts
-            .keys()
-            .map(|k| &k.0)
-            .collect::<std::collections::BTreeSet<_>>()
-            .into_iter()
-            .collect();
-        let refs: Vec<&String> = self
-            .counts
-            .keys()
-            .map(|k| &k.1)
-            .collect::<std::collections::BTreeSet<_>>()
-            .into_iter()
-            .collect();
-        let mut s = format!("{:<16}", "SOM class");
-        for r in &refs {
-            s.push_str(&format!(" {:>18}", r));
-        }
-        s.push('\n');
-        for c in &som {
-            let n: usize = refs
-                .iter()
-                .map(|r| {
-                    self.counts
-                        .get(&((*c).clone(), (*r).clone()))
-                        .copied()
-                        .unwrap_or(0)
-                })
-                .sum();
-            s.push_str(&format!("{:<16}", c));
-            for r in &refs {
-                let k = self
-                    .counts
-                    .get(&((*c).clone(), (*r).clone()))
-                    .copied()
-                    .unwrap_or(0);
-                s.push_str(&format!(
-                    " {:>10.2}% ({:>4})",
-                    100.0 * k as f64 / n.max(1) as f64,
-                    k
-                ));
-            }
-            s.push('\n');
-        }
-        if let Some(a) = self.accuracy() {
-            s.push_str(&format!(
-                "overall accuracy: {}/{} = {:.2}%\n",
-                self.correct,
-                self.total,
-                100.0 * a
-            ));
-        }
-        s
-    }
-}
-
-/// Classify every hit of the feature tables; write `DIR/classification.parquet`. Reads a
-/// batch of rows at a time ([`for_each_input`]) and classifies its rows in parallel, so
-/// memory stays bounded whatever the table's size; rows are written in file order.
-pub fn classify_tables(
-    model: &Model,
-    paths: &[PathBuf],
-    reference: Option<&str>,
-    out: &Path,
-    sources: SourceRows,
-    read: ReadErroneous,
-) -> Result<Confusion, SomError> {
-    use rayon::prelude::*;
-    std::fs::create_dir_all(out).map_err(|e| werr(out, e))?;
-    let path = ClassifyDir::new(out).classification();
-    let table = classification_table();
-    let mut w =
-        TableWriter::create(&path, table.schema(), &[], 4096).map_err(|e| werr(&path, e))?;
-    let erroneous = Mechanism::Erroneous.as_str();
-    let labels = &model.som.labels;
-    // The quality check reads the map's erroneous area only where the map has one (a map
-    // labelled by experiment or channel is read as it is).
-    let gate = read == ReadErroneous::QualityCheck && labels.iter().any(|l| l == erroneous);
-    let other = |j: usize| {
-        labels
-            .get(j)
-            .is_some_and(|l| !l.is_empty() && l != erroneous)
-    };
-    let mut conf = Confusion {
-        reading: Reading {
-            rule: if gate { read } else { ReadErroneous::Map }.as_str().into(),
-            ..Default::default()
-        },
-        ..Default::default()
-    };
-    let mut rows = 0usize;
-    for_each_input(paths, &model.columns, reference, sources, |inp| {
-        if inp.keys.is_empty() {
-            return Ok(());
-        }
-        if inp.dim() != model.som.dim {
-            return Err(SomError::Data(format!(
-                "feature dimension {} differs from the model's {}",
-                inp.dim(),
-                model.som.dim
-            )));
-        }
-        rows += inp.keys.len();
-        // Each row's BMU (and, where the quality check re-reads it, its nearest node of
-        // another class): independent per row, so computed in parallel.
-        let found: Vec<(usize, f64, Option<usize>)> = (0..inp.keys.len())
-            .into_par_iter()
-            .map_init(
-                || vec![0.0; inp.dim()],
-                |x, i| {
-                    x.iter_mut().zip(inp.data.row(i)).for_each(|(a, b)| *a = *b);
-                    if let Some(s) = &model.scaling {
-                        s.apply(x);
-                    }
-                    let (b, d, node) = model.som.classify(x);
-                    let reread =
-                        (gate && inp.quality[i] == Quality::Sound && node == Some(erroneous))
-                            .then(|| model.som.bmu_among(x, other).map(|(j, _)| j))
-                            .flatten();
-                    (b, d, reread)
-                },
-            )
-            .collect();
-        for (i, (b, d, reread)) in found.into_iter().enumerate() {
-            let node = labels.get(b).map(String::as_str).unwrap_or("").to_string();
-            let quality_fault = match &inp.quality[i] {
-                Quality::Fault(f) => Some(f.clone()),
-                _ => None,
-            };
-            let l = match (&inp.quality[i], gate) {
-                (_, false) => node.clone(),
-                (Quality::Unknown, true) => {
-                    conf.reading.unknown += 1;
-                    node.clone()
-                }
-                (Quality::Fault(_), true) => {
-                    conf.reading.faults += 1;
-                    erroneous.to_string()
-                }
-                (Quality::Sound, true) if node == erroneous => match reread {
-                    Some(j) => {
-                        conf.reading.reread += 1;
-                        labels[j].clone()
-                    }
-                    None => node.clone(),
-                },
-                (Quality::Sound, true) => node.clone(),
-            };
-            if let Some(r) = &inp.labels[i] {
-                conf.hits
-                    .entry(r.clone())
-                    .or_insert_with(|| vec![0.0; model.som.nodes()])[b] += 1.0;
-                *conf.counts.entry((l.clone(), r.clone())).or_default() += 1;
-                conf.total += 1;
-                if &l == r {
-                    conf.correct += 1;
-                }
-            }
-            w.push(table.row(Classified {
-                key: inp.keys[i].clone(),
-                bmu_row: b / model.som.cols,
-                bmu_col: b % model.som.cols,
-                bmu_distance: d,
-                som_label: l,
-                node_label: node,
-                quality_fault,
-                reference_label: inp.labels[i].clone(),
-            }))
-            .map_err(|e| werr(&path, e))?;
-        }
-        Ok(())
-    })?;
-    if rows == 0 {
-        return Err(SomError::NoUsableRows);
-    }
-    w.finish().map_err(|e| werr(&path, e))?;
-    Ok(conf)
-}
+pub use super::classify::{
+    classification_table, classify_tables, Classified, ClassifyRules, Confusion, Reading,
+};

@@ -8,6 +8,7 @@
 
 use super::{ColType, ColumnSpec, Row, TableSchema, Value};
 use crate::model::columns as cols;
+use crate::model::crack::{af_khz, crack_mode, ra_ms_per_v, CrackModeConfig};
 use crate::model::{AeRecord, HitRow, MarkerRow, ParametricRow, RecordKind, Reject};
 use std::sync::Arc;
 
@@ -215,8 +216,17 @@ pub fn rejects_table() -> Table<Reject> {
 }
 
 /// The hit table: one row per hit of every source, with the acquisition system's own
-/// features (see `data-schema/hits.md` for each vendor's name of each column).
-pub fn hits_table() -> Table<HitRow> {
+/// features (see `data-schema/hits.md` for each vendor's name of each column) and the RA–AF
+/// crack mode by `crack` (`[crack_mode]`; the schema does not depend on it).
+pub fn hits_table(crack: CrackModeConfig) -> Table<HitRow> {
+    let ra = |h: &HitRow| match (h.rise_time_s, h.amplitude_db) {
+        (Some(r), Some(db)) => ra_ms_per_v(r, crate::model::db_to_v(db)),
+        _ => None,
+    };
+    let af = |h: &HitRow| match (h.counts, h.duration_s) {
+        (Some(c), Some(d)) => af_khz(c, d),
+        _ => None,
+    };
     let f = |name: &str, unit: &str, doc: &str| {
         ColumnSpec::new(name, ColType::Float64, unit, doc).nullable()
     };
@@ -232,6 +242,9 @@ pub fn hits_table() -> Table<HitRow> {
         .col(f("duration_s", "s", "duration"), |h| Value::F64(h.duration_s))
         .col(ColumnSpec::new("counts", ColType::Int64, "", "threshold crossings").nullable(), |h| Value::I64(h.counts))
         .col(ColumnSpec::new("counts_to_peak", ColType::Int64, "", "crossings up to the peak").nullable(), |h| Value::I64(h.counts_to_peak))
+        .col(f("ra_ms_per_v", "ms/V", "RA value: rise_time_s over the peak amplitude in volts (from amplitude_db), JCMS-IIIB5706; null without both"), move |h| Value::F64(ra(h)))
+        .col(f("af_khz", "kHz", "average frequency: counts over duration_s; null without counts or a positive duration"), move |h| Value::F64(af(h)))
+        .col(ColumnSpec::new("crack_mode", ColType::Utf8, "", "tensile above the line af_khz = crack_mode.af_per_ra × ra_ms_per_v (default 1 kHz per ms/V), shear on or below it; null where RA or AF is (see docs/crack-mode in docs/classification.md)").nullable(), move |h| Value::Str(crack_mode(ra(h), af(h), crack.af_per_ra).map(|m| m.as_str().to_string())))
         .col(f(cols::ENERGY_EU.name, "eu", "Vallen energy (1 eu = 1e-14 V²s)"), |h| Value::F64(h.energy_eu))
         .col(f("energy_counts", "", "MISTRAS energy counts (ENER)"), |h| Value::F64(h.energy_counts))
         .col(f("abs_energy_aj", "aJ", "MISTRAS absolute energy"), |h| Value::F64(h.abs_energy_aj))
@@ -321,14 +334,14 @@ mod tests {
         assert_eq!(batch.num_rows(), 1);
         for schema in [
             markers_table().schema(),
-            hits_table().schema(),
+            hits_table(Default::default()).schema(),
             rejects_table().schema(),
         ] {
             assert!(!schema.columns.is_empty());
         }
         let m = markers_table();
         assert!(super::super::rows_to_batch(&m.schema(), &[m.row(MarkerRow::default())]).is_ok());
-        let h = hits_table();
+        let h = hits_table(Default::default());
         assert!(super::super::rows_to_batch(&h.schema(), &[h.row(HitRow::default())]).is_ok());
     }
 

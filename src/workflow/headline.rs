@@ -1,6 +1,7 @@
 //! What a run tells its caller: the terminal's headline lines and the JSON summary.
 
 use super::*;
+use crate::model::Mechanism;
 
 /// Series (experiment × channel) the terminal gives a line each; a study of more says how
 /// many more and where they are.
@@ -67,6 +68,7 @@ pub fn headline(s: &RunSummary) -> Vec<String> {
                 .collect::<Vec<_>>()
                 .join(", ")
         ));
+        l.push(m.confusion.novelty.describe());
         l.extend(m.profile.iter().take(SERIES_LINES).map(|p| p.line()));
         more(&mut l, m.profile.len(), &m.profile_table);
         if let Some(a) = m.confusion.accuracy() {
@@ -92,10 +94,23 @@ pub fn headline(s: &RunSummary) -> Vec<String> {
         }
         let (ek, en) = t.erroneous_recall();
         let (ok, all) = t.thesis_overall();
+        let called = t.erroneous_called();
         l.push(format!(
-            "erroneous records recognised: {ek}/{en}; overall the thesis's way (mechanism or erroneous, over all hits): {ok}/{all} = {:.1} %",
+            "erroneous records kept from the mechanisms: {ek}/{en} ({called} called erroneous, {} unlike the references); overall the thesis's way (mechanism, or an erroneous record kept from the mechanisms, over all hits): {ok}/{all} = {:.1} %",
+            ek - called,
             100.0 * ok as f64 / all.max(1) as f64
         ));
+        let (bn, bt) = t.unlike(&[Mechanism::BondFailure, Mechanism::FibreFailure]);
+        let (en, et) = t.unlike(&[Mechanism::Erroneous]);
+        let (xn, xt) = t.unlike(&[Mechanism::Both]);
+        if s.som
+            .as_ref()
+            .is_some_and(|m| m.confusion.novelty.threshold.is_some())
+        {
+            l.push(format!(
+                "unlike the references, by truth: bond and fibre failures {bn}/{bt}, erroneous {en}/{et}, both {xn}/{xt}"
+            ));
+        }
         l.push("Table 5.4 (share of each SOM class's hits):".into());
         l.extend(t.format_table_5_4().lines().map(|x| format!("  {x}")));
     }
@@ -157,6 +172,15 @@ pub fn summary_json(s: &RunSummary) -> serde_json::Value {
             "classes": m.classes,
             "agreement_with_criteria": {"correct": m.confusion.correct, "total": m.confusion.total},
             "reading": m.confusion.reading.describe(),
+            "novelty": {
+                "threshold": m.confusion.novelty.threshold,
+                "quantile": m.confusion.novelty.quantile,
+                "calibrated_on": m.confusion.novelty.calibrated_on,
+                "per_experiment": m.confusion.novelty.per_experiment.iter()
+                    .map(|(e, (n, t))| (e.clone(), json!({"novel": n, "classified": t})))
+                    .collect::<serde_json::Map<_, _>>(),
+                "undescribed": m.confusion.novelty.undescribed(),
+            },
         })
     });
     let truth = s.truth.as_ref().map(|t| {
@@ -165,7 +189,7 @@ pub fn summary_json(s: &RunSummary) -> serde_json::Value {
         json!({
             "path": path(&t.path),
             "bond_vs_fibre": {"correct": t.bond_fibre_correct, "total": t.bond_fibre_total},
-            "erroneous_recognised": {"correct": ek, "total": en},
+            "erroneous_recognised": {"correct": ek, "total": en, "called_erroneous": t.erroneous_called(), "novel": ek - t.erroneous_called()},
             "thesis_overall": {"correct": ok, "total": all},
         })
     });

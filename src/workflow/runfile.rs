@@ -70,7 +70,7 @@ pub fn rebuild_report(dir: &Path) -> Result<PathBuf, WorkflowError> {
             Some(&config.som.label),
             sdir.path(),
             config.source_rows(),
-            config.som.read_erroneous,
+            crate::som::tables::ClassifyRules::of(&config.som),
         )?;
         let existing = |p: PathBuf| p.is_file().then_some(p);
         let trained = Trained {

@@ -23,10 +23,10 @@ pub const TABLES: &[&str] = &[
 /// The schema of a written table by name (one of [`TABLES`]).
 pub fn table_schema(name: &str, cfg: &PipelineConfig) -> Option<crate::store::TableSchema> {
     Some(match name {
-        "features" => crate::features::features_table(&cfg.dsp).schema(),
+        "features" => crate::features::features_table(&cfg.dsp, cfg.crack_mode).schema(),
         "waveforms" => crate::store::waveforms_table().schema(),
         "rejects" => crate::store::rejects_table().schema(),
-        "hits" => crate::store::hits_table().schema(),
+        "hits" => crate::store::hits_table(Default::default()).schema(),
         "parametric" => crate::store::parametric_table().schema(),
         "markers" => crate::store::markers_table().schema(),
         "events" => crate::events::events_table().schema(),

@@ -73,7 +73,7 @@ pub(super) fn som_stage(
             Some(&cfg.som.label),
             som_dir.path(),
             cfg.source_rows(),
-            cfg.som.read_erroneous,
+            crate::som::tables::ClassifyRules::of(&cfg.som),
         )?;
         crate::plot::u_matrix_png(&som_dir.u_matrix(), &model.som)?;
         crate::plot::hit_maps_png(&som_dir.hit_maps(), &model.som, &confusion.hits)?;

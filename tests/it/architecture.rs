@@ -519,6 +519,7 @@ fn class_names_come_only_from_model() {
                 "erroneous",
                 "both",
                 "criteria_label",
+                "unlike_references",
             ] {
                 if l.contains(&format!("\"{name}\"")) {
                     found.push(format!("{}: {}", f.display(), l.trim()));

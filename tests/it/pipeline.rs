@@ -391,3 +391,91 @@ fn python_readers_open_every_table() {
         "{so}"
     );
 }
+
+/// Issue 39 part 4: the RA–AF columns of both tables follow from their own rise time,
+/// amplitude, counts and duration, and `[crack_mode] af_per_ra` moves the line: each hit's
+/// mode is the side of the line its (RA, AF) lies on, recomputed here.
+#[test]
+fn ra_af_and_crack_mode_follow_from_each_row_and_the_configured_line() {
+    let t = crate::TempDir::new("crack-mode");
+    for (slope, name) in [(1.0, "one"), (2000.0, "steep")] {
+        let cfg = aepipe::config::PipelineConfig::from_toml(&format!(
+            "[crack_mode]\naf_per_ra = {slope}\n"
+        ))
+        .unwrap();
+        let feats = crate::synthetic_features(&t.path().join(name), "crk", 60, 4, &cfg, 1);
+        // The system's own hit features: the real Vallen set's (aepipe's synthetic .pridb
+        // stores no rise time or duration, so its hits have no RA–AF).
+        let mut tables = vec![(feats.clone(), "peak_amplitude_v")];
+        if let Some(real) = crate::real_data("ra_af_and_crack_mode_follow_from_each_row") {
+            let r = aepipe::pipeline::run(
+                aepipe::pipeline::StreamJob::Features,
+                &[real.join("vallen")],
+                &t.path().join(name).join("real"),
+                &cfg,
+                &aepipe::pipeline::StreamOptions::with_threads(1),
+            )
+            .unwrap();
+            tables.push((r.table_path.with_file_name("hits.parquet"), "amplitude_db"));
+        }
+        for (table, amp) in tables {
+            let (rise, counts, dur) = ("rise_time_s", "counts", "duration_s");
+            let (names, rows) = crate::table_rows(&table);
+            let k = |n: &str| names.iter().position(|c| c == n).unwrap();
+            let num = |r: &Vec<String>, n: &str| r[k(n)].parse::<f64>().ok();
+            let (mut tensile, mut shear) = (0, 0);
+            for r in &rows {
+                let a = num(r, amp).map(|a| {
+                    if amp == "amplitude_db" {
+                        1e-6 * 10f64.powf(a / 20.0)
+                    } else {
+                        a
+                    }
+                });
+                let ra = match (num(r, rise), a) {
+                    (Some(x), Some(a)) if a > 0.0 => Some(x * 1e3 / a),
+                    _ => None,
+                };
+                let af = match (num(r, counts), num(r, dur)) {
+                    (Some(c), Some(d)) if d > 0.0 => Some(c / (d * 1e3)),
+                    _ => None,
+                };
+                let close = |got: Option<f64>, want: Option<f64>| match (got, want) {
+                    (Some(g), Some(w)) => (g - w).abs() <= 1e-9 * w.abs().max(1e-12),
+                    (None, None) => true,
+                    _ => false,
+                };
+                assert!(
+                    close(num(r, "ra_ms_per_v"), ra),
+                    "{}: RA {r:?}",
+                    table.display()
+                );
+                assert!(close(num(r, "af_khz"), af), "{}: AF {r:?}", table.display());
+                let want = match (ra, af) {
+                    (Some(x), Some(y)) if y > slope * x => "tensile",
+                    (Some(_), Some(_)) => "shear",
+                    _ => "",
+                };
+                assert_eq!(r[k("crack_mode")], want, "{r:?}");
+                tensile += usize::from(want == "tensile");
+                shear += usize::from(want == "shear");
+            }
+            // Each line splits this test's hits into both modes somewhere, or the test
+            // would not tell a moved line from a fixed one.
+            if slope > 1.0 {
+                assert!(
+                    shear > 0,
+                    "{}: no shear hit at slope {slope}",
+                    table.display()
+                );
+            } else {
+                assert!(
+                    tensile > 0,
+                    "{}: no tensile hit at slope {slope}",
+                    table.display()
+                );
+            }
+        }
+    }
+    assert!(aepipe::config::PipelineConfig::from_toml("[crack_mode]\naf_per_ra = 0\n").is_err());
+}

@@ -45,7 +45,10 @@ fn som_trained_on_criteria_labels_classifies_the_experiment() {
         Some("criteria_label"),
         &out,
         Default::default(),
-        aepipe::config::ReadErroneous::Map,
+        aepipe::som::tables::ClassifyRules {
+            read: aepipe::config::ReadErroneous::Map,
+            ..Default::default()
+        },
     )
     .unwrap();
     let acc = conf.accuracy().unwrap();
@@ -113,7 +116,8 @@ fn som_pak_codebook_classifies_like_the_model_and_carries_its_labels() {
     let from_cod = load_model(&dir.join("model.cod")).unwrap();
     assert_eq!(from_cod.som.weights, m.som.weights);
     assert_eq!(from_cod.som.labels, m.som.labels);
-    let classes = |model: &aepipe::som::tables::Model, out: &str| -> Vec<String> {
+    // (som_label, novel) per row.
+    let read = |model: &aepipe::som::tables::Model, out: &str| -> Vec<(String, String)> {
         let o = t.path().join(out);
         classify(
             model,
@@ -125,11 +129,31 @@ fn som_pak_codebook_classifies_like_the_model_and_carries_its_labels() {
         )
         .unwrap();
         let (names, rows) = table_rows(&o.join("classification.parquet"));
-        let k = names.iter().position(|n| n == "som_label").unwrap();
-        rows.into_iter().map(|r| r[k].clone()).collect()
+        let k = |c: &str| names.iter().position(|n| n == c).unwrap();
+        rows.into_iter()
+            .map(|r| (r[k("som_label")].clone(), r[k("novel")].clone()))
+            .collect()
     };
-    let a = classes(&m, "a");
-    assert_eq!(classes(&from_cod, "b"), a);
+    let classes = |model: &aepipe::som::tables::Model, out: &str| -> Vec<String> {
+        read(model, out).into_iter().map(|r| r.0).collect()
+    };
+    // The trained map carries its novelty calibration; a codebook does not, so its rows'
+    // `novel` is null and a hit the trained map calls unlike the references keeps its
+    // node's class. Every other hit is classed alike.
+    assert!(m.novelty.is_some() && from_cod.novelty.is_none());
+    let a_rows = read(&m, "a");
+    let b_rows = read(&from_cod, "b");
+    assert!(a_rows.iter().all(|r| r.1 == "true" || r.1 == "false"));
+    assert!(b_rows.iter().all(|r| r.1.is_empty()), "{:?}", &b_rows[..3]);
+    assert_eq!(a_rows.len(), b_rows.len());
+    for (x, y) in a_rows.iter().zip(&b_rows) {
+        if x.1 == "true" {
+            assert_eq!(x.0, "unlike_references");
+        } else {
+            assert_eq!(x.0, y.0);
+        }
+    }
+    let a = classes(&from_cod, "b2");
     // Every node relabelled "x" in the text, as a SOM_PAK user would edit it.
     let text = std::fs::read_to_string(dir.join("model.cod")).unwrap();
     let relabelled: String = text

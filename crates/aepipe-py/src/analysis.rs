@@ -6,6 +6,7 @@ use crate::errors;
 use crate::frames::ArrowStream;
 use aepipe::analysis::trend::{run_trend, TrendOptions};
 use aepipe::config::Cutoff;
+use aepipe::som::novelty::Novelty;
 use aepipe::som::tables::{load_model, save_model, Composition, Model, Scaling, TrainingSet};
 use aepipe::som::{Som, SomParams};
 use aepipe::store::SourceRows;
@@ -127,6 +128,10 @@ pub fn som_fit(
     }
     let model = py.detach(move || -> Result<Model, aepipe::som::SomError> {
         let mut som = Som::fit(&params, data.view())?;
+        // Every row given is a reference (and its own source): each held out once for the
+        // novelty threshold.
+        let origin: Vec<usize> = (0..data.nrows()).collect();
+        let novelty = Novelty::calibrate(&params, data.view(), &origin, &origin, seed)?;
         let mut composition = Composition::new();
         if let Some(l) = &labels {
             let keep: Vec<usize> = (0..l.len()).filter(|&i| l[i].is_some()).collect();
@@ -159,6 +164,7 @@ pub fn som_fit(
             },
             composition,
             calibration: Composition::new(),
+            novelty,
             tool_version: env!("CARGO_PKG_VERSION").into(),
         })
     });
@@ -225,6 +231,18 @@ impl SomModel {
     #[getter]
     fn training_qe(&self) -> Option<Vec<f64>> {
         self.model.som.log.as_ref().map(|l| l.qe.clone())
+    }
+
+    /// The novelty threshold for a quantile in (0, 1]: the conformal quantile of the
+    /// distances of references held out of the map (`aepipe::som::novelty`); None when the
+    /// map carries no calibration.
+    fn novelty_threshold(&self, quantile: f64) -> PyResult<Option<f64>> {
+        if !(quantile > 0.0 && quantile <= 1.0) {
+            return Err(pyo3::exceptions::PyValueError::new_err(format!(
+                "quantile {quantile} is not in (0, 1]"
+            )));
+        }
+        Ok(self.model.novelty.as_ref().map(|n| n.threshold(quantile)))
     }
 
     /// The weights as rows × cols × dim (in the map's scaled space).

@@ -73,7 +73,7 @@ pub fn features_of_signals(
 ) -> PyResult<ArrowStream> {
     let cfg = config_of(config)?;
     let pool = pool(threads)?;
-    let table = features_table(&cfg.dsp);
+    let table = features_table(&cfg.dsp, cfg.crack_mode);
     let mut rows = Vec::with_capacity(signals.len());
     let mut line = progress.then(|| ProgressLine::new("signals"));
     for (c, chunk) in signals.chunks(CHUNK).enumerate() {

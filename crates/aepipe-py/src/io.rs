@@ -161,7 +161,8 @@ pub fn read_hits(
     config: Option<PathBuf>,
     progress: bool,
 ) -> PyResult<(ArrowStream, Vec<RejectTuple>)> {
-    let table = store::hits_table();
+    // The RA–AF line of the given pipeline (`[crack_mode]`).
+    let table = store::hits_table(config_of(config.clone())?.crack_mode);
     let schema = table.schema();
     read_table(
         py,
