@@ -14,7 +14,8 @@
 //! - [`events`]: hits → events (VisualAE's event builder), source location, zones.
 //! - [`sim`]: the hybrid vibro-acoustic simulator and reference libraries (ch. 3–4).
 //! - [`analysis`]: trend statistics of the features (ch. 4.5.5).
-//! - [`som`]: the self-organising map, its tables and the damage profile (ch. 5).
+//! - [`som`]: the self-organising map, its tables, novelty and the damage profile (ch. 5).
+//! - [`cluster`]: clustering hits by their own features, validity indices, the choice of k.
 //! - [`config`]: the pipeline file: every room's settings gathered and checked into a
 //!   `ValidConfig`.
 //! - [`inspect`]: human summaries of what the inputs hold.
@@ -32,6 +33,7 @@ pub mod analysis;
 pub mod bench;
 #[cfg(feature = "cli")]
 pub mod cli;
+pub mod cluster;
 pub mod config;
 pub mod demo;
 pub mod dsp;

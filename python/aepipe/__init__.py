@@ -19,6 +19,7 @@ from . import _aepipe, pickers
 from ._aepipe import (
     AepipeError,
     BenchError,
+    ClusterError,
     ConfigError,
     FeatureError,
     IngestError,
@@ -36,6 +37,7 @@ from ._aepipe import (
     WorkflowError,
 )
 from ._analysis import Som, trend
+from ._cluster import cluster, validity_indices
 from ._features import cwt, features
 from ._jobs import reference_library, run, simulate
 from ._read import iter_waveforms, read_hits, read_waveforms
@@ -45,6 +47,7 @@ __version__: str = _aepipe.__version__
 __all__ = [
     "AepipeError",
     "BenchError",
+    "ClusterError",
     "ConfigError",
     "FeatureError",
     "IngestError",
@@ -61,6 +64,7 @@ __all__ = [
     "SynthError",
     "TrendError",
     "WorkflowError",
+    "cluster",
     "cwt",
     "features",
     "iter_waveforms",
@@ -71,4 +75,5 @@ __all__ = [
     "run",
     "simulate",
     "trend",
+    "validity_indices",
 ]

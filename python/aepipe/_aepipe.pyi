@@ -10,6 +10,7 @@ __version__: str
 
 class AepipeError(Exception): ...
 class ConfigError(AepipeError): ...
+class ClusterError(AepipeError): ...
 class IngestError(AepipeError): ...
 class FeatureError(AepipeError): ...
 class StoreError(AepipeError): ...
@@ -116,6 +117,24 @@ def trend(
     paths: list[str], cutoff: str = "peak-load", columns: list[str] | None = None, alpha: float = 0.01,
     exclude_outside: bool = False, min_load_span_n: float = 1.0,
 ) -> ArrowStream: ...
+def cluster_fit(
+    x: npt.NDArray[np.float64],
+    key: list[float],
+    method: str = ...,
+    k_min: int = ...,
+    k_max: int = ...,
+    seed: int = ...,
+    n_init: int = ...,
+    choose: str = ...,
+    max_fit_rows: int = ...,
+    silhouette_rows: int = ...,
+) -> tuple[
+    tuple[npt.NDArray[np.int64], npt.NDArray[np.float64], npt.NDArray[np.float64]],
+    list[tuple[str, int, float | None, float | None, int, float | None, float | None, float | None, float, int, bool]],
+]: ...
+def cluster_validity(
+    x: npt.NDArray[np.float64], labels: list[int]
+) -> tuple[float | None, float | None, float | None, float]: ...
 def som_fit(
     x: npt.NDArray[np.float64],
     labels: list[str | None] | None,

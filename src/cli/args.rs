@@ -84,6 +84,10 @@ pub enum Cmd {
     /// Self-organising map (ch. 5): train, classify, show
     #[command(subcommand)]
     Som(SomCmd),
+    /// Cluster hits by their own z-scored features (k-means++, Gaussian mixtures, or a SOM's
+    /// codebook clustered), k chosen by a validity index: DIR/clusters.parquet,
+    /// validity.parquet, model.json, validity.png
+    Cluster(ClusterArgs),
     /// Print the column table of an output table (features, waveforms, rejects, trend, classification)
     Schema(SchemaArgs),
     /// Simulate AEs with the hybrid mass/spring + acoustic model (ch. 3–4): DIR/waveforms.parquet
@@ -197,6 +201,39 @@ pub struct CwtArgs {
     pub png: PathBuf,
     #[arg(long)]
     pub config: Option<PathBuf>,
+}
+
+#[derive(clap::Args)]
+pub struct ClusterArgs {
+    /// features.parquet files
+    #[arg(required = true)]
+    pub features: Vec<PathBuf>,
+    #[arg(long)]
+    pub out: PathBuf,
+    /// A pipeline TOML whose [cluster] gives the defaults the flags below override
+    #[arg(long)]
+    pub config: Option<PathBuf>,
+    /// kmeans | gmm | som-kmeans
+    #[arg(long)]
+    pub method: Option<String>,
+    /// The number of clusters, or a range tried (2..8)
+    #[arg(long, value_parser = crate::cluster::settings::parse_k)]
+    pub k: Option<(usize, usize)>,
+    /// Feature columns, comma-separated (default: the usual hit features, RA, AF, peak and
+    /// centroid frequency and the power ratios; tf_bins adds the 200 bins)
+    #[arg(long, value_delimiter = ',')]
+    pub columns: Vec<String>,
+    /// davies-bouldin | silhouette | calinski-harabasz | bic: how k is chosen
+    #[arg(long)]
+    pub choose: Option<String>,
+    #[arg(long)]
+    pub seed: Option<u64>,
+    /// k-means restarts
+    #[arg(long)]
+    pub n_init: Option<usize>,
+    /// Rows the fit sees (a seeded sample of a larger input; every row is assigned)
+    #[arg(long)]
+    pub max_fit_rows: Option<usize>,
 }
 
 #[derive(clap::Args)]

@@ -44,6 +44,7 @@ pub fn dispatch(cli: Cli) -> Result<Outcome> {
         Cmd::Cwt(a) => cwt(a),
         Cmd::Trend(a) => trend(a),
         Cmd::Som(which) => som(which),
+        Cmd::Cluster(a) => cluster(a),
         Cmd::Schema(a) => schema(a),
         Cmd::Simulate(a) => simulate(a),
         Cmd::Reference(a) => reference(a),
@@ -352,6 +353,47 @@ fn inspect(a: InspectArgs) -> Result<Outcome> {
         ))
         .into());
     }
+    Ok(Outcome::Success)
+}
+
+fn cluster(a: ClusterArgs) -> Result<Outcome> {
+    use crate::cluster::{settings::Choose, ClusterError, Method};
+    let cfg = load_config(a.config.as_deref())?;
+    let mut c = cfg.cluster.clone();
+    if let Some(m) = &a.method {
+        c.method = Method::parse(m).ok_or_else(|| {
+            ClusterError::Settings(format!("--method {m}: kmeans, gmm or som-kmeans"))
+        })?;
+    }
+    if let Some((lo, hi)) = a.k {
+        (c.k_min, c.k_max) = (lo, hi);
+    }
+    if !a.columns.is_empty() {
+        c.columns = a.columns;
+    }
+    if let Some(r) = &a.choose {
+        c.choose = Choose::parse(r).ok_or_else(|| {
+            ClusterError::Settings(format!(
+                "--choose {r}: davies-bouldin, silhouette, calinski-harabasz or bic"
+            ))
+        })?;
+    }
+    c.seed = a.seed.unwrap_or(c.seed);
+    c.n_init = a.n_init.unwrap_or(c.n_init);
+    c.max_fit_rows = a.max_fit_rows.unwrap_or(c.max_fit_rows);
+    let c = c.check()?;
+    let rep =
+        crate::cluster::cluster_tables(&a.features, &a.out, &c, cfg.source_rows(), &cfg.hash())?;
+    print!("{}", print::cluster_report(&rep));
+    let png = a.out.join("validity.png");
+    crate::plot::validity_png(&png, &rep.validity)?;
+    println!(
+        "wrote {}, {}, {} and {}",
+        rep.clusters.display(),
+        rep.validity_table.display(),
+        rep.model.display(),
+        png.display()
+    );
     Ok(Outcome::Success)
 }
 

@@ -284,3 +284,40 @@ pub fn watch_bench(r: &crate::live::bench::WatchBenchResult) {
     );
     println!("{} hits committed in {} flushes", r.committed, r.flushes);
 }
+
+/// `aepipe cluster`'s table: each k's indices, the chosen one starred, then the clusters.
+pub fn cluster_report(r: &crate::cluster::ClusterReport) -> String {
+    let opt = |v: Option<f64>| v.map_or("–".to_string(), |v| format!("{v:.4}"));
+    let mut s = format!(
+        "{} rows clustered on {} columns ({} left out: a null or non-finite feature); fit on {} rows\n",
+        r.rows,
+        r.columns.len(),
+        r.skipped,
+        r.fit_rows
+    );
+    s += &format!(
+        "{:<11} {:>3} {:>14} {:>11} {:>18} {:>14} {:>14}\n",
+        "method", "k", "Davies-Bouldin", "silhouette", "Calinski-Harabasz", "BIC", "inertia"
+    );
+    for v in &r.validity {
+        s += &format!(
+            "{:<11} {:>3} {:>14} {:>11} {:>18} {:>14} {:>14.4}{}\n",
+            v.method.as_str(),
+            v.k,
+            opt(v.davies_bouldin),
+            opt(v.silhouette),
+            opt(v.calinski_harabasz),
+            v.bic.map_or("–".into(), |b| format!("{b:.1}")),
+            v.inertia,
+            if v.chosen { "  *" } else { "" }
+        );
+    }
+    let sizes: Vec<String> = r
+        .sizes
+        .iter()
+        .enumerate()
+        .map(|(c, n)| format!("{c}: {n}"))
+        .collect();
+    s += &format!("k = {}: hits per cluster {}\n", r.k, sizes.join(", "));
+    s
+}

@@ -46,6 +46,8 @@ pub enum SettingsError {
     Som(#[from] SomSettingsError),
     #[error(transparent)]
     CrackMode(#[from] crate::model::crack::CrackModeError),
+    #[error("{0}")]
+    Cluster(String),
     /// `[pipeline]` or `[live]`.
     #[error("{key} {rule}, got {value}")]
     Run {
@@ -128,6 +130,9 @@ pub struct PipelineConfig {
     /// `aepipe run` stages after the features.
     pub trend: TrendConfig,
     pub som: SomConfig,
+    /// Clustering by the hits' own features (`aepipe cluster`; `aepipe run` with
+    /// `enabled = true`).
+    pub cluster: crate::cluster::ClusterConfig,
     pub report: ReportConfig,
     /// The test machine's own load file beside the AE files.
     pub load: LoadConfig,
@@ -345,6 +350,7 @@ impl PipelineConfig {
             evolution,
             trend,
             som,
+            cluster,
             report,
             load,
             live,
@@ -365,6 +371,10 @@ impl PipelineConfig {
             evolution: evolution.check()?.into_inner(),
             trend: trend.check()?.into_inner(),
             som: som.check()?.into_inner(),
+            cluster: cluster
+                .check()
+                .map_err(|e| SettingsError::Cluster(e.to_string()))?
+                .into_inner(),
             report,
             load: load.check()?.into_inner(),
             live,

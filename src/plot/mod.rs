@@ -7,7 +7,9 @@
 
 pub mod sources;
 
+mod cluster;
 use crate::model::AeRecord;
+pub use cluster::{ra_af_png, validity_png};
 use ndarray::ArrayView2;
 use plotters::coord::types::RangedCoordf64;
 use plotters::prelude::*;

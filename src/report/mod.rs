@@ -42,6 +42,8 @@ pub struct RunSummary {
     pub trend: Option<TrendReport>,
     pub trend_plots: Vec<(String, PathBuf)>,
     pub som: Option<SomStage>,
+    /// The clustering stage (`[cluster] enabled`).
+    pub cluster: Option<ClusterStage>,
     pub truth: Option<TruthScore>,
     /// Events and location against the truth's sources (a synthetic test with sensors).
     pub sources: Option<SourceScore>,
@@ -62,6 +64,14 @@ impl RunSummary {
             })
             .collect()
     }
+}
+
+/// The clustering stage of a run.
+pub struct ClusterStage {
+    pub report: crate::cluster::ClusterReport,
+    pub validity_png: PathBuf,
+    /// RA against AF coloured by cluster, and by SOM class when the SOM ran.
+    pub ra_af_pngs: Vec<(String, PathBuf)>,
 }
 
 /// The SOM stage of a run.
@@ -397,6 +407,7 @@ pre{{background:#f6f6f6;padding:8px;overflow-x:auto}}.missing{{color:#b00}}</sty
     classes_section(&mut h, g);
     trend_section(&mut h, s);
     som_section(&mut h, s);
+    cluster_section(&mut h, s);
     profile_section(&mut h, s);
     sources::sources_section(&mut h, s);
     sources::evolution_section(&mut h, s);
@@ -563,6 +574,48 @@ fn som_section(h: &mut String, s: &RunSummary) {
             esc(&m.confusion.format())
         );
     }
+}
+
+fn cluster_section(h: &mut String, s: &RunSummary) {
+    let Some(c) = &s.cluster else { return };
+    let r = &c.report;
+    let chosen = r.validity.iter().find(|v| v.chosen);
+    let _ = write!(
+        h,
+        "<h2>Clusters of the hits' own features</h2><p>{} rows on {} z-scored columns ({} left out for a null feature; fitted on {}). Method {}, k = {} chosen by the {} index from {}..{}. Hits per cluster (numbered by rising mean peak frequency): {}.</p>",
+        r.rows,
+        r.columns.len(),
+        r.skipped,
+        r.fit_rows,
+        chosen.map_or("", |v| v.method.as_str()),
+        r.k,
+        esc(s.config.cluster.choose.as_str()),
+        s.config.cluster.k_min,
+        s.config.cluster.k_max,
+        r.sizes.iter().enumerate().map(|(c, n)| format!("{c}: {n}")).collect::<Vec<_>>().join(", ")
+    );
+    h.push_str(&img(
+        &c.validity_png,
+        "validity indices against k",
+        Some(1100),
+    ));
+    h.push_str("<table><tr><th>k</th><th>Davies–Bouldin</th><th>silhouette</th><th>Calinski–Harabasz</th><th>BIC</th><th>inertia</th></tr>");
+    let o = |v: Option<f64>| v.map_or("–".to_string(), |v| format!("{v:.4}"));
+    for v in &r.validity {
+        let _ = write!(
+            h,
+            "<tr><td>{}{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{:.2}</td></tr>",
+            v.k,
+            if v.chosen { " *" } else { "" },
+            o(v.davies_bouldin),
+            o(v.silhouette),
+            o(v.calinski_harabasz),
+            v.bic.map_or("–".to_string(), |b| format!("{b:.1}")),
+            v.inertia
+        );
+    }
+    h.push_str("</table>");
+    figures(h, &c.ra_af_pngs, "RA against AF", "");
 }
 
 fn profile_section(h: &mut String, s: &RunSummary) {

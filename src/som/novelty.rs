@@ -227,7 +227,7 @@ impl NoveltyReading {
         let bad = self.undescribed();
         if !bad.is_empty() {
             s += &format!(
-                ". More than half of {} unlike the references: the map's classes do not describe {}; group {} hits by their own features instead (clustering)",
+                ". More than half of {} unlike the references: the map's classes do not describe {}; group {} hits by their own features instead (aepipe cluster, or [cluster] enabled = true in the pipeline)",
                 if bad.len() == 1 { format!("{} is", bad[0]) } else { format!("each of {} tests is", bad.len()) },
                 if bad.len() == 1 { "this test" } else { "these tests" },
                 if bad.len() == 1 { "its" } else { "their" }

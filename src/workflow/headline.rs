@@ -83,6 +83,23 @@ pub fn headline(s: &RunSummary) -> Vec<String> {
     if let Some(sc) = &s.sources {
         l.extend(sc.lines());
     }
+    if let Some(c) = &s.cluster {
+        let r = &c.report;
+        l.push(format!(
+            "clusters ({}): k = {} by {} of {}..{}; hits per cluster {}",
+            r.validity.first().map_or("", |v| v.method.as_str()),
+            r.k,
+            s.config.cluster.choose.as_str(),
+            s.config.cluster.k_min,
+            s.config.cluster.k_max,
+            r.sizes
+                .iter()
+                .enumerate()
+                .map(|(c, n)| format!("{c}: {n}"))
+                .collect::<Vec<_>>()
+                .join(", ")
+        ));
+    }
     if let Some(t) = &s.truth {
         if let Some(a) = t.accuracy() {
             l.push(format!(
@@ -207,6 +224,13 @@ pub fn summary_json(s: &RunSummary) -> serde_json::Value {
         "trend_significant": trend,
         "som": som,
         "truth": truth,
+        "cluster": s.cluster.as_ref().map(|c| json!({
+            "k": c.report.k,
+            "method": c.report.validity.first().map(|v| v.method.as_str()),
+            "sizes": c.report.sizes,
+            "clusters": path(&c.report.clusters),
+            "validity": path(&c.report.validity_table),
+        })),
         "seconds": s.seconds.iter().map(|(k, v)| (k.clone(), json!(v))).collect::<serde_json::Map<_, _>>(),
         "peak_rss_bytes": s.peak_rss.iter().map(|(k, v)| (k.clone(), json!(v))).collect::<serde_json::Map<_, _>>(),
         "headline": headline(s),

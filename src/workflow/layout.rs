@@ -36,6 +36,11 @@ impl RunDir {
         ClassifyDir::new(self.0.join("som"))
     }
 
+    /// The clustering stage's tables and pictures.
+    pub fn cluster(&self) -> PathBuf {
+        self.0.join("cluster")
+    }
+
     /// The trained map.
     pub fn som_model(&self) -> ModelDir {
         ModelDir::new(self.0.join("som").join("model"))

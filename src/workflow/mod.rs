@@ -29,6 +29,8 @@ pub enum WorkflowError {
     #[error(transparent)]
     Som(#[from] SomError),
     #[error(transparent)]
+    Cluster(#[from] crate::cluster::ClusterError),
+    #[error(transparent)]
     Sim(#[from] crate::sim::SimError),
     #[error(transparent)]
     Synth(#[from] crate::synth::SynthError),
@@ -62,6 +64,7 @@ impl crate::util::HasKind for WorkflowError {
             WorkflowError::Pipeline(x) => x.kind(),
             WorkflowError::Trend(x) => x.kind(),
             WorkflowError::Som(x) => x.kind(),
+            WorkflowError::Cluster(x) => x.kind(),
             WorkflowError::Sim(x) => x.kind(),
             WorkflowError::Synth(x) => x.kind(),
             WorkflowError::Store(x) => x.kind(),
@@ -253,6 +256,15 @@ pub fn analyse(
         job.go_on()?;
         som = Some(som_stage(job, &feats, &features.events_path, &mut log)?);
     }
+    let cluster = if cfg.cluster.enabled {
+        job.go_on()?;
+        let dir = job.dir().cluster();
+        Some(log.time("clustering", || {
+            cluster::cluster_stage(cfg, &feats, &dir, som.as_ref())
+        })?)
+    } else {
+        None
+    };
     let (truth, sources) = match job.truth {
         Some(_) => log.time("truth", || {
             truth::scores(job.truth, som.as_ref(), &features, cfg)
@@ -266,6 +278,7 @@ pub fn analyse(
         trend,
         trend_plots,
         som,
+        cluster,
         truth,
         sources,
         config: cfg.clone(),
@@ -296,6 +309,7 @@ fn input_err(p: &Path, m: impl std::fmt::Display) -> WorkflowError {
     }
 }
 
+mod cluster;
 mod headline;
 pub mod layout;
 mod pictures;

@@ -89,6 +89,17 @@ pub fn rebuild_report(dir: &Path) -> Result<PathBuf, WorkflowError> {
             trained,
         )?);
     }
+    // The clustering is deterministic (its seed is in the config): redone.
+    let cluster = if config.cluster.enabled && run.cluster().is_dir() {
+        Some(super::cluster::cluster_stage(
+            &config,
+            &feats,
+            &run.cluster(),
+            som.as_ref(),
+        )?)
+    } else {
+        None
+    };
     let (truth, sources) =
         super::truth::scores(f.truth.as_deref(), som.as_ref(), &features, &config)?;
     let summary = RunSummary {
@@ -98,6 +109,7 @@ pub fn rebuild_report(dir: &Path) -> Result<PathBuf, WorkflowError> {
         trend,
         trend_plots,
         som,
+        cluster,
         truth,
         sources,
         config,

@@ -18,6 +18,8 @@ pub const TABLES: &[&str] = &[
     "sim_waveforms",
     "sim_trajectories",
     "truth",
+    "clusters",
+    "validity",
 ];
 
 /// The schema of a written table by name (one of [`TABLES`]).
@@ -37,6 +39,8 @@ pub fn table_schema(name: &str, cfg: &PipelineConfig) -> Option<crate::store::Ta
         "sim_waveforms" => crate::sim::output::sim_waveforms_table().schema(),
         "sim_trajectories" => crate::sim::output::trajectory_table().schema(),
         "truth" => crate::synth::truth_table().schema(),
+        "clusters" => crate::cluster::stage::clusters_table().schema(),
+        "validity" => crate::cluster::stage::validity_table().schema(),
         _ => return None,
     })
 }

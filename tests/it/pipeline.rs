@@ -479,3 +479,58 @@ fn ra_af_and_crack_mode_follow_from_each_row_and_the_configured_line() {
     }
     assert!(aepipe::config::PipelineConfig::from_toml("[crack_mode]\naf_per_ra = 0\n").is_err());
 }
+
+/// Issue 39 part 3: `aepipe cluster` writes the tables its schema files document, one
+/// validity row per k with one chosen, and a cluster for every usable row; bad settings
+/// are usage errors naming the key.
+#[test]
+fn cluster_command_writes_the_documented_tables() {
+    let t = crate::TempDir::new("cluster-cli");
+    let feats = crate::synthetic_features(
+        t.path(),
+        "clu",
+        120,
+        6,
+        &aepipe::config::ValidConfig::default(),
+        1,
+    );
+    let out = t.path().join("c");
+    let (code, so, se) = crate::aepipe(&[
+        "cluster",
+        feats.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--method",
+        "gmm",
+        "--k",
+        "2..5",
+    ]);
+    assert_eq!(code, 0, "{so}{se}");
+    check_against_schema_file(&out.join("clusters.parquet"), "clusters.md");
+    check_against_schema_file(&out.join("validity.parquet"), "validity.md");
+    let (names, rows) = table_rows(&out.join("validity.parquet"));
+    let k = |n: &str| names.iter().position(|c| c == n).unwrap();
+    let ks: Vec<&str> = rows.iter().map(|r| r[k("k")].as_str()).collect();
+    assert_eq!(ks, ["2", "3", "4", "5"]);
+    assert_eq!(rows.iter().filter(|r| r[k("chosen")] == "true").count(), 1);
+    assert!(rows.iter().all(|r| !r[k("bic")].is_empty()));
+    let (_, feat_rows) = table_rows(&feats);
+    let (cn, crows) = table_rows(&out.join("clusters.parquet"));
+    let p = cn.iter().position(|c| c == "cluster_probability").unwrap();
+    assert!(crows
+        .iter()
+        .all(|r| r[p].parse::<f64>().is_ok_and(|v| (0.0..=1.0).contains(&v))));
+    // Every row of the synthetic set has every default column: all clustered.
+    assert_eq!(crows.len(), feat_rows.len());
+    assert!(so.contains("hits per cluster"), "{so}");
+    let (code, _, se) = crate::aepipe(&[
+        "cluster",
+        feats.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--k",
+        "1..3",
+    ]);
+    assert_eq!(code, 1);
+    assert!(se.contains("k_min"), "{se}");
+}

@@ -1003,3 +1003,102 @@ fn the_pickers_give_vallenaes_index_on_every_real_vallen_record() {
     assert!(n >= 4 * 1180, "{n}");
     assert!(differ.is_empty(), "{}", differ.join("\n"));
 }
+
+/// Issue 39 part 3: the adjusted Rand index of each clustering method against the six break
+/// angles of the PLB-angle set, beside the SOM's (trained on the even hits' angle labels),
+/// all on the 373 odd hits; the README states each (printed with `--nocapture`).
+#[test]
+fn clusters_of_the_plb_angles_against_the_soms_classes() {
+    let name = "clusters_of_the_plb_angles_against_the_soms_classes";
+    let Some(real) = crate::real_data(name) else {
+        return;
+    };
+    let t = TempDir::new("vendor-plb-ari");
+    let r = run(
+        StreamJob::Features,
+        &[real.join("plb_angle_waveexplorer")],
+        &t.path().join("f"),
+        &aepipe::config::ValidConfig::default(),
+        &opts(),
+    )
+    .unwrap();
+    let (even, odd) = (t.path().join("even.parquet"), t.path().join("odd.parquet"));
+    if python(name, "split_features.py", &[&r.table_path, &even, &odd]).is_none() {
+        return;
+    }
+    let s = |p: &Path| p.display().to_string();
+    let (m, c) = (t.path().join("m"), t.path().join("c"));
+    for args in [
+        vec![
+            "som",
+            "train",
+            &s(&even),
+            "--label",
+            "experiment",
+            "--out",
+            &s(&m),
+        ],
+        vec![
+            "som",
+            "classify",
+            &s(&m),
+            &s(&odd),
+            "--label",
+            "experiment",
+            "--out",
+            &s(&c),
+        ],
+    ] {
+        let (code, out, err) = aepipe(&args);
+        assert_eq!(code, 0, "{out}{err}");
+    }
+    let mut specs = vec![format!(
+        "som={}:som_label",
+        s(&c.join("classification.parquet"))
+    )];
+    for method in ["kmeans", "gmm", "som-kmeans"] {
+        for (tag, k) in [("k6", "6"), ("chosen", "2..8")] {
+            let out = t.path().join(format!("{method}-{tag}"));
+            let (code, so, err) = aepipe(&[
+                "cluster",
+                &s(&odd),
+                "--out",
+                &s(&out),
+                "--method",
+                method,
+                "--k",
+                k,
+            ]);
+            assert_eq!(code, 0, "{so}{err}");
+            specs.push(format!(
+                "{method} {tag}={}:cluster",
+                s(&out.join("clusters.parquet"))
+            ));
+        }
+    }
+    let mut args: Vec<PathBuf> = vec![odd.clone(), PathBuf::from("experiment")];
+    args.extend(specs.iter().map(PathBuf::from));
+    let refs: Vec<&Path> = args.iter().map(PathBuf::as_path).collect();
+    let Some(js) = python(name, "ari.py", &refs) else {
+        return;
+    };
+    let v: serde_json::Value = serde_json::from_str(js.trim()).unwrap();
+    let readme =
+        std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("README.md")).unwrap();
+    for (k, ari) in v.as_object().unwrap() {
+        println!(
+            "PLB angles, adjusted Rand index, {k}: {:.3}",
+            ari.as_f64().unwrap()
+        );
+    }
+    for (k, ari) in v.as_object().unwrap() {
+        let ari = ari.as_f64().unwrap();
+        // Better than chance (0) on six angles that differ in their waveforms.
+        assert!(ari > 0.05, "{k}: ARI {ari}");
+        let stated = format!("{k}: {ari:.3}");
+        assert!(
+            readme.contains(&stated),
+            "the README does not state '{stated}'"
+        );
+    }
+}

@@ -289,3 +289,133 @@ impl SomModel {
         PyArray2::from_owned_array(py, self.model.som.u_matrix())
     }
 }
+
+/// One `validity.parquet` row: (method, k, davies_bouldin, silhouette, silhouette_rows,
+/// calinski_harabasz, bic, log_likelihood, inertia, rows, chosen).
+type ValidityTuple = (
+    String,
+    usize,
+    Option<f64>,
+    Option<f64>,
+    usize,
+    Option<f64>,
+    Option<f64>,
+    Option<f64>,
+    f64,
+    usize,
+    bool,
+);
+
+/// Each row's cluster, distance to its centroid and (mixtures) probability.
+type Assigned<'py> = (
+    Bound<'py, PyArray1<i64>>,
+    Bound<'py, PyArray1<f64>>,
+    Bound<'py, PyArray1<f64>>,
+);
+
+/// Cluster the finite rows of `x` (z-scored here): `aepipe cluster` on a matrix. `key`
+/// orders the clusters (the raw peak frequency). Returns (cluster, distance, probability —
+/// NaN for the methods without one) per row, and the validity rows of every k.
+#[pyfunction]
+#[pyo3(signature = (x, key, method="kmeans", k_min=2, k_max=8, seed=2008, n_init=10, choose="davies-bouldin", max_fit_rows=50_000, silhouette_rows=5_000))]
+#[allow(clippy::too_many_arguments)]
+pub fn cluster_fit<'py>(
+    py: Python<'py>,
+    x: PyReadonlyArray2<'py, f64>,
+    key: Vec<f64>,
+    method: &str,
+    k_min: usize,
+    k_max: usize,
+    seed: u64,
+    n_init: usize,
+    choose: &str,
+    max_fit_rows: usize,
+    silhouette_rows: usize,
+) -> PyResult<(Assigned<'py>, Vec<ValidityTuple>)> {
+    use aepipe::cluster::{ClusterConfig, Method};
+    let method = Method::parse(method).ok_or_else(|| {
+        PyValueError::new_err(format!("method {method}: kmeans, gmm or som-kmeans"))
+    })?;
+    let choose = aepipe::cluster::Choose::parse(choose).ok_or_else(|| {
+        PyValueError::new_err(format!(
+            "choose {choose}: davies-bouldin, silhouette, calinski-harabasz or bic"
+        ))
+    })?;
+    let cfg = ClusterConfig {
+        method,
+        k_min,
+        k_max,
+        seed,
+        n_init,
+        choose,
+        max_fit_rows,
+        silhouette_rows,
+        ..ClusterConfig::default()
+    }
+    .check()
+    .map_err(errors::cluster)?;
+    let a = x.as_array().to_owned();
+    let (fitted, rows) = py
+        .detach(|| aepipe::cluster::cluster_matrix(a.view(), &key, &cfg))
+        .map_err(errors::cluster)?;
+    let c: Vec<i64> = rows.iter().map(|r| r.0 as i64).collect();
+    let d: Vec<f64> = rows.iter().map(|r| r.1).collect();
+    let p: Vec<f64> = rows.iter().map(|r| r.2.unwrap_or(f64::NAN)).collect();
+    let v = fitted
+        .validity
+        .iter()
+        .map(|r| {
+            (
+                r.method.as_str().to_string(),
+                r.k,
+                r.davies_bouldin,
+                r.silhouette,
+                r.silhouette_rows,
+                r.calinski_harabasz,
+                r.bic,
+                r.log_likelihood,
+                r.inertia,
+                r.rows,
+                r.chosen,
+            )
+        })
+        .collect();
+    Ok((
+        (
+            PyArray1::from_vec(py, c),
+            PyArray1::from_vec(py, d),
+            PyArray1::from_vec(py, p),
+        ),
+        v,
+    ))
+}
+
+/// Davies–Bouldin, silhouette, Calinski–Harabasz (None below 2 clusters) and inertia.
+type Indices = (Option<f64>, Option<f64>, Option<f64>, f64);
+
+/// The validity indices of a given partition of `x` (as is, not standardised):
+/// (davies_bouldin, silhouette, calinski_harabasz, inertia), the silhouette exact.
+#[pyfunction]
+pub fn cluster_validity(
+    py: Python<'_>,
+    x: PyReadonlyArray2<'_, f64>,
+    labels: Vec<usize>,
+) -> PyResult<Indices> {
+    use aepipe::cluster::validity as v;
+    let a = x.as_array().to_owned();
+    if labels.len() != a.nrows() {
+        return Err(PyValueError::new_err(format!(
+            "{} labels for {} rows",
+            labels.len(),
+            a.nrows()
+        )));
+    }
+    Ok(py.detach(|| {
+        (
+            v::davies_bouldin(a.view(), &labels),
+            v::silhouette(a.view(), &labels),
+            v::calinski_harabasz(a.view(), &labels),
+            v::inertia(a.view(), &labels),
+        )
+    }))
+}

@@ -35,6 +35,7 @@ subclasses! {
     PipelineError: "The streaming feature pipeline failed (no input, an output it cannot write, …).",
     MergeError: "`aepipe merge` refused or failed.",
     TrendError: "The trend statistics could not run (a column that is not there, a bad cut-off, …).",
+    ClusterError: "Clustering that cannot run (bad settings, too few or non-finite rows).",
     SomError: "A SOM that cannot be trained, loaded, saved or applied (bad parameters, a dimension mismatch, a model file that is not one).",
     SimError: "A simulation model or reference-library definition that is wrong, or a simulation that failed.",
     SynthError: "A synthetic experiment that cannot be built.",
@@ -69,6 +70,10 @@ pub fn pipeline(e: aepipe::pipeline::PipelineError) -> PyErr {
 
 pub fn trend(e: aepipe::analysis::trend::TrendError) -> PyErr {
     TrendError::new_err(e.to_string())
+}
+
+pub fn cluster(e: aepipe::cluster::ClusterError) -> PyErr {
+    ClusterError::new_err(e.to_string())
 }
 
 pub fn som(e: aepipe::som::SomError) -> PyErr {

@@ -36,6 +36,8 @@ fn _aepipe(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(compute::pick_energy_ratio, m)?)?;
     m.add_function(wrap_pyfunction!(analysis::trend, m)?)?;
     m.add_function(wrap_pyfunction!(analysis::som_fit, m)?)?;
+    m.add_function(wrap_pyfunction!(analysis::cluster_fit, m)?)?;
+    m.add_function(wrap_pyfunction!(analysis::cluster_validity, m)?)?;
     m.add_function(wrap_pyfunction!(jobs::simulate, m)?)?;
     m.add_function(wrap_pyfunction!(jobs::reference_library, m)?)?;
     m.add_function(wrap_pyfunction!(jobs::run, m)?)?;

@@ -1,0 +1,104 @@
+//! The clustering stage of a run (`[cluster] enabled`), and the RA–AF pictures the report
+//! shows by cluster and by SOM class.
+
+use super::*;
+use crate::model::columns as cols;
+use crate::report::{ClusterStage, SomStage};
+use std::collections::HashMap;
+
+/// Points drawn in an RA–AF scatter at most (a larger table is thinned evenly; the
+/// picture's caption says so).
+pub const RA_AF_POINTS: usize = 20_000;
+
+/// Cluster the run's feature rows into `dir`; draw the validity curves and the RA–AF
+/// scatter by cluster (and by SOM class when the SOM ran).
+pub(super) fn cluster_stage(
+    cfg: &ValidConfig,
+    feats: &[PathBuf],
+    dir: &Path,
+    som: Option<&SomStage>,
+) -> Result<ClusterStage, WorkflowError> {
+    let c = cfg.cluster.clone().check()?;
+    let report = crate::cluster::cluster_tables(feats, dir, &c, cfg.source_rows(), &cfg.hash())?;
+    let validity_png = dir.join("validity.png");
+    crate::plot::validity_png(&validity_png, &report.validity)?;
+    let slope = cfg.crack_mode.af_per_ra;
+    let mut ra_af_pngs = Vec::new();
+    let mut by = vec![("cluster", report.clusters.clone(), "cluster")];
+    if let Some(s) = som {
+        by.push(("SOM class", s.classification.clone(), "som_label"));
+    }
+    for (what, table, column) in by {
+        let (pts, every) = ra_af_points(&feats[0], &table, column, RA_AF_POINTS)?;
+        if pts.is_empty() {
+            continue;
+        }
+        let png = dir.join(format!("ra_af_{}.png", column));
+        crate::plot::ra_af_png(&png, &pts, slope, what, every)?;
+        ra_af_pngs.push((format!("RA against AF by {what}"), png));
+    }
+    Ok(ClusterStage {
+        report,
+        validity_png,
+        ra_af_pngs,
+    })
+}
+
+/// RA, AF and class of one hit drawn in a scatter.
+pub type RaAfPoint = (f64, f64, String);
+
+/// (RA, AF, class) of the rows of `classes` (keyed by hit; class read from `column` as
+/// text), every `every`-th row so that at most `max` are kept; rows without RA or AF are
+/// left out.
+pub fn ra_af_points(
+    features: &Path,
+    classes: &Path,
+    column: &str,
+    max: usize,
+) -> Result<(Vec<RaAfPoint>, usize), WorkflowError> {
+    let t = TableScan::open(classes)?;
+    let every = t.file_rows().div_ceil(max.max(1)).max(1);
+    let mut want: HashMap<HitKey, String> = HashMap::new();
+    let sel = [
+        cols::EXPERIMENT.name,
+        cols::CHANNEL.name,
+        cols::HIT.name,
+        column,
+    ];
+    let mut at = 0usize;
+    for b in t.batches(&sel) {
+        let (_, df) = b?;
+        let keys = t.hit_keys(&df)?;
+        let labels = t.as_strings(&df, column)?;
+        for (k, l) in keys.into_iter().zip(labels) {
+            if at.is_multiple_of(every) {
+                want.insert(k, l.unwrap_or_default());
+            }
+            at += 1;
+        }
+    }
+    let f = TableScan::open(features)?;
+    let mut pts = Vec::with_capacity(want.len());
+    if f.dtype("ra_ms_per_v").is_none() || f.dtype("af_khz").is_none() {
+        return Ok((pts, every));
+    }
+    let sel = [
+        cols::EXPERIMENT.name,
+        cols::CHANNEL.name,
+        cols::HIT.name,
+        "ra_ms_per_v",
+        "af_khz",
+    ];
+    for b in f.batches(&sel) {
+        let (_, df) = b?;
+        let keys = f.hit_keys(&df)?;
+        let ra = f.f64s(&df, "ra_ms_per_v")?;
+        let af = f.f64s(&df, "af_khz")?;
+        for ((k, r), a) in keys.iter().zip(ra).zip(af) {
+            if let (Some(l), Some(r), Some(a)) = (want.get(k), r, a) {
+                pts.push((r, a, l.clone()));
+            }
+        }
+    }
+    Ok((pts, every))
+}
