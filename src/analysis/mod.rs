@@ -6,6 +6,7 @@
 
 pub mod evolution;
 pub mod load;
+pub mod powerlaw;
 pub mod settings;
 pub mod stats;
 pub mod trend;

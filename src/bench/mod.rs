@@ -34,6 +34,7 @@ impl BenchError {
 }
 
 pub mod analysis;
+pub mod cluster;
 
 pub use crate::util::{peak_rss_bytes, rss_bytes};
 

@@ -88,6 +88,9 @@ pub enum Cmd {
     /// codebook clustered), k chosen by a validity index: DIR/clusters.parquet,
     /// validity.parquet, model.json, validity.png
     Cluster(ClusterArgs),
+    /// The AE energy's power law per experiment (Clauset et al. 2009: α by maximum
+    /// likelihood, x_min by the Kolmogorov–Smirnov distance): DIR/statistics.parquet
+    Statistics(StatisticsArgs),
     /// Print the column table of an output table (features, waveforms, rejects, trend, classification)
     Schema(SchemaArgs),
     /// Simulate AEs with the hybrid mass/spring + acoustic model (ch. 3–4): DIR/waveforms.parquet
@@ -169,6 +172,10 @@ pub enum BenchCmd {
     /// The whole-batch stages (trend, classification, damage profile, report) on a study of
     /// N feature rows made by repeating the demo's run: time and peak RSS per stage
     Analysis(BenchAnalysisArgs),
+    /// `aepipe cluster` (k-means, Gaussian mixture) against scikit-learn's KMeans and
+    /// GaussianMixture on the same matrix of N rows × 20 columns, each a whole process:
+    /// time and peak RSS in the same run
+    Cluster(BenchClusterArgs),
     /// `aepipe watch` following a folder that receives WAV hits at a steady rate and then a
     /// burst: each hit's lag from its file's last write to its row committed, median and p99
     Watch(BenchWatchArgs),
@@ -201,6 +208,15 @@ pub struct CwtArgs {
     pub png: PathBuf,
     #[arg(long)]
     pub config: Option<PathBuf>,
+}
+
+#[derive(clap::Args)]
+pub struct StatisticsArgs {
+    /// features.parquet (or hits.parquet) files with energy_eu
+    #[arg(required = true)]
+    pub features: Vec<PathBuf>,
+    #[arg(long)]
+    pub out: PathBuf,
 }
 
 #[derive(clap::Args)]
@@ -491,6 +507,21 @@ pub struct BenchSimArgs {
     pub steps: usize,
     #[arg(long, default_value_t = 3)]
     pub repeats: usize,
+}
+
+#[derive(clap::Args)]
+pub struct BenchClusterArgs {
+    /// Row counts, comma-separated
+    #[arg(long, value_delimiter = ',', default_value = "10000,100000,1000000")]
+    pub rows: Vec<usize>,
+    #[arg(long, default_value_t = 4)]
+    pub k: usize,
+    /// Python with scikit-learn and Polars; none: aepipe alone
+    #[arg(long)]
+    pub python: Option<PathBuf>,
+    /// Scratch folder for the matrices and outputs
+    #[arg(long, default_value = "bench-cluster")]
+    pub dir: PathBuf,
 }
 
 #[derive(clap::Args)]

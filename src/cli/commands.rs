@@ -45,6 +45,7 @@ pub fn dispatch(cli: Cli) -> Result<Outcome> {
         Cmd::Trend(a) => trend(a),
         Cmd::Som(which) => som(which),
         Cmd::Cluster(a) => cluster(a),
+        Cmd::Statistics(a) => statistics(a),
         Cmd::Schema(a) => schema(a),
         Cmd::Simulate(a) => simulate(a),
         Cmd::Reference(a) => reference(a),
@@ -356,6 +357,29 @@ fn inspect(a: InspectArgs) -> Result<Outcome> {
     Ok(Outcome::Success)
 }
 
+fn statistics(a: StatisticsArgs) -> Result<Outcome> {
+    std::fs::create_dir_all(&a.out).map_err(|e| crate::util::IoAt::new(&a.out, e))?;
+    let out = a.out.join("statistics.parquet");
+    let cfg = ValidConfig::default();
+    let rows = crate::analysis::powerlaw::run_statistics(
+        &a.features,
+        &out,
+        crate::store::SourceRows::default(),
+        &cfg.hash(),
+    )?;
+    for r in &rows {
+        match &r.fit {
+            Some(f) => println!(
+                "{}: α = {:.4} ± {:.4} above x_min {:.6e} eu ({} of {} energies), cumulative exponent {:.4}, KS {:.4}",
+                r.experiment, f.alpha, f.alpha_se, f.x_min, f.n_tail, r.n, f.alpha - 1.0, f.ks_distance
+            ),
+            None => println!("{}: {} energies, too few for a power-law fit", r.experiment, r.n),
+        }
+    }
+    println!("wrote {}", out.display());
+    Ok(Outcome::Success)
+}
+
 fn cluster(a: ClusterArgs) -> Result<Outcome> {
     use crate::cluster::{settings::Choose, ClusterError, Method};
     let cfg = load_config(a.config.as_deref())?;
@@ -533,6 +557,7 @@ fn bench(which: BenchCmd) -> Result<Outcome> {
             println!("mesh3x3-bond-failure, 250×250 grid, 40 µs (relaxation + 4 000 implicit steps + 400 FDTD steps): median {t:.3} s");
         }
         BenchCmd::Som(a) => bench_som(a)?,
+        BenchCmd::Cluster(a) => bench_cluster(a)?,
         BenchCmd::Cwt(BenchCwtArgs {
             inputs,
             peers,
@@ -590,6 +615,46 @@ fn bench(which: BenchCmd) -> Result<Outcome> {
 }
 
 /// `aepipe bench som`: time our SOM and, given the peers' folder, MiniSom on the same run.
+fn bench_cluster(a: BenchClusterArgs) -> Result<()> {
+    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/python/bench_cluster.py");
+    let rows =
+        crate::bench::cluster::bench_cluster(&a.rows, a.k, a.python.as_deref(), &script, &a.dir)?;
+    println!(
+        "aepipe cluster vs scikit-learn, k = {}, {} columns, whole processes (read, z-score, fit, write; aepipe also computes the validity indices)",
+        a.k,
+        crate::bench::cluster::DIM
+    );
+    println!(
+        "{:>9} {:<7} {:>10} {:>9} {:>12} {:>9} {:>8}",
+        "rows", "method", "aepipe s", "MB", "sklearn s", "MB", "ratio"
+    );
+    let mb = |b: u64| b as f64 / 1048576.0;
+    for r in rows {
+        let (t, m) = r.aepipe;
+        match &r.peer {
+            Some(Ok((pt, pm))) => println!(
+                "{:>9} {:<7} {:>10.2} {:>9.0} {:>12.2} {:>9.0} {:>7.1}x",
+                r.rows,
+                r.method,
+                t,
+                mb(m),
+                pt,
+                mb(*pm),
+                pt / t
+            ),
+            Some(Err(e)) => println!(
+                "{:>9} {:<7} {:>10.2} {:>9.0}  scikit-learn failed: {e}",
+                r.rows,
+                r.method,
+                t,
+                mb(m)
+            ),
+            None => println!("{:>9} {:<7} {:>10.2} {:>9.0}", r.rows, r.method, t, mb(m)),
+        }
+    }
+    Ok(())
+}
+
 fn bench_som(a: BenchSomArgs) -> Result<()> {
     let BenchSomArgs {
         inputs,

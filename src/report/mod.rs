@@ -44,6 +44,8 @@ pub struct RunSummary {
     pub som: Option<SomStage>,
     /// The clustering stage (`[cluster] enabled`).
     pub cluster: Option<ClusterStage>,
+    /// The energy power law per experiment (`statistics.parquet`).
+    pub statistics: Vec<crate::analysis::powerlaw::StatRow>,
     pub truth: Option<TruthScore>,
     /// Events and location against the truth's sources (a synthetic test with sensors).
     pub sources: Option<SourceScore>,
@@ -408,6 +410,7 @@ pre{{background:#f6f6f6;padding:8px;overflow-x:auto}}.missing{{color:#b00}}</sty
     trend_section(&mut h, s);
     som_section(&mut h, s);
     cluster_section(&mut h, s);
+    statistics_section(&mut h, s);
     profile_section(&mut h, s);
     sources::sources_section(&mut h, s);
     sources::evolution_section(&mut h, s);
@@ -616,6 +619,32 @@ fn cluster_section(h: &mut String, s: &RunSummary) {
     }
     h.push_str("</table>");
     figures(h, &c.ra_af_pngs, "RA against AF", "");
+}
+
+fn statistics_section(h: &mut String, s: &RunSummary) {
+    if s.statistics.is_empty() {
+        return;
+    }
+    h.push_str("<h2>Energy distribution (Fig. 2.1)</h2><p>The sources' AE energy above x_min follows p(E) ∝ E^−α; α by maximum likelihood, x_min by the least Kolmogorov–Smirnov distance (Clauset, Shalizi &amp; Newman 2009). With fewer than 50 energies no fit is stated.</p><table><tr><th class=l>experiment</th><th>energies</th><th>x_min (eu)</th><th>tail</th><th>α</th><th>cumulative exponent α − 1</th><th>KS distance</th></tr>");
+    for r in s.statistics.iter().take(200) {
+        match &r.fit {
+            Some(f) => {
+                let _ = write!(
+                    h,
+                    "<tr><td class=l>{}</td><td>{}</td><td>{:.4e}</td><td>{}</td><td>{:.3} ± {:.3}</td><td>{:.3}</td><td>{:.3}</td></tr>",
+                    esc(&r.experiment), r.n, f.x_min, f.n_tail, f.alpha, f.alpha_se, f.alpha - 1.0, f.ks_distance
+                );
+            }
+            None => {
+                let _ = write!(
+                    h,
+                    "<tr><td class=l>{}</td><td>{}</td><td colspan=5 class=l>too few energies for a power-law fit</td></tr>",
+                    esc(&r.experiment), r.n
+                );
+            }
+        }
+    }
+    h.push_str("</table>");
 }
 
 fn profile_section(h: &mut String, s: &RunSummary) {

@@ -17,6 +17,37 @@ fn more(l: &mut Vec<String>, n: usize, table: &Path) {
     }
 }
 
+/// The energy power law of each test (the first few) and the clustering's choice.
+fn indices_lines(s: &RunSummary) -> Vec<String> {
+    let mut l = Vec::new();
+    for r in s.statistics.iter().take(SERIES_LINES) {
+        if let Some(f) = &r.fit {
+            l.push(format!(
+                "energy power law {}: α = {:.3} ± {:.3} above {:.3e} eu ({} of {} sources; KS {:.3})",
+                r.experiment, f.alpha, f.alpha_se, f.x_min, f.n_tail, r.n, f.ks_distance
+            ));
+        }
+    }
+    if let Some(c) = &s.cluster {
+        let r = &c.report;
+        l.push(format!(
+            "clusters ({}): k = {} by {} of {}..{}; hits per cluster {}",
+            r.validity.first().map_or("", |v| v.method.as_str()),
+            r.k,
+            s.config.cluster.choose.as_str(),
+            s.config.cluster.k_min,
+            s.config.cluster.k_max,
+            r.sizes
+                .iter()
+                .enumerate()
+                .map(|(c, n)| format!("{c}: {n}"))
+                .collect::<Vec<_>>()
+                .join(", ")
+        ));
+    }
+    l
+}
+
 /// Terminal lines: the headline numbers.
 pub fn headline(s: &RunSummary) -> Vec<String> {
     let mut l = Vec::new();
@@ -83,23 +114,7 @@ pub fn headline(s: &RunSummary) -> Vec<String> {
     if let Some(sc) = &s.sources {
         l.extend(sc.lines());
     }
-    if let Some(c) = &s.cluster {
-        let r = &c.report;
-        l.push(format!(
-            "clusters ({}): k = {} by {} of {}..{}; hits per cluster {}",
-            r.validity.first().map_or("", |v| v.method.as_str()),
-            r.k,
-            s.config.cluster.choose.as_str(),
-            s.config.cluster.k_min,
-            s.config.cluster.k_max,
-            r.sizes
-                .iter()
-                .enumerate()
-                .map(|(c, n)| format!("{c}: {n}"))
-                .collect::<Vec<_>>()
-                .join(", ")
-        ));
-    }
+    l.extend(indices_lines(s));
     if let Some(t) = &s.truth {
         if let Some(a) = t.accuracy() {
             l.push(format!(

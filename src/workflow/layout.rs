@@ -36,6 +36,11 @@ impl RunDir {
         ClassifyDir::new(self.0.join("som"))
     }
 
+    /// The energy power law per experiment (`statistics.parquet`).
+    pub fn statistics(&self) -> PathBuf {
+        self.0.join("statistics.parquet")
+    }
+
     /// The clustering stage's tables and pictures.
     pub fn cluster(&self) -> PathBuf {
         self.0.join("cluster")

@@ -251,6 +251,14 @@ pub fn analyse(
         trend_plots = plots;
     }
 
+    let statistics = log.time("statistics", || {
+        crate::analysis::powerlaw::run_statistics(
+            &feats,
+            &dir.statistics(),
+            cfg.source_rows(),
+            &cfg.hash(),
+        )
+    })?;
     let mut som = None;
     if cfg.som.enabled {
         job.go_on()?;
@@ -279,6 +287,7 @@ pub fn analyse(
         trend_plots,
         som,
         cluster,
+        statistics,
         truth,
         sources,
         config: cfg.clone(),

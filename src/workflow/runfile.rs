@@ -100,6 +100,12 @@ pub fn rebuild_report(dir: &Path) -> Result<PathBuf, WorkflowError> {
     } else {
         None
     };
+    let statistics = crate::analysis::powerlaw::run_statistics(
+        &feats,
+        &run.statistics(),
+        config.source_rows(),
+        &config.hash(),
+    )?;
     let (truth, sources) =
         super::truth::scores(f.truth.as_deref(), som.as_ref(), &features, &config)?;
     let summary = RunSummary {
@@ -110,6 +116,7 @@ pub fn rebuild_report(dir: &Path) -> Result<PathBuf, WorkflowError> {
         trend_plots,
         som,
         cluster,
+        statistics,
         truth,
         sources,
         config,

@@ -20,6 +20,7 @@ pub const TABLES: &[&str] = &[
     "truth",
     "clusters",
     "validity",
+    "statistics",
 ];
 
 /// The schema of a written table by name (one of [`TABLES`]).
@@ -41,6 +42,7 @@ pub fn table_schema(name: &str, cfg: &PipelineConfig) -> Option<crate::store::Ta
         "truth" => crate::synth::truth_table().schema(),
         "clusters" => crate::cluster::stage::clusters_table().schema(),
         "validity" => crate::cluster::stage::validity_table().schema(),
+        "statistics" => crate::analysis::powerlaw::statistics_table().schema(),
         _ => return None,
     })
 }

@@ -534,3 +534,35 @@ fn cluster_command_writes_the_documented_tables() {
     assert_eq!(code, 1);
     assert!(se.contains("k_min"), "{se}");
 }
+
+/// Issue 39 part 5: `aepipe statistics` writes the documented table, one row per
+/// experiment, and says when there are too few energies for a fit.
+#[test]
+fn statistics_command_writes_the_documented_table() {
+    let t = crate::TempDir::new("statistics-cli");
+    let feats = crate::synthetic_features(
+        t.path(),
+        "stat",
+        80,
+        2,
+        &aepipe::config::ValidConfig::default(),
+        1,
+    );
+    let out = t.path().join("s");
+    let (code, so, se) = crate::aepipe(&[
+        "statistics",
+        feats.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert_eq!(code, 0, "{so}{se}");
+    check_against_schema_file(&out.join("statistics.parquet"), "statistics.md");
+    let (names, rows) = table_rows(&out.join("statistics.parquet"));
+    assert_eq!(rows.len(), 1);
+    let k = |n: &str| names.iter().position(|c| c == n).unwrap();
+    assert_eq!(rows[0][k("n_energy")], "80");
+    // 80 energies: a fit of at least 50 above x_min, α > 1.
+    let a: f64 = rows[0][k("energy_alpha")].parse().unwrap();
+    assert!(a > 1.0, "{so}");
+    assert!(so.contains("α = "), "{so}");
+}
