@@ -30,6 +30,9 @@ pub struct Source {
     pub key: HitKey,
     pub time_s: Option<f64>,
     pub load_n: Option<f64>,
+    pub extension_m: Option<f64>,
+    /// The test's strain energy ∫P dx up to this source (see [`StrainEnergy`]).
+    pub strain_energy_j: Option<f64>,
     /// Peak amplitude of the source's first hit, dB_AE.
     pub amplitude_db: Option<f64>,
     /// Energy of the source's first hit (the sensor nearest to it), eu.
@@ -48,6 +51,10 @@ pub struct EvolutionRow {
     pub key: HitKey,
     pub time_s: Option<f64>,
     pub load_n: Option<f64>,
+    pub extension_m: Option<f64>,
+    pub strain_energy_j: Option<f64>,
+    /// ln(Es / Ea): Es the strain energy, Ea the series' cumulative AE energy.
+    pub sentry: Option<f64>,
     pub cum_sources: u64,
     pub cum_hits: u64,
     pub cum_energy_eu: f64,
@@ -158,12 +165,19 @@ impl<'a> Series<'a> {
         } else {
             (None, None)
         };
+        let sentry = match s.strain_energy_j {
+            Some(es) if es > 0.0 && self.energy > 0.0 => Some((es / self.energy).ln()),
+            _ => None,
+        };
         EvolutionRow {
             experiment: self.experiment.to_string(),
             class: self.class.to_string(),
             key: s.key.clone(),
             time_s: s.time_s,
             load_n: s.load_n,
+            extension_m: s.extension_m,
+            strain_energy_j: s.strain_energy_j,
+            sentry,
             cum_sources: self.n,
             cum_hits: self.hits,
             cum_energy_eu: self.energy,
@@ -171,6 +185,75 @@ impl<'a> Series<'a> {
             ib_value: ib,
         }
     }
+}
+
+/// The strain energy of a test, Es = ∫P dx by the trapezoid rule over the sources'
+/// (extension, load) in time order. A source without both adds nothing; `None` until a
+/// second point with both (a test without load or extension has no Es).
+#[derive(Debug, Clone, Default)]
+pub struct StrainEnergy {
+    last: Option<(f64, f64)>,
+    sum: Option<f64>,
+}
+
+impl StrainEnergy {
+    /// Add a source; Es so far.
+    pub fn add(&mut self, extension_m: Option<f64>, load_n: Option<f64>) -> Option<f64> {
+        if let (Some(x), Some(p)) = (extension_m, load_n) {
+            if x.is_finite() && p.is_finite() {
+                if let Some((x0, p0)) = self.last {
+                    *self.sum.get_or_insert(0.0) += 0.5 * (p + p0) * (x - x0);
+                }
+                self.last = Some((x, p));
+            }
+        }
+        self.sum
+    }
+}
+
+/// The columns of the test's mechanics: extension, strain energy and the sentry function.
+fn strain_columns(t: Table<EvolutionRow>) -> Table<EvolutionRow> {
+    t
+        .col(
+            ColumnSpec::new(
+                cols::EXTENSION_M.name,
+                ColType::Float64,
+                "m",
+                "test-machine extension at the source (null: none)",
+            )
+            .nullable(),
+            |r| Value::F64(r.extension_m),
+        )
+        .col(
+            ColumnSpec::new(
+                "strain_energy_j",
+                ColType::Float64,
+                "J",
+                "the test's strain energy up to the source, ∫P dx by the trapezoid rule over every source's (extension, load) in time order, whatever its class (null without load and extension, or a load that is no load)",
+            )
+            .nullable(),
+            |r| Value::F64(r.strain_energy_j),
+        )
+        .col(
+            ColumnSpec::new(
+                "sentry",
+                ColType::Float64,
+                "1",
+                "the sentry function ln(Es / Ea) (Minak et al. 2012): Es = strain_energy_j in J, Ea = cum_energy_eu in eu (so its level depends on the units; its rises, where the material stores energy, and drops, where damage releases it, are what is read); null without Es or before any AE energy",
+            )
+            .nullable(),
+            |r| Value::F64(r.sentry),
+        )
+        .col(
+            ColumnSpec::new(
+                "sentry_p",
+                ColType::Float64,
+                "N",
+                "P(x)·ln(Es / Ea): the sentry function weighted by the load at the source (null where either is)",
+            )
+            .nullable(),
+            |r| Value::F64(r.sentry.zip(r.load_n).map(|(f, p)| f * p)),
+        )
 }
 
 /// `evolution.parquet`.
@@ -216,6 +299,7 @@ pub fn evolution_table() -> Table<EvolutionRow> {
             .nullable(),
             |r| Value::F64(r.load_n),
         )
+        .pipe(strain_columns)
         .col(
             ColumnSpec::new(
                 "cum_sources",
@@ -327,12 +411,52 @@ mod tests {
         assert_eq!(ib_value(&[3.0, 3.0, 3.0], 1.0, 1.0), None);
     }
 
+    /// A linear-elastic test, P = k·x, with one AE source of 3 eu per step: the trapezoid
+    /// integral is exact, Es = k·x²/2, and the sentry function is ln(k·x²/2 / (3·n)) at the
+    /// n-th source (n ≥ 1 after the first point). Without extension there is none.
+    #[test]
+    fn strain_energy_and_sentry_of_an_analytic_series() {
+        let k = 2.0e5; // N/m
+        let p = EvolutionParams::of(&EvolutionConfig::default());
+        let mut series = Series::new("e", "all", &p);
+        let mut strain = StrainEnergy::default();
+        for n in 0..50i64 {
+            let x = 1e-5 * n as f64;
+            let es = strain.add(Some(x), Some(k * x));
+            let row = series.step(&Source {
+                key: ("e".into(), 1, n),
+                time_s: Some(n as f64),
+                load_n: Some(k * x),
+                extension_m: Some(x),
+                strain_energy_j: es,
+                amplitude_db: None,
+                energy_eu: Some(3.0),
+                hits: 1,
+                class: "b".into(),
+            });
+            if n == 0 {
+                assert_eq!(row.strain_energy_j, None);
+                assert_eq!(row.sentry, None);
+                continue;
+            }
+            let want_es = k * x * x / 2.0;
+            assert!((row.strain_energy_j.unwrap() - want_es).abs() < 1e-12 * want_es.max(1e-30));
+            let want = (want_es / (3.0 * (n + 1) as f64)).ln();
+            assert!((row.sentry.unwrap() - want).abs() < 1e-12, "n {n}");
+        }
+        let mut none = StrainEnergy::default();
+        assert_eq!(none.add(None, Some(1.0)), None);
+        assert_eq!(none.add(Some(1.0), None), None);
+    }
+
     #[test]
     fn series_count_every_source_once_and_window_from_full() {
         let src = |i: i64, class: &str, amp: f64| Source {
             key: ("e".into(), 0, i),
             time_s: Some(i as f64),
             load_n: None,
+            extension_m: None,
+            strain_energy_j: None,
             amplitude_db: Some(amp),
             energy_eu: Some(2.0),
             hits: 2,

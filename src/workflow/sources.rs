@@ -3,7 +3,7 @@
 //! Both take what the damage profile emits, sorted on disk as it passes (bounded memory).
 
 use super::*;
-use crate::analysis::evolution::{EvolutionParams, EvolutionRow, Series, Source};
+use crate::analysis::evolution::{EvolutionParams, EvolutionRow, Series, Source, StrainEnergy};
 use crate::analysis::trend::thin_every;
 use crate::model::columns as cols;
 use crate::plot::sources::LocatedSource;
@@ -22,6 +22,7 @@ struct EvoRec {
     row: u64,
     channel: i32,
     load_n: Option<f64>,
+    extension_m: Option<f64>,
     amplitude_db: Option<f64>,
     energy_eu: Option<f64>,
     hits: u64,
@@ -54,6 +55,7 @@ impl Spill for EvoRec {
             .u64(self.row)
             .i32(self.channel)
             .opt_f64(self.load_n)
+            .opt_f64(self.extension_m)
             .opt_f64(self.amplitude_db)
             .opt_f64(self.energy_eu)
             .u64(self.hits)
@@ -67,6 +69,7 @@ impl Spill for EvoRec {
             row: b.u64()?,
             channel: b.i32()?,
             load_n: b.opt_f64()?,
+            extension_m: b.opt_f64()?,
             amplitude_db: b.opt_f64()?,
             energy_eu: b.opt_f64()?,
             hits: b.u64()?,
@@ -84,6 +87,8 @@ impl EvoRec {
             key: (self.experiment.clone(), self.channel, self.hit),
             time_s: self.time_s,
             load_n: self.load_n,
+            extension_m: self.extension_m,
+            strain_energy_j: None,
             amplitude_db: self.amplitude_db,
             energy_eu: self.energy_eu,
             hits: self.hits,
@@ -114,6 +119,7 @@ impl EvolutionInput {
             row: self.rows,
             channel: r.key.1,
             load_n: r.load_n,
+            extension_m: r.extension_m,
             amplitude_db: r.amplitude_db,
             energy_eu: r.energy_eu,
             hits: r.source_hits,
@@ -159,10 +165,14 @@ pub(super) fn evolution_stage(
             let all = next == 0;
             next += 1;
             let mut series = Series::new(&exp, class, &p);
+            // The strain energy integrates every source's (extension, load), whatever its
+            // class.
+            let mut strain = StrainEnergy::default();
             let mut i = 0usize;
             let mut last = None;
             for r in sorted.span_iter(span) {
                 let r = r?;
+                let es = strain.add(r.extension_m, r.load_n);
                 if all {
                     if let Err(at) = classes.binary_search(&r.class) {
                         classes.insert(at, r.class.clone());
@@ -170,7 +180,9 @@ pub(super) fn evolution_stage(
                 } else if r.class != class {
                     continue;
                 }
-                let row = series.step(&r.source());
+                let mut src = r.source();
+                src.strain_energy_j = es;
+                let row = series.step(&src);
                 w.push(table.row(row.clone()))?;
                 if draw {
                     if i.is_multiple_of(every) {
