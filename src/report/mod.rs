@@ -86,6 +86,8 @@ pub struct SomStage {
     pub classification: PathBuf,
     pub u_matrix: Option<PathBuf>,
     pub hit_maps: Option<PathBuf>,
+    /// RA against AF by SOM class, with the crack-mode line (none without RA and AF).
+    pub ra_af_plot: Option<PathBuf>,
     /// SOM class → number of hits.
     pub classes: BTreeMap<String, usize>,
     /// The damage profile (Fig. 6.1): `damage_profile.parquet`, a summary and a picture
@@ -570,6 +572,14 @@ fn som_section(h: &mut String, s: &RunSummary) {
         }
         if let Some(p) = &m.hit_maps {
             h.push_str(&img(p, "hit maps by class", Some(700)));
+        }
+        // Beside the clusters' section when it runs; here otherwise.
+        if let (Some(p), None) = (&m.ra_af_plot, &s.cluster) {
+            h.push_str(&img(
+                p,
+                "RA against AF by SOM class (crack mode)",
+                Some(820),
+            ));
         }
         let _ = write!(
             h,

@@ -24,24 +24,44 @@ pub(super) fn cluster_stage(
     crate::plot::validity_png(&validity_png, &report.validity)?;
     let slope = cfg.crack_mode.af_per_ra;
     let mut ra_af_pngs = Vec::new();
-    let mut by = vec![("cluster", report.clusters.clone(), "cluster")];
-    if let Some(s) = som {
-        by.push(("SOM class", s.classification.clone(), "som_label"));
+    let png = dir.join("ra_af_cluster.png");
+    if ra_af_picture(
+        &feats[0],
+        &report.clusters,
+        "cluster",
+        "cluster",
+        &png,
+        slope,
+    )? {
+        ra_af_pngs.push(("RA against AF by cluster".to_string(), png));
     }
-    for (what, table, column) in by {
-        let (pts, every) = ra_af_points(&feats[0], &table, column, RA_AF_POINTS)?;
-        if pts.is_empty() {
-            continue;
-        }
-        let png = dir.join(format!("ra_af_{}.png", column));
-        crate::plot::ra_af_png(&png, &pts, slope, what, every)?;
-        ra_af_pngs.push((format!("RA against AF by {what}"), png));
+    // The SOM stage draws its own by class; the clusters' section shows it beside.
+    if let Some(p) = som.and_then(|s| s.ra_af_plot.clone()) {
+        ra_af_pngs.push(("RA against AF by SOM class".to_string(), p));
     }
     Ok(ClusterStage {
         report,
         validity_png,
         ra_af_pngs,
     })
+}
+
+/// Draw RA against AF of the rows of `classes` coloured by `column` into `png`, with the
+/// crack-mode line; false (nothing drawn) when no row has both RA and AF.
+pub fn ra_af_picture(
+    features: &Path,
+    classes: &Path,
+    column: &str,
+    what: &str,
+    png: &Path,
+    slope: f64,
+) -> Result<bool, WorkflowError> {
+    let (pts, every) = ra_af_points(features, classes, column, RA_AF_POINTS)?;
+    if pts.is_empty() {
+        return Ok(false);
+    }
+    crate::plot::ra_af_png(png, &pts, slope, what, every)?;
+    Ok(true)
 }
 
 /// RA, AF and class of one hit drawn in a scatter.

@@ -217,7 +217,17 @@ pub(super) fn classified_stage(
 ) -> Result<SomStage, WorkflowError> {
     let classes = classes_of(&confusion);
     let pr = profile_stage(cfg, features, events, som_dir)?;
+    let png = som_dir.path().join("ra_af_som_label.png");
+    let ra_af = super::cluster::ra_af_picture(
+        features,
+        &som_dir.classification(),
+        cols::SOM_LABEL.name,
+        "SOM class",
+        &png,
+        cfg.crack_mode.af_per_ra,
+    )?;
     Ok(SomStage {
+        ra_af_plot: ra_af.then_some(png),
         profile_table: som_dir.damage_profile(),
         profile: pr.summaries,
         profile_plots: pr.plots,
