@@ -117,6 +117,8 @@ def trend(
     paths: list[str], cutoff: str = "peak-load", columns: list[str] | None = None, alpha: float = 0.01,
     exclude_outside: bool = False, min_load_span_n: float = 1.0,
 ) -> ArrowStream: ...
+CLUSTER_DEFAULT_COLUMNS: list[str]
+
 def cluster_fit(
     x: npt.NDArray[np.float64],
     key: list[float],

@@ -11,19 +11,9 @@ import polars as pl
 from . import _aepipe
 from ._common import Paths, is_paths, paths_arg
 
-#: The default columns (the power ratios ``pr_*`` of the frame are added).
-DEFAULT_COLUMNS: tuple[str, ...] = (
-    "peak_amplitude_db",
-    "rise_time_s",
-    "duration_s",
-    "counts",
-    "energy_eu",
-    "rms_v",
-    "ra_ms_per_v",
-    "af_khz",
-    "peak_freq_hz",
-    "centroid_freq_hz",
-)
+#: The default columns, as ``aepipe cluster``'s (the power ratios ``pr_*`` of the frame
+#: are added).
+DEFAULT_COLUMNS: tuple[str, ...] = tuple(_aepipe.CLUSTER_DEFAULT_COLUMNS)
 
 VALIDITY_COLUMNS = (
     "method",

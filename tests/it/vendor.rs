@@ -844,15 +844,10 @@ pub(crate) fn python(test: &str, script: &str, args: &[&Path]) -> Option<String>
     }
 }
 
-/// `som train --label experiment` on the PLB-angle set: trained on the even hits, judged on
-/// the odd ones, against the same recipe in MiniSom on the same training set.
-#[test]
-fn the_som_learns_the_plb_angles_from_the_experiment_column_on_held_out_hits() {
-    let name = "the_som_learns_the_plb_angles_from_the_experiment_column_on_held_out_hits";
-    let Some(real) = crate::real_data(name) else {
-        return;
-    };
-    let t = TempDir::new("vendor-plb");
+/// The PLB-angle set's features split by hit parity into `t`: (even, odd); `None` after a
+/// skip when the real data or Python is absent.
+fn plb_halves(name: &str, t: &TempDir) -> Option<(PathBuf, PathBuf)> {
+    let real = crate::real_data(name)?;
     let r = run(
         StreamJob::Features,
         &[real.join("plb_angle_waveexplorer")],
@@ -862,9 +857,19 @@ fn the_som_learns_the_plb_angles_from_the_experiment_column_on_held_out_hits() {
     )
     .unwrap();
     let (even, odd) = (t.path().join("even.parquet"), t.path().join("odd.parquet"));
-    if python(name, "split_features.py", &[&r.table_path, &even, &odd]).is_none() {
+    python(name, "split_features.py", &[&r.table_path, &even, &odd])?;
+    Some((even, odd))
+}
+
+/// `som train --label experiment` on the PLB-angle set: trained on the even hits, judged on
+/// the odd ones, against the same recipe in MiniSom on the same training set.
+#[test]
+fn the_som_learns_the_plb_angles_from_the_experiment_column_on_held_out_hits() {
+    let name = "the_som_learns_the_plb_angles_from_the_experiment_column_on_held_out_hits";
+    let t = TempDir::new("vendor-plb");
+    let Some((even, odd)) = plb_halves(name, &t) else {
         return;
-    }
+    };
     let (m, c) = (t.path().join("m"), t.path().join("c"));
     let s = |p: &Path| p.display().to_string();
     let (code, out, err) = aepipe(&[
@@ -1010,22 +1015,10 @@ fn the_pickers_give_vallenaes_index_on_every_real_vallen_record() {
 #[test]
 fn clusters_of_the_plb_angles_against_the_soms_classes() {
     let name = "clusters_of_the_plb_angles_against_the_soms_classes";
-    let Some(real) = crate::real_data(name) else {
+    let t = TempDir::new("vendor-plb-ari");
+    let Some((even, odd)) = plb_halves(name, &t) else {
         return;
     };
-    let t = TempDir::new("vendor-plb-ari");
-    let r = run(
-        StreamJob::Features,
-        &[real.join("plb_angle_waveexplorer")],
-        &t.path().join("f"),
-        &aepipe::config::ValidConfig::default(),
-        &opts(),
-    )
-    .unwrap();
-    let (even, odd) = (t.path().join("even.parquet"), t.path().join("odd.parquet"));
-    if python(name, "split_features.py", &[&r.table_path, &even, &odd]).is_none() {
-        return;
-    }
     let s = |p: &Path| p.display().to_string();
     let (m, c) = (t.path().join("m"), t.path().join("c"));
     for args in [

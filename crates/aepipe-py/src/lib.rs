@@ -42,5 +42,9 @@ fn _aepipe(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(jobs::reference_library, m)?)?;
     m.add_function(wrap_pyfunction!(jobs::run, m)?)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
+    m.add(
+        "CLUSTER_DEFAULT_COLUMNS",
+        aepipe::cluster::settings::DEFAULT_COLUMNS.to_vec(),
+    )?;
     Ok(())
 }
