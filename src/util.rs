@@ -303,6 +303,30 @@ impl Rng {
     pub fn range(&mut self, lo: f64, hi: f64) -> f64 {
         lo + (hi - lo) * self.uniform()
     }
+    /// Shuffle `v` in place (Fisher–Yates from the back: each slot i takes a draw from
+    /// 0..=i).
+    pub fn shuffle<T>(&mut self, v: &mut [T]) {
+        for i in (1..v.len()).rev() {
+            let j = (self.next_u64() % (i as u64 + 1)) as usize;
+            v.swap(i, j);
+        }
+    }
+
+    /// `k` of the indices 0..n drawn without replacement (a partial Fisher–Yates from the
+    /// front), ascending; all of them when n ≤ k.
+    pub fn sample_sorted(&mut self, n: usize, k: usize) -> Vec<usize> {
+        let mut idx: Vec<usize> = (0..n).collect();
+        if n > k {
+            for i in 0..k {
+                let j = i + (self.next_u64() % (n - i) as u64) as usize;
+                idx.swap(i, j);
+            }
+            idx.truncate(k);
+            idx.sort_unstable();
+        }
+        idx
+    }
+
     /// Standard normal (Box–Muller).
     pub fn normal(&mut self) -> f64 {
         let u1 = self.uniform().max(1e-300);

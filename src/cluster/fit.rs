@@ -115,7 +115,7 @@ pub fn fit_matrix(
             cfg.k_max
         )));
     }
-    let z = z.as_standard_layout().to_owned();
+    let z = z.as_standard_layout();
     // The map of som-kmeans is trained once; each k clusters its codebook.
     let map = match cfg.method {
         Method::SomKmeans => {
@@ -137,7 +137,9 @@ pub fn fit_matrix(
         _ => None,
     };
     let mut cands = candidates(z.view(), map.as_ref(), cfg)?;
-    let sample = silhouette_sample(n, cfg.silhouette_rows, cfg.seed);
+    // Rows the silhouette is computed on: all, or a seeded sample of silhouette_rows.
+    let sample =
+        crate::util::Rng::new(cfg.seed ^ 0x5111_0e77e).sample_sorted(n, cfg.silhouette_rows);
     let zs = z.select(ndarray::Axis(0), &sample);
     let parts: Vec<Vec<usize>> = cands
         .iter()
@@ -245,22 +247,6 @@ fn candidates(
         cands.push((k, c));
     }
     Ok(cands)
-}
-
-/// Rows the silhouette is computed on: all, or `max` drawn without replacement (seeded),
-/// ascending.
-fn silhouette_sample(n: usize, max: usize, seed: u64) -> Vec<usize> {
-    let mut idx: Vec<usize> = (0..n).collect();
-    if n > max {
-        let mut rng = crate::util::Rng::new(seed ^ 0x5111_0e77e);
-        for i in 0..max {
-            let j = i + (rng.next_u64() % (n - i) as u64) as usize;
-            idx.swap(i, j);
-        }
-        idx.truncate(max);
-        idx.sort_unstable();
-    }
-    idx
 }
 
 /// The index of the chosen row: least DB or BIC, largest silhouette or CH; ties to the

@@ -60,7 +60,9 @@ pub fn kmeans(x: ArrayView2<f64>, p: KMeansParams) -> Result<KMeansFit, ClusterE
             p.k
         )));
     }
-    let x = x.as_standard_layout().to_owned();
+    // A view of the caller's rows (copied only if they are not in standard layout).
+    let x = x.as_standard_layout();
+    let x = x.view();
     let d = x.ncols();
     let mean_var = if n > 0 && d > 0 {
         x.var_axis(ndarray::Axis(0), 0.0).mean().unwrap_or(0.0)
@@ -72,8 +74,8 @@ pub fn kmeans(x: ArrayView2<f64>, p: KMeansParams) -> Result<KMeansFit, ClusterE
     let mut best: Option<KMeansFit> = None;
     for _ in 0..p.n_init.max(1) {
         let seed = rng.next_u64();
-        let init = plus_plus(&x, p.k, seed);
-        let fit = lloyd(&x, init, p.max_iter, tol);
+        let init = plus_plus(x, p.k, seed);
+        let fit = lloyd(x, init, p.max_iter, tol);
         if best.as_ref().is_none_or(|b| fit.inertia < b.inertia) {
             best = Some(fit);
         }
@@ -81,14 +83,14 @@ pub fn kmeans(x: ArrayView2<f64>, p: KMeansParams) -> Result<KMeansFit, ClusterE
     Ok(best.expect("n_init ≥ 1"))
 }
 
-fn row(x: &Array2<f64>, i: usize) -> &[f64] {
+fn row<'a>(x: ArrayView2<'a, f64>, i: usize) -> &'a [f64] {
     let d = x.ncols();
-    &x.as_slice().expect("standard layout")[i * d..(i + 1) * d]
+    &x.to_slice().expect("standard layout")[i * d..(i + 1) * d]
 }
 
 /// Greedy k-means++: each new centre is the best (least potential) of 2 + ⌊ln k⌋
 /// candidates drawn with probability ∝ squared distance to the nearest centre so far.
-pub fn plus_plus(x: &Array2<f64>, k: usize, seed: u64) -> Array2<f64> {
+pub fn plus_plus(x: ArrayView2<f64>, k: usize, seed: u64) -> Array2<f64> {
     let (n, d) = x.dim();
     let mut rng = Rng::new(seed);
     let trials = 2 + (k as f64).ln().floor() as usize;
@@ -133,7 +135,7 @@ pub fn plus_plus(x: &Array2<f64>, k: usize, seed: u64) -> Array2<f64> {
 }
 
 /// Each row's nearest centre and squared distance.
-fn assign(x: &Array2<f64>, centers: &Array2<f64>) -> Vec<(usize, f64)> {
+fn assign(x: ArrayView2<f64>, centers: &Array2<f64>) -> Vec<(usize, f64)> {
     (0..x.nrows())
         .into_par_iter()
         .map(|i| nearest(centers, row(x, i)))
@@ -142,7 +144,7 @@ fn assign(x: &Array2<f64>, centers: &Array2<f64>) -> Vec<(usize, f64)> {
 
 /// The means of the labelled rows; an empty cluster takes the row farthest from its own
 /// centre (one row per empty cluster, each row at most once).
-fn means(x: &Array2<f64>, lab: &[(usize, f64)], k: usize) -> Array2<f64> {
+fn means(x: ArrayView2<f64>, lab: &[(usize, f64)], k: usize) -> Array2<f64> {
     let d = x.ncols();
     let mut sums = Array2::<f64>::zeros((k, d));
     let mut counts = vec![0usize; k];
@@ -167,7 +169,7 @@ fn means(x: &Array2<f64>, lab: &[(usize, f64)], k: usize) -> Array2<f64> {
     sums
 }
 
-fn lloyd(x: &Array2<f64>, mut centers: Array2<f64>, max_iter: usize, tol: f64) -> KMeansFit {
+fn lloyd(x: ArrayView2<f64>, mut centers: Array2<f64>, max_iter: usize, tol: f64) -> KMeansFit {
     let k = centers.nrows();
     let mut lab = assign(x, &centers);
     let mut it = 0;

@@ -5,7 +5,7 @@ use super::fit::{fit_matrix, Assigner, ValidityRow};
 use super::settings::{ValidCluster, DEFAULT_COLUMNS};
 use super::ClusterError;
 use crate::model::columns as cols;
-use crate::som::tables::for_each_input;
+use crate::som::tables::{for_each_input, Scaling};
 use crate::store::{ColType, ColumnSpec, HitKey, SourceRows, Table, TableScan, TableWriter, Value};
 use ndarray::Array2;
 use std::path::{Path, PathBuf};
@@ -117,7 +117,23 @@ impl Moments {
             *s += d * (v - *m);
         }
     }
-    /// Population standard deviations, 1 for a constant column (as scikit-learn's scaler).
+    fn new(dim: usize) -> Moments {
+        Moments {
+            n: 0.0,
+            mean: vec![0.0; dim],
+            m2: vec![0.0; dim],
+        }
+    }
+
+    /// The z-scoring of these moments: the means and the population standard deviations,
+    /// 1 for a constant column (as scikit-learn's scaler and the SOM's `Scaling`).
+    fn scaling(&self) -> Scaling {
+        Scaling {
+            mean: self.mean.clone(),
+            std: self.scale(),
+        }
+    }
+
     fn scale(&self) -> Vec<f64> {
         self.m2
             .iter()
@@ -152,27 +168,11 @@ pub fn cluster_matrix(
             key.len()
         )));
     }
-    let mut mom = Moments {
-        n: 0.0,
-        mean: vec![0.0; d],
-        m2: vec![0.0; d],
-    };
+    let mut mom = Moments::new(d);
     x.rows().into_iter().for_each(|r| mom.add(r));
-    let scale = mom.scale();
-    let z = Array2::from_shape_fn((n, d), |(i, j)| (x[[i, j]] - mom.mean[j]) / scale[j]);
-    let idx: Vec<usize> = if n > cfg.max_fit_rows {
-        let mut rng = crate::util::Rng::new(cfg.seed ^ 0x7e5e_7001);
-        let mut all: Vec<usize> = (0..n).collect();
-        for i in 0..cfg.max_fit_rows {
-            let j = i + (rng.next_u64() % (n - i) as u64) as usize;
-            all.swap(i, j);
-        }
-        all.truncate(cfg.max_fit_rows);
-        all.sort_unstable();
-        all
-    } else {
-        (0..n).collect()
-    };
+    let mut z = x.as_standard_layout().to_owned();
+    mom.scaling().apply_rows(&mut z);
+    let idx = crate::util::Rng::new(cfg.seed ^ 0x7e5e_7001).sample_sorted(n, cfg.max_fit_rows);
     let zs = z.select(ndarray::Axis(0), &idx);
     let ks: Vec<f64> = idx.iter().map(|&i| key[i]).collect();
     let fitted = fit_matrix(zs.view(), &ks, cfg)?;
@@ -218,11 +218,7 @@ pub fn cluster_tables(
     let mut rng = crate::util::Rng::new(cfg.seed ^ 0x7e5e_7001);
     for_each_input(paths, &columns, None, sources, |b| {
         skipped += b.skipped;
-        let m = mom.get_or_insert_with(|| Moments {
-            n: 0.0,
-            mean: vec![0.0; b.dim()],
-            m2: vec![0.0; b.dim()],
-        });
+        let m = mom.get_or_insert_with(|| Moments::new(b.dim()));
         for r in b.data.rows() {
             m.add(r);
             if sample.len() < cap {
@@ -243,16 +239,13 @@ pub fn cluster_tables(
             columns.join(", ")
         ))
     })?;
-    let scale = mom.scale();
-    let dim = mom.mean.len();
+    let sc = mom.scaling();
+    let dim = sc.mean.len();
     let key: Vec<f64> = sample.iter().map(|r| r[key_col.min(dim - 1)]).collect();
-    let mut z = Array2::<f64>::zeros((sample.len(), dim));
-    for (i, r) in sample.iter().enumerate() {
-        for (j, v) in r.iter().enumerate() {
-            z[[i, j]] = (v - mom.mean[j]) / scale[j];
-        }
-    }
+    let mut z = Array2::from_shape_vec((sample.len(), dim), sample.concat())
+        .expect("every sampled row has the table's dimension");
     drop(sample);
+    sc.apply_rows(&mut z);
     let fitted = fit_matrix(z.view(), &key, cfg)?;
     std::fs::create_dir_all(out).map_err(|e| werr(out, e))?;
     // Pass 2: every usable row's cluster.
@@ -264,9 +257,8 @@ pub fn cluster_tables(
     let (mut x, mut post) = (vec![0.0; dim], Vec::new());
     for_each_input(paths, &columns, None, sources, |b| {
         for (key, r) in b.keys.into_iter().zip(b.data.rows()) {
-            for (j, v) in r.iter().enumerate() {
-                x[j] = (v - mom.mean[j]) / scale[j];
-            }
+            x.iter_mut().zip(r).for_each(|(a, v)| *a = *v);
+            sc.apply(&mut x);
             let (cluster, distance, probability) = fitted.model.assign(&x, &mut post);
             sizes[cluster] += 1;
             w.push(table.row(ClusterRow {
@@ -293,7 +285,7 @@ pub fn cluster_tables(
     }
     vw.finish().map_err(|e| werr(&validity_path, e))?;
     let model = out.join("model.json");
-    let json = model_json(&fitted, &columns, &mom.mean, &scale, cfg, seen, skipped);
+    let json = model_json(&fitted, &columns, &sc.mean, &sc.std, cfg, seen, skipped);
     crate::util::write_atomic(&model, json.to_string().as_bytes()).map_err(|e| werr(&model, e))?;
     Ok(ClusterReport {
         columns,

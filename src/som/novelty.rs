@@ -91,11 +91,7 @@ impl Novelty {
             return Ok(None);
         }
         // Seeded Fisher–Yates over the sources, then dealt round-robin into the folds.
-        let mut rng = crate::util::Rng::new(seed ^ 0x6e6f_7665_6c74_7921);
-        for i in (1..groups.len()).rev() {
-            let j = (rng.next_u64() % (i as u64 + 1)) as usize;
-            groups.swap(i, j);
-        }
+        crate::util::Rng::new(seed ^ 0x6e6f_7665_6c74_7921).shuffle(&mut groups);
         let fold_of: HashMap<usize, usize> = groups
             .iter()
             .enumerate()

@@ -222,10 +222,7 @@ pub fn draw_training_of(
     let mut comp = Composition::new();
     for (class, mut idx) in by_class {
         // Seeded Fisher–Yates shuffle: which hits of the class are drawn.
-        for i in (1..idx.len()).rev() {
-            let j = (rng.next_u64() % (i as u64 + 1)) as usize;
-            idx.swap(i, j);
-        }
+        rng.shuffle(&mut idx);
         if ts.balance {
             // An equal share per class; a class with fewer hits than its share is repeated.
             let distinct = per.min(idx.len());
