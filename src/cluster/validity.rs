@@ -141,7 +141,7 @@ pub fn silhouettes(x: ArrayView2<f64>, partitions: &[Vec<usize>]) -> Vec<Option<
     let x = x.as_standard_layout();
     let d = x.ncols();
     let xs = x.as_slice().expect("standard layout");
-    // Per row, per partition: Σ s(i).
+    // Per partition: Σ s(i) over the rows.
     let sums: Vec<f64> = (0..n)
         .into_par_iter()
         .map_init(
@@ -177,13 +177,14 @@ pub fn silhouettes(x: ArrayView2<f64>, partitions: &[Vec<usize>]) -> Vec<Option<
                 out
             },
         )
-        .reduce(
-            || vec![0.0; enc.len()],
-            |mut a, b| {
-                a.iter_mut().zip(b).for_each(|(x, y)| *x += y);
-                a
-            },
-        );
+        // Each row's silhouettes in row order, summed in that order: the same bits whatever
+        // the threads (a parallel reduce adds in the order the work was split).
+        .collect::<Vec<Vec<f64>>>()
+        .into_iter()
+        .fold(vec![0.0; enc.len()], |mut a, b| {
+            a.iter_mut().zip(b).for_each(|(x, y)| *x += y);
+            a
+        });
     enc.iter()
         .zip(sums)
         .map(|((_, m), s)| (*m >= 2 && *m < n).then(|| s / n as f64))
