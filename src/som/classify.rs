@@ -337,11 +337,12 @@ pub fn classify_tables(
             } else {
                 l
             };
-            let tally = conf
-                .novelty
-                .per_experiment
-                .entry(inp.keys[i].0.clone())
-                .or_default();
+            // The experiment's name is copied once, not per row.
+            let per = &mut conf.novelty.per_experiment;
+            if !per.contains_key(&inp.keys[i].0) {
+                per.insert(inp.keys[i].0.clone(), (0, 0));
+            }
+            let tally = per.get_mut(&inp.keys[i].0).expect("inserted above");
             tally.0 += usize::from(novel == Some(true));
             tally.1 += 1;
             if let Some(r) = &inp.labels[i] {
