@@ -861,6 +861,40 @@ fn plb_halves(name: &str, t: &TempDir) -> Option<(PathBuf, PathBuf)> {
     Some((even, odd))
 }
 
+/// `aepipe som train --label experiment` on `even`, then `som classify` of `odd` into `t`:
+/// (model folder, classification folder).
+fn som_on_halves(t: &TempDir, even: &Path, odd: &Path) -> (PathBuf, PathBuf) {
+    let (m, c) = (t.path().join("m"), t.path().join("c"));
+    let s = |p: &Path| p.display().to_string();
+    for args in [
+        [
+            "som",
+            "train",
+            &s(even),
+            "--label",
+            "experiment",
+            "--out",
+            &s(&m),
+        ]
+        .as_slice(),
+        [
+            "som",
+            "classify",
+            &s(&m),
+            &s(odd),
+            "--label",
+            "experiment",
+            "--out",
+            &s(&c),
+        ]
+        .as_slice(),
+    ] {
+        let (code, out, err) = aepipe(args);
+        assert_eq!(code, 0, "{out}{err}");
+    }
+    (m, c)
+}
+
 /// `som train --label experiment` on the PLB-angle set: trained on the even hits, judged on
 /// the odd ones, against the same recipe in MiniSom on the same training set.
 #[test]
@@ -870,29 +904,7 @@ fn the_som_learns_the_plb_angles_from_the_experiment_column_on_held_out_hits() {
     let Some((even, odd)) = plb_halves(name, &t) else {
         return;
     };
-    let (m, c) = (t.path().join("m"), t.path().join("c"));
-    let s = |p: &Path| p.display().to_string();
-    let (code, out, err) = aepipe(&[
-        "som",
-        "train",
-        &s(&even),
-        "--label",
-        "experiment",
-        "--out",
-        &s(&m),
-    ]);
-    assert_eq!(code, 0, "{out}{err}");
-    let (code, out, err) = aepipe(&[
-        "som",
-        "classify",
-        &s(&m),
-        &s(&odd),
-        "--label",
-        "experiment",
-        "--out",
-        &s(&c),
-    ]);
-    assert_eq!(code, 0, "{out}{err}");
+    let (m, c) = som_on_halves(&t, &even, &odd);
     let Some(js) = python(
         name,
         "som_minisom.py",
@@ -1020,31 +1032,7 @@ fn clusters_of_the_plb_angles_against_the_soms_classes() {
         return;
     };
     let s = |p: &Path| p.display().to_string();
-    let (m, c) = (t.path().join("m"), t.path().join("c"));
-    for args in [
-        vec![
-            "som",
-            "train",
-            &s(&even),
-            "--label",
-            "experiment",
-            "--out",
-            &s(&m),
-        ],
-        vec![
-            "som",
-            "classify",
-            &s(&m),
-            &s(&odd),
-            "--label",
-            "experiment",
-            "--out",
-            &s(&c),
-        ],
-    ] {
-        let (code, out, err) = aepipe(&args);
-        assert_eq!(code, 0, "{out}{err}");
-    }
+    let (_, c) = som_on_halves(&t, &even, &odd);
     let mut specs = vec![format!(
         "som={}:som_label",
         s(&c.join("classification.parquet"))
