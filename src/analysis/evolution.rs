@@ -60,6 +60,9 @@ pub struct EvolutionRow {
     pub cum_energy_eu: f64,
     pub b_value: Option<f64>,
     pub ib_value: Option<f64>,
+    /// The load cycle the source falls in, its reload's Felicity ratio and Kaiser flag
+    /// (on the onset's row only): [`super::cycles::Felicity::step`].
+    pub at_cycle: super::cycles::AtSource,
 }
 
 /// The sliding windows' parameters, checked once.
@@ -183,6 +186,7 @@ impl<'a> Series<'a> {
             cum_energy_eu: self.energy,
             b_value: b,
             ib_value: ib,
+            at_cycle: Default::default(),
         }
     }
 }
@@ -256,6 +260,40 @@ fn strain_columns(t: Table<EvolutionRow>) -> Table<EvolutionRow> {
         )
 }
 
+/// The columns of a load–unload–reload test ([`super::cycles`]).
+fn cycle_columns(t: Table<EvolutionRow>) -> Table<EvolutionRow> {
+    t.col(
+        ColumnSpec::new(
+            "cycle",
+            ColType::Int32,
+            "",
+            "the load cycle the source falls in, 1-based (a cycle runs from the valley its loading starts at to the next; a monotonic test is one cycle); null without a load, or a load that is no load",
+        )
+        .nullable(),
+        |r| Value::I32(r.at_cycle.cycle.map(|c| c as i32)),
+    )
+    .col(
+        ColumnSpec::new(
+            "felicity_ratio",
+            ColType::Float64,
+            "1",
+            "on the row of a reload's AE onset (the series' [evolution] felicity_onset_sources-th source at or above felicity_onset_db while the cycle loads): its load over the highest load before the reload; null on every other row (cycles.parquet has every cycle)",
+        )
+        .nullable(),
+        |r| Value::F64(r.at_cycle.felicity_ratio),
+    )
+    .col(
+        ColumnSpec::new(
+            "kaiser",
+            ColType::Bool,
+            "",
+            "on the same row: whether the Kaiser effect held, felicity_ratio ≥ [evolution] kaiser_min_ratio",
+        )
+        .nullable(),
+        |r| Value::Bool(r.at_cycle.kaiser),
+    )
+}
+
 /// `evolution.parquet`.
 pub fn evolution_table() -> Table<EvolutionRow> {
     Table::new("evolution")
@@ -300,6 +338,7 @@ pub fn evolution_table() -> Table<EvolutionRow> {
             |r| Value::F64(r.load_n),
         )
         .pipe(strain_columns)
+        .pipe(cycle_columns)
         .col(
             ColumnSpec::new(
                 "cum_sources",

@@ -20,7 +20,7 @@ const KEEP: usize = 4096;
 const MIN_VALUES: usize = 10;
 
 /// Streams a series' loads in time order and judges them.
-#[derive(Debug, Clone, Default)]
+#[derive(Debug, Clone)]
 pub struct LoadCheck {
     n: usize,
     min: f64,
@@ -59,13 +59,22 @@ fn median(v: &mut [f64]) -> f64 {
     }
 }
 
+impl Default for LoadCheck {
+    fn default() -> Self {
+        LoadCheck::new()
+    }
+}
+
 impl LoadCheck {
     pub fn new() -> LoadCheck {
         LoadCheck {
-            stride: 1,
+            n: 0,
             min: f64::INFINITY,
             max: f64::NEG_INFINITY,
-            ..Default::default()
+            prev: None,
+            deltas: Vec::new(),
+            stride: 1,
+            seen_deltas: 0,
         }
     }
 
@@ -110,6 +119,15 @@ impl LoadCheck {
             mean_dev * (std::f64::consts::PI / 2.0).sqrt()
         };
         Some(sigma_delta / std::f64::consts::SQRT_2)
+    }
+
+    /// The series' span, max − min (0 without values).
+    pub fn span(&self) -> f64 {
+        if self.n == 0 {
+            0.0
+        } else {
+            self.max - self.min
+        }
     }
 
     /// Whether the series' loads are a load, with `min_span_n` the smallest span that counts.

@@ -1,9 +1,11 @@
 //! Analysis of written feature tables: trend statistics over an experiment (ch. 4.5.5) and
-//! the damage evolution (cumulative sources, b- and Ib-value).
+//! the damage evolution (cumulative sources, b- and Ib-value, sentry function, load cycles
+//! with the Felicity ratio and Kaiser effect) and the energy power law.
 //!
 //! The tables are read with Polars (lazy scan, column selection); the statistics themselves
 //! are plain, tested Rust in [`stats`].
 
+pub mod cycles;
 pub mod evolution;
 pub mod load;
 pub mod powerlaw;

@@ -20,6 +20,12 @@ pub enum AnalysisSettingsError {
     Completeness(f64),
     #[error("{key} must be > 0, got {value}")]
     NotPositive { key: &'static str, value: f64 },
+    #[error("evolution.cycle_drop_fraction must be in (0, 1), got {0}")]
+    CycleDrop(f64),
+    #[error("evolution.felicity_onset_sources must be at least 1")]
+    OnsetSources,
+    #[error("evolution.felicity_onset_db must be finite, got {0}")]
+    OnsetDb(f64),
 }
 
 /// Which hits enter the statistics (in TOML and on the command line: `none`, `peak-load`,
@@ -128,6 +134,17 @@ pub struct EvolutionConfig {
     /// Shiotani's α₁ and α₂ of the Ib-value (1 and 1 in his papers).
     pub ib_alpha1: f64,
     pub ib_alpha2: f64,
+    /// A drop (and a rise after it) counts as an unloading (a reload) when it exceeds this
+    /// share of the load's span (or 5 noise σ, if more): the cycles of a load–unload–reload
+    /// test ([`super::cycles`]).
+    pub cycle_drop_fraction: f64,
+    /// The AE onset of a reload: its `felicity_onset_sources`-th source while loading …
+    pub felicity_onset_sources: usize,
+    /// … counting only sources at or above this amplitude, dB_AE (0: every source).
+    pub felicity_onset_db: f64,
+    /// The Kaiser effect holds on a reload whose Felicity ratio is at least this (1 by
+    /// the effect's definition).
+    pub kaiser_min_ratio: f64,
 }
 
 impl Default for EvolutionConfig {
@@ -137,6 +154,10 @@ impl Default for EvolutionConfig {
             completeness_db: 40.0,
             ib_alpha1: 1.0,
             ib_alpha2: 1.0,
+            cycle_drop_fraction: 0.1,
+            felicity_onset_sources: 1,
+            felicity_onset_db: 0.0,
+            kaiser_min_ratio: 1.0,
         }
     }
 }
@@ -150,9 +171,19 @@ impl EvolutionConfig {
         if !self.completeness_db.is_finite() {
             return Err(AnalysisSettingsError::Completeness(self.completeness_db));
         }
+        if !(self.cycle_drop_fraction > 0.0 && self.cycle_drop_fraction < 1.0) {
+            return Err(AnalysisSettingsError::CycleDrop(self.cycle_drop_fraction));
+        }
+        if self.felicity_onset_sources == 0 {
+            return Err(AnalysisSettingsError::OnsetSources);
+        }
+        if !self.felicity_onset_db.is_finite() {
+            return Err(AnalysisSettingsError::OnsetDb(self.felicity_onset_db));
+        }
         for (key, value) in [
             ("evolution.ib_alpha1", self.ib_alpha1),
             ("evolution.ib_alpha2", self.ib_alpha2),
+            ("evolution.kaiser_min_ratio", self.kaiser_min_ratio),
         ] {
             if !(value.is_finite() && value > 0.0) {
                 return Err(AnalysisSettingsError::NotPositive { key, value });

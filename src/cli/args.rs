@@ -353,6 +353,14 @@ pub struct SynthExperimentArgs {
     pub library: Option<PathBuf>,
     #[arg(long, default_value = "synthetic_notched_paper")]
     pub id: String,
+    /// Load–unload–reload cycles (2–9; 0: a monotonic test to failure). The designed cycles
+    /// and where AE resumes on each reload go to DIR/truth_cycles.parquet
+    #[arg(long, default_value_t = 0)]
+    pub cycles: usize,
+    /// Draw the sources' amplitudes so that the hits' energies follow a power law of this
+    /// exponent (1.35–3), for `statistics.parquet` to recover
+    #[arg(long)]
+    pub energy_exponent: Option<f64>,
 }
 
 #[derive(clap::Args)]

@@ -294,8 +294,18 @@ fn report(a: ReportArgs) -> Result<Outcome> {
 }
 
 fn synth_experiment(a: SynthExperimentArgs) -> Result<Outcome> {
-    let s =
-        crate::synth::synth_experiment(&a.out, &a.id, a.hits, a.seed, a.library.as_deref(), true)?;
+    let s = crate::synth::synth_test(
+        &a.out,
+        &a.id,
+        a.hits,
+        a.seed,
+        crate::synth::Shape {
+            cycles: a.cycles,
+            energy_exponent: a.energy_exponent,
+        },
+        a.library.as_deref(),
+        true,
+    )?;
     println!("{s}");
     Ok(Outcome::Success)
 }

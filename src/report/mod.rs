@@ -98,6 +98,9 @@ pub struct SomStage {
     /// The damage evolution (`evolution.parquet`) and its picture per experiment.
     pub evolution_table: PathBuf,
     pub evolution_plots: Vec<(String, PathBuf)>,
+    /// The `all` series' cycles of each load–unload–reload test (≥ 2 cycles; the rows of
+    /// `cycles.parquet`).
+    pub reloads: Vec<crate::analysis::cycles::CycleRow>,
     /// Where the classified events are, per experiment with located events.
     pub location_plots: Vec<(String, PathBuf)>,
 }

@@ -94,6 +94,7 @@ pub(super) fn sources_section(h: &mut String, s: &RunSummary) {
 pub(super) fn evolution_section(h: &mut String, s: &RunSummary) {
     let Some(m) = &s.som else { return };
     if m.evolution_plots.is_empty() {
+        reloads_table(h, s);
         return;
     }
     let e = &s.config.evolution;
@@ -110,4 +111,45 @@ pub(super) fn evolution_section(h: &mut String, s: &RunSummary) {
         esc(&m.evolution_table.display().to_string())
     );
     figures(h, &m.evolution_plots, "damage evolution", "");
+    reloads_table(h, s);
+}
+
+/// The Felicity ratio and Kaiser effect of each reload (load–unload–reload tests only).
+fn reloads_table(h: &mut String, s: &RunSummary) {
+    let Some(m) = &s.som else { return };
+    if m.reloads.is_empty() {
+        return;
+    }
+    let e = &s.config.evolution;
+    let _ = write!(
+        h,
+        "<h3>Load cycles: Felicity ratio and Kaiser effect</h3><p>A reload's AE onset is its \
+         source number {} (counting those at or above {} dB) while it loads; its Felicity \
+         ratio is the load there over the highest load before the reload, and the Kaiser \
+         effect holds at a ratio ≥ {}. All sources of the test (<code>cycles.parquet</code> \
+         has each class).</p><table><tr><th>experiment</th><th>cycle</th><th>peak load, N</th>\
+         <th>previous maximum, N</th><th>onset load, N</th><th>Felicity ratio</th>\
+         <th>Kaiser effect</th></tr>",
+        e.felicity_onset_sources, e.felicity_onset_db, e.kaiser_min_ratio
+    );
+    let num = |v: Option<f64>, d: usize| v.map_or("–".to_string(), |x| format!("{x:.d$}"));
+    for r in &m.reloads {
+        let kaiser = match r.kaiser {
+            None => "–",
+            Some(true) => "yes",
+            Some(false) => "no",
+        };
+        let _ = write!(
+            h,
+            "<tr><td>{}</td><td>{}</td><td>{:.2}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td></tr>",
+            esc(&r.experiment),
+            r.cycle.index,
+            r.cycle.peak_load_n,
+            num(r.cycle.previous_max_n, 2),
+            num(r.onset_load_n, 2),
+            num(r.felicity_ratio, 3),
+            kaiser
+        );
+    }
+    h.push_str("</table>");
 }

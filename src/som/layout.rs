@@ -65,6 +65,10 @@ impl ClassifyDir {
     pub fn evolution(&self) -> PathBuf {
         self.0.join("evolution.parquet")
     }
+    /// The load cycles, Felicity ratios and Kaiser flags (`analysis::cycles`).
+    pub fn cycles(&self) -> PathBuf {
+        self.0.join("cycles.parquet")
+    }
     pub fn evolution_png(&self, experiment: &str) -> PathBuf {
         self.0.join(format!(
             "evolution_{}.png",

@@ -9,8 +9,10 @@
 use crate::model::columns as cols;
 use crate::model::{AeRecord, Mechanism};
 
+pub mod loading;
 pub mod strip;
 pub use crate::util::Rng;
+pub use loading::Shape;
 pub use strip::{SourceKind, Strip, SynthHit};
 
 /// Why a synthetic experiment could not be made.
@@ -25,6 +27,9 @@ pub enum SynthError {
     Vallen { path: String, message: String },
     #[error(transparent)]
     Store(#[from] crate::store::StoreError),
+    /// `--cycles` or `--energy-exponent` out of range.
+    #[error("{0}")]
+    Shape(String),
 }
 
 impl crate::util::HasKind for SynthError {
@@ -34,6 +39,7 @@ impl crate::util::HasKind for SynthError {
             SynthError::Sim(s) => s.kind(),
             SynthError::Vallen { .. } => crate::util::ErrorKind::Failed,
             SynthError::Store(s) => s.kind(),
+            SynthError::Shape(_) => crate::util::ErrorKind::Usage,
         }
     }
 }
@@ -262,6 +268,12 @@ pub struct Experiment {
     /// Sensors on a strip: every source is heard at each, with its delay and attenuation
     /// ([`strip`]); `n_hits` then counts sources. None: one sensor, one hit per source.
     pub strip: Option<Strip>,
+    /// Load cycles ([`loading`]): 0 or 1, a monotonic test to failure; N ≥ 2, a
+    /// load–unload–reload test of N cycles.
+    pub cycles: usize,
+    /// The exponent the hits' energies follow ([`loading::power_law_amplitude`]); None:
+    /// the demo's amplitude spread.
+    pub energy_exponent: Option<f64>,
 }
 
 /// Reference-library signals by mechanism, each cut to start a little before its trigger.
@@ -373,6 +385,62 @@ impl Experiment {
             n_samples: 4096,
             library: None,
             strip: None,
+            cycles: 0,
+            energy_exponent: None,
+        }
+    }
+
+    /// The designed cycles (none for a monotonic test).
+    pub fn cycle_design(&self) -> Vec<loading::CycleDesign> {
+        match self.cycles {
+            0 | 1 => vec![],
+            n => loading::design(n, self.duration_s),
+        }
+    }
+
+    /// The test machine's load at `t`, N.
+    pub fn load_at(&self, design: &[loading::CycleDesign], t: f64) -> f64 {
+        match design.is_empty() {
+            true => load_curve(t, 0.8 * self.duration_s, loading::PEAK_N),
+            false => loading::cyclic_load(design, t),
+        }
+    }
+
+    /// The test machine's extension at `t`, m.
+    pub fn extension_at(&self, design: &[loading::CycleDesign], t: f64) -> f64 {
+        match design.is_empty() {
+            true => 1e-3 * t / self.duration_s,
+            false => loading::cyclic_extension(design, t),
+        }
+    }
+
+    /// The sources' times, sorted. A monotonic test's activity grows towards the peak
+    /// load: times ~ duration · u^(1/2.5).
+    pub(super) fn source_times(&self, design: &[loading::CycleDesign], rng: &mut Rng) -> Vec<f64> {
+        if !design.is_empty() {
+            return loading::cyclic_times(design, self.n_hits, rng);
+        }
+        let mut times: Vec<f64> = (0..self.n_hits)
+            .map(|_| self.duration_s * rng.uniform().powf(0.4))
+            .collect();
+        times.sort_by(f64::total_cmp);
+        times
+    }
+
+    /// A source's peak amplitude, V.
+    pub(super) fn amplitude(&self, rng: &mut Rng) -> f64 {
+        match self.energy_exponent {
+            Some(alpha) => loading::power_law_amplitude(alpha, rng),
+            None => 0.003 * (1.0 + 9.0 * rng.uniform().powi(3)),
+        }
+    }
+
+    /// The waveforms' ADC step, mV per count: 1 µV (±32.8 mV), or 10 µV for power-law
+    /// amplitudes (up to `loading::A_MAX_V`).
+    fn tr_mv(&self) -> f64 {
+        match self.energy_exponent {
+            Some(_) => 1e-2,
+            None => 1e-3,
         }
     }
 
@@ -419,12 +487,8 @@ impl Experiment {
 
     fn one_sensor_hits(&self) -> impl Iterator<Item = (AeRecord, String)> + Send + '_ {
         let mut rng = Rng::new(self.seed);
-        let t_peak = 0.8 * self.duration_s;
-        // AE activity grows towards the peak load: times ~ duration · u^(1/2.5).
-        let mut times: Vec<f64> = (0..self.n_hits)
-            .map(|_| self.duration_s * rng.uniform().powf(0.4))
-            .collect();
-        times.sort_by(f64::total_cmp);
+        let design = self.cycle_design();
+        let times = self.source_times(&design, &mut rng);
         times.into_iter().enumerate().map(move |(i, t)| {
             let mech = Self::mechanism(&mut rng);
             let progress = i as f64 / self.n_hits.max(1) as f64;
@@ -432,7 +496,7 @@ impl Experiment {
             spec.n_samples = self.n_samples;
             // 500 samples (50 µs) of pretrigger as in the thesis' records, less for short ones.
             spec.pretrigger = (self.n_samples / 8).min(500);
-            spec.amplitude_v = 0.003 * (1.0 + 9.0 * rng.uniform().powi(3));
+            spec.amplitude_v = self.amplitude(&mut rng);
             // Damage shifts power from ~750 to ~250 kHz as the test goes on (ch. 4.5.5).
             spec.low_share = 0.3 + 0.4 * progress;
             let (samples, source, _) = match &self.library {
@@ -448,8 +512,8 @@ impl Experiment {
                 sample_rate_hz: spec.sample_rate_hz,
                 pretrigger: spec.pretrigger as u32,
                 samples,
-                load_n: Some(load_curve(t, t_peak, 60.0)),
-                extension_m: Some(1e-3 * t / self.duration_s),
+                load_n: Some(self.load_at(&design, t)),
+                extension_m: Some(self.extension_at(&design, t)),
                 label: Some(mech.as_str().to_string()),
                 threshold_v: None,
                 source_file: String::new(),
@@ -475,12 +539,16 @@ impl Experiment {
     ) -> rusqlite::Result<(std::path::PathBuf, std::path::PathBuf)> {
         std::fs::create_dir_all(dir)
             .map_err(|e| rusqlite::Error::ToSqlConversionFailure(Box::new(e)))?;
-        let t_peak = 0.8 * self.duration_s;
+        let design = self.cycle_design();
         let steps = (self.duration_s * 10.0) as usize;
         let par: Vec<(f64, f64, f64)> = (0..=steps)
             .map(|k| {
                 let t = k as f64 / 10.0;
-                (t, load_curve(t, t_peak, 60.0), 1e3 * t / self.duration_s)
+                (
+                    t,
+                    self.load_at(&design, t),
+                    1e6 * self.extension_at(&design, t),
+                )
             })
             .collect();
         let hits = recs.iter().map(|r| crate::ingest::vallen::HitToWrite {
@@ -493,7 +561,7 @@ impl Experiment {
             restart: false,
             transient: true,
         });
-        crate::ingest::vallen::write_pair(&dir.join(&self.id), hits, &par, 1e-3, 1e-4)
+        crate::ingest::vallen::write_pair(&dir.join(&self.id), hits, &par, self.tr_mv(), 1e-4)
     }
 }
 
@@ -515,6 +583,20 @@ pub fn synth_experiment(
     library: Option<&std::path::Path>,
     progress: bool,
 ) -> Result<String, SynthError> {
+    synth_test(dir, id, hits, seed, Shape::default(), library, progress)
+}
+
+/// `aepipe synth-experiment` with a test's shape: its load cycles and energy law.
+pub fn synth_test(
+    dir: &std::path::Path,
+    id: &str,
+    hits: usize,
+    seed: u64,
+    shape: Shape,
+    library: Option<&std::path::Path>,
+    progress: bool,
+) -> Result<String, SynthError> {
+    let shape = shape.check()?;
     let t0 = std::time::Instant::now();
     let lib_path = match library {
         Some(p) => p.to_path_buf(),
@@ -533,11 +615,24 @@ pub fn synth_experiment(
     let mut e = Experiment::new(id, hits, seed);
     e.library = Some(lib);
     e.strip = Some(Strip::demo());
+    e.cycles = shape.cycles;
+    e.energy_exponent = shape.energy_exponent;
     let data = dir.join("data");
     let truth = dir.join("truth.parquet");
     let n_hits = e.write_with_truth(&data, &truth)?;
+    let mut stated = String::new();
+    if e.cycles >= 2 {
+        stated += &format!(
+            "; {} load cycles (designed Felicity ratios in {})",
+            e.cycles,
+            truth.with_file_name("truth_cycles.parquet").display()
+        );
+    }
+    if let Some(a) = e.energy_exponent {
+        stated += &format!("; energies ∝ E^-{a}");
+    }
     Ok(format!(
-        "{hits} sources, {n_hits} hits (seed {seed}) from {} → {} (.pridb/.tradb) and {} in {:.1} s",
+        "{hits} sources, {n_hits} hits (seed {seed}) from {} → {} (.pridb/.tradb) and {} in {:.1} s{stated}",
         lib_path.display(),
         data.join(id).display(),
         truth.display(),
@@ -664,6 +759,25 @@ impl Experiment {
             &[("aepipe.config_sha256".into(), format!("{:064x}", self.seed))],
             65_536,
         )?;
+        let design = self.cycle_design();
+        let mut cycle_truth: Vec<loading::CycleTruth> = design
+            .iter()
+            .map(|d| loading::CycleTruth {
+                experiment: self.id.clone(),
+                design: d.clone(),
+                first_hit_s: None,
+                first_hit_load_n: None,
+            })
+            .collect();
+        for h in hits.iter().filter(|h| h.kind == SourceKind::Specimen) {
+            let Some(t) = h.rec.time_s else { continue };
+            if let Some(c) = cycle_truth.iter_mut().rfind(|c| c.design.start_s <= t) {
+                if c.first_hit_s.is_none_or(|f| t < f) {
+                    c.first_hit_s = Some(t);
+                    c.first_hit_load_n = Some(self.load_at(&design, t));
+                }
+            }
+        }
         for (r, h) in recs.iter().zip(hits) {
             let mechanism = r
                 .label
@@ -683,6 +797,16 @@ impl Experiment {
             }))?;
         }
         w.finish()?;
+        if !cycle_truth.is_empty() {
+            let table = loading::cycle_truth_table();
+            let path = truth.with_file_name("truth_cycles.parquet");
+            let meta = [("aepipe.config_sha256".into(), format!("{:064x}", self.seed))];
+            let mut w = TableWriter::create(&path, table.schema(), &meta, 1024)?;
+            for c in cycle_truth {
+                w.push(table.row(c))?;
+            }
+            w.finish()?;
+        }
         Ok(n_hits)
     }
 }

@@ -91,11 +91,8 @@ const MARGIN: usize = 1024;
 /// Every hit of the test, in time order, numbered 1… as the system would store them.
 pub(super) fn strip_hits(e: &Experiment, strip: &Strip) -> Vec<SynthHit> {
     let mut rng = Rng::new(e.seed);
-    let t_peak = 0.8 * e.duration_s;
-    let mut times: Vec<f64> = (0..e.n_hits)
-        .map(|_| e.duration_s * rng.uniform().powf(0.4))
-        .collect();
-    times.sort_by(f64::total_cmp);
+    let design = e.cycle_design();
+    let times = e.source_times(&design, &mut rng);
     let mut out = Vec::new();
     for (i, t0) in times.into_iter().enumerate() {
         let mech = Experiment::mechanism(&mut rng);
@@ -117,7 +114,7 @@ pub(super) fn strip_hits(e: &Experiment, strip: &Strip) -> Vec<SynthHit> {
         let n = e.n_samples;
         spec.n_samples = n + MARGIN;
         spec.pretrigger = (n / 8).min(500);
-        spec.amplitude_v = 0.003 * (1.0 + 9.0 * rng.uniform().powi(3));
+        spec.amplitude_v = e.amplitude(&mut rng);
         spec.low_share = 0.3 + 0.4 * progress;
         let noise_v = spec.noise_v;
         spec.noise_v = 0.0;
@@ -184,8 +181,8 @@ pub(super) fn strip_hits(e: &Experiment, strip: &Strip) -> Vec<SynthHit> {
                     sample_rate_hz: fs,
                     pretrigger: p as u32,
                     samples,
-                    load_n: Some(super::load_curve(t, t_peak, 60.0)),
-                    extension_m: Some(1e-3 * t / e.duration_s),
+                    load_n: Some(e.load_at(&design, t)),
+                    extension_m: Some(e.extension_at(&design, t)),
                     label: Some(mech.as_str().to_string()),
                     threshold_v: None,
                     source_file: String::new(),

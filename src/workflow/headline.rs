@@ -28,6 +28,22 @@ fn indices_lines(s: &RunSummary) -> Vec<String> {
             ));
         }
     }
+    if let Some(m) = &s.som {
+        let mut by: Vec<(&str, Vec<String>)> = Vec::new();
+        for r in &m.reloads {
+            match by.last_mut() {
+                Some((e, v)) if *e == r.experiment => v.extend(r.reading()),
+                _ => by.push((&r.experiment, r.reading().into_iter().collect())),
+            }
+        }
+        for (exp, readings) in by.iter().take(SERIES_LINES) {
+            l.push(format!(
+                "load cycles {exp}: {}; Felicity ratio per reload {} (som/cycles.parquet)",
+                readings.len() + 1,
+                readings.join(", ")
+            ));
+        }
+    }
     if let Some(c) = &s.cluster {
         let r = &c.report;
         l.push(format!(
@@ -182,6 +198,9 @@ pub fn summary_json(s: &RunSummary) -> serde_json::Value {
         if let Some(p) = existing(dir.som().evolution()) {
             tables.insert("evolution".into(), p.into());
         }
+        if let Some(p) = existing(dir.som().cycles()) {
+            tables.insert("cycles".into(), p.into());
+        }
     }
     let trend = s.trend.as_ref().map(|t| {
         t.significant
@@ -213,6 +232,11 @@ pub fn summary_json(s: &RunSummary) -> serde_json::Value {
                     .collect::<serde_json::Map<_, _>>(),
                 "undescribed": m.confusion.novelty.undescribed(),
             },
+            "reloads": m.reloads.iter().filter(|r| r.kaiser.is_some()).map(|r| json!({
+                "experiment": r.experiment, "cycle": r.cycle.index,
+                "previous_max_n": r.cycle.previous_max_n, "onset_load_n": r.onset_load_n,
+                "felicity_ratio": r.felicity_ratio, "kaiser": r.kaiser,
+            })).collect::<Vec<_>>(),
         })
     });
     let truth = s.truth.as_ref().map(|t| {

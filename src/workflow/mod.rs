@@ -262,7 +262,7 @@ pub fn analyse(
     let mut som = None;
     if cfg.som.enabled {
         job.go_on()?;
-        som = Some(som_stage(job, &feats, &features.events_path, &mut log)?);
+        som = Some(som_stage(job, &feats, &features, &mut log)?);
     }
     let cluster = if cfg.cluster.enabled {
         job.go_on()?;

@@ -81,12 +81,7 @@ pub fn rebuild_report(dir: &Path) -> Result<PathBuf, WorkflowError> {
             hit_maps: existing(sdir.hit_maps()),
         };
         som = Some(classified_stage(
-            &config,
-            confusion,
-            &feats[0],
-            &features.events_path,
-            &sdir,
-            trained,
+            &config, confusion, &feats[0], &features, &sdir, trained,
         )?);
     }
     // The clustering is deterministic (its seed is in the config): redone.

@@ -3,6 +3,7 @@
 //! Both take what the damage profile emits, sorted on disk as it passes (bounded memory).
 
 use super::*;
+use crate::analysis::cycles::{Cycle, CycleFinder, CycleParams, Felicity};
 use crate::analysis::evolution::{EvolutionParams, EvolutionRow, Series, Source, StrainEnergy};
 use crate::analysis::trend::thin_every;
 use crate::model::columns as cols;
@@ -130,29 +131,80 @@ impl EvolutionInput {
     }
 }
 
-/// `evolution.parquet` from the damage profile's rows (the classified sources; an
-/// experiment's channels' series merge into one by time) and one picture per experiment
-/// (the first `[report] series_figures`). Each experiment is read 1 + C times from the
-/// sorted rows: `all` (which also finds its classes), then each of its C classes in name
-/// order.
+/// An experiment's load cycles from its sources' own loads (two passes over its sorted
+/// rows), for a test whose parametric series gives no load: cycles with AE on the
+/// unloadings show; a reload whose unloading was silent does not.
+fn cycles_of_sources(
+    sorted: &crate::store::spill::Sorted<EvoRec>,
+    span: crate::store::spill::Span,
+    min_span_n: f64,
+    cp: &CycleParams,
+) -> Result<Vec<Cycle>, WorkflowError> {
+    let mut check = crate::analysis::load::LoadCheck::new();
+    for r in sorted.span_iter(span) {
+        if let Some(l) = r?.load_n {
+            check.push(l);
+        }
+    }
+    let Some(mut finder) = CycleFinder::new(&check, min_span_n, cp) else {
+        return Ok(vec![]);
+    };
+    for r in sorted.span_iter(span) {
+        let r = r?;
+        if let (Some(t), Some(l)) = (r.time_s, r.load_n) {
+            finder.push(t, l);
+        }
+    }
+    Ok(finder.cycles())
+}
+
+/// What the evolution stage wrote: the table, its pictures, and the `all` series' cycles of
+/// each load–unload–reload test.
+pub(super) struct Evolution {
+    pub table: PathBuf,
+    pub plots: Vec<(String, PathBuf)>,
+    pub reloads: Vec<crate::analysis::cycles::CycleRow>,
+}
+
+/// `evolution.parquet` and `cycles.parquet` from the damage profile's rows (the classified
+/// sources; an experiment's channels' series merge into one by time) and one picture per
+/// experiment (the first `[report] series_figures`). Each experiment is read 1 + C times
+/// from the sorted rows: `all` (which also finds its classes), then each of its C classes
+/// in name order. The load cycles come from the test's load series in `parametric`
+/// (else from the sources' own loads).
 pub(super) fn evolution_stage(
     cfg: &ValidConfig,
     input: EvolutionInput,
     summaries: &[ProfileSummary],
+    parametric: &Path,
     som_dir: &ClassifyDir,
-) -> Result<(PathBuf, Vec<(String, PathBuf)>), WorkflowError> {
+) -> Result<Evolution, WorkflowError> {
     let p = EvolutionParams::of(&cfg.evolution);
+    let cp = CycleParams::of(&cfg.evolution);
+    let min_span = cfg.trend.min_load_span_n;
+    let mut test_cycles = match parametric.is_file() {
+        true => crate::analysis::cycles::cycles_of_table(parametric, min_span, &cp)?,
+        false => Default::default(),
+    };
     let sorted = input.sorter.finish()?;
     let table_path = som_dir.evolution();
     let table = crate::analysis::evolution::evolution_table();
     let meta = [("aepipe.config_sha256".to_string(), cfg.hash())];
     let mut w = crate::store::TableWriter::create(&table_path, table.schema(), &meta, 65_536)?;
+    let ctable = crate::analysis::cycles::cycles_table();
+    let mut cw =
+        crate::store::TableWriter::create(&som_dir.cycles(), ctable.schema(), &meta, 4096)?;
     let mut plots = Vec::new();
+    let mut reloads = Vec::new();
     for (k, (exp, span)) in sorted
         .groups(|r| r.experiment.clone())?
         .into_iter()
         .enumerate()
     {
+        let cycles = match test_cycles.remove(&exp) {
+            Some(c) => c,
+            None => cycles_of_sources(&sorted, span, min_span, &cp)?,
+        };
         let draw = k < cfg.report.series_figures;
         let every = thin_every(span.len as usize);
         let mut drawn: Vec<EvolutionRow> = Vec::new();
@@ -165,6 +217,7 @@ pub(super) fn evolution_stage(
             let all = next == 0;
             next += 1;
             let mut series = Series::new(&exp, class, &p);
+            let mut felicity = Felicity::new(&exp, class, &cycles, &cp);
             // The strain energy integrates every source's (extension, load), whatever its
             // class.
             let mut strain = StrainEnergy::default();
@@ -182,7 +235,8 @@ pub(super) fn evolution_stage(
                 }
                 let mut src = r.source();
                 src.strain_energy_j = es;
-                let row = series.step(&src);
+                let mut row = series.step(&src);
+                row.at_cycle = felicity.step(r.time_s, r.load_n, r.amplitude_db);
                 w.push(table.row(row.clone()))?;
                 if draw {
                     if i.is_multiple_of(every) {
@@ -193,6 +247,13 @@ pub(super) fn evolution_stage(
                     }
                 }
                 i += 1;
+            }
+            let rows = felicity.finish();
+            if all && rows.len() >= 2 {
+                reloads.extend(rows.iter().cloned());
+            }
+            for c in rows {
+                cw.push(ctable.row(c))?;
             }
             // Each drawn series ends at its last row (its totals are in the legend).
             drawn.extend(last);
@@ -212,7 +273,12 @@ pub(super) fn evolution_stage(
         }
     }
     w.finish()?;
-    Ok((table_path, plots))
+    cw.finish()?;
+    Ok(Evolution {
+        table: table_path,
+        plots,
+        reloads,
+    })
 }
 
 /// (experiment, event) → the SOM's class of its first hit, sorted by the event.

@@ -47,7 +47,7 @@ pub(super) fn classes_of(c: &Confusion) -> BTreeMap<String, usize> {
 pub(super) fn som_stage(
     job: &RunJob,
     feats: &[PathBuf],
-    events: &Path,
+    written: &crate::pipeline::RunReport,
     log: &mut StageLog,
 ) -> Result<SomStage, WorkflowError> {
     use crate::som::tables::classify_tables;
@@ -87,7 +87,7 @@ pub(super) fn som_stage(
         hit_maps: Some(som_dir.hit_maps()),
     };
     log.time("damage profile", || {
-        classified_stage(cfg, confusion, &feats[0], events, &som_dir, trained)
+        classified_stage(cfg, confusion, &feats[0], written, &som_dir, trained)
     })
 }
 
@@ -211,12 +211,12 @@ pub(super) fn classified_stage(
     cfg: &ValidConfig,
     confusion: Confusion,
     features: &Path,
-    events: &Path,
+    written: &crate::pipeline::RunReport,
     som_dir: &ClassifyDir,
     t: Trained,
 ) -> Result<SomStage, WorkflowError> {
     let classes = classes_of(&confusion);
-    let pr = profile_stage(cfg, features, events, som_dir)?;
+    let pr = profile_stage(cfg, features, written, som_dir)?;
     let png = som_dir.path().join("ra_af_som_label.png");
     let ra_af = super::cluster::ra_af_picture(
         features,
@@ -231,8 +231,9 @@ pub(super) fn classified_stage(
         profile_table: som_dir.damage_profile(),
         profile: pr.summaries,
         profile_plots: pr.plots,
-        evolution_table: pr.evolution_table,
-        evolution_plots: pr.evolution_plots,
+        evolution_table: pr.evolution.table,
+        evolution_plots: pr.evolution.plots,
+        reloads: pr.evolution.reloads,
         location_plots: pr.location_plots,
         model_dir: t.model_dir,
         trained_on: t.trained_on,
@@ -253,15 +254,14 @@ pub(super) fn classified_stage(
 pub(super) struct Profile {
     pub summaries: Vec<crate::som::profile::ProfileSummary>,
     pub plots: Vec<(String, PathBuf)>,
-    pub evolution_table: PathBuf,
-    pub evolution_plots: Vec<(String, PathBuf)>,
+    pub evolution: super::sources::Evolution,
     pub location_plots: Vec<(String, PathBuf)>,
 }
 
 pub(super) fn profile_stage(
     cfg: &ValidConfig,
     features: &Path,
-    events: &Path,
+    written: &crate::pipeline::RunReport,
     som_dir: &ClassifyDir,
 ) -> Result<Profile, WorkflowError> {
     use crate::som::profile::ProfileRow;
@@ -301,14 +301,19 @@ pub(super) fn profile_stage(
     }
     w.finish()?;
     drop(prof);
-    let (evolution_table, evolution_plots) =
-        super::sources::evolution_stage(cfg, evolution, &summaries, som_dir)?;
-    let location_plots = super::sources::location_stage(cfg, classes, events, som_dir)?;
+    let evolution = super::sources::evolution_stage(
+        cfg,
+        evolution,
+        &summaries,
+        &written.parametric_path,
+        som_dir,
+    )?;
+    let location_plots =
+        super::sources::location_stage(cfg, classes, &written.events_path, som_dir)?;
     Ok(Profile {
         summaries,
         plots,
-        evolution_table,
-        evolution_plots,
+        evolution,
         location_plots,
     })
 }

@@ -12,7 +12,12 @@ fn small_library(dir: &Path) -> std::path::PathBuf {
 
 /// A small library in `dir/name` with its own seed: with `variants` > 1 every grid point
 /// gets that many material draws (E, t, w within ±10 %), and the noise is seeded too.
-fn small_library_seeded(dir: &Path, name: &str, seed: u64, variants: usize) -> std::path::PathBuf {
+pub(crate) fn small_library_seeded(
+    dir: &Path,
+    name: &str,
+    seed: u64,
+    variants: usize,
+) -> std::path::PathBuf {
     let cfg = dir.join(format!("{name}.toml"));
     std::fs::write(
         &cfg,

@@ -7,6 +7,7 @@ mod architecture;
 mod bad_input;
 mod cli;
 mod corpus;
+mod cycles;
 mod docs;
 mod dta;
 mod e2e;
