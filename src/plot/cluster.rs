@@ -1,4 +1,5 @@
-//! Pictures of the clustering stage: the validity curves against k.
+//! Pictures of the clustering stage: the validity curves against k, RA against AF, the
+//! cumulative hits per cluster against time and load, and the feature distributions.
 
 use super::{ensure_font, err, PlotError};
 use crate::cluster::ValidityRow;
@@ -71,24 +72,9 @@ pub fn validity_png(path: &Path, rows: &[ValidityRow]) -> Result<(), PlotError> 
     Ok(())
 }
 
-/// Ten distinct colours (Tableau 10) for cluster numbers; mechanism names keep theirs.
+/// A cluster number's colour (mechanism names keep theirs).
 fn colour_of(class: &str) -> RGBColor {
-    const TAB10: [RGBColor; 10] = [
-        RGBColor(31, 119, 180),
-        RGBColor(255, 127, 14),
-        RGBColor(44, 160, 44),
-        RGBColor(214, 39, 40),
-        RGBColor(148, 103, 189),
-        RGBColor(140, 86, 75),
-        RGBColor(227, 119, 194),
-        RGBColor(127, 127, 127),
-        RGBColor(188, 189, 34),
-        RGBColor(23, 190, 207),
-    ];
-    match class.parse::<usize>() {
-        Ok(c) => TAB10[c % 10],
-        Err(_) => super::sources::class_colour(class),
-    }
+    super::sources::class_colour(class)
 }
 
 /// RA (ms/V) against AF (kHz), both on log axes, coloured by `by` (a cluster number or a
@@ -172,6 +158,193 @@ pub fn ra_af_png(
         .border_style(BLACK)
         .draw()
         .map_err(&e)?;
+    root.present().map_err(&e)?;
+    Ok(())
+}
+
+/// One cluster's cumulative hits of one experiment, thinned: (time s, load N, count).
+pub type CumulativePoint = (f64, Option<f64>, u64);
+
+/// Cumulative hits per cluster of one experiment against time and, when the test has a
+/// load, against load (`no_load` says why not, and the panel is left out).
+pub fn cumulative_png(
+    path: &Path,
+    title: &str,
+    series: &std::collections::BTreeMap<usize, Vec<CumulativePoint>>,
+    no_load: Option<&str>,
+) -> Result<(), PlotError> {
+    ensure_font()?;
+    let e = err(path);
+    let panels = if no_load.is_some() { 1 } else { 2 };
+    let root = BitMapBackend::new(path, (460 * panels as u32, 360)).into_drawing_area();
+    root.fill(&WHITE).map_err(&e)?;
+    let (head, body) = root.split_vertically(24);
+    head.draw_text(title, &("sans-serif", 14).into_text_style(&head), (10, 4))
+        .map_err(&e)?;
+    let areas = body.split_evenly((1, panels));
+    let top = series
+        .values()
+        .filter_map(|v| v.last())
+        .map(|p| p.2)
+        .max()
+        .unwrap_or(1);
+    for (k, area) in areas.iter().enumerate() {
+        let x_of = |p: &CumulativePoint| if k == 0 { Some(p.0) } else { p.1 };
+        let (x0, x1) = series
+            .values()
+            .flatten()
+            .filter_map(x_of)
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
+                (a.min(v), b.max(v))
+            });
+        let (x0, x1) = if x0 < x1 { (x0, x1) } else { (0.0, 1.0) };
+        let mut c = ChartBuilder::on(area)
+            .margin(8)
+            .x_label_area_size(32)
+            .y_label_area_size(55)
+            .build_cartesian_2d(x0..x1, 0.0..top as f64 * 1.05)
+            .map_err(&e)?;
+        c.configure_mesh()
+            .x_desc(if k == 0 { "time (s)" } else { "load (N)" })
+            .y_desc("cumulative hits")
+            .draw()
+            .map_err(&e)?;
+        for (cl, pts) in series {
+            let col = colour_of(&cl.to_string());
+            let line: Vec<(f64, f64)> = pts
+                .iter()
+                .filter_map(|p| x_of(p).map(|x| (x, p.2 as f64)))
+                .collect();
+            let n = pts.last().map_or(0, |p| p.2);
+            let drawn = if k == 0 {
+                c.draw_series(LineSeries::new(line, col.stroke_width(2)))
+            } else {
+                // Against load the curve doubles back where the load falls: points.
+                c.draw_series(LineSeries::new(line, col.stroke_width(1)))
+            };
+            drawn
+                .map_err(&e)?
+                .label(format!("cluster {cl} ({n})"))
+                .legend(move |(x, y)| PathElement::new([(x, y), (x + 16, y)], col.stroke_width(2)));
+        }
+        c.configure_series_labels()
+            .position(SeriesLabelPosition::UpperLeft)
+            .background_style(WHITE.mix(0.8))
+            .border_style(BLACK)
+            .draw()
+            .map_err(&e)?;
+    }
+    root.present().map_err(&e)?;
+    Ok(())
+}
+
+/// A feature drawn in the distributions: its name, axis label and whether on log₁₀.
+pub struct Distribution {
+    pub column: &'static str,
+    pub label: &'static str,
+    pub scale: f64,
+    pub log10: bool,
+}
+
+/// One panel per feature: each cluster's histogram (40 bins over the samples' 1–99 %
+/// range, as a share of the cluster's sampled hits), from a sample of each cluster.
+pub fn distributions_png(
+    path: &Path,
+    title: &str,
+    features: &[Distribution],
+    samples: &std::collections::BTreeMap<usize, Vec<Vec<f64>>>,
+) -> Result<(), PlotError> {
+    ensure_font()?;
+    let e = err(path);
+    let cols = 3usize;
+    let rows = features.len().div_ceil(cols);
+    let root = BitMapBackend::new(path, (1200, 24 + 300 * rows as u32)).into_drawing_area();
+    root.fill(&WHITE).map_err(&e)?;
+    let (head, body) = root.split_vertically(24);
+    head.draw_text(title, &("sans-serif", 14).into_text_style(&head), (10, 4))
+        .map_err(&e)?;
+    let areas = body.split_evenly((rows, cols));
+    const BINS: usize = 40;
+    for (f, (d, area)) in features.iter().zip(&areas).enumerate() {
+        let value = |r: &Vec<f64>| {
+            let v = r[f] * d.scale;
+            let v = if d.log10 { v.log10() } else { v };
+            v.is_finite().then_some(v)
+        };
+        let mut all: Vec<f64> = samples.values().flatten().filter_map(value).collect();
+        if all.is_empty() {
+            continue;
+        }
+        all.sort_by(f64::total_cmp);
+        let q = |p: f64| all[((all.len() - 1) as f64 * p).round() as usize];
+        let (lo, hi) = (q(0.01), q(0.99));
+        let (lo, hi) = if hi > lo {
+            (lo, hi)
+        } else {
+            (lo - 0.5, lo + 0.5)
+        };
+        let w = (hi - lo) / BINS as f64;
+        let hists: Vec<(usize, Vec<f64>)> = samples
+            .iter()
+            .map(|(cl, rows)| {
+                let mut h = vec![0.0; BINS];
+                let vals: Vec<f64> = rows.iter().filter_map(value).collect();
+                for v in &vals {
+                    let b = ((v - lo) / w).floor();
+                    if b >= 0.0 && (b as usize) < BINS {
+                        h[b as usize] += 1.0;
+                    }
+                }
+                let n = vals.len().max(1) as f64;
+                h.iter_mut().for_each(|x| *x /= n);
+                (*cl, h)
+            })
+            .collect();
+        let top = hists
+            .iter()
+            .flat_map(|(_, h)| h.iter().copied())
+            .fold(0.0f64, f64::max)
+            .max(1e-9);
+        let mut c = ChartBuilder::on(area)
+            .margin(8)
+            .x_label_area_size(32)
+            .y_label_area_size(45)
+            .build_cartesian_2d(lo..hi, 0.0..top * 1.1)
+            .map_err(&e)?;
+        c.configure_mesh()
+            .x_desc(if d.log10 {
+                format!("log10 {}", d.label)
+            } else {
+                d.label.to_string()
+            })
+            .y_desc("share of hits")
+            .draw()
+            .map_err(&e)?;
+        for (cl, h) in &hists {
+            let col = colour_of(&cl.to_string());
+            // A step line over the bins.
+            let steps: Vec<(f64, f64)> = h
+                .iter()
+                .enumerate()
+                .flat_map(|(b, y)| {
+                    let x = lo + b as f64 * w;
+                    [(x, *y), (x + w, *y)]
+                })
+                .collect();
+            c.draw_series(LineSeries::new(steps, col.stroke_width(2)))
+                .map_err(&e)?
+                .label(format!("cluster {cl}"))
+                .legend(move |(x, y)| PathElement::new([(x, y), (x + 16, y)], col.stroke_width(2)));
+        }
+        if f == 0 {
+            c.configure_series_labels()
+                .position(SeriesLabelPosition::UpperRight)
+                .background_style(WHITE.mix(0.8))
+                .border_style(BLACK)
+                .draw()
+                .map_err(&e)?;
+        }
+    }
     root.present().map_err(&e)?;
     Ok(())
 }

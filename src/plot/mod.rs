@@ -9,7 +9,9 @@ pub mod sources;
 
 mod cluster;
 use crate::model::AeRecord;
-pub use cluster::{ra_af_png, validity_png};
+pub use cluster::{
+    cumulative_png, distributions_png, ra_af_png, validity_png, CumulativePoint, Distribution,
+};
 use ndarray::ArrayView2;
 use plotters::coord::types::RangedCoordf64;
 use plotters::prelude::*;

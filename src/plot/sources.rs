@@ -19,9 +19,30 @@ pub fn class_colour(class: &str) -> RGBColor {
         (_, crate::model::UNLIKE_REFERENCES) => RGBColor(148, 103, 189),
         (_, "all") => RGBColor(0, 0, 0),
         (_, "outside the zone") => RGBColor(190, 190, 190),
-        _ => RGBColor(120, 120, 120),
+        _ => match class
+            .strip_prefix("cluster ")
+            .unwrap_or(class)
+            .parse::<usize>()
+        {
+            // Cluster numbers: ten distinct colours (Tableau 10).
+            Ok(c) => TAB10[c % 10],
+            Err(_) => RGBColor(120, 120, 120),
+        },
     }
 }
+
+const TAB10: [RGBColor; 10] = [
+    RGBColor(31, 119, 180),
+    RGBColor(255, 127, 14),
+    RGBColor(44, 160, 44),
+    RGBColor(214, 39, 40),
+    RGBColor(148, 103, 189),
+    RGBColor(140, 86, 75),
+    RGBColor(227, 119, 194),
+    RGBColor(127, 127, 127),
+    RGBColor(188, 189, 34),
+    RGBColor(23, 190, 207),
+];
 
 /// Sensor positions by channel, m (`[location] sensors`).
 pub type Sensors = std::collections::BTreeMap<String, Vec<f64>>;

@@ -74,6 +74,15 @@ pub struct ClusterStage {
     pub validity_png: PathBuf,
     /// RA against AF coloured by cluster, and by SOM class when the SOM ran.
     pub ra_af_pngs: Vec<(String, PathBuf)>,
+    /// Cumulative hits per cluster against time and load, per experiment.
+    pub cumulative_pngs: Vec<(String, PathBuf)>,
+    /// The feature distributions per cluster.
+    pub distributions_png: Option<PathBuf>,
+    /// Where the events are, coloured by their first hit's cluster, per experiment.
+    pub location_pngs: Vec<(String, PathBuf)>,
+    /// Hits per cluster the pictures found in the feature tables (equal to the report's
+    /// sizes when they show every clustered hit).
+    pub pictured: Vec<usize>,
 }
 
 /// The SOM stage of a run.
@@ -289,6 +298,8 @@ pub struct Gathered {
     /// Hits per (experiment, SOM class) (empty without a SOM stage).
     pub som: BTreeMap<(String, String), usize>,
     pub gallery: Gallery,
+    /// The same by cluster (`[cluster] enabled`).
+    pub cluster_gallery: Gallery,
     /// The features stage's `manifest.json`, as text.
     pub manifest: String,
 }
@@ -421,6 +432,7 @@ pre{{background:#f6f6f6;padding:8px;overflow-x:auto}}.missing{{color:#b00}}</sty
     sources::evolution_section(&mut h, s);
     truth_section(&mut h, s);
     gallery_section(&mut h, &g.gallery);
+    gallery_section(&mut h, &g.cluster_gallery);
     footer(&mut h, s, g);
     h
 }
@@ -632,6 +644,21 @@ fn cluster_section(h: &mut String, s: &RunSummary) {
     }
     h.push_str("</table>");
     figures(h, &c.ra_af_pngs, "RA against AF", "");
+    figures(
+        h,
+        &c.cumulative_pngs,
+        "cumulative hits per cluster",
+        ": cumulative hits per cluster against time and load",
+    );
+    if let Some(p) = &c.distributions_png {
+        h.push_str(&img(p, "feature distributions per cluster", Some(1100)));
+    }
+    figures(
+        h,
+        &c.location_pngs,
+        "location by cluster",
+        ": where the events are, by their first hit's cluster",
+    );
 }
 
 fn statistics_section(h: &mut String, s: &RunSummary) {
@@ -766,7 +793,10 @@ fn gallery_section(h: &mut String, g: &Gallery) {
     if g.classes.is_empty() {
         return;
     }
-    let _ = write!(h, "<h2>CWT gallery by {} class (Appendix B)</h2>", g.by);
+    let _ = match g.by {
+        "cluster" => write!(h, "<h2>CWT gallery by cluster</h2>"),
+        by => write!(h, "<h2>CWT gallery by {by} class (Appendix B)</h2>"),
+    };
     for (class, pics) in &g.classes {
         let _ = write!(h, "<h3>{}</h3><div class=gallery>", esc(class));
         for (k, png) in pics {

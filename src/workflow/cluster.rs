@@ -15,6 +15,7 @@ pub const RA_AF_POINTS: usize = 20_000;
 pub(super) fn cluster_stage(
     cfg: &ValidConfig,
     feats: &[PathBuf],
+    events: &Path,
     dir: &Path,
     som: Option<&SomStage>,
 ) -> Result<ClusterStage, WorkflowError> {
@@ -39,10 +40,15 @@ pub(super) fn cluster_stage(
     if let Some(p) = som.and_then(|s| s.ra_af_plot.clone()) {
         ra_af_pngs.push(("RA against AF by SOM class".to_string(), p));
     }
+    let views = super::cluster_views::cluster_views(cfg, feats, &report.clusters, events, dir)?;
     Ok(ClusterStage {
         report,
         validity_png,
         ra_af_pngs,
+        cumulative_pngs: views.cumulative,
+        distributions_png: views.distributions,
+        location_pngs: views.locations,
+        pictured: views.joined,
     })
 }
 

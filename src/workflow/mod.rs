@@ -268,7 +268,7 @@ pub fn analyse(
         job.go_on()?;
         let dir = job.dir().cluster();
         Some(log.time("clustering", || {
-            cluster::cluster_stage(cfg, &feats, &dir, som.as_ref())
+            cluster::cluster_stage(cfg, &feats, &features.events_path, &dir, som.as_ref())
         })?)
     } else {
         None
@@ -319,6 +319,7 @@ fn input_err(p: &Path, m: impl std::fmt::Display) -> WorkflowError {
 }
 
 mod cluster;
+mod cluster_views;
 mod headline;
 pub mod layout;
 mod pictures;

@@ -19,10 +19,16 @@ pub(super) fn gather(s: &RunSummary) -> Result<Gathered, WorkflowError> {
     } else {
         ("SOM", by_som.chosen())
     };
-    let pics = draw_gallery(&s.inputs, &s.config, &chosen, &RunDir::new(&s.out));
-    let gallery = Gallery {
-        by,
-        classes: chosen
+    let by_cluster = match &s.cluster {
+        Some(c) => cluster_choice(&c.report.clusters, per)?.chosen(),
+        None => BTreeMap::new(),
+    };
+    // One pass over the inputs draws both galleries' hits.
+    let mut wanted = chosen.clone();
+    wanted.extend(by_cluster.iter().map(|(c, k)| (c.clone(), k.clone())));
+    let pics = draw_gallery(&s.inputs, &s.config, &wanted, &RunDir::new(&s.out));
+    let pictures = |chosen: BTreeMap<String, Vec<HitKey>>| {
+        chosen
             .into_iter()
             .map(|(c, keys)| {
                 let v = keys
@@ -34,7 +40,15 @@ pub(super) fn gather(s: &RunSummary) -> Result<Gathered, WorkflowError> {
                     .collect();
                 (c, v)
             })
-            .collect(),
+            .collect()
+    };
+    let gallery = Gallery {
+        by,
+        classes: pictures(chosen),
+    };
+    let cluster_gallery = Gallery {
+        by: "cluster",
+        classes: pictures(by_cluster),
     };
     let manifest = std::fs::read_to_string(&s.features.manifest_path)
         .map_err(|e| input_err(&s.features.manifest_path, e))?;
@@ -42,8 +56,34 @@ pub(super) fn gather(s: &RunSummary) -> Result<Gathered, WorkflowError> {
         criteria,
         som,
         gallery,
+        cluster_gallery,
         manifest,
     })
+}
+
+/// The cluster gallery's choice: the first `per` hits of each cluster in key order.
+fn cluster_choice(
+    clusters: &Path,
+    per: usize,
+) -> Result<crate::report::GalleryChoice, WorkflowError> {
+    let mut choice = crate::report::GalleryChoice::new(per);
+    let t = TableScan::open(clusters)?;
+    let sel = [
+        cols::EXPERIMENT.name,
+        cols::CHANNEL.name,
+        cols::HIT.name,
+        "cluster",
+    ];
+    for b in t.batches(&sel) {
+        let (_, df) = b?;
+        let keys = t.hit_keys(&df)?;
+        for (k, c) in keys.iter().zip(t.as_strings(&df, "cluster")?) {
+            if let Some(c) = c {
+                choice.offer(k, &format!("cluster {c}"));
+            }
+        }
+    }
+    Ok(choice)
 }
 
 /// Hits per (experiment, label), and the gallery's choice.

@@ -318,12 +318,23 @@ impl EventClasses {
 
     pub fn push(&mut self, r: &ProfileRow) -> Result<(), WorkflowError> {
         if let Some(event) = r.event {
-            self.0.push(EventClass {
-                experiment: r.key.0.clone(),
-                event,
-                class: r.class.clone(),
-            })?;
+            self.push_class(&r.key.0, event, &r.class)?;
         }
+        Ok(())
+    }
+
+    /// An event's class (its first hit's), from any stage.
+    pub fn push_class(
+        &mut self,
+        experiment: &str,
+        event: i64,
+        class: &str,
+    ) -> Result<(), WorkflowError> {
+        self.0.push(EventClass {
+            experiment: experiment.to_string(),
+            event,
+            class: class.to_string(),
+        })?;
         Ok(())
     }
 }
@@ -380,15 +391,25 @@ impl Spill for Located {
     }
 }
 
+/// Where a location picture goes, and what colours its events.
+pub(super) struct LocationPictures<'a> {
+    /// Spill files go here.
+    pub dir: &'a Path,
+    pub png: &'a dyn Fn(&str) -> PathBuf,
+    /// "SOM class", "cluster".
+    pub by: &'a str,
+}
+
 /// A location picture per experiment with located events (the first `[report]
-/// series_figures`): each event coloured by its first hit's SOM class (from the damage
-/// profile's rows), "outside the zone" for those the zone leaves out (which the SOM does
-/// not classify with `exclude_outside`). Events and classes are joined in event order.
+/// series_figures`): each event coloured by its first hit's class (the SOM's, from the
+/// damage profile's rows, or its cluster), "outside the zone" for those the zone leaves out
+/// (which are not classified with `exclude_outside`). Events and classes are joined in
+/// event order.
 pub(super) fn location_stage(
     cfg: &ValidConfig,
     classes: EventClasses,
     events: &Path,
-    som_dir: &ClassifyDir,
+    to: &LocationPictures,
 ) -> Result<Vec<(String, PathBuf)>, WorkflowError> {
     if !events.is_file() {
         return Ok(Vec::new());
@@ -401,7 +422,7 @@ pub(super) fn location_stage(
         cols::Y_M.name,
         cols::ZONE.name,
     ];
-    let mut located: Sorter<Located> = Sorter::new(som_dir.path());
+    let mut located: Sorter<Located> = Sorter::new(to.dir);
     let mut seq = 0u64;
     for batch in ev.batches(&sel) {
         let (_, df) = batch?;
@@ -466,8 +487,11 @@ pub(super) fn location_stage(
             }
         }
         if draw {
-            let png = som_dir.location_png(&exp);
-            let mut title = format!("{exp}: where the events are ({} located)", span.len);
+            let png = (to.png)(&exp);
+            let mut title = format!(
+                "{exp}: where the events are by {} ({} located)",
+                to.by, span.len
+            );
             if every > 1 {
                 title += &format!("; every {every}th drawn");
             }

@@ -308,8 +308,12 @@ pub(super) fn profile_stage(
         &written.parametric_path,
         som_dir,
     )?;
-    let location_plots =
-        super::sources::location_stage(cfg, classes, &written.events_path, som_dir)?;
+    let to = super::sources::LocationPictures {
+        dir: som_dir.path(),
+        png: &|e: &str| som_dir.location_png(e),
+        by: "SOM class",
+    };
+    let location_plots = super::sources::location_stage(cfg, classes, &written.events_path, &to)?;
     Ok(Profile {
         summaries,
         plots,

@@ -193,10 +193,18 @@ fn run_classifies_against_truth_finds_the_trend_and_writes_a_report_a_browser_re
         "Against the ground truth",
         "Damage profile (Fig. 6.1)",
         "CWT gallery",
+        "CWT gallery by cluster",
+        "cumulative hits per cluster",
+        "feature distributions per cluster",
+        "location by cluster",
         "manifest.json",
     ] {
         assert!(html.contains(part), "report lacks {part}");
     }
+    // The cluster pictures joined every clustered hit to its feature row.
+    let c = s.cluster.as_ref().expect("the demo pipeline clusters");
+    assert_eq!(c.pictured, c.report.sizes);
+    assert!(c.report.sizes.iter().sum::<usize>() > 200);
     let images = html.matches("<img ").count();
     assert!(images >= 6, "{images} images");
     assert_eq!(html.matches("src=\"data:image/png;base64,").count(), images);
