@@ -72,6 +72,20 @@ pub fn validity_png(path: &Path, rows: &[ValidityRow]) -> Result<(), PlotError> 
     Ok(())
 }
 
+/// The series' legend in a box at `at`.
+fn boxed_legend<'a, DB: DrawingBackend + 'a, CT: plotters::coord::CoordTranslate>(
+    c: &mut ChartContext<'a, DB, CT>,
+    at: SeriesLabelPosition,
+    path: &Path,
+) -> Result<(), PlotError> {
+    c.configure_series_labels()
+        .position(at)
+        .background_style(WHITE.mix(0.8))
+        .border_style(BLACK)
+        .draw()
+        .map_err(err(path))
+}
+
 /// A cluster number's colour (mechanism names keep theirs).
 fn colour_of(class: &str) -> RGBColor {
     super::sources::class_colour(class)
@@ -152,12 +166,7 @@ pub fn ra_af_png(
     .map_err(&e)?
     .label(format!("AF = {slope} × RA: tensile above, shear below"))
     .legend(|(x, y)| PathElement::new([(x, y), (x + 20, y)], BLACK));
-    c.configure_series_labels()
-        .position(SeriesLabelPosition::LowerRight)
-        .background_style(WHITE.mix(0.8))
-        .border_style(BLACK)
-        .draw()
-        .map_err(&e)?;
+    boxed_legend(&mut c, SeriesLabelPosition::LowerRight, path)?;
     root.present().map_err(&e)?;
     Ok(())
 }
@@ -227,12 +236,7 @@ pub fn cumulative_png(
                 .label(format!("cluster {cl} ({n})"))
                 .legend(move |(x, y)| PathElement::new([(x, y), (x + 16, y)], col.stroke_width(2)));
         }
-        c.configure_series_labels()
-            .position(SeriesLabelPosition::UpperLeft)
-            .background_style(WHITE.mix(0.8))
-            .border_style(BLACK)
-            .draw()
-            .map_err(&e)?;
+        boxed_legend(&mut c, SeriesLabelPosition::UpperLeft, path)?;
     }
     root.present().map_err(&e)?;
     Ok(())
@@ -337,12 +341,7 @@ pub fn distributions_png(
                 .legend(move |(x, y)| PathElement::new([(x, y), (x + 16, y)], col.stroke_width(2)));
         }
         if f == 0 {
-            c.configure_series_labels()
-                .position(SeriesLabelPosition::UpperRight)
-                .background_style(WHITE.mix(0.8))
-                .border_style(BLACK)
-                .draw()
-                .map_err(&e)?;
+            boxed_legend(&mut c, SeriesLabelPosition::UpperRight, path)?;
         }
     }
     root.present().map_err(&e)?;
