@@ -83,6 +83,10 @@ pub struct ClusterStage {
     /// Hits per cluster the pictures found in the feature tables (equal to the report's
     /// sizes when they show every clustered hit).
     pub pictured: Vec<usize>,
+    /// The damage evolution by cluster, per experiment (`cluster/evolution.parquet`).
+    pub evolution_pngs: Vec<(String, PathBuf)>,
+    /// The `all` series' load cycles of each load–unload–reload test (as the SOM's).
+    pub reloads: Vec<crate::analysis::cycles::CycleRow>,
 }
 
 /// The SOM stage of a run.
@@ -653,6 +657,12 @@ fn cluster_section(h: &mut String, s: &RunSummary) {
     if let Some(p) = &c.distributions_png {
         h.push_str(&img(p, "feature distributions per cluster", Some(1100)));
     }
+    figures(
+        h,
+        &c.evolution_pngs,
+        "damage evolution by cluster",
+        ": cumulative sources, hits and energy per cluster (cluster/evolution.parquet)",
+    );
     figures(
         h,
         &c.location_pngs,

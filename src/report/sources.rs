@@ -92,7 +92,10 @@ pub(super) fn sources_section(h: &mut String, s: &RunSummary) {
 
 /// The damage evolution pictures (`evolution.parquet`).
 pub(super) fn evolution_section(h: &mut String, s: &RunSummary) {
-    let Some(m) = &s.som else { return };
+    let Some(m) = &s.som else {
+        reloads_table(h, s);
+        return;
+    };
     if m.evolution_plots.is_empty() {
         reloads_table(h, s);
         return;
@@ -116,8 +119,12 @@ pub(super) fn evolution_section(h: &mut String, s: &RunSummary) {
 
 /// The Felicity ratio and Kaiser effect of each reload (load–unload–reload tests only).
 fn reloads_table(h: &mut String, s: &RunSummary) {
-    let Some(m) = &s.som else { return };
-    if m.reloads.is_empty() {
+    let reloads = match (&s.som, &s.cluster) {
+        (Some(m), _) => &m.reloads,
+        (None, Some(c)) => &c.reloads,
+        _ => return,
+    };
+    if reloads.is_empty() {
         return;
     }
     let e = &s.config.evolution;
@@ -133,7 +140,7 @@ fn reloads_table(h: &mut String, s: &RunSummary) {
         e.felicity_onset_sources, e.felicity_onset_db, e.kaiser_min_ratio
     );
     let num = |v: Option<f64>, d: usize| v.map_or("–".to_string(), |x| format!("{x:.d$}"));
-    for r in &m.reloads {
+    for r in reloads {
         let kaiser = match r.kaiser {
             None => "–",
             Some(true) => "yes",

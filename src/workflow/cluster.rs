@@ -15,7 +15,7 @@ pub const RA_AF_POINTS: usize = 20_000;
 pub(super) fn cluster_stage(
     cfg: &ValidConfig,
     feats: &[PathBuf],
-    events: &Path,
+    written: &crate::pipeline::RunReport,
     dir: &Path,
     som: Option<&SomStage>,
 ) -> Result<ClusterStage, WorkflowError> {
@@ -40,7 +40,7 @@ pub(super) fn cluster_stage(
     if let Some(p) = som.and_then(|s| s.ra_af_plot.clone()) {
         ra_af_pngs.push(("RA against AF by SOM class".to_string(), p));
     }
-    let views = super::cluster_views::cluster_views(cfg, feats, &report.clusters, events, dir)?;
+    let views = super::cluster_views::cluster_views(cfg, feats, &report.clusters, written, dir)?;
     Ok(ClusterStage {
         report,
         validity_png,
@@ -49,6 +49,8 @@ pub(super) fn cluster_stage(
         distributions_png: views.distributions,
         location_pngs: views.locations,
         pictured: views.joined,
+        evolution_pngs: views.evolution_plots,
+        reloads: views.reloads,
     })
 }
 

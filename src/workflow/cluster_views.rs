@@ -10,7 +10,8 @@ use crate::model::columns as cols;
 use crate::plot::{CumulativePoint, Distribution};
 use crate::store::spill::{Dec, Enc, Sorter, Spill};
 
-/// The features whose distributions are drawn, in panel order.
+/// The features whose distributions are drawn, in panel order (the evolution reads the
+/// amplitude, 0, and the energy, 4, from them).
 const DISTRIBUTIONS: [Distribution; 6] = [
     Distribution {
         column: "peak_amplitude_db",
@@ -59,6 +60,9 @@ pub struct ClusterViews {
     pub cumulative: Vec<(String, PathBuf)>,
     pub distributions: Option<PathBuf>,
     pub locations: Vec<(String, PathBuf)>,
+    /// The damage evolution by cluster (`cluster/evolution.parquet`, `cycles.parquet`).
+    pub evolution_plots: Vec<(String, PathBuf)>,
+    pub reloads: Vec<crate::analysis::cycles::CycleRow>,
     /// Hits per cluster the walk joined to their feature rows: `clusters.parquet`'s sizes
     /// when every row was found.
     pub joined: Vec<usize>,
@@ -153,6 +157,7 @@ struct Gathered {
     samples: BTreeMap<usize, Vec<Vec<f64>>>,
     seen: BTreeMap<usize, usize>,
     events: super::sources::EventClasses,
+    evolution: super::sources::EvolutionInput,
 }
 
 /// Walk the feature tables and `clusters` together (see the module's doc) and draw into
@@ -161,7 +166,7 @@ pub(super) fn cluster_views(
     cfg: &ValidConfig,
     feats: &[PathBuf],
     clusters: &Path,
-    events: &Path,
+    written: &crate::pipeline::RunReport,
     dir: &Path,
 ) -> Result<ClusterViews, WorkflowError> {
     let mut g = Gathered {
@@ -170,6 +175,7 @@ pub(super) fn cluster_views(
         samples: BTreeMap::new(),
         seen: BTreeMap::new(),
         events: super::sources::EventClasses::new(dir),
+        evolution: super::sources::EvolutionInput::new(dir),
     };
     let drawn_max = cfg.report.series_figures;
     let mut drawn: Vec<String> = Vec::new();
@@ -192,6 +198,7 @@ pub(super) fn cluster_views(
         let optional = [
             cols::TIME_S.name,
             cols::LOAD_N.name,
+            cols::EXTENSION_M.name,
             cols::EVENT.name,
             cols::EVENT_FIRST.name,
         ];
@@ -216,6 +223,7 @@ pub(super) fn cluster_views(
                 f(cols::LOAD_N.name)?,
                 f(cols::EVENT.name)?,
             );
+            let extension = f(cols::EXTENSION_M.name)?;
             let first = t.event_first(&df)?;
             let values: Vec<Vec<Option<f64>>> = DISTRIBUTIONS
                 .iter()
@@ -244,6 +252,22 @@ pub(super) fn cluster_views(
                     })?;
                 }
                 seq += 1;
+                // As the damage profile gives the SOM's evolution its sources: an event's
+                // first hit, or a hit outside events (`hits` counts the source once: the
+                // other sensors' rows are not clustered).
+                g.evolution.push_rec(super::sources::EvoRec {
+                    experiment: exp.clone(),
+                    time_s: time[i],
+                    hit: key.2,
+                    row: 0,
+                    channel: crate::store::group_channel(key.1, first[i]),
+                    load_n: load[i],
+                    extension_m: extension[i],
+                    amplitude_db: values[0][i],
+                    energy_eu: values[4][i],
+                    hits: 1,
+                    class: format!("cluster {c}"),
+                })?;
                 if let (Some(true), Some(e)) = (first[i], event[i]) {
                     g.events
                         .push_class(exp, e as i64, &format!("cluster {c}"))?;
@@ -263,13 +287,13 @@ pub(super) fn cluster_views(
             }
         }
     }
-    draw(cfg, g, events, dir)
+    draw(cfg, g, written, dir)
 }
 
 fn draw(
     cfg: &ValidConfig,
     g: Gathered,
-    events: &Path,
+    written: &crate::pipeline::RunReport,
     dir: &Path,
 ) -> Result<ClusterViews, WorkflowError> {
     let k = g.seen.keys().next_back().map_or(0, |c| c + 1);
@@ -339,6 +363,15 @@ fn draw(
         png: &|e: &str| dir.join(format!("location_{}.png", crate::util::file_safe(e))),
         by: "cluster",
     };
-    out.locations = super::sources::location_stage(cfg, g.events, events, &to)?;
+    out.locations = super::sources::location_stage(cfg, g.events, &written.events_path, &to)?;
+    let evolution = super::sources::evolution_stage(
+        cfg,
+        g.evolution,
+        &[],
+        &written.parametric_path,
+        &crate::som::layout::ClassifyDir::new(dir.to_path_buf()),
+    )?;
+    out.evolution_plots = evolution.plots;
+    out.reloads = evolution.reloads;
     Ok(out)
 }

@@ -28,9 +28,15 @@ fn indices_lines(s: &RunSummary) -> Vec<String> {
             ));
         }
     }
-    if let Some(m) = &s.som {
+    // The cycles of the `all` series: the SOM stage's, else the clusters'.
+    let reloads = match (&s.som, &s.cluster) {
+        (Some(m), _) => Some(&m.reloads),
+        (None, Some(c)) => Some(&c.reloads),
+        _ => None,
+    };
+    if let Some(reloads) = reloads {
         let mut by: Vec<(&str, Vec<String>)> = Vec::new();
-        for r in &m.reloads {
+        for r in reloads {
             match by.last_mut() {
                 Some((e, v)) if *e == r.experiment => v.extend(r.reading()),
                 _ => by.push((&r.experiment, r.reading().into_iter().collect())),

@@ -268,7 +268,7 @@ pub fn analyse(
         job.go_on()?;
         let dir = job.dir().cluster();
         Some(log.time("clustering", || {
-            cluster::cluster_stage(cfg, &feats, &features.events_path, &dir, som.as_ref())
+            cluster::cluster_stage(cfg, &feats, &features, &dir, som.as_ref())
         })?)
     } else {
         None

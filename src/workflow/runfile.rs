@@ -89,7 +89,7 @@ pub fn rebuild_report(dir: &Path) -> Result<PathBuf, WorkflowError> {
         Some(super::cluster::cluster_stage(
             &config,
             &feats,
-            &features.events_path,
+            &features,
             &run.cluster(),
             som.as_ref(),
         )?)

@@ -15,19 +15,19 @@ use crate::store::spill::{Dec, Enc, Sorter, Spill};
 /// A profile row as a source of its experiment's evolution, in the order the evolution
 /// reads them: by time (null last), hit, then the profile's own order.
 #[derive(Debug, Clone, PartialEq)]
-struct EvoRec {
-    experiment: String,
-    time_s: Option<f64>,
-    hit: i64,
+pub(super) struct EvoRec {
+    pub experiment: String,
+    pub time_s: Option<f64>,
+    pub hit: i64,
     /// Position in the damage profile's output (ties keep the profile's order).
-    row: u64,
-    channel: i32,
-    load_n: Option<f64>,
-    extension_m: Option<f64>,
-    amplitude_db: Option<f64>,
-    energy_eu: Option<f64>,
-    hits: u64,
-    class: String,
+    pub row: u64,
+    pub channel: i32,
+    pub load_n: Option<f64>,
+    pub extension_m: Option<f64>,
+    pub amplitude_db: Option<f64>,
+    pub energy_eu: Option<f64>,
+    pub hits: u64,
+    pub class: String,
 }
 
 impl Eq for EvoRec {}
@@ -126,6 +126,14 @@ impl EvolutionInput {
             hits: r.source_hits,
             class: r.class.clone(),
         })?;
+        self.rows += 1;
+        Ok(())
+    }
+
+    /// A source from another stage (the clusters'); its place in the input is set here.
+    pub fn push_rec(&mut self, mut r: EvoRec) -> Result<(), WorkflowError> {
+        r.row = self.rows;
+        self.sorter.push(r)?;
         self.rows += 1;
         Ok(())
     }

@@ -205,6 +205,22 @@ fn run_classifies_against_truth_finds_the_trend_and_writes_a_report_a_browser_re
     let c = s.cluster.as_ref().expect("the demo pipeline clusters");
     assert_eq!(c.pictured, c.report.sizes);
     assert!(c.report.sizes.iter().sum::<usize>() > 200);
+    // The evolution by cluster: one series per cluster, one row per clustered source.
+    let cevo = out.join("cluster").join("evolution.parquet");
+    crate::pipeline::check_against_schema_file(&cevo, "evolution.md");
+    let (names, rows) = crate::table_rows(&cevo);
+    let class = names.iter().position(|n| n == "class").unwrap();
+    for (k, n) in c.report.sizes.iter().enumerate() {
+        let got = rows
+            .iter()
+            .filter(|r| r[class] == format!("cluster {k}"))
+            .count();
+        assert_eq!(got, *n, "cluster {k}");
+    }
+    assert_eq!(
+        rows.iter().filter(|r| r[class] == "all").count(),
+        c.report.rows
+    );
     let images = html.matches("<img ").count();
     assert!(images >= 6, "{images} images");
     assert_eq!(html.matches("src=\"data:image/png;base64,").count(), images);
