@@ -8,6 +8,7 @@
 //! - [`util`]: hashing, atomic writes, shards, error kinds — used by everything.
 //! - [`model`]: the shared vocabulary (records, hits, rejects, mechanisms, parametric rows).
 //! - [`store`]: tables declared once, the atomic Parquet writer, the readers, shards.
+//! - [`detect`]: cutting a continuous recording into hits (the `[detect]` stage).
 //! - [`ingest`]: sources — discovery and the readers of every recording format.
 //! - [`dsp`]: spectrum, power ratios, CWT, hit features, FFT filters.
 //! - [`features`]: the per-record transform into a feature row and its criteria label.
@@ -36,6 +37,7 @@ pub mod cli;
 pub mod cluster;
 pub mod config;
 pub mod demo;
+pub mod detect;
 pub mod dsp;
 pub mod events;
 pub mod features;
