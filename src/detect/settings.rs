@@ -82,19 +82,13 @@ pub enum DetectSettingsError {
 }
 
 /// `[detect]` checked, its times still in seconds (a stream's rate gives the samples).
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, Default)]
 pub struct ValidDetect(DetectConfig);
 
 impl std::ops::Deref for ValidDetect {
     type Target = DetectConfig;
     fn deref(&self) -> &DetectConfig {
         &self.0
-    }
-}
-
-impl Default for ValidDetect {
-    fn default() -> Self {
-        ValidDetect(DetectConfig::default())
     }
 }
 
