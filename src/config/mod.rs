@@ -46,6 +46,8 @@ pub enum SettingsError {
     Som(#[from] SomSettingsError),
     #[error(transparent)]
     CrackMode(#[from] crate::model::crack::CrackModeError),
+    #[error(transparent)]
+    Detect(#[from] crate::detect::DetectSettingsError),
     #[error("{0}")]
     Cluster(String),
     /// `[pipeline]` or `[live]`.
@@ -114,6 +116,8 @@ invalid_from!(
 #[serde(default, deny_unknown_fields)]
 pub struct PipelineConfig {
     pub ingest: IngestConfig,
+    /// Cutting continuous recordings into hits (`off` unless set).
+    pub detect: crate::detect::DetectConfig,
     pub pipeline: RunConfig,
     pub validate: ValidateConfig,
     pub dsp: DspConfig,
@@ -339,6 +343,7 @@ impl PipelineConfig {
     pub fn check(self) -> Result<ValidConfig, ConfigError> {
         let PipelineConfig {
             ingest,
+            detect,
             pipeline,
             validate,
             dsp,
@@ -358,8 +363,13 @@ impl PipelineConfig {
         pipeline.check()?;
         live.check()?;
         crack_mode.check().map_err(SettingsError::from)?;
+        let valid_detect = detect.clone().check().map_err(SettingsError::from)?;
+        let mut ingest = ingest.check()?.into_inner();
+        // The readers cut streams as `[detect]` says: they get its checked copy.
+        ingest.detect = valid_detect;
         Ok(ValidConfig(PipelineConfig {
-            ingest: ingest.check()?.into_inner(),
+            ingest,
+            detect,
             pipeline,
             validate,
             dsp: dsp.check()?.into_inner(),

@@ -29,6 +29,7 @@ enum Kind {
     Tradb,
     Parquet,
     Wav,
+    Stream,
     Dta,
     Text(TextKind),
     Other(String),
@@ -76,6 +77,15 @@ fn detect_format(p: &Path, forced: FormatChoice) -> std::io::Result<Kind> {
         "tradb" => return Ok(Kind::Tradb),
         "parquet" => return Ok(Kind::Parquet),
         "wav" => return Ok(Kind::Wav),
+        "npy" => return Ok(Kind::Stream),
+        // A raw stream is a file with its description beside it (`x.bin` + `x.bin.toml`).
+        _ if super::stream::sidecar_path(p).is_file() => return Ok(Kind::Stream),
+        "toml" if Path::new(&p.with_extension("")).is_file() => {
+            return Ok(Kind::Other(format!(
+                "the description of the raw stream {}",
+                p.with_extension("").display()
+            )))
+        }
         "dta" => {
             use std::io::Read;
             let mut b = [0u8; 3];
@@ -350,6 +360,10 @@ fn sort(kinds: Vec<(PathBuf, Kind)>) -> Sorted {
             Kind::Parquet => {
                 s.single
                     .push(Source::of(stem(&p), Format::Parquet, vec![p]));
+                continue;
+            }
+            Kind::Stream => {
+                s.single.push(Source::of(stem(&p), Format::Stream, vec![p]));
                 continue;
             }
             Kind::Text(TextKind::WaveExplorer) => {

@@ -434,6 +434,7 @@ pub fn attach(
             front.push_back(Item::Tally(Tally {
                 experiment: src.id.clone(),
                 read,
+                ..Default::default()
             }));
             Some((s.load_n, s.extension_m))
         }

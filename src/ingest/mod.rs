@@ -14,6 +14,7 @@ pub mod loadfile;
 mod parquetfmt;
 pub mod settings;
 pub(crate) mod sniff;
+pub mod stream;
 mod text;
 pub mod vallen;
 mod waveexplorer;
@@ -79,6 +80,9 @@ pub enum Format {
     /// Vallen TXT exports of transients, one per file, grouped by the database they came
     /// from.
     VallenTxt,
+    /// A continuous recording: a NumPy `.npy` array, or a raw binary with its `.toml`
+    /// description (`[detect]` cuts it into hits).
+    Stream,
 }
 
 /// How `aepipe watch` follows a format's recordings while the acquisition writes them.
@@ -123,6 +127,7 @@ impl Format {
             Format::Parquet => &parquetfmt::FORMAT,
             Format::Mistras => &dta::FORMAT,
             Format::VallenTxt => &vallen::txt::FORMAT,
+            Format::Stream => &stream::FORMAT,
         }
     }
 
@@ -224,7 +229,7 @@ impl Source {
     pub fn has_hit_list(&self) -> bool {
         match self.format {
             Format::Vallen => self.companion(Role::HitIndex).is_some(),
-            Format::Mistras => true,
+            Format::Mistras | Format::Stream => true,
             _ => false,
         }
     }
@@ -363,9 +368,22 @@ fn guarded(
     if src.has_hit_list() {
         return items;
     }
-    // A format without a hit list: each transient read is also its hit.
-    Box::new(items.flat_map(|it| match it {
-        Item::Record(r) => vec![Item::Hit(Box::new(HitRow::of_record(&r))), Item::Record(r)],
+    // A format without a hit list: each transient read is also its hit, unless the reader
+    // gave the record its own hit row just before it (a WAV stream cut by `[detect]`).
+    let mut own: Option<(String, u32, u64)> = None;
+    Box::new(items.flat_map(move |it| match it {
+        Item::Hit(h) => {
+            own = Some((h.experiment.clone(), h.channel, h.hit));
+            vec![Item::Hit(h)]
+        }
+        Item::Record(r) => {
+            let key = (r.experiment.clone(), r.channel, r.hit);
+            if own.take().as_ref() == Some(&key) {
+                vec![Item::Record(r)]
+            } else {
+                vec![Item::Hit(Box::new(HitRow::of_record(&r))), Item::Record(r)]
+            }
+        }
         other => vec![other],
     }))
 }

@@ -62,6 +62,10 @@ pub struct IngestConfig {
     pub aewin: AewinConfig,
     pub waveexplorer: WaveExplorerConfig,
     pub mistras: MistrasConfig,
+    /// `[detect]`, checked (set by the pipeline's check, not written in `[ingest]`): how the
+    /// readers cut a continuous recording into hits.
+    #[serde(skip)]
+    pub detect: crate::detect::ValidDetect,
 }
 
 /// A MISTRAS characteristic id (CHID, 1–255): a key of `[ingest.mistras] chid_sizes`,
@@ -233,6 +237,7 @@ impl Default for IngestConfig {
             aewin: AewinConfig::default(),
             waveexplorer: WaveExplorerConfig::default(),
             mistras: MistrasConfig::default(),
+            detect: Default::default(),
         }
     }
 }

@@ -60,9 +60,17 @@ pub fn open(src: &Source, cfg: &IngestConfig) -> Box<dyn Iterator<Item = Item> +
     let pre = cfg.pretrigger_samples;
     let max_samples = cfg.max_samples_per_record;
     let files = src.files.clone();
-    let first_hit = src.first_hit;
-    Box::new(files.into_iter().enumerate().flat_map(move |(i, p)| {
-        let hit = first_hit + i as u64 + 1;
+    let counter = super::stream::HitCounter::new(src.first_hit.into());
+    let cfg = cfg.clone();
+    Box::new(files.into_iter().flat_map(move |p| {
+        // A WAV that `[detect]` cuts is a stream, read block by block.
+        if let Ok(l) = super::stream::wav_layout(&p) {
+            if cfg.detect.cuts(l.frames) {
+                let c = counter.clone();
+                return super::stream::open_layout(Ok(l), &p, experiment.clone(), c, &cfg);
+            }
+        }
+        let hit = counter.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
         let items: Vec<Item> = match read_wav(&p, max_samples) {
             Ok((rate, chans)) => chans
                 .into_iter()
@@ -95,7 +103,7 @@ pub fn open(src: &Source, cfg: &IngestConfig) -> Box<dyn Iterator<Item = Item> +
                 reason,
             })],
         };
-        items
+        Box::new(items.into_iter())
     }))
 }
 

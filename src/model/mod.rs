@@ -214,6 +214,9 @@ pub enum HitSource {
     /// A format without a hit list: the hit is its transient record, no hardware features.
     #[default]
     Record,
+    /// Cut from a continuous recording by `[detect]`: the detector's time, duration and
+    /// features.
+    Detected,
 }
 
 impl HitSource {
@@ -223,6 +226,7 @@ impl HitSource {
             HitSource::Mistras => "mistras",
             HitSource::AewinList => "aewin",
             HitSource::Record => "record",
+            HitSource::Detected => "detect",
         }
     }
 }
@@ -453,12 +457,33 @@ pub struct AcquisitionSetup {
     pub vendor_records: std::collections::BTreeMap<String, u64>,
 }
 
+/// What one continuous recording gave (`[detect]`): the manifest's `streams` entry.
+#[derive(Debug, Clone, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct StreamTally {
+    pub experiment: String,
+    pub file: String,
+    pub channels: usize,
+    pub sample_rate_hz: f64,
+    /// Samples read per channel (summed over the channels of a `.npy` read plane by plane).
+    pub samples_read: u64,
+    /// Samples per channel the header promised.
+    pub samples_promised: u64,
+    pub hits_cut: u64,
+    /// Samples from a hit's first to its last crossing, over all channels.
+    pub samples_in_hits: u64,
+    /// Hits flagged as two bursts in one record (`[detect] split_gap_s`).
+    pub two_bursts: u64,
+}
+
 /// What a reader counted in its files, by record type, independently of the rows it
 /// yielded: the manifest checks `read = rows + rejects` per type against it.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct Tally {
     pub experiment: String,
     pub read: std::collections::BTreeMap<RecordType, u64>,
+    /// A continuous recording's accounting (the manifest's `streams`), from a stream
+    /// reader.
+    pub stream: Option<Box<StreamTally>>,
 }
 
 /// What a reader yields: a transient record, a hit row, the reason a record (or file)

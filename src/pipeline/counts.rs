@@ -96,6 +96,8 @@ pub struct StreamStats {
     pub setups: Vec<AcquisitionSetup>,
     /// What the events step did, per experiment.
     pub events: Vec<crate::events::EventsSummary>,
+    /// What each continuous recording gave (`[detect]`).
+    pub streams: Vec<crate::model::StreamTally>,
     pub seconds: f64,
 }
 
@@ -164,6 +166,9 @@ impl StreamStats {
             let r = self.rec(&t.experiment, *ty);
             r.read = Some(r.read.unwrap_or(0) + n);
         }
+        if let Some(s) = &t.stream {
+            self.streams.push((**s).clone());
+        }
     }
 
     pub(crate) fn add_note(&mut self, n: Note) {
@@ -200,6 +205,8 @@ pub(crate) struct PartStats {
     setups: Vec<AcquisitionSetup>,
     #[serde(default)]
     pub(crate) events: Option<crate::events::EventsSummary>,
+    #[serde(default)]
+    streams: Vec<crate::model::StreamTally>,
 }
 
 impl PartStats {
@@ -227,6 +234,7 @@ impl PartStats {
                 .collect(),
             setups: s.setups.clone(),
             events: None,
+            streams: s.streams.clone(),
         }
     }
 
@@ -258,6 +266,7 @@ impl PartStats {
         }
         st.setups.extend(self.setups.iter().cloned());
         st.events.extend(self.events.iter().cloned());
+        st.streams.extend(self.streams.iter().cloned());
     }
 }
 
@@ -274,6 +283,7 @@ mod tests {
         st.add_tally(&Tally {
             experiment: "e".into(),
             read,
+            ..Default::default()
         });
         st.add_row("e");
         st.add_row("e");

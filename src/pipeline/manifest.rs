@@ -148,6 +148,10 @@ pub struct Manifest {
     #[serde(default)]
     pub events: Vec<crate::events::EventsSummary>,
     pub notes: Vec<NoteEntry>,
+    /// Per continuous recording cut by `[detect]`: samples read, hits cut, samples inside
+    /// hits.
+    #[serde(default)]
+    pub streams: Vec<crate::model::StreamTally>,
     pub counts: ManifestCounts,
     pub timings_s: Timings,
 }
@@ -172,6 +176,7 @@ impl Manifest {
             by_experiment: c.by_experiment.clone(),
             by_stage: c.rejects_by_stage.clone(),
             events: self.events.clone(),
+            streams: self.streams.clone(),
             ..Default::default()
         }
     }
@@ -237,6 +242,7 @@ pub(crate) fn assemble(
         outputs: outputs_of(job, out_dir, &stats),
         events: stats.events.clone(),
         notes: note_entries(&stats),
+        streams: stats.streams.clone(),
         counts: ManifestCounts::of(&stats),
         timings_s: Timings {
             discover: p.t_discover,

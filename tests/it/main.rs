@@ -8,6 +8,7 @@ mod bad_input;
 mod cli;
 mod corpus;
 mod cycles;
+mod detect;
 mod docs;
 mod dta;
 mod e2e;

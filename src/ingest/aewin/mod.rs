@@ -438,6 +438,7 @@ pub fn open(src: &Source, cfg: &IngestConfig) -> Box<dyn Iterator<Item = Item> +
                     first.push(Item::Tally(crate::model::Tally {
                         experiment: src.id.clone(),
                         read: [(crate::model::RecordType::Parametric, n)].into(),
+                        ..Default::default()
                     }));
                     log = l;
                 }

@@ -643,6 +643,7 @@ impl DtaSource {
         self.out.push_back(Item::Tally(Tally {
             experiment: self.experiment.clone(),
             read: std::mem::take(&mut self.read),
+            ..Default::default()
         }));
     }
 }

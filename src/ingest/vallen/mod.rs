@@ -741,6 +741,7 @@ fn last_items(
         Item::Tally(crate::model::Tally {
             experiment: experiment.to_string(),
             read,
+            ..Default::default()
         }),
     ])
 }
