@@ -35,6 +35,7 @@ impl BenchError {
 
 pub mod analysis;
 pub mod cluster;
+pub mod detect;
 
 pub use crate::util::{peak_rss_bytes, rss_bytes};
 

@@ -179,6 +179,27 @@ pub enum BenchCmd {
     /// `aepipe watch` following a folder that receives WAV hits at a steady rate and then a
     /// burst: each hit's lag from its file's last write to its row committed, median and p99
     Watch(BenchWatchArgs),
+    /// The `[detect]` stage alone on int16 streams in memory (MS/s per core, × real time
+    /// at 10 MHz), then `aepipe features` on stream WAVs of growing length (hits/s, × real
+    /// time, peak RSS)
+    Detect(BenchDetectArgs),
+}
+
+#[derive(clap::Args)]
+pub struct BenchDetectArgs {
+    /// Threads (one 10 MHz channel each for the stage alone)
+    #[arg(long, default_value_t = 1)]
+    pub threads: usize,
+    /// Seconds of stream per channel for the stage alone (held in memory)
+    #[arg(long, default_value_t = 5.0)]
+    pub stage_seconds: f64,
+    /// Stream lengths for the whole runs, s, comma-separated (2 bytes × 10 MHz each; none:
+    /// the stage alone)
+    #[arg(long, value_delimiter = ',', default_value = "10,100")]
+    pub seconds: Vec<f64>,
+    /// Scratch folder for the stream files and outputs
+    #[arg(long, default_value = "bench-detect")]
+    pub dir: PathBuf,
 }
 
 #[derive(clap::Args)]

@@ -599,6 +599,7 @@ fn bench(which: BenchCmd) -> Result<Outcome> {
             )?;
             print::analysis_bench(&b);
         }
+        BenchCmd::Detect(a) => bench_detect(a)?,
         BenchCmd::Watch(BenchWatchArgs {
             rate,
             seconds,
@@ -625,6 +626,44 @@ fn bench(which: BenchCmd) -> Result<Outcome> {
 }
 
 /// `aepipe bench som`: time our SOM and, given the peers' folder, MiniSom on the same run.
+fn bench_detect(a: BenchDetectArgs) -> Result<()> {
+    use crate::bench::detect as d;
+    let r = d::detect_stage(a.threads.max(1), a.stage_seconds);
+    let ms = r.ms_per_core();
+    println!(
+        "detect int16: {ms:.0} MS/s per core, {:.0}× real time at 10 MHz ({} thread(s), one 10 MHz channel of {} s each in memory, {} hits cut)",
+        ms / (d::RATE_HZ / 1e6),
+        r.threads,
+        a.stage_seconds,
+        r.hits
+    );
+    if a.seconds.is_empty() {
+        return Ok(());
+    }
+    let exe = std::env::current_exe().map_err(|e| crate::bench::BenchError::Run(e.to_string()))?;
+    let runs = d::stream_runs(&exe, &a.dir, &a.seconds, a.threads.max(1))?;
+    println!(
+        "aepipe features on a detected stream (one channel, WAV int16 at 10 MHz, {} thread(s), a whole process each):",
+        a.threads.max(1)
+    );
+    println!(
+        "{:>9} {:>8} {:>7} {:>9} {:>14} {:>12}",
+        "stream s", "wall s", "hits", "hits/s", "× real time", "peak RSS MB"
+    );
+    for x in runs {
+        println!(
+            "{:>9} {:>8.2} {:>7} {:>9.0} {:>14.1} {:>12.0}",
+            x.stream_s,
+            x.wall_s,
+            x.hits,
+            x.hits as f64 / x.wall_s,
+            x.stream_s / x.wall_s,
+            x.peak_rss as f64 / 1048576.0
+        );
+    }
+    Ok(())
+}
+
 fn bench_cluster(a: BenchClusterArgs) -> Result<()> {
     let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/python/bench_cluster.py");
     let rows =
