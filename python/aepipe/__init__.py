@@ -38,6 +38,7 @@ from ._aepipe import (
 )
 from ._analysis import Som, trend
 from ._cluster import cluster, validity_indices
+from ._detect import detect
 from ._features import cwt, features
 from ._jobs import reference_library, run, simulate
 from ._read import iter_waveforms, read_hits, read_waveforms
@@ -66,6 +67,7 @@ __all__ = [
     "WorkflowError",
     "cluster",
     "cwt",
+    "detect",
     "features",
     "iter_waveforms",
     "pickers",

@@ -117,6 +117,9 @@ def trend(
     paths: list[str], cutoff: str = "peak-load", columns: list[str] | None = None, alpha: float = 0.01,
     exclude_outside: bool = False, min_load_span_n: float = 1.0,
 ) -> ArrowStream: ...
+def detect(
+    channels: list[npt.NDArray[np.float32]], sample_rate_hz: float, config_toml: str
+) -> tuple[ArrowStream, list[npt.NDArray[np.float32]]]: ...
 CLUSTER_DEFAULT_COLUMNS: list[str]
 
 def cluster_fit(

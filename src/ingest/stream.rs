@@ -626,11 +626,32 @@ impl<T: Decode> Cutter<T> {
             .counter
             .fetch_add(1, std::sync::atomic::Ordering::Relaxed)
             + 1;
-        let rate = self.layout.rate_hz;
-        let t = |k: u64| k as f64 / rate;
         self.tally.hits_cut += 1;
         self.tally.samples_in_hits += c.last - c.first + 1;
         self.tally.two_bursts += c.two_bursts as u64;
+        let at = Cutting {
+            experiment: &self.experiment,
+            file: &self.tally.file,
+            rate_hz: self.layout.rate_hz,
+        };
+        let (row, rec) = at.items(channel, hit, c);
+        self.out.push_back(Item::Hit(Box::new(row)));
+        self.out.push_back(Item::Record(rec));
+    }
+}
+
+/// Where cut hits come from: their experiment, file and rate.
+pub struct Cutting<'a> {
+    pub experiment: &'a str,
+    pub file: &'a str,
+    pub rate_hz: f64,
+}
+
+impl Cutting<'_> {
+    /// A cut hit's row of `hits.parquet` (the detector's features) and its record.
+    pub fn items(&self, channel: u32, hit: u64, c: Cut) -> (HitRow, AeRecord) {
+        let rate = self.rate_hz;
+        let t = |k: u64| k as f64 / rate;
         let ended = if c.at_stream_end {
             "stream_end"
         } else if c.by_max_duration {
@@ -638,9 +659,8 @@ impl<T: Decode> Cutter<T> {
         } else {
             "ddt"
         };
-        let source_file = self.tally.file.clone();
-        self.out.push_back(Item::Hit(Box::new(HitRow {
-            experiment: self.experiment.clone(),
+        let row = HitRow {
+            experiment: self.experiment.to_string(),
             acquisition: 1,
             channel,
             hit,
@@ -657,12 +677,12 @@ impl<T: Decode> Cutter<T> {
                 c.two_bursts, c.first, c.last
             )),
             source: HitSource::Detected,
-            source_file: source_file.clone(),
+            source_file: self.file.to_string(),
             ..Default::default()
-        })));
-        self.out.push_back(Item::Record(AeRecord {
+        };
+        let rec = AeRecord {
             kind: crate::model::RecordKind::Hit,
-            experiment: self.experiment.clone(),
+            experiment: self.experiment.to_string(),
             channel,
             hit,
             time_s: Some(t(c.first)),
@@ -673,8 +693,34 @@ impl<T: Decode> Cutter<T> {
             extension_m: None,
             label: None,
             threshold_v: Some(c.threshold_v),
-            source_file,
-        }));
+            source_file: self.file.to_string(),
+        };
+        (row, rec)
+    }
+
+    /// Cut channels held in memory (volts, one slice per channel, channel k + 1): the hits
+    /// in order of their first crossing, numbered 1…, as a stream file's would be.
+    pub fn cut_channels(
+        &self,
+        channels: &[&[f32]],
+        detect: &ValidDetect,
+    ) -> Vec<(HitRow, AeRecord)> {
+        let p = detect.at_rate(self.rate_hz);
+        let mut cuts: Vec<(u32, Cut)> = Vec::new();
+        for (k, x) in channels.iter().enumerate() {
+            let mut d = Detector::<f32>::new(p, 1.0, self.rate_hz);
+            let mut out = Vec::new();
+            for b in x.chunks(detect.block_samples) {
+                d.push(b, &mut out);
+            }
+            d.finish(&mut out);
+            cuts.extend(out.into_iter().map(|c| (k as u32 + 1, c)));
+        }
+        cuts.sort_by_key(|(ch, c)| (c.first, *ch));
+        cuts.into_iter()
+            .enumerate()
+            .map(|(i, (ch, c))| self.items(ch, i as u64 + 1, c))
+            .collect()
     }
 }
 

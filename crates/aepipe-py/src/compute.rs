@@ -256,3 +256,40 @@ pub fn pick_energy_ratio<'py>(
     let values = if modified { mer } else { er };
     Ok((PyArray1::from_vec(py, values), at))
 }
+
+/// Cut channels (float32 volts, one array per channel) into hits as `[detect]` of the
+/// pipeline text `config_toml` says: the hits table (`hits.parquet`'s columns, source
+/// `detect`) and each hit's record, in order of first crossing.
+#[pyfunction]
+#[pyo3(signature = (channels, sample_rate_hz, config_toml))]
+pub fn detect<'py>(
+    py: Python<'py>,
+    channels: Vec<PyReadonlyArray1<'py, f32>>,
+    sample_rate_hz: f64,
+    config_toml: &str,
+) -> PyResult<(ArrowStream, Vec<Bound<'py, PyArray1<f32>>>)> {
+    if !(sample_rate_hz.is_finite() && sample_rate_hz > 0.0) {
+        return Err(PyValueError::new_err(format!(
+            "sample_rate_hz must be > 0, got {sample_rate_hz}"
+        )));
+    }
+    let cfg = aepipe::config::PipelineConfig::from_toml(config_toml).map_err(errors::config)?;
+    let owned: Vec<Vec<f32>> = channels.iter().map(owned_samples).collect();
+    let cutting = aepipe::ingest::stream::Cutting {
+        experiment: "array",
+        file: "",
+        rate_hz: sample_rate_hz,
+    };
+    let detect = &cfg.ingest.detect;
+    let items = py.detach(|| {
+        let views: Vec<&[f32]> = owned.iter().map(Vec::as_slice).collect();
+        cutting.cut_channels(&views, detect)
+    });
+    let table = aepipe::store::hits_table(cfg.crack_mode);
+    let rows = items.iter().map(|(h, _)| table.row(h.clone())).collect();
+    let waves = items
+        .into_iter()
+        .map(|(_, r)| PyArray1::from_vec(py, r.samples))
+        .collect();
+    Ok((batches(&table.schema(), rows)?, waves))
+}

@@ -34,6 +34,7 @@ fn _aepipe(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(compute::pick_hinkley, m)?)?;
     m.add_function(wrap_pyfunction!(compute::pick_aic, m)?)?;
     m.add_function(wrap_pyfunction!(compute::pick_energy_ratio, m)?)?;
+    m.add_function(wrap_pyfunction!(compute::detect, m)?)?;
     m.add_function(wrap_pyfunction!(analysis::trend, m)?)?;
     m.add_function(wrap_pyfunction!(analysis::som_fit, m)?)?;
     m.add_function(wrap_pyfunction!(analysis::cluster_fit, m)?)?;
