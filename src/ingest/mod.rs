@@ -319,7 +319,10 @@ pub fn open(
 /// [`open`] without the load file: what the recording itself holds.
 pub fn open_recording(src: &Source, cfg: &IngestConfig) -> Box<dyn Iterator<Item = Item> + Send> {
     let (s, c) = (src.clone(), cfg.clone());
-    guarded(src, Box::new(move || open_format(&s, &c)))
+    guarded(
+        src,
+        Box::new(move || stream::cut_long_records(open_format(&s, &c), &c)),
+    )
 }
 
 /// One window of a Vallen pair still being written (`aepipe watch`): its rows as [`open`]

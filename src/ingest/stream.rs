@@ -733,6 +733,7 @@ impl<T: Decode> Cutter<T> {
             experiment: self.experiment.clone(),
             read: read.into_iter().collect(),
             stream: Some(Box::new(std::mem::take(&mut self.tally))),
+            ..Default::default()
         }));
     }
 }
@@ -769,4 +770,104 @@ impl<T: Decode> Iterator for Cutter<T> {
             }
         }
     }
+}
+
+/// Records that other readers read whole (a Vallen TR record of the continuous mode, a long
+/// row of `waveforms.parquet`, …) cut when `[detect]` says so: each cut hit is numbered
+/// `record hit × 10⁶ + k` (traceable to its record, unique), timed from the record's first
+/// sample, and a hit row and record of its own. A cut record counts as the transients it
+/// became (a tally of the extra ones); one with no hit is a reject saying so. WAV and
+/// stream files are cut by their own readers, block by block.
+pub(crate) fn cut_long_records(
+    items: super::Items,
+    cfg: &super::settings::IngestConfig,
+) -> super::Items {
+    if cfg.detect.mode == crate::detect::DetectMode::Off {
+        return items;
+    }
+    let detect = cfg.detect.clone();
+    // A record just cut from a stream (its detected hit row right before it) is not cut
+    // again.
+    let mut cut: Option<(u32, u64)> = None;
+    Box::new(items.flat_map(move |it| match it {
+        Item::Hit(h) => {
+            cut = (h.source == HitSource::Detected).then_some((h.channel, h.hit));
+            vec![Item::Hit(h)]
+        }
+        Item::Record(r) => {
+            let fresh = cut.take() != Some((r.channel, r.hit));
+            if fresh && detect.cuts(r.samples.len() as u64) {
+                cut_record(r, &detect)
+            } else {
+                vec![Item::Record(r)]
+            }
+        }
+        other => vec![other],
+    }))
+}
+
+/// The hits of one record held in memory.
+fn cut_record(r: AeRecord, detect: &ValidDetect) -> Vec<Item> {
+    let rate = r.sample_rate_hz;
+    let at = Cutting {
+        experiment: &r.experiment,
+        file: &r.source_file,
+        rate_hz: rate,
+    };
+    let p = detect.at_rate(rate);
+    let mut d = Detector::<f32>::new(p, 1.0, rate);
+    let mut cuts = Vec::new();
+    for b in r.samples.chunks(detect.block_samples) {
+        d.push(b, &mut cuts);
+    }
+    d.finish(&mut cuts);
+    // The record's first sample; a record without a time starts at 0 s, as a stream does.
+    let t0 = r.time_s.map_or(0.0, |t| t - r.pretrigger as f64 / rate);
+    let mut tally = StreamTally {
+        experiment: r.experiment.clone(),
+        file: format!("{} (ch{} hit {})", r.source_file, r.channel, r.hit),
+        channels: 1,
+        sample_rate_hz: rate,
+        samples_read: r.samples.len() as u64,
+        samples_promised: r.samples.len() as u64,
+        ..Default::default()
+    };
+    let mut out = Vec::with_capacity(2 * cuts.len() + 1);
+    let m = cuts.len() as u64;
+    for (k, c) in cuts.into_iter().enumerate() {
+        tally.hits_cut += 1;
+        tally.samples_in_hits += c.last - c.first + 1;
+        tally.two_bursts += c.two_bursts as u64;
+        let (mut row, mut rec) = at.items(r.channel, r.hit * 1_000_000 + k as u64 + 1, c);
+        row.time_s = row.time_s.map(|t| t0 + t);
+        rec.time_s = row.time_s;
+        (row.load_n, row.extension_m) = (r.load_n, r.extension_m);
+        (rec.load_n, rec.extension_m) = (r.load_n, r.extension_m);
+        out.push(Item::Hit(Box::new(row)));
+        out.push(Item::Record(rec));
+    }
+    if m == 0 {
+        out.push(Item::Reject(Reject {
+            experiment: r.experiment.clone(),
+            source_file: r.source_file.clone(),
+            record_id: format!("ch{} hit {}", r.channel, r.hit),
+            stage: Stage::Read,
+            reason: format!(
+                "a continuous record of {} samples with no hit at [detect]'s threshold",
+                r.samples.len()
+            ),
+            record_type: RecordType::Transient,
+        }));
+    }
+    let added = [
+        (RecordType::Transient, m.saturating_sub(1)),
+        (RecordType::Hit, m),
+    ];
+    out.push(Item::Tally(Tally {
+        experiment: r.experiment.clone(),
+        added: added.into_iter().filter(|(_, n)| *n > 0).collect(),
+        stream: Some(Box::new(tally)),
+        ..Default::default()
+    }));
+    out
 }

@@ -481,6 +481,9 @@ pub struct StreamTally {
 pub struct Tally {
     pub experiment: String,
     pub read: std::collections::BTreeMap<RecordType, u64>,
+    /// Rows a reader's transform added to what it counted: a record cut by `[detect]`
+    /// into m hits adds m − 1 transients and m hits.
+    pub added: std::collections::BTreeMap<RecordType, u64>,
     /// A continuous recording's accounting (the manifest's `streams`), from a stream
     /// reader.
     pub stream: Option<Box<StreamTally>>,

@@ -15,12 +15,22 @@ pub struct RecordCounts {
     pub read: Option<u64>,
     pub rows: u64,
     pub rejects: u64,
+    /// Rows a transform added to what was read (a record cut by `[detect]` into m hits
+    /// adds m − 1 transients and m hits).
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub added: u64,
+}
+
+fn is_zero(n: &u64) -> bool {
+    *n == 0
 }
 
 impl RecordCounts {
-    /// Whether every record read is a row or a reject (true where nothing was counted).
+    /// Whether every record read (and every row a transform added) is a row or a reject
+    /// (true where nothing was counted).
     pub fn balanced(&self) -> bool {
-        self.read.is_none_or(|r| r == self.rows + self.rejects)
+        self.read
+            .is_none_or(|r| r + self.added == self.rows + self.rejects)
     }
 }
 
@@ -56,6 +66,7 @@ impl Counts {
             };
             e.rows += c.rows;
             e.rejects += c.rejects;
+            e.added += c.added;
         }
     }
 
@@ -165,6 +176,9 @@ impl StreamStats {
         for (ty, n) in &t.read {
             let r = self.rec(&t.experiment, *ty);
             r.read = Some(r.read.unwrap_or(0) + n);
+        }
+        for (ty, n) in &t.added {
+            self.rec(&t.experiment, *ty).added += n;
         }
         if let Some(s) = &t.stream {
             self.streams.push((**s).clone());

@@ -322,3 +322,116 @@ fn a_stream_cut_mid_block_keeps_what_came_before() {
     assert_eq!(m.streams[0].samples_read, keep_frames);
     assert_eq!(m.streams[0].samples_promised, x.len() as u64 / 2);
 }
+
+/// Records other readers read whole are cut too (`mode = "auto"` above `auto_min_samples`):
+/// the stream's channels as rows of `waveforms.parquet`, and channel 1 as one Vallen TR
+/// record (the continuous mode), give the stream's own hits, numbered record hit × 10⁶ + k,
+/// with the manifest's counts balanced.
+#[test]
+fn long_records_of_other_formats_are_cut_alike() {
+    let d = TempDir::new("detect-long");
+    let lib = crate::e2e::small_library_seeded(d.path(), "lib", 44, 1);
+    let lib = aepipe::synth::Library::read(&lib, FS).unwrap();
+    let (x, _) = stream(&lib);
+    write_all(&d.path().join("in"), &x);
+    let run = |input: &Path, out: &Path, job, cfg: &aepipe::config::ValidConfig| {
+        aepipe::pipeline::run(
+            job,
+            &[input.to_path_buf()],
+            out,
+            cfg,
+            &aepipe::pipeline::StreamOptions::with_threads(2),
+        )
+        .unwrap()
+    };
+    let features = aepipe::pipeline::StreamJob::Features;
+    // The stream file itself, cut.
+    let want = {
+        let out = d.path().join("npy-cut");
+        run(
+            &d.path().join("in").join("npy"),
+            &out,
+            features,
+            &config(0.0),
+        );
+        cut_hits(&out)
+    };
+    // The stream read whole (mode off) into waveforms.parquet, then cut from there.
+    let mut off = aepipe::config::PipelineConfig::default();
+    off.ingest.sample_rate_hz = FS;
+    let off = off.check().unwrap();
+    let whole = d.path().join("whole");
+    run(
+        &d.path().join("in").join("npy"),
+        &whole,
+        aepipe::pipeline::StreamJob::Waveforms,
+        &off,
+    );
+    let mut auto = config(0.0).into_inner();
+    auto.detect.mode = aepipe::detect::DetectMode::Auto;
+    let auto = auto.check().unwrap();
+    let out = d.path().join("from-parquet");
+    run(&whole.join("waveforms.parquet"), &out, features, &auto);
+    assert_eq!(cut_hits(&out), want);
+    let (names, rows) = crate::table_rows(&out.join("hits.parquet"));
+    let hit = names.iter().position(|n| n == "hit").unwrap();
+    let ch = names.iter().position(|n| n == "channel").unwrap();
+    for r in &rows {
+        let h: u64 = r[hit].parse().unwrap();
+        assert_eq!(h / 1_000_000, 1, "the record's hit × 10⁶ + k: {h}");
+        assert!(r[ch] == "1" || r[ch] == "2");
+    }
+    let m = aepipe::pipeline::Manifest::read(&out.join("manifest.json")).unwrap();
+    assert!(m.counts.unbalanced.is_empty(), "{:?}", m.counts.unbalanced);
+    assert_eq!(m.streams.len(), 2);
+
+    // Channel 1 as one Vallen TR record of 3 M samples (1 µV a count), with its hit row.
+    let ch1: Vec<f32> = x
+        .iter()
+        .step_by(2)
+        .map(|&c| (c as f64 * 1e-6) as f32)
+        .collect();
+    let vdir = d.path().join("vallen");
+    std::fs::create_dir_all(&vdir).unwrap();
+    let hits = [aepipe::ingest::vallen::HitToWrite {
+        channel: 1,
+        trai: 1,
+        time_s: 0.0,
+        sample_rate_hz: FS,
+        pretrigger: 0,
+        samples_v: &ch1,
+        restart: false,
+        transient: true,
+    }];
+    aepipe::ingest::vallen::write_pair(&vdir.join("cont"), hits, &[], 1e-3, 1e-4).unwrap();
+    let out = d.path().join("from-vallen");
+    run(&vdir, &out, features, &auto);
+    let (names, rows) = crate::table_rows(&out.join("hits.parquet"));
+    let src = names.iter().position(|n| n == "source").unwrap();
+    let vendor = rows.iter().filter(|r| r[src] == "vallen").count();
+    assert_eq!(vendor, 1, "the system's own hit row stays");
+    let got: Vec<(i64, usize, usize)> = {
+        let (t, du) = (
+            names.iter().position(|n| n == "time_s").unwrap(),
+            names.iter().position(|n| n == "duration_s").unwrap(),
+        );
+        let mut v: Vec<_> = rows
+            .iter()
+            .filter(|r| r[src] == "detect")
+            .map(|r| {
+                let f = (r[t].parse::<f64>().unwrap() * FS).round() as usize;
+                (
+                    1,
+                    f,
+                    f + (r[du].parse::<f64>().unwrap() * FS).round() as usize,
+                )
+            })
+            .collect();
+        v.sort();
+        v
+    };
+    let want1: Vec<_> = want.iter().filter(|h| h.0 == 1).copied().collect();
+    assert_eq!(got, want1);
+    let m = aepipe::pipeline::Manifest::read(&out.join("manifest.json")).unwrap();
+    assert!(m.counts.unbalanced.is_empty(), "{:?}", m.counts.unbalanced);
+}
