@@ -435,3 +435,75 @@ fn long_records_of_other_formats_are_cut_alike() {
     let m = aepipe::pipeline::Manifest::read(&out.join("manifest.json")).unwrap();
     assert!(m.counts.unbalanced.is_empty(), "{:?}", m.counts.unbalanced);
 }
+
+/// Hostile stream headers: every size is checked before it is trusted, each bad file is a
+/// reject naming what is wrong, and a good stream beside them is cut whole.
+#[test]
+fn bad_stream_headers_are_rejects_and_the_good_stream_is_cut() {
+    let d = TempDir::new("detect-bad");
+    let dir = d.path().join("in");
+    std::fs::create_dir_all(&dir).unwrap();
+    // A .npy promising 2 × 10¹² samples (16 bytes of data).
+    let mut npy = b"\x93NUMPY\x01\x00".to_vec();
+    let h = "{'descr': '<i2', 'fortran_order': False, 'shape': (2, 1000000000000), }\n";
+    npy.extend((h.len() as u16).to_le_bytes());
+    npy.extend(h.as_bytes());
+    npy.extend([0u8; 16]);
+    std::fs::write(dir.join("huge.npy"), &npy).unwrap();
+    // A .npy of float64, and one in Fortran order.
+    let mut f64npy = b"\x93NUMPY\x01\x00".to_vec();
+    let h = "{'descr': '<f8', 'fortran_order': False, 'shape': (4,), }\n";
+    f64npy.extend((h.len() as u16).to_le_bytes());
+    f64npy.extend(h.as_bytes());
+    f64npy.extend([0u8; 32]);
+    std::fs::write(dir.join("f64.npy"), &f64npy).unwrap();
+    // A raw stream whose description names an unknown dtype.
+    std::fs::write(dir.join("bad.bin"), [0u8; 64]).unwrap();
+    std::fs::write(
+        dir.join("bad.bin.toml"),
+        "dtype = \"int12\"\nsample_rate_hz = 1e6\n",
+    )
+    .unwrap();
+    // The good stream: 1 s of zeros with three spikes, raw int16.
+    let mut x = vec![0i16; 1_000_000];
+    for k in [100_000usize, 400_000, 900_000] {
+        x[k] = 500;
+    }
+    let bytes: Vec<u8> = x.iter().flat_map(|c| c.to_le_bytes()).collect();
+    std::fs::write(dir.join("good.bin"), &bytes).unwrap();
+    std::fs::write(
+        dir.join("good.bin.toml"),
+        "dtype = \"int16\"\nchannels = 1\nsample_rate_hz = 1e6\nvolts_per_unit = 1e-6\n",
+    )
+    .unwrap();
+    let out = d.path().join("out");
+    let mut cfg = aepipe::config::PipelineConfig::default();
+    cfg.detect.mode = aepipe::detect::DetectMode::On;
+    let cfg = cfg.check().unwrap();
+    aepipe::pipeline::run(
+        aepipe::pipeline::StreamJob::Features,
+        &[dir],
+        &out,
+        &cfg,
+        &aepipe::pipeline::StreamOptions::with_threads(1),
+    )
+    .unwrap();
+    let (names, rows) = crate::table_rows(&out.join("rejects.parquet"));
+    let (exp, reason) = (
+        names.iter().position(|n| n == "experiment").unwrap(),
+        names.iter().position(|n| n == "reason").unwrap(),
+    );
+    let why = |e: &str| {
+        rows.iter()
+            .find(|r| r[exp] == e)
+            .map(|r| r[reason].clone())
+            .unwrap_or_else(|| panic!("no reject for {e}: {rows:?}"))
+    };
+    assert!(why("huge").contains("ends at sample 4 of the 1000000000000"), "{}", why("huge"));
+    assert!(why("f64").contains("int16 and float32"), "{}", why("f64"));
+    assert!(why("bad").contains("int12"), "{}", why("bad"));
+    let (names, rows) = crate::table_rows(&out.join("hits.parquet"));
+    let t = names.iter().position(|n| n == "time_s").unwrap();
+    let times: Vec<f64> = rows.iter().map(|r| r[t].parse().unwrap()).collect();
+    assert_eq!(times, [0.1, 0.4, 0.9]);
+}
