@@ -133,6 +133,55 @@ pub fn detect_stage(threads: usize, seconds: f64) -> StageResult {
     }
 }
 
+/// The NumPy peer on the first channel of the stage's stream (`seed` 1, `seconds` long),
+/// written as a `.npy` into `dir`: its cut alone, seconds and hits.
+pub fn numpy_peer(
+    python: &Path,
+    script: &Path,
+    dir: &Path,
+    seconds: f64,
+) -> Result<(f64, usize), BenchError> {
+    std::fs::create_dir_all(dir).map_err(BenchError::run)?;
+    let n = (seconds * RATE_HZ) as usize;
+    let mut x = vec![0i16; n];
+    StreamMaker::new(1).fill(&mut x);
+    let npy = dir.join("stage.npy");
+    let mut b = b"\x93NUMPY\x01\x00".to_vec();
+    let mut h = format!("{{'descr': '<i2', 'fortran_order': False, 'shape': ({n},), }}");
+    while (10 + h.len() + 1) % 64 != 0 {
+        h.push(' ');
+    }
+    h.push('\n');
+    b.extend((h.len() as u16).to_le_bytes());
+    b.extend(h.as_bytes());
+    b.extend(x.iter().flat_map(|v| v.to_le_bytes()));
+    std::fs::write(&npy, &b).map_err(BenchError::run)?;
+    let thr = 10f64.powf(40.0 / 20.0); // 40 dB_AE in counts of 1 µV
+    let out = std::process::Command::new(python)
+        .arg(script)
+        .arg(&npy)
+        .arg(thr.to_string())
+        .output()
+        .map_err(|e| BenchError::Peer(e.to_string()))?;
+    let _ = std::fs::remove_file(&npy);
+    let text = String::from_utf8_lossy(&out.stdout);
+    let mut w = text
+        .split_whitespace()
+        .skip_while(|t| *t != "numpy")
+        .skip(1);
+    match (
+        w.next().and_then(|s| s.parse().ok()),
+        w.next().and_then(|s| s.parse().ok()),
+    ) {
+        (Some(s), Some(h)) => Ok((s, h)),
+        _ => Err(BenchError::Peer(format!(
+            "{}: {}",
+            script.display(),
+            String::from_utf8_lossy(&out.stderr).trim()
+        ))),
+    }
+}
+
 /// Write `seconds` of one-channel int16 stream as a WAV at 10 MHz (±1 V full scale, as a
 /// WAV's integers are read).
 pub fn write_stream_wav(path: &Path, seconds: f64, seed: u64) -> Result<(), BenchError> {

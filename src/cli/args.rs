@@ -193,13 +193,17 @@ pub struct BenchDetectArgs {
     /// Seconds of stream per channel for the stage alone (held in memory)
     #[arg(long, default_value_t = 5.0)]
     pub stage_seconds: f64,
-    /// Stream lengths for the whole runs, s, comma-separated (2 bytes × 10 MHz each; none:
-    /// the stage alone)
+    /// Stream lengths for the whole runs, s, comma-separated (2 bytes × 10 MHz each; 0: the
+    /// stage alone)
     #[arg(long, value_delimiter = ',', default_value = "10,100")]
     pub seconds: Vec<f64>,
     /// Scratch folder for the stream files and outputs
     #[arg(long, default_value = "bench-detect")]
     pub dir: PathBuf,
+    /// Python with NumPy: the same cut done the NumPy way on the same stream, in the same
+    /// run (none: aepipe alone)
+    #[arg(long)]
+    pub python: Option<PathBuf>,
 }
 
 #[derive(clap::Args)]

@@ -637,11 +637,28 @@ fn bench_detect(a: BenchDetectArgs) -> Result<()> {
         a.stage_seconds,
         r.hits
     );
-    if a.seconds.is_empty() {
+    if let Some(py) = &a.python {
+        let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/python/bench_detect.py");
+        let one = d::detect_stage(1, a.stage_seconds);
+        match d::numpy_peer(py, &script, &a.dir, a.stage_seconds) {
+            Ok((s, hits)) => {
+                let peer = one.samples as f64 / s / 1e6;
+                println!(
+                    "numpy (crossings vectorised, the rules per crossing), the same stream: {peer:.0} MS/s, {hits} hits; aepipe one thread {:.0} MS/s, {} hits: {:.1}×",
+                    one.ms_per_core(),
+                    one.hits,
+                    one.ms_per_core() / peer
+                );
+            }
+            Err(e) => println!("numpy peer: not run ({e})"),
+        }
+    }
+    let seconds: Vec<f64> = a.seconds.iter().copied().filter(|s| *s > 0.0).collect();
+    if seconds.is_empty() {
         return Ok(());
     }
     let exe = std::env::current_exe().map_err(|e| crate::bench::BenchError::Run(e.to_string()))?;
-    let runs = d::stream_runs(&exe, &a.dir, &a.seconds, a.threads.max(1))?;
+    let runs = d::stream_runs(&exe, &a.dir, &seconds, a.threads.max(1))?;
     println!(
         "aepipe features on a detected stream (one channel, WAV int16 at 10 MHz, {} thread(s), a whole process each):",
         a.threads.max(1)

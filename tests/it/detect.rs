@@ -499,7 +499,11 @@ fn bad_stream_headers_are_rejects_and_the_good_stream_is_cut() {
             .map(|r| r[reason].clone())
             .unwrap_or_else(|| panic!("no reject for {e}: {rows:?}"))
     };
-    assert!(why("huge").contains("ends at sample 4 of the 1000000000000"), "{}", why("huge"));
+    assert!(
+        why("huge").contains("ends at sample 4 of the 1000000000000"),
+        "{}",
+        why("huge")
+    );
     assert!(why("f64").contains("int16 and float32"), "{}", why("f64"));
     assert!(why("bad").contains("int12"), "{}", why("bad"));
     let (names, rows) = crate::table_rows(&out.join("hits.parquet"));
