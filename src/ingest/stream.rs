@@ -15,6 +15,26 @@ use crate::model::{
 use std::io::{Read, Seek, SeekFrom};
 use std::path::{Path, PathBuf};
 
+/// Why a stream file's header or description cannot be read (the reject's reason).
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum StreamError {
+    /// What the header or the `.toml` description says that cannot be read.
+    #[error("{0}")]
+    Header(String),
+}
+
+impl From<String> for StreamError {
+    fn from(s: String) -> StreamError {
+        StreamError::Header(s)
+    }
+}
+
+impl From<&str> for StreamError {
+    fn from(s: &str) -> StreamError {
+        StreamError::Header(s.to_string())
+    }
+}
+
 /// How a stream's samples are stored.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Dtype {
@@ -66,7 +86,7 @@ fn le_u64(b: &[u8]) -> u64 {
 
 /// A WAV or RF64 file's layout: integers are ±1 V full scale, floats volts (as
 /// [`super::wavfmt`] reads a one-hit WAV).
-pub fn wav_layout(path: &Path) -> Result<StreamLayout, String> {
+pub(crate) fn wav_layout(path: &Path) -> Result<StreamLayout, StreamError> {
     let mut f = std::fs::File::open(path).map_err(|e| e.to_string())?;
     let len = f.metadata().map_err(|e| e.to_string())?.len();
     let mut head = [0u8; 12];
@@ -98,7 +118,7 @@ pub fn wav_layout(path: &Path) -> Result<StreamLayout, String> {
             }
             b"fmt " => {
                 if size < 16 || body + size > len {
-                    return Err(format!("a fmt chunk of {size} bytes"));
+                    return Err(format!("a fmt chunk of {size} bytes").into());
                 }
                 let mut b = vec![0u8; size.min(40) as usize];
                 f.read_exact(&mut b).map_err(|e| e.to_string())?;
@@ -116,13 +136,13 @@ pub fn wav_layout(path: &Path) -> Result<StreamLayout, String> {
         }
         let next = body + size + (size & 1);
         if next <= at || next > len {
-            return Err(format!("a chunk at byte {at} runs past the file's end"));
+            return Err(format!("a chunk at byte {at} runs past the file's end").into());
         }
         at = next;
     }
 }
 
-fn wav_fmt(path: &Path, fmt: &[u8], data: u64, declared: u64) -> Result<StreamLayout, String> {
+fn wav_fmt(path: &Path, fmt: &[u8], data: u64, declared: u64) -> Result<StreamLayout, StreamError> {
     let mut tag = le_u16(&fmt[0..2]);
     let channels = le_u16(&fmt[2..4]) as usize;
     let rate = le_u32(&fmt[4..8]) as f64;
@@ -136,10 +156,10 @@ fn wav_fmt(path: &Path, fmt: &[u8], data: u64, declared: u64) -> Result<StreamLa
         (1, 32) => Dtype::I32,
         (3, 32) => Dtype::F32,
         (3, 64) => Dtype::F64,
-        _ => return Err(format!("WAV format tag {tag} with {bits} bits is not read")),
+        _ => return Err(format!("WAV format tag {tag} with {bits} bits is not read").into()),
     };
     if channels == 0 || rate <= 0.0 {
-        return Err(format!("{channels} channels at {rate} Hz"));
+        return Err(format!("{channels} channels at {rate} Hz").into());
     }
     let frame = (channels * dtype.bytes()) as u64;
     let unit_v = match dtype {
@@ -162,7 +182,7 @@ fn wav_fmt(path: &Path, fmt: &[u8], data: u64, declared: u64) -> Result<StreamLa
 /// float32, C order (a Fortran-order array is refused). Its rate and scale come from
 /// `[ingest] sample_rate_hz` and, for int16, a `.toml` beside it (`volts_per_unit`; else
 /// the ±1 V full scale of a WAV).
-pub fn npy_layout(path: &Path, rate_hz: f64) -> Result<StreamLayout, String> {
+pub(crate) fn npy_layout(path: &Path, rate_hz: f64) -> Result<StreamLayout, StreamError> {
     let mut f = std::fs::File::open(path).map_err(|e| e.to_string())?;
     let mut pre = [0u8; 10];
     f.read_exact(&mut pre)
@@ -177,10 +197,10 @@ pub fn npy_layout(path: &Path, rate_hz: f64) -> Result<StreamLayout, String> {
             f.read_exact(&mut b).map_err(|e| e.to_string())?;
             (le_u32(&[pre[8], pre[9], b[0], b[1]]) as u64, 12u64)
         }
-        v => return Err(format!(".npy version {v}")),
+        v => return Err(format!(".npy version {v}").into()),
     };
     if hlen > 1 << 20 {
-        return Err(format!("a .npy header of {hlen} bytes"));
+        return Err(format!("a .npy header of {hlen} bytes").into());
     }
     let mut h = vec![0u8; hlen as usize];
     f.seek(SeekFrom::Start(at)).map_err(|e| e.to_string())?;
@@ -202,7 +222,8 @@ pub fn npy_layout(path: &Path, rate_hz: f64) -> Result<StreamLayout, String> {
         return Err(format!(
             "dtype {} (int16 and float32 are read)",
             descr.split(',').next().unwrap_or("")
-        ));
+        )
+        .into());
     };
     if field("fortran_order")?.starts_with("True") {
         return Err("a Fortran-order array".into());
@@ -221,7 +242,7 @@ pub fn npy_layout(path: &Path, rate_hz: f64) -> Result<StreamLayout, String> {
     let (channels, frames) = match dims[..] {
         [n] => (1usize, n),
         [c, n] if c > 0 && c <= 4096 => (c as usize, n),
-        _ => return Err(format!("shape ({inner}): 1-D or channels × samples")),
+        _ => return Err(format!("shape ({inner}): 1-D or channels × samples").into()),
     };
     let toml = sidecar(path)?;
     let unit_v = match dtype {
@@ -267,7 +288,7 @@ pub fn sidecar_path(path: &Path) -> PathBuf {
 }
 
 /// The description beside a stream file, if there is one.
-pub fn sidecar(path: &Path) -> Result<Option<RawDescription>, String> {
+pub(crate) fn sidecar(path: &Path) -> Result<Option<RawDescription>, StreamError> {
     let p = sidecar_path(path);
     if !p.is_file() {
         return Ok(None);
@@ -275,23 +296,23 @@ pub fn sidecar(path: &Path) -> Result<Option<RawDescription>, String> {
     let text = std::fs::read_to_string(&p).map_err(|e| format!("{}: {e}", p.display()))?;
     toml::from_str(&text)
         .map(Some)
-        .map_err(|e| format!("{}: {}", p.display(), e.to_string().replace('\n', " ")))
+        .map_err(|e| format!("{}: {}", p.display(), e.to_string().replace('\n', " ")).into())
 }
 
 /// A raw binary stream's layout from its `.toml` description (interleaved channels).
-pub fn raw_layout(path: &Path) -> Result<StreamLayout, String> {
+pub(crate) fn raw_layout(path: &Path) -> Result<StreamLayout, StreamError> {
     let d = sidecar(path)?.ok_or("no .toml description beside the raw stream")?;
     let dtype = match d.dtype.as_deref() {
         Some("int16") => Dtype::I16,
         Some("float32") => Dtype::F32,
-        other => return Err(format!("dtype {other:?}: int16 or float32")),
+        other => return Err(format!("dtype {other:?}: int16 or float32").into()),
     };
     let channels = d.channels.unwrap_or(1);
     let rate = d
         .sample_rate_hz
         .ok_or("no sample_rate_hz in the description")?;
     if channels == 0 || channels > 4096 || !(rate.is_finite() && rate > 0.0) {
-        return Err(format!("{channels} channels at {rate} Hz"));
+        return Err(format!("{channels} channels at {rate} Hz").into());
     }
     let len = std::fs::metadata(path).map_err(|e| e.to_string())?.len();
     let frame = (channels * dtype.bytes()) as u64;
@@ -359,7 +380,7 @@ fn open(src: &super::Source, cfg: &super::settings::IngestConfig) -> super::Item
 /// A stream (or a long record) by its layout: cut, or read whole, or a reject saying why
 /// not.
 pub(crate) fn open_layout(
-    layout: Result<StreamLayout, String>,
+    layout: Result<StreamLayout, StreamError>,
     path: &Path,
     experiment: String,
     counter: HitCounter,
@@ -377,7 +398,7 @@ pub(crate) fn open_layout(
     };
     let layout = match layout {
         Ok(l) => l,
-        Err(why) => return reject(why),
+        Err(why) => return reject(why.to_string()),
     };
     let gain = super::gain_factor(cfg.gain_db);
     if cfg.detect.cuts(layout.frames) {

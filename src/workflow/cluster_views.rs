@@ -160,6 +160,23 @@ struct Gathered {
     evolution: super::sources::EvolutionInput,
 }
 
+impl Gathered {
+    /// Offer a cluster's row to its seeded reservoir of at most [`SAMPLE_PER_CLUSTER`].
+    fn sample(&mut self, c: usize, row: Vec<f64>, rng: &mut crate::util::Rng) {
+        let n = self.seen.entry(c).or_insert(0);
+        let s = self.samples.entry(c).or_default();
+        if s.len() < SAMPLE_PER_CLUSTER {
+            s.push(row);
+        } else {
+            let j = (rng.next_u64() % (*n as u64 + 1)) as usize;
+            if j < SAMPLE_PER_CLUSTER {
+                s[j] = row;
+            }
+        }
+        *n += 1;
+    }
+}
+
 /// Walk the feature tables and `clusters` together (see the module's doc) and draw into
 /// `dir`.
 pub(super) fn cluster_views(
@@ -273,17 +290,7 @@ pub(super) fn cluster_views(
                         .push_class(exp, e as i64, &format!("cluster {c}"))?;
                 }
                 let row: Vec<f64> = values.iter().map(|v| v[i].unwrap_or(f64::NAN)).collect();
-                let n = g.seen.entry(c as usize).or_insert(0);
-                let s = g.samples.entry(c as usize).or_default();
-                if s.len() < SAMPLE_PER_CLUSTER {
-                    s.push(row);
-                } else {
-                    let j = (rng.next_u64() % (*n as u64 + 1)) as usize;
-                    if j < SAMPLE_PER_CLUSTER {
-                        s[j] = row;
-                    }
-                }
-                *n += 1;
+                g.sample(c as usize, row, &mut rng);
             }
         }
     }

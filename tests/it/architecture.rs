@@ -258,9 +258,10 @@ fn every_import_points_down_the_readmes_direction() {
         "{found:?}"
     );
     assert!(
-        found
-            .iter()
-            .any(|b| b.starts_with("features (tier 3) uses events")),
+        found.iter().any(|b| b.starts_with(&format!(
+            "features (tier {}) uses events",
+            tiers["features"]
+        ))),
         "{found:?}"
     );
 }
