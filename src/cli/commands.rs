@@ -628,56 +628,19 @@ fn bench(which: BenchCmd) -> Result<Outcome> {
 /// `aepipe bench som`: time our SOM and, given the peers' folder, MiniSom on the same run.
 fn bench_detect(a: BenchDetectArgs) -> Result<()> {
     use crate::bench::detect as d;
-    let r = d::detect_stage(a.threads.max(1), a.stage_seconds);
-    let ms = r.ms_per_core();
-    println!(
-        "detect int16: {ms:.0} MS/s per core, {:.0}× real time at 10 MHz ({} thread(s), one 10 MHz channel of {} s each in memory, {} hits cut)",
-        ms / (d::RATE_HZ / 1e6),
-        r.threads,
-        a.stage_seconds,
-        r.hits
-    );
+    let threads = a.threads.max(1);
+    print::detect_stage(&d::detect_stage(threads, a.stage_seconds), a.stage_seconds);
     if let Some(py) = &a.python {
         let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/python/bench_detect.py");
         let one = d::detect_stage(1, a.stage_seconds);
-        match d::numpy_peer(py, &script, &a.dir, a.stage_seconds) {
-            Ok((s, hits)) => {
-                let peer = one.samples as f64 / s / 1e6;
-                println!(
-                    "numpy (crossings vectorised, the rules per crossing), the same stream: {peer:.0} MS/s, {hits} hits; aepipe one thread {:.0} MS/s, {} hits: {:.1}×",
-                    one.ms_per_core(),
-                    one.hits,
-                    one.ms_per_core() / peer
-                );
-            }
-            Err(e) => println!("numpy peer: not run ({e})"),
-        }
+        print::detect_peer(&one, d::numpy_peer(py, &script, &a.dir, a.stage_seconds));
     }
     let seconds: Vec<f64> = a.seconds.iter().copied().filter(|s| *s > 0.0).collect();
     if seconds.is_empty() {
         return Ok(());
     }
     let exe = std::env::current_exe().map_err(|e| crate::bench::BenchError::Run(e.to_string()))?;
-    let runs = d::stream_runs(&exe, &a.dir, &seconds, a.threads.max(1))?;
-    println!(
-        "aepipe features on a detected stream (one channel, WAV int16 at 10 MHz, {} thread(s), a whole process each):",
-        a.threads.max(1)
-    );
-    println!(
-        "{:>9} {:>8} {:>7} {:>9} {:>14} {:>12}",
-        "stream s", "wall s", "hits", "hits/s", "× real time", "peak RSS MB"
-    );
-    for x in runs {
-        println!(
-            "{:>9} {:>8.2} {:>7} {:>9.0} {:>14.1} {:>12.0}",
-            x.stream_s,
-            x.wall_s,
-            x.hits,
-            x.hits as f64 / x.wall_s,
-            x.stream_s / x.wall_s,
-            x.peak_rss as f64 / 1048576.0
-        );
-    }
+    print::detect_runs(&d::stream_runs(&exe, &a.dir, &seconds, threads)?, threads);
     Ok(())
 }
 

@@ -321,3 +321,55 @@ pub fn cluster_report(r: &crate::cluster::ClusterReport) -> String {
     s += &format!("k = {}: hits per cluster {}\n", r.k, sizes.join(", "));
     s
 }
+
+/// `aepipe bench detect`: the stage alone.
+pub fn detect_stage(r: &crate::bench::detect::StageResult, seconds: f64) {
+    let ms = r.ms_per_core();
+    println!(
+        "detect int16: {ms:.0} MS/s per core, {:.0}× real time at 10 MHz ({} thread(s), one 10 MHz channel of {seconds} s each in memory, {} hits cut)",
+        ms / (crate::bench::detect::RATE_HZ / 1e6),
+        r.threads,
+        r.hits
+    );
+}
+
+/// `aepipe bench detect --python`: NumPy's cut of the same stream beside aepipe's.
+pub fn detect_peer(
+    one: &crate::bench::detect::StageResult,
+    peer: Result<(f64, usize), crate::bench::BenchError>,
+) {
+    match peer {
+        Ok((s, hits)) => {
+            let peer = one.samples as f64 / s / 1e6;
+            println!(
+                "numpy (crossings vectorised, the rules per crossing), the same stream: {peer:.0} MS/s, {hits} hits; aepipe one thread {:.0} MS/s, {} hits: {:.1}×",
+                one.ms_per_core(),
+                one.hits,
+                one.ms_per_core() / peer
+            );
+        }
+        Err(e) => println!("numpy peer: not run ({e})"),
+    }
+}
+
+/// `aepipe bench detect`: the whole runs on stream files.
+pub fn detect_runs(runs: &[crate::bench::detect::RunResult], threads: usize) {
+    println!(
+        "aepipe features on a detected stream (one channel, WAV int16 at 10 MHz, {threads} thread(s), a whole process each):"
+    );
+    println!(
+        "{:>9} {:>8} {:>7} {:>9} {:>14} {:>12}",
+        "stream s", "wall s", "hits", "hits/s", "× real time", "peak RSS MB"
+    );
+    for x in runs {
+        println!(
+            "{:>9} {:>8.2} {:>7} {:>9.0} {:>14.1} {:>12.0}",
+            x.stream_s,
+            x.wall_s,
+            x.hits,
+            x.hits as f64 / x.wall_s,
+            x.stream_s / x.wall_s,
+            x.peak_rss as f64 / 1048576.0
+        );
+    }
+}
