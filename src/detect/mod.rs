@@ -342,9 +342,11 @@ impl<T: Sample> Detector<T> {
             }
         }
         let (mut counts, mut sq) = (0i64, 0.0f64);
-        let mut prev = self
-            .at(h.first.saturating_sub(1).max(self.hist_start))
-            .value();
+        // The sample before the first crossing (none at the stream's start: below).
+        let mut prev = match h.first > self.hist_start {
+            true => self.at(h.first - 1).value(),
+            false => f32::NEG_INFINITY,
+        };
         for k in h.first..=h.last {
             let v = self.at(k).value();
             if v >= h.thr && prev < h.thr {

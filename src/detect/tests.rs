@@ -182,3 +182,13 @@ fn a_floating_threshold_follows_the_noise() {
     let thr = d.threshold_v().unwrap();
     assert!((thr - 0.08).abs() < 0.004, "{thr}");
 }
+
+/// A hit whose first crossing is the stream's first sample counts that rising edge.
+#[test]
+fn a_hit_at_the_first_sample_counts_its_edge() {
+    let x = spikes(100, &[0, 5]);
+    let c = cut(&x, params());
+    assert_eq!(firsts(&c), [(0, 5)]);
+    assert_eq!(c[0].counts, 2);
+    assert_eq!(c[0].start, 0);
+}
