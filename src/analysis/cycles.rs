@@ -169,11 +169,16 @@ impl CycleRow {
     /// A reload's reading for a person: "0.934" or "1.002 (Kaiser)", or "no AE to its
     /// peak (Kaiser)"; None for a first loading.
     pub fn reading(&self) -> Option<String> {
-        let kaiser = self.kaiser?;
-        let mark = if kaiser { " (Kaiser)" } else { "" };
-        Some(match self.felicity_ratio {
-            Some(r) => format!("{r:.3}{mark}"),
-            None => format!("no AE to its peak{mark}"),
+        self.cycle.previous_max_n?;
+        let mark = if self.kaiser == Some(true) {
+            " (Kaiser)"
+        } else {
+            ""
+        };
+        Some(match (self.felicity_ratio, self.onset_time_s) {
+            (Some(r), _) => format!("{r:.3}{mark}"),
+            (None, None) => format!("no AE to its peak{mark}"),
+            (None, Some(_)) => "onset at an unknown load".to_string(),
         })
     }
 }
@@ -223,11 +228,14 @@ impl<'a> Felicity<'a> {
             (Some((_, Some(p))), Some(max)) if max > 0.0 => Some(p / max),
             _ => None,
         };
-        let kaiser = c.previous_max_n.map(|_| match (self.onset, ratio) {
-            (None, _) => true,
-            (Some(_), Some(r)) => r >= self.p.kaiser_min_ratio,
-            (Some(_), None) => false,
-        });
+        // No onset: the effect held to the peak; an onset whose load (or a previous maximum
+        // > 0) is unknown: unknown.
+        let kaiser = match (c.previous_max_n, self.onset, ratio) {
+            (None, _, _) => None,
+            (Some(_), None, _) => Some(true),
+            (Some(_), Some(_), Some(r)) => Some(r >= self.p.kaiser_min_ratio),
+            (Some(_), Some(_), None) => None,
+        };
         self.rows.push(CycleRow {
             experiment: self.experiment.to_string(),
             class: self.class.to_string(),
@@ -270,7 +278,7 @@ impl<'a> Felicity<'a> {
                 if let Some(max) = c.previous_max_n.filter(|m| *m > 0.0) {
                     let ratio = load_n.map(|p| p / max);
                     out.felicity_ratio = ratio;
-                    out.kaiser = Some(ratio.is_some_and(|r| r >= self.p.kaiser_min_ratio));
+                    out.kaiser = ratio.map(|r| r >= self.p.kaiser_min_ratio);
                 }
             }
         }
@@ -353,7 +361,7 @@ pub fn cycles_table() -> Table<CycleRow> {
         .col(f("onset_load_n", "N", "the load at the onset").nullable(), |r| Value::F64(r.onset_load_n))
         .col(f("felicity_ratio", "1", "onset_load_n / previous_max_n (null: the first cycle, or no onset)").nullable(), |r| Value::F64(r.felicity_ratio))
         .col(
-            ColumnSpec::new("kaiser", ColType::Bool, "", "whether the Kaiser effect held: felicity_ratio ≥ [evolution] kaiser_min_ratio, or no onset before the peak (null: the first cycle)").nullable(),
+            ColumnSpec::new("kaiser", ColType::Bool, "", "whether the Kaiser effect held: felicity_ratio ≥ [evolution] kaiser_min_ratio, or no onset before the peak (null: the first cycle, or an onset whose load is unknown)").nullable(),
             |r| Value::Bool(r.kaiser),
         )
 }

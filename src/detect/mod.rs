@@ -209,6 +209,11 @@ impl<T: Sample> Detector<T> {
             match self.state {
                 State::Armed => {
                     let floating = self.p.threshold_v.is_none();
+                    // Windows that ended during a hit or a blind time close now (the noise
+                    // they saw outside hits, or the threshold kept).
+                    while floating && self.win_end <= i {
+                        self.next_window();
+                    }
                     let seg = if floating { end.min(self.win_end) } else { end };
                     let x = &block[(i - base) as usize..(seg - base) as usize];
                     match scan(x, self.thr) {
@@ -227,12 +232,12 @@ impl<T: Sample> Detector<T> {
                         None => {
                             if floating {
                                 self.noise(x);
+                                if seg == self.win_end {
+                                    self.next_window();
+                                }
                             }
                             i = seg;
                         }
-                    }
-                    if floating && i == self.win_end {
-                        self.next_window();
                     }
                 }
                 State::InHit { first, last, gap } => {
@@ -294,17 +299,18 @@ impl<T: Sample> Detector<T> {
 
     /// Add samples outside hits to the floating threshold's window.
     fn noise(&mut self, x: &[T]) {
-        self.win_sq += x.iter().map(|v| (v.value() as f64).powi(2)).sum::<f64>();
-        self.win_n += x.len() as u64;
+        for v in x.iter().map(|v| v.value() as f64).filter(|v| v.is_finite()) {
+            self.win_sq += v * v;
+            self.win_n += 1;
+        }
     }
 
     fn next_window(&mut self) {
-        if self.win_n > 0 {
-            let rms = (self.win_sq / self.win_n as f64).sqrt();
-            self.thr = (self.p.floating_factor * rms) as f32;
-            if self.thr <= 0.0 {
-                self.thr = f32::MIN_POSITIVE;
-            }
+        let rms = (self.win_sq / self.win_n as f64).sqrt();
+        // A window without noise samples (all in hits) or with a non-finite sample keeps
+        // the threshold it had.
+        if self.win_n > 0 && rms.is_finite() {
+            self.thr = ((self.p.floating_factor * rms) as f32).max(f32::MIN_POSITIVE);
         }
         self.win_sq = 0.0;
         self.win_n = 0;
@@ -327,7 +333,7 @@ impl<T: Sample> Detector<T> {
     }
 
     fn cut(&self, h: &Pending, stop: u64) -> Cut {
-        let start = h.first.saturating_sub(self.p.pre).max(self.hist_start);
+        let start = h.first.saturating_sub(self.p.pre);
         let u = self.unit_v;
         let samples: Vec<f32> = (start..=stop)
             .map(|k| (self.at(k).value() as f64 * u) as f32)
@@ -387,12 +393,14 @@ impl<T: Sample> Detector<T> {
 
     /// Drop the samples no hit can still need.
     fn trim(&mut self) {
-        let mut keep = self.pos.saturating_sub(self.p.pre);
+        // The pretrigger and one sample more (the one before a first crossing, for counts).
+        let back = self.p.pre + 1;
+        let mut keep = self.pos.saturating_sub(back);
         if let State::InHit { first, .. } = self.state {
-            keep = keep.min(first.saturating_sub(self.p.pre));
+            keep = keep.min(first.saturating_sub(back));
         }
         for h in &self.pending {
-            keep = keep.min(h.first.saturating_sub(self.p.pre));
+            keep = keep.min(h.first.saturating_sub(back));
         }
         if keep > self.hist_start {
             let k = ((keep - self.hist_start) as usize).min(self.hist.len());

@@ -192,3 +192,32 @@ fn a_hit_at_the_first_sample_counts_its_edge() {
     assert_eq!(c[0].counts, 2);
     assert_eq!(c[0].start, 0);
 }
+
+/// A floating threshold with hits (and their blind times) across window boundaries, fed in
+/// blocks of any size: every burst found, the same hits whatever the blocks.
+#[test]
+fn a_floating_threshold_across_window_boundaries() {
+    let mut rng = crate::util::Rng::new(9);
+    let mut x: Vec<f32> = (0..60_000).map(|_| (0.01 * rng.normal()) as f32).collect();
+    // Bursts of 30 samples ending near and across each 1 000-sample window boundary.
+    let at = [5_990usize, 12_995, 20_000, 33_985, 41_999];
+    for &k in &at {
+        for j in 0..30 {
+            x[k + j] += if j % 2 == 0 { 1.0 } else { -1.0 };
+        }
+    }
+    x[50_000] = f32::NAN; // one bad sample: the threshold keeps its value
+    x[55_000] = 1.0;
+    let p = Params {
+        threshold_v: None,
+        floating_factor: 8.0,
+        floating_window: 1000,
+        ..params()
+    };
+    let all = cut_in_blocks(&x, p, 1.0, x.len());
+    for b in [7usize, 64, 999, 1000, 4096] {
+        assert_eq!(cut_in_blocks(&x, p, 1.0, b), all, "blocks of {b}");
+    }
+    let firsts: Vec<u64> = all.iter().map(|c| c.first).collect();
+    assert_eq!(firsts, [5_990, 12_995, 20_000, 33_985, 41_999, 55_000]);
+}

@@ -335,7 +335,10 @@ pub fn open_window(
 ) -> Box<dyn Iterator<Item = Item> + Send> {
     let (w, c) = (w.clone(), ingest.clone());
     loadfile::attach(
-        guarded(src, Box::new(move || vallen::tail::read(&w, &c))),
+        guarded(
+            src,
+            Box::new(move || stream::cut_long_records(vallen::tail::read(&w, &c), &c)),
+        ),
         src,
         load,
     )

@@ -70,6 +70,9 @@ pub struct StreamLayout {
     pub interleaved: bool,
     /// Volts per stored unit (before the preamplifier gain is divided out).
     pub unit_v: f64,
+    /// The cut is the source's own count of hits and transients (a stream file); false for
+    /// a WAV, whose folder's other files are one record each: its cut hits are *added* rows.
+    pub counted: bool,
 }
 
 fn le_u16(b: &[u8]) -> u16 {
@@ -175,6 +178,7 @@ fn wav_fmt(path: &Path, fmt: &[u8], data: u64, declared: u64) -> Result<StreamLa
         dtype,
         interleaved: true,
         unit_v,
+        counted: false,
     })
 }
 
@@ -246,7 +250,7 @@ pub(crate) fn npy_layout(path: &Path, rate_hz: f64) -> Result<StreamLayout, Stre
     };
     let toml = sidecar(path)?;
     let unit_v = match dtype {
-        Dtype::I16 => toml.and_then(|t| t.volts_per_unit).unwrap_or(1.0 / 32768.0),
+        Dtype::I16 => unit_of(toml.and_then(|t| t.volts_per_unit), dtype)?,
         _ => 1.0,
     };
     Ok(StreamLayout {
@@ -258,6 +262,7 @@ pub(crate) fn npy_layout(path: &Path, rate_hz: f64) -> Result<StreamLayout, Stre
         dtype,
         interleaved: false,
         unit_v,
+        counted: true,
     })
 }
 
@@ -299,6 +304,19 @@ pub(crate) fn sidecar(path: &Path) -> Result<Option<RawDescription>, StreamError
         .map_err(|e| format!("{}: {}", p.display(), e.to_string().replace('\n', " ")).into())
 }
 
+/// Volts per stored unit: as described (finite, > 0), else int16 at ±1 V full scale (as a
+/// WAV's integers) and floats as volts.
+fn unit_of(described: Option<f64>, dtype: Dtype) -> Result<f64, StreamError> {
+    match described {
+        Some(v) if v.is_finite() && v > 0.0 => Ok(v),
+        Some(v) => Err(format!("volts_per_unit must be a number > 0, got {v}").into()),
+        None => Ok(match dtype {
+            Dtype::I16 => 1.0 / 32768.0,
+            _ => 1.0,
+        }),
+    }
+}
+
 /// A raw binary stream's layout from its `.toml` description (interleaved channels).
 pub(crate) fn raw_layout(path: &Path) -> Result<StreamLayout, StreamError> {
     let d = sidecar(path)?.ok_or("no .toml description beside the raw stream")?;
@@ -324,7 +342,8 @@ pub(crate) fn raw_layout(path: &Path) -> Result<StreamLayout, StreamError> {
         rate_hz: rate,
         dtype,
         interleaved: true,
-        unit_v: d.volts_per_unit.unwrap_or(1.0),
+        unit_v: unit_of(d.volts_per_unit, dtype)?,
+        counted: true,
     })
 }
 
@@ -414,8 +433,8 @@ pub(crate) fn open_layout(
         Ok(chans) => {
             let hit = counter.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
             let pre = cfg.pretrigger_samples;
-            Box::new(chans.into_iter().enumerate().map(move |(c, samples)| {
-                Item::Record(AeRecord {
+            Box::new(chans.into_iter().enumerate().flat_map(move |(c, samples)| {
+                let rec = AeRecord {
                     kind: crate::model::RecordKind::Hit,
                     experiment: experiment.clone(),
                     channel: c as u32 + 1,
@@ -429,7 +448,13 @@ pub(crate) fn open_layout(
                     label: None,
                     threshold_v: None,
                     source_file: layout.path.display().to_string(),
-                })
+                };
+                // A stream file's reader gives every record its hit row (the guard adds
+                // none for this format).
+                [
+                    Item::Hit(Box::new(HitRow::of_record(&rec))),
+                    Item::Record(rec),
+                ]
             }))
         }
         Err(why) => reject(why),
@@ -440,7 +465,17 @@ pub(crate) fn open_layout(
 fn whole(l: &StreamLayout, gain: f64) -> Result<Vec<Vec<f32>>, String> {
     let mut f = std::fs::File::open(&l.path).map_err(|e| e.to_string())?;
     let sb = l.dtype.bytes();
-    let n = l.frames as usize * l.channels * sb;
+    let len = f.metadata().map_err(|e| e.to_string())?.len();
+    let n = l
+        .frames
+        .checked_mul((l.channels * sb) as u64)
+        .filter(|n| l.data_offset.saturating_add(*n) <= len)
+        .ok_or_else(|| {
+            format!(
+                "the file holds fewer than the {} samples per channel its header promises",
+                l.frames
+            )
+        })? as usize;
     let mut bytes = vec![0u8; n];
     f.seek(SeekFrom::Start(l.data_offset))
         .map_err(|e| e.to_string())?;
@@ -461,6 +496,18 @@ fn whole(l: &StreamLayout, gain: f64) -> Result<Vec<Vec<f32>>, String> {
         chans[c].push((<f32 as Decode>::decode(l.dtype, s) as f64 * unit) as f32);
     }
     Ok(chans)
+}
+
+/// Samples of channel plane `plane` (interleaved: every channel) a file of `len` bytes holds,
+/// at most the header's; sizes from the header in checked arithmetic.
+fn available(l: &StreamLayout, len: u64, plane: usize) -> u64 {
+    let sb = l.dtype.bytes() as u64;
+    let data = len.saturating_sub(l.data_offset);
+    if l.interleaved {
+        return l.frames.min(data / (sb * l.channels as u64));
+    }
+    let start = (plane as u64).saturating_mul(l.frames);
+    (data / sb).saturating_sub(start).min(l.frames)
 }
 
 /// Decode `n` samples of `dtype` from little-endian bytes into `T`'s units.
@@ -520,12 +567,20 @@ impl<T: Decode> Cutter<T> {
     ) -> Cutter<T> {
         let file_name = layout.path.display().to_string();
         let mut out = std::collections::VecDeque::new();
-        let frame = (layout.channels * layout.dtype.bytes()) as u64;
         let len = std::fs::metadata(&layout.path)
             .map(|m| m.len())
             .unwrap_or(0);
-        let held = len.saturating_sub(layout.data_offset) / frame;
-        let frames = layout.frames.min(held);
+        let planes = if layout.interleaved {
+            1
+        } else {
+            layout.channels
+        };
+        // The shortest channel the file holds (a plane of a .npy may be cut short).
+        let frames = (0..planes)
+            .map(|p| available(&layout, len, p))
+            .min()
+            .unwrap_or(0);
+        let first_plane = available(&layout, len, 0);
         if frames < layout.frames {
             out.push_back(Item::Reject(Reject {
                 experiment: experiment.clone(),
@@ -560,7 +615,7 @@ impl<T: Decode> Cutter<T> {
                 .map(|_| Detector::new(p, unit, layout.rate_hz))
                 .collect(),
             plane: 0,
-            frames,
+            frames: first_plane,
             read: 0,
             bytes: Vec::new(),
             chans: vec![Vec::new(); n_det],
@@ -596,12 +651,15 @@ impl<T: Decode> Cutter<T> {
         let n = per.min(self.frames - self.read) as usize;
         let width = if l.interleaved { l.channels } else { 1 };
         let sb = l.dtype.bytes();
-        let at = l.data_offset
-            + if l.interleaved {
-                self.read * (width * sb) as u64
-            } else {
-                (self.plane as u64 * l.frames + self.read) * sb as u64
-            };
+        // Within what `available` found in the file: no overflow below its length.
+        let at = l.data_offset.saturating_add(if l.interleaved {
+            self.read * (width * sb) as u64
+        } else {
+            (self.plane as u64)
+                .saturating_mul(l.frames)
+                .saturating_add(self.read)
+                .saturating_mul(sb as u64)
+        });
         let f = self.file.as_mut().ok_or("cannot open the stream")?;
         self.bytes.resize(n * width * sb, 0);
         f.seek(SeekFrom::Start(at)).map_err(|e| e.to_string())?;
@@ -634,6 +692,8 @@ impl<T: Decode> Cutter<T> {
             self.plane += 1;
             self.read = 0;
             if self.plane < planes {
+                let len = std::fs::metadata(&self.layout.path).map_or(0, |m| m.len());
+                self.frames = available(&self.layout, len, self.plane);
                 let p = self.detect.at_rate(self.layout.rate_hz);
                 let unit = self.layout.unit_v * self.gain;
                 self.detectors = vec![Detector::new(p, unit, self.layout.rate_hz)];
@@ -749,12 +809,17 @@ impl<T: Decode> Cutter<T> {
     /// The stream's tally: every cut hit is a hit and a transient read.
     fn push_tally(&mut self) {
         let cut = self.tally.hits_cut;
-        let read = [(RecordType::Hit, cut), (RecordType::Transient, cut)];
+        let n: std::collections::BTreeMap<RecordType, u64> =
+            [(RecordType::Hit, cut), (RecordType::Transient, cut)].into();
+        let (read, added) = match self.layout.counted {
+            true => (n, Default::default()),
+            false => (Default::default(), n),
+        };
         self.out.push_back(Item::Tally(Tally {
             experiment: self.experiment.clone(),
-            read: read.into_iter().collect(),
+            read,
+            added,
             stream: Some(Box::new(std::mem::take(&mut self.tally))),
-            ..Default::default()
         }));
     }
 }
@@ -842,6 +907,10 @@ fn cut_record(r: AeRecord, detect: &ValidDetect) -> Vec<Item> {
         d.push(b, &mut cuts);
     }
     d.finish(&mut cuts);
+    // Hit numbers record hit × 10⁶ + k stay unique below 10⁶ hits a record.
+    const MAX_CUTS: usize = 999_999;
+    let dropped = cuts.len().saturating_sub(MAX_CUTS);
+    cuts.truncate(MAX_CUTS);
     // The record's first sample; a record without a time starts at 0 s, as a stream does.
     let t0 = r.time_s.map_or(0.0, |t| t - r.pretrigger as f64 / rate);
     let mut tally = StreamTally {
@@ -859,13 +928,24 @@ fn cut_record(r: AeRecord, detect: &ValidDetect) -> Vec<Item> {
         tally.hits_cut += 1;
         tally.samples_in_hits += c.last - c.first + 1;
         tally.two_bursts += c.two_bursts as u64;
-        let (mut row, mut rec) = at.items(r.channel, r.hit * 1_000_000 + k as u64 + 1, c);
+        let hit = r.hit.saturating_mul(1_000_000).saturating_add(k as u64 + 1);
+        let (mut row, mut rec) = at.items(r.channel, hit, c);
         row.time_s = row.time_s.map(|t| t0 + t);
         rec.time_s = row.time_s;
         (row.load_n, row.extension_m) = (r.load_n, r.extension_m);
         (rec.load_n, rec.extension_m) = (r.load_n, r.extension_m);
         out.push(Item::Hit(Box::new(row)));
         out.push(Item::Record(rec));
+    }
+    if dropped > 0 {
+        out.push(Item::Note(crate::model::Note {
+            experiment: r.experiment.clone(),
+            source_file: r.source_file.clone(),
+            message: format!(
+                "ch{} hit {}: {dropped} hits beyond the {MAX_CUTS} a record can number were not cut",
+                r.channel, r.hit
+            ),
+        }));
     }
     if m == 0 {
         out.push(Item::Reject(Reject {
