@@ -115,8 +115,12 @@ pub(super) fn train_stage(
             }
         };
         // The library's features, with the run's own settings; its sensors record one
-        // simulated source each, not a test, so no events.
-        let lib_cfg = cfg.clone().with(|c| c.events.enabled = Some(false))?;
+        // simulated source each, not a test: no events, and its records are hits already
+        // (`[detect]` would cut them and lose their labels).
+        let lib_cfg = cfg.clone().with(|c| {
+            c.events.enabled = Some(false);
+            c.detect.mode = crate::detect::DetectMode::Off;
+        })?;
         let rep = crate::pipeline::run(
             crate::pipeline::StreamJob::Features,
             std::slice::from_ref(&lib),
