@@ -100,7 +100,7 @@ pub struct Cut {
     pub energy_eu: f64,
 }
 
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 enum State {
     Armed,
     InHit {
@@ -113,7 +113,7 @@ enum State {
 }
 
 /// A declared hit waiting for its post-trigger samples.
-#[derive(Debug, Clone, Copy)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 struct Pending {
     first: u64,
     last: u64,
@@ -142,6 +142,29 @@ pub struct Detector<T: Sample> {
     win_sq: f64,
     win_n: u64,
     win_end: u64,
+}
+
+/// A detector's state without its samples: what a watcher commits to go on after a restart
+/// exactly where it stood (the samples it still held are read again from the stream).
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct Snapshot {
+    /// The threshold in the stream's units; none while a floating threshold has no window.
+    thr: Option<f32>,
+    /// The first sample still held, and the samples fed.
+    hist_start: u64,
+    pos: u64,
+    state: State,
+    pending: Vec<Pending>,
+    win_sq: f64,
+    win_n: u64,
+    win_end: u64,
+}
+
+impl Snapshot {
+    /// The samples the detector held: `hist_start .. pos` of its channel.
+    pub fn history(&self) -> std::ops::Range<u64> {
+        self.hist_start..self.pos
+    }
 }
 
 const CHUNK: usize = 64;
@@ -185,6 +208,63 @@ impl<T: Sample> Detector<T> {
     /// Samples fed so far.
     pub fn position(&self) -> u64 {
         self.pos
+    }
+
+    /// The first sample at which a hit not cut yet can start: every hit this detector will
+    /// still cut has its first crossing here or later (the hit under way, the hits waiting
+    /// for their post-trigger samples, else the next sample).
+    pub fn frontier(&self) -> u64 {
+        let mut f = match self.state {
+            State::InHit { first, .. } => first,
+            _ => self.pos,
+        };
+        for h in &self.pending {
+            f = f.min(h.first);
+        }
+        f
+    }
+
+    /// The state to go on from later ([`Detector::restore`]).
+    pub fn snapshot(&self) -> Snapshot {
+        Snapshot {
+            thr: self.thr.is_finite().then_some(self.thr),
+            hist_start: self.hist_start,
+            pos: self.pos,
+            state: self.state,
+            pending: self.pending.clone(),
+            win_sq: self.win_sq,
+            win_n: self.win_n,
+            win_end: self.win_end,
+        }
+    }
+
+    /// The detector of `s` again, given the samples it held (`s.history()`, read again
+    /// from the stream): it cuts from here exactly as the one snapshotted would have. None
+    /// when `history` is not as long as the snapshot says.
+    pub fn restore(
+        p: Params,
+        unit_v: f64,
+        rate_hz: f64,
+        s: Snapshot,
+        history: &[T],
+    ) -> Option<Detector<T>> {
+        if history.len() as u64 != s.pos.checked_sub(s.hist_start)? {
+            return None;
+        }
+        Some(Detector {
+            p,
+            unit_v,
+            rate_hz,
+            thr: s.thr.unwrap_or(f32::INFINITY),
+            hist: history.iter().copied().collect(),
+            hist_start: s.hist_start,
+            pos: s.pos,
+            state: s.state,
+            pending: s.pending,
+            win_sq: s.win_sq,
+            win_n: s.win_n,
+            win_end: s.win_end,
+        })
     }
 
     /// The threshold now, volts (None while a floating threshold has no window yet).

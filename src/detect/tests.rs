@@ -221,3 +221,47 @@ fn a_floating_threshold_across_window_boundaries() {
     let firsts: Vec<u64> = all.iter().map(|c| c.first).collect();
     assert_eq!(firsts, [5_990, 12_995, 20_000, 33_985, 41_999, 55_000]);
 }
+
+/// A detector snapshotted after any block, serialised as a watcher commits it, and
+/// restored on the samples it held cuts on exactly as the one never stopped (fixed and
+/// floating thresholds, a hit under way and a hit waiting for its post-trigger samples at
+/// the cut); the frontier is never after a hit still to come.
+#[test]
+fn a_restored_detector_cuts_on_as_if_never_stopped() {
+    let mut rng = crate::util::Rng::new(3);
+    let mut x: Vec<f32> = (0..20_000).map(|_| 0.1 * rng.normal() as f32).collect();
+    for at in [500usize, 530, 2_000, 2_012, 7_000, 7_900, 12_345, 19_950] {
+        for j in 0..40 {
+            x[at + j] += 3.0 * (-(j as f32) / 10.0).exp() * if j % 2 == 0 { 1.0 } else { -1.0 };
+        }
+    }
+    let fixed = params();
+    let floating = Params {
+        threshold_v: None,
+        ..params()
+    };
+    for p in [fixed, floating] {
+        let whole = cut_in_blocks(&x, p, 1.0, 333);
+        assert!(whole.len() >= 5, "{:?}: {}", p.threshold_v, whole.len());
+        for stop in [505usize, 520, 540, 2_005, 2_030, 7_950, 12_400, 15_000] {
+            let mut d = Detector::<f32>::new(p, 1.0, 1e6);
+            let mut out = Vec::new();
+            d.push(&x[..stop], &mut out);
+            // Every hit not cut yet starts at the frontier or later.
+            let u = d.frontier();
+            let s: Snapshot =
+                serde_json::from_str(&serde_json::to_string(&d.snapshot()).unwrap()).unwrap();
+            let h = s.history();
+            let held = &x[h.start as usize..h.end as usize];
+            let mut r = Detector::<f32>::restore(p, 1.0, 1e6, s, held).expect("restored");
+            assert!(Detector::<f32>::restore(p, 1.0, 1e6, r.snapshot(), &held[1..]).is_none());
+            let before = out.len();
+            for b in x[stop..].chunks(1000) {
+                r.push(b, &mut out);
+            }
+            r.finish(&mut out);
+            assert!(out[before..].iter().all(|c| c.first >= u), "stop {stop}");
+            assert_eq!(out, whole, "stop {stop}, {:?}", p.threshold_v);
+        }
+    }
+}

@@ -94,6 +94,8 @@ pub enum Follow {
     GrowingPair,
     /// A MISTRAS `.DTA` chain, message by message as it is appended to.
     GrowingChain,
+    /// A raw continuous recording, cut as it grows (with `[detect]` on).
+    GrowingStream,
     /// The whole recording, once all its files have settled.
     Whole,
 }

@@ -5,6 +5,7 @@
 use super::state::State;
 use crate::config::ValidConfig;
 use crate::ingest::dta::tail::{DtaTail, Position as DtaPosition};
+use crate::ingest::stream::tail::{Position as StreamPosition, StreamTail};
 use crate::ingest::vallen::tail::{Position, Tail, Window};
 use crate::ingest::{Follow, Source};
 use crate::model::Item;
@@ -39,6 +40,14 @@ pub enum Part {
         end: DtaPosition,
         next_hit: Option<(f64, u32)>,
     },
+    /// The hits a raw stream's cutter handed out at the look, and where it stands after
+    /// them.
+    Stream {
+        items: Arc<Mutex<Vec<Item>>>,
+        hits: usize,
+        end: Box<StreamPosition>,
+        next_hit: Option<(f64, u32)>,
+    },
 }
 
 impl Part {
@@ -46,7 +55,7 @@ impl Part {
     pub fn hits(&self) -> usize {
         match self {
             Part::Vallen(w) => w.hits as usize,
-            Part::Dta { hits, .. } => *hits,
+            Part::Dta { hits, .. } | Part::Stream { hits, .. } => *hits,
         }
     }
 
@@ -54,7 +63,7 @@ impl Part {
     pub fn next_hit(&self) -> Option<(f64, u32)> {
         match self {
             Part::Vallen(w) => w.next_hit,
-            Part::Dta { next_hit, .. } => *next_hit,
+            Part::Dta { next_hit, .. } | Part::Stream { next_hit, .. } => *next_hit,
         }
     }
 }
@@ -70,6 +79,7 @@ impl Pending {
         match &self.part {
             Some(Part::Vallen(w)) => w.weight(),
             Some(Part::Dta { records, .. }) => (*records).max(1),
+            Some(Part::Stream { hits, .. }) => (*hits).max(1),
             None => self.source.files.len().max(1),
         }
     }
@@ -109,6 +119,9 @@ pub struct Follower {
     /// Growing MISTRAS chains, likewise.
     dta_positions: HashMap<String, DtaPosition>,
     dtas: HashMap<String, DtaTail>,
+    /// Growing raw streams, likewise.
+    stream_positions: HashMap<String, StreamPosition>,
+    streams: HashMap<String, StreamTail>,
     /// Per growing source, the event builder's longest reach: its parts end only where
     /// the next hit comes later than that after every hit before (no event is split).
     gaps: HashMap<String, f64>,
@@ -150,6 +163,8 @@ impl Follower {
             tails: HashMap::new(),
             dta_positions: HashMap::new(),
             dtas: HashMap::new(),
+            stream_positions: HashMap::new(),
+            streams: HashMap::new(),
             gaps: HashMap::new(),
         };
         for (id, r) in &state.sources {
@@ -161,6 +176,9 @@ impl Follower {
             }
             if let Some(p) = &r.dta {
                 f.dta_positions.insert(id.clone(), p.clone());
+            }
+            if let Some(p) = &r.stream {
+                f.stream_positions.insert(id.clone(), p.clone());
             }
             f.handed.extend(r.files.iter().map(PathBuf::from));
             f.next_hit.insert(id.clone(), r.files.len() as u64);
@@ -225,6 +243,9 @@ impl Follower {
                 if follow == Follow::GrowingChain && self.follow_dta(&s, cfg, room, &mut out) {
                     continue;
                 }
+                if follow == Follow::GrowingStream && self.follow_stream(&s, cfg, room, &mut out) {
+                    continue;
+                }
                 let mut newest = None;
                 let mut ready = true;
                 for f in s.all_files() {
@@ -251,8 +272,10 @@ impl Follower {
     }
 
     /// A growing pair holds sets or transients it has seen but not handed out yet.
-    pub fn waiting(&self) -> bool {
-        self.tails.values().any(Tail::waiting) || self.dtas.values().any(DtaTail::waiting)
+    pub fn waiting(&mut self) -> bool {
+        self.tails.values().any(Tail::waiting)
+            || self.dtas.values().any(DtaTail::waiting)
+            || self.streams.values_mut().any(StreamTail::waiting)
     }
 
     /// The ready windows of a growing Vallen pair; false when it cannot be followed (its
@@ -353,6 +376,61 @@ impl Follower {
                 hits,
                 end,
                 next_hit,
+            }),
+        });
+        true
+    }
+
+    /// The hits a growing raw stream holds past the last look; false when it is not
+    /// followed: `[detect]` does not cut it (yet, with `auto`) and it was never read in
+    /// part, or it is not a raw stream (it is then read whole once settled).
+    fn follow_stream(
+        &mut self,
+        s: &Source,
+        cfg: &ValidConfig,
+        room: usize,
+        out: &mut Vec<Pending>,
+    ) -> bool {
+        let tail = match self.streams.entry(s.id.clone()) {
+            std::collections::hash_map::Entry::Occupied(e) => e.into_mut(),
+            std::collections::hash_map::Entry::Vacant(e) => {
+                let from = self.stream_positions.get(&s.id).cloned();
+                let cuts = s.files.first().and_then(|f| {
+                    let l = crate::ingest::stream::raw_layout(f).ok()?;
+                    Some(cfg.ingest.detect.cuts(l.frames))
+                });
+                if from.is_none() && cuts != Some(true) {
+                    return false;
+                }
+                match StreamTail::open(s, &from.clone().unwrap_or_default(), &cfg.ingest) {
+                    Ok(t) => e.insert(t),
+                    Err(_) => return from.is_some(),
+                }
+            }
+        };
+        let wait = Duration::from_secs_f64(cfg.live.transient_wait_s);
+        let gap = *self
+            .gaps
+            .entry(s.id.clone())
+            .or_insert_with(|| event_gap_s(cfg, s));
+        let Ok(h) = tail.look(wait, room, gap) else {
+            return true;
+        };
+        if h.items.is_empty() {
+            return true;
+        }
+        let written = s
+            .all_files()
+            .filter_map(|f| std::fs::metadata(f).and_then(|m| m.modified()).ok())
+            .max();
+        out.push(Pending {
+            source: s.clone(),
+            written,
+            part: Some(Part::Stream {
+                items: Arc::new(Mutex::new(h.items)),
+                hits: h.hits,
+                end: Box::new(h.end),
+                next_hit: h.next_hit,
             }),
         });
         true

@@ -466,7 +466,7 @@ fn part_items<'a>(
         Some(follow::Part::Vallen(w)) => {
             crate::ingest::open_window(&p.source, w, &cfg.ingest, &cfg.load)
         }
-        Some(follow::Part::Dta { items, .. }) => {
+        Some(follow::Part::Dta { items, .. }) | Some(follow::Part::Stream { items, .. }) => {
             let items = std::mem::take(&mut *items.lock().expect("not poisoned"));
             crate::ingest::with_load_file(Box::new(items.into_iter()), &p.source, &cfg.load)
         }

@@ -58,7 +58,8 @@ impl Thinned {
 const CWTS: usize = 3;
 
 /// The last record of a pending source: its last file read again (one hit per file), a
-/// growing pair's latest transient read alone, or a chain's last one taken from its items.
+/// growing pair's latest transient read alone, or a chain's or a stream's last one taken from
+/// its items.
 pub fn latest_record(
     p: &super::follow::Pending,
     cfg: &ValidConfig,
@@ -67,10 +68,12 @@ pub fn latest_record(
     use crate::model::Item;
     match &p.part {
         Some(Part::Vallen(w)) => crate::ingest::vallen::tail::last_record(w, &cfg.ingest),
-        Some(Part::Dta { items, .. }) => items.lock().ok()?.iter().rev().find_map(|i| match i {
-            Item::Record(r) => Some(r.clone()),
-            _ => None,
-        }),
+        Some(Part::Dta { items, .. } | Part::Stream { items, .. }) => {
+            items.lock().ok()?.iter().rev().find_map(|i| match i {
+                Item::Record(r) => Some(r.clone()),
+                _ => None,
+            })
+        }
         None if p.per_hit() => {
             let last = p.source.files.last()?.clone();
             let src = crate::ingest::Source {

@@ -34,7 +34,7 @@ pub struct State {
 }
 
 /// What has been read of one source.
-#[derive(Debug, Clone, Default, Serialize, Deserialize, PartialEq, Eq)]
+#[derive(Debug, Clone, Default, Serialize, Deserialize, PartialEq)]
 pub struct SourceState {
     /// A one-hit-per-file source: the files read, in reading order (the next file is hit
     /// `files.len() + 1`, even if some of these have left the folder).
@@ -47,6 +47,9 @@ pub struct SourceState {
     /// A MISTRAS chain followed while it grows: how far it has been read.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub dta: Option<crate::ingest::dta::tail::Position>,
+    /// A raw stream followed while it grows: how far its hits have been handed out.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub stream: Option<crate::ingest::stream::tail::Position>,
 }
 
 impl State {
@@ -91,6 +94,7 @@ impl State {
             match part {
                 Part::Vallen(w) => s.vallen = Some(w.end),
                 Part::Dta { end, .. } => s.dta = Some(end.clone()),
+                Part::Stream { end, .. } => s.stream = Some((**end).clone()),
             }
         } else if p.per_hit() {
             s.files
