@@ -24,6 +24,7 @@
 //! - [`synth`]: synthetic experiments for the demo, fixtures and benchmarks.
 //! - [`plot`]: the pictures (PNG).
 //! - [`report`]: the self-contained HTML report.
+//! - [`export`]: results written back for the lab's tools (a VisualAE `.trfdb`, a CSV).
 //! - [`workflow`]: `aepipe run`: the stages in order, the run folder, report rebuilds.
 //! - [`demo`]: the demo on data it makes itself.
 //! - [`bench`]: benchmarks against the peers.
@@ -40,6 +41,7 @@ pub mod demo;
 pub mod detect;
 pub mod dsp;
 pub mod events;
+pub mod export;
 pub mod features;
 pub mod ingest;
 pub mod inspect;

@@ -117,6 +117,9 @@ pub enum Cmd {
     Watch(WatchArgs),
     /// Write RUN_DIR/report.html again from a finished `aepipe run` folder
     Report(ReportArgs),
+    /// Write a finished run's results back for the lab's tools
+    #[command(subcommand)]
+    Export(ExportCmd),
     /// Make a synthetic experiment and run the pipeline on it (the README's first command)
     Demo(DemoArgs),
     /// Benchmarks (print numbers, never pass/fail)
@@ -233,6 +236,29 @@ pub struct CwtArgs {
     pub png: PathBuf,
     #[arg(long)]
     pub config: Option<PathBuf>,
+}
+
+#[derive(Subcommand)]
+pub enum ExportCmd {
+    /// Per Vallen experiment a VisualAE transient-feature database
+    /// DIR/<experiment>.aepipe.trfdb keyed by TRAI (SOM class, cluster, criteria label,
+    /// novelty, quantization error, crack mode, RA, AF, event, zone, location, the 25 power
+    /// ratios, with units and names in its field info); per experiment of another system
+    /// DIR/<experiment>.aepipe.csv keyed by aepipe's hit, with the system's hit number
+    Trfdb(ExportTrfdbArgs),
+}
+
+#[derive(clap::Args)]
+pub struct ExportTrfdbArgs {
+    /// A finished `aepipe run` folder
+    pub run_dir: PathBuf,
+    /// Where to write (default RUN_DIR/export)
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+    /// Replace aepipe's own earlier export of the same name (never the lab's .trfdb: the
+    /// name says it is aepipe's)
+    #[arg(long)]
+    pub force: bool,
 }
 
 #[derive(clap::Args)]

@@ -46,6 +46,7 @@ pub fn dispatch(cli: Cli) -> Result<Outcome> {
         Cmd::Som(which) => som(which),
         Cmd::Cluster(a) => cluster(a),
         Cmd::Statistics(a) => statistics(a),
+        Cmd::Export(ExportCmd::Trfdb(a)) => export_trfdb(a),
         Cmd::Schema(a) => schema(a),
         Cmd::Simulate(a) => simulate(a),
         Cmd::Reference(a) => reference(a),
@@ -387,6 +388,14 @@ fn statistics(a: StatisticsArgs) -> Result<Outcome> {
         }
     }
     println!("wrote {}", out.display());
+    Ok(Outcome::Success)
+}
+
+fn export_trfdb(a: ExportTrfdbArgs) -> Result<Outcome> {
+    let run = crate::workflow::layout::RunDir::new(&a.run_dir);
+    let out = a.out.unwrap_or_else(|| run.export());
+    let s = crate::export::export(&run.run_tables(), &out, a.force)?;
+    print!("{}", print::export_summary(&s));
     Ok(Outcome::Success)
 }
 

@@ -286,6 +286,23 @@ pub fn watch_bench(r: &crate::live::bench::WatchBenchResult) {
 }
 
 /// `aepipe cluster`'s table: each k's indices, the chosen one starred, then the clusters.
+/// What an export wrote (one line a file) and what it left out.
+pub fn export_summary(s: &crate::export::ExportSummary) -> String {
+    let mut out = String::new();
+    for f in &s.files {
+        out += &format!(
+            "export {}: {} rows → {}\n",
+            f.experiment,
+            f.rows,
+            f.path.display()
+        );
+    }
+    for n in &s.notes {
+        out += &format!("export note: {n}\n");
+    }
+    out
+}
+
 pub fn cluster_report(r: &crate::cluster::ClusterReport) -> String {
     let opt = |v: Option<f64>| v.map_or("–".to_string(), |v| format!("{v:.4}"));
     let mut s = format!(

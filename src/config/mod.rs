@@ -137,6 +137,8 @@ pub struct PipelineConfig {
     /// Clustering by the hits' own features (`aepipe cluster`; `aepipe run` with
     /// `enabled = true`).
     pub cluster: crate::cluster::ClusterConfig,
+    /// Results written back for the lab's tools (`aepipe export`).
+    pub export: crate::export::ExportConfig,
     pub report: ReportConfig,
     /// The test machine's own load file beside the AE files.
     pub load: LoadConfig,
@@ -356,6 +358,7 @@ impl PipelineConfig {
             trend,
             som,
             cluster,
+            export,
             report,
             load,
             live,
@@ -385,6 +388,7 @@ impl PipelineConfig {
                 .check()
                 .map_err(|e| SettingsError::Cluster(e.to_string()))?
                 .into_inner(),
+            export,
             report,
             load: load.check()?.into_inner(),
             live,

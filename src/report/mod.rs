@@ -44,6 +44,8 @@ pub struct RunSummary {
     pub som: Option<SomStage>,
     /// The clustering stage (`[cluster] enabled`).
     pub cluster: Option<ClusterStage>,
+    /// The files `[export] trfdb` wrote back for the lab's tools.
+    pub export: Option<crate::export::ExportSummary>,
     /// The energy power law per experiment (`statistics.parquet`).
     pub statistics: Vec<crate::analysis::powerlaw::StatRow>,
     pub truth: Option<TruthScore>,

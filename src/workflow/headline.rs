@@ -50,6 +50,17 @@ fn indices_lines(s: &RunSummary) -> Vec<String> {
             ));
         }
     }
+    if let Some(e) = &s.export {
+        for f in e.files.iter().take(SERIES_LINES) {
+            l.push(format!(
+                "export {}: {} rows → {}",
+                f.experiment,
+                f.rows,
+                f.path.display()
+            ));
+        }
+        l.extend(e.notes.iter().map(|n| format!("export note: {n}")));
+    }
     if let Some(c) = &s.cluster {
         let r = &c.report;
         l.push(format!(

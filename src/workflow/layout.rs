@@ -46,6 +46,26 @@ impl RunDir {
         self.0.join("cluster")
     }
 
+    /// `aepipe export trfdb`'s default folder (`[export] trfdb` in a run).
+    pub fn export(&self) -> PathBuf {
+        self.0.join("export")
+    }
+
+    /// The tables an export reads: the features, and the results the run wrote.
+    pub fn run_tables(&self) -> crate::export::RunTables {
+        let there = |p: PathBuf| p.is_file().then_some(p);
+        let f = self.features();
+        let job = crate::pipeline::StreamJob::Features;
+        use crate::pipeline::PartTable;
+        crate::export::RunTables {
+            features: f.table(PartTable::Main, job),
+            hits: there(f.table(PartTable::Hits, job)),
+            classification: there(self.som().classification()),
+            clusters: there(self.cluster().join("clusters.parquet")),
+            events: there(f.table(PartTable::Events, job)),
+        }
+    }
+
     /// The trained map.
     pub fn som_model(&self) -> ModelDir {
         ModelDir::new(self.0.join("som").join("model"))

@@ -41,6 +41,8 @@ pub enum WorkflowError {
     #[error(transparent)]
     Plot(#[from] crate::plot::PlotError),
     #[error(transparent)]
+    Export(#[from] crate::export::ExportError),
+    #[error(transparent)]
     Write(#[from] IoAt),
     /// A folder or file given to a command is not what it should be (e.g. not a run folder).
     #[error("{path}: {message}")]
@@ -70,6 +72,7 @@ impl crate::util::HasKind for WorkflowError {
             WorkflowError::Store(x) => x.kind(),
             WorkflowError::Report(x) => x.kind(),
             WorkflowError::Plot(x) => x.kind(),
+            WorkflowError::Export(x) => x.kind(),
             WorkflowError::Write(_) => crate::util::ErrorKind::Failed,
         }
     }
@@ -273,6 +276,14 @@ pub fn analyse(
     } else {
         None
     };
+    // Written back for the lab's tools; the run's own folder, so an earlier run's export
+    // there is replaced.
+    let export = match cfg.export.trfdb {
+        true => Some(log.time("export", || {
+            crate::export::export(&dir.run_tables(), &dir.export(), true)
+        })?),
+        false => None,
+    };
     let (truth, sources) = match job.truth {
         Some(_) => log.time("truth", || {
             truth::scores(job.truth, som.as_ref(), &features, cfg)
@@ -287,6 +298,7 @@ pub fn analyse(
         trend_plots,
         som,
         cluster,
+        export,
         statistics,
         truth,
         sources,

@@ -112,6 +112,7 @@ pub fn rebuild_report(dir: &Path) -> Result<PathBuf, WorkflowError> {
         trend_plots,
         som,
         cluster,
+        export: None,
         statistics,
         truth,
         sources,

@@ -27,6 +27,7 @@ mod shard;
 mod sim;
 mod som;
 mod trend;
+mod trfdb;
 mod vendor;
 
 use std::path::{Path, PathBuf};

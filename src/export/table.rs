@@ -1,0 +1,358 @@
+//! What an export holds per transient: the columns (name, unit, meaning) and each feature
+//! row's values, joined from the run's tables by (experiment, channel, hit).
+//!
+//! VisualAE colours and filters by numbers, so a class is written as a code whose meaning
+//! the column's description spells out (`1 = bond_failure; 2 = fibre_failure; …`), the same
+//! codes in every file of a run.
+
+use crate::model::columns as cols;
+use crate::model::{Mechanism, UNLIKE_REFERENCES};
+use crate::store::read::{HitKey, TableScan};
+use crate::store::StoreError;
+use std::collections::{BTreeSet, HashMap};
+use std::path::Path;
+
+/// One column of an export and its field info.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Column {
+    pub field: String,
+    /// VisualAE's unit text, in brackets (`[kHz]`), empty for none.
+    pub unit: String,
+    pub long_name: String,
+    pub description: String,
+    /// `#` for counts and codes (VisualAE's format for integers), else none.
+    pub integer: bool,
+}
+
+fn col(field: &str, unit: &str, long_name: &str, description: &str, integer: bool) -> Column {
+    Column {
+        field: field.to_string(),
+        unit: unit.to_string(),
+        long_name: long_name.to_string(),
+        description: description.to_string(),
+        integer,
+    }
+}
+
+/// The power ratios' columns in `features.parquet`, in band order (Eq. 4.5.4).
+pub(super) fn power_ratio_names() -> Vec<String> {
+    (0..25)
+        .map(|k| format!("pr_{}_{}khz", 100 * k, 100 * (k + 1)))
+        .collect()
+}
+
+/// (experiment, event) → the event's source position, m.
+type Places = HashMap<(String, i64), (Option<f64>, Option<f64>)>;
+
+/// A hit's SOM results.
+#[derive(Debug, Clone, Default)]
+struct Classified {
+    som: Option<String>,
+    node: Option<String>,
+    novel: Option<bool>,
+    qe: Option<f64>,
+}
+
+/// The run's results other than the features, by hit, and the export's columns.
+pub struct Results {
+    classes: Option<HashMap<HitKey, Classified>>,
+    clusters: Option<HashMap<HitKey, i32>>,
+    /// (experiment, event) → source position, m.
+    places: Option<Places>,
+    /// Class name → code (1…).
+    codes: HashMap<String, i64>,
+    pub columns: Vec<Column>,
+}
+
+const CRACK: [&str; 2] = ["tensile", "shear"];
+const ZONES: [&str; 3] = ["inside", "outside", "guard"];
+
+fn legend(names: &[&str]) -> String {
+    names
+        .iter()
+        .enumerate()
+        .map(|(k, n)| format!("{} = {n}", k + 1))
+        .collect::<Vec<_>>()
+        .join("; ")
+}
+
+fn code_of(names: &[&str], v: Option<&str>) -> Option<f64> {
+    let v = v?;
+    names.iter().position(|n| *n == v).map(|k| k as f64 + 1.0)
+}
+
+impl Results {
+    /// Read the classification, cluster and event tables that exist.
+    pub fn read(
+        classification: Option<&Path>,
+        clusters: Option<&Path>,
+        events: Option<&Path>,
+    ) -> Result<Results, StoreError> {
+        let classes = classification.map(read_classes).transpose()?;
+        let clusters = clusters.map(read_clusters).transpose()?;
+        let places = events.map(read_places).transpose()?;
+        // Codes: the mechanisms in their order, then "unlike the references", then any
+        // other label a map was trained on, sorted.
+        let mut names: Vec<String> = Mechanism::ALL.iter().map(|m| m.to_string()).collect();
+        names.push(UNLIKE_REFERENCES.to_string());
+        let others: BTreeSet<String> = classes
+            .iter()
+            .flat_map(|c| c.values())
+            .flat_map(|c| [c.som.clone(), c.node.clone()])
+            .flatten()
+            .filter(|n| !names.contains(n))
+            .collect();
+        names.extend(others);
+        let codes: HashMap<String, i64> = names
+            .iter()
+            .enumerate()
+            .map(|(k, n)| (n.clone(), k as i64 + 1))
+            .collect();
+        let class_legend = legend(&names.iter().map(String::as_str).collect::<Vec<_>>());
+        let has = (classes.is_some(), clusters.is_some(), places.is_some());
+        let columns = columns(has, &class_legend);
+        Ok(Results {
+            classes,
+            clusters,
+            places,
+            codes,
+            columns,
+        })
+    }
+
+    /// The values of the columns for one feature row (`f`: its features, by column).
+    pub(super) fn values(&self, key: &HitKey, f: &FeatureRow) -> Vec<Option<f64>> {
+        let mut v = Vec::with_capacity(self.columns.len());
+        if let Some(classes) = &self.classes {
+            let c = classes.get(key).cloned().unwrap_or_default();
+            let code = |n: &Option<String>| {
+                n.as_ref()
+                    .and_then(|n| self.codes.get(n))
+                    .map(|c| *c as f64)
+            };
+            v.extend([
+                code(&c.som),
+                code(&c.node),
+                c.novel.map(|b| b as i64 as f64),
+                c.qe,
+            ]);
+        }
+        if let Some(clusters) = &self.clusters {
+            v.push(clusters.get(key).map(|c| *c as f64));
+        }
+        let mech: Vec<&str> = Mechanism::ALL.iter().map(|m| m.as_str()).collect();
+        v.extend([
+            code_of(&mech, f.criteria.as_deref()),
+            code_of(&CRACK, f.crack.as_deref()),
+            f.ra,
+            f.af,
+            f.event.map(|e| e as f64),
+            code_of(&ZONES, f.zone.as_deref()),
+        ]);
+        if let Some(places) = &self.places {
+            let p = f.event.and_then(|e| places.get(&(key.0.clone(), e)));
+            let mm = |x: Option<f64>| x.map(|x| x * 1e3);
+            v.extend([mm(p.and_then(|p| p.0)), mm(p.and_then(|p| p.1))]);
+        }
+        v.extend(f.ratios.iter().copied());
+        v
+    }
+}
+
+/// The export's columns: the SOM's, the clusters' and the locations' where those tables are
+/// (`has`), the rest always.
+fn columns(has: (bool, bool, bool), class_legend: &str) -> Vec<Column> {
+    let mut columns = Vec::new();
+    if has.0 {
+        columns.extend([
+            col(
+                "SOM_Class",
+                "",
+                "aepipe SOM class",
+                &format!("the SOM stage's class (som_label): {class_legend}"),
+                true,
+            ),
+            col(
+                "SOM_Node",
+                "",
+                "aepipe SOM node class",
+                &format!("the class of the hit's best-matching node (node_label): {class_legend}"),
+                true,
+            ),
+            col(
+                "Novel",
+                "",
+                "aepipe unlike the references",
+                "1: farther from the map than its novelty threshold (novel); 0: not",
+                true,
+            ),
+            col(
+                "QE",
+                "",
+                "aepipe quantization error",
+                "distance to the best-matching node (quantization_error, Eq. 5.4.1)",
+                false,
+            ),
+        ]);
+    }
+    if has.1 {
+        columns.push(col(
+            "Cluster",
+            "",
+            "aepipe cluster",
+            "the hit's cluster (clusters.parquet cluster, 0-based)",
+            true,
+        ));
+    }
+    let mech: Vec<&str> = Mechanism::ALL.iter().map(|m| m.as_str()).collect();
+    columns.extend([
+        col(
+            "Criteria",
+            "",
+            "aepipe ch. 4.7 label",
+            &format!("criteria_label: {}", legend(&mech)),
+            true,
+        ),
+        col(
+            "CrackMode",
+            "",
+            "aepipe RA-AF crack mode",
+            &format!("crack_mode: {}", legend(&CRACK)),
+            true,
+        ),
+        col(
+            "RA",
+            "[ms/V]",
+            "RA value",
+            "rise time over peak amplitude (ra_ms_per_v)",
+            false,
+        ),
+        col(
+            "AF",
+            "[kHz]",
+            "Average frequency",
+            "counts over duration (af_khz)",
+            false,
+        ),
+        col(
+            "Event",
+            "",
+            "aepipe event",
+            "1-based event of the experiment (event)",
+            true,
+        ),
+        col(
+            "Zone",
+            "",
+            "aepipe zone",
+            &format!("zone: {}", legend(&ZONES)),
+            true,
+        ),
+    ]);
+    if has.2 {
+        columns.extend([
+            col(
+                "X",
+                "[mm]",
+                "aepipe location x",
+                "the event's source x (events.parquet x_m, in mm)",
+                false,
+            ),
+            col(
+                "Y",
+                "[mm]",
+                "aepipe location y",
+                "the event's source y (events.parquet y_m, in mm)",
+                false,
+            ),
+        ]);
+    }
+    for (k, name) in power_ratio_names().iter().enumerate() {
+        columns.push(col(
+            &format!("PR{:02}", k + 1),
+            "[1]",
+            &format!("Power ratio {}-{} kHz", 100 * k, 100 * (k + 1)),
+            &format!("{name}: power in the band over the total (Eq. 4.5.4), a fraction"),
+            false,
+        ));
+    }
+    columns
+}
+
+/// What an export takes from one features row.
+#[derive(Debug, Clone, Default)]
+pub(super) struct FeatureRow {
+    pub source_file: String,
+    pub criteria: Option<String>,
+    pub crack: Option<String>,
+    pub ra: Option<f64>,
+    pub af: Option<f64>,
+    pub event: Option<i64>,
+    pub zone: Option<String>,
+    pub ratios: Vec<Option<f64>>,
+}
+
+fn read_classes(path: &Path) -> Result<HashMap<HitKey, Classified>, StoreError> {
+    let t = TableScan::open(path)?;
+    let df = t.columns(&[
+        cols::EXPERIMENT.name,
+        cols::CHANNEL.name,
+        cols::HIT.name,
+        cols::SOM_LABEL.name,
+        cols::NODE_LABEL.name,
+        "novel",
+        "quantization_error",
+    ])?;
+    let keys = t.hit_keys(&df)?;
+    let som = t.texts(&df, cols::SOM_LABEL)?;
+    let node = t.texts(&df, cols::NODE_LABEL)?;
+    let novel = t.bools(&df, "novel")?;
+    let qe = t.f64s(&df, "quantization_error")?;
+    Ok(keys
+        .into_iter()
+        .enumerate()
+        .map(|(i, k)| {
+            let c = Classified {
+                som: som[i].clone(),
+                node: node[i].clone(),
+                novel: novel[i],
+                qe: qe[i],
+            };
+            (k, c)
+        })
+        .collect())
+}
+
+fn read_clusters(path: &Path) -> Result<HashMap<HitKey, i32>, StoreError> {
+    let t = TableScan::open(path)?;
+    let df = t.columns(&[
+        cols::EXPERIMENT.name,
+        cols::CHANNEL.name,
+        cols::HIT.name,
+        "cluster",
+    ])?;
+    let keys = t.hit_keys(&df)?;
+    let c = t.f64s(&df, "cluster")?;
+    Ok(keys
+        .into_iter()
+        .zip(c)
+        .filter_map(|(k, c)| Some((k, c? as i32)))
+        .collect())
+}
+
+fn read_places(path: &Path) -> Result<Places, StoreError> {
+    let t = TableScan::open(path)?;
+    let df = t.columns(&[
+        cols::EXPERIMENT.name,
+        cols::EVENT.name,
+        cols::X_M.name,
+        cols::Y_M.name,
+    ])?;
+    let e = t.texts(&df, cols::EXPERIMENT)?;
+    let n = t.i64s(&df, cols::EVENT)?;
+    let x = t.floats(&df, cols::X_M)?;
+    let y = t.floats(&df, cols::Y_M)?;
+    Ok((0..df.height())
+        .filter_map(|i| Some(((e[i].clone()?, n[i]?), (x[i], y[i]))))
+        .collect())
+}

@@ -1,0 +1,284 @@
+//! `aepipe export trfdb` and `[export] trfdb`: what VisualAE would load, read back by an
+//! independent reader. vallenae's `TrfDatabase` reads each written `.trfdb`; its rows are
+//! compared, by TRAI, with the run's own tables read by pyarrow — the class codes decoded
+//! through the legend the file's own field info gives, the locations from events.parquet —
+//! on the real Vallen sets and on a synthetic test with clusters and events. The MISTRAS
+//! chain gets a CSV keyed by aepipe's hit with the system's hit numbers from hits.parquet.
+
+use crate::{aepipe, TempDir};
+use std::path::Path;
+
+/// vallenae's reading of `trfdb` against the run's tables in `run` for `experiment`: the
+/// rows compared and the mismatches (empty when every value agrees), as JSON. None after
+/// [`crate::skip`] when vallenae or pyarrow is absent.
+fn compare(trfdb: &Path, run: &Path, experiment: &str) -> Option<serde_json::Value> {
+    let script = r#"
+import json, math, os, sys
+try:
+    import vallenae as vae
+    import pyarrow.parquet as pq
+except ImportError as e:
+    print(f"missing: {e}", file=sys.stderr)
+    sys.exit(3)
+trfdb, run, exp = sys.argv[1], sys.argv[2], sys.argv[3]
+with vae.io.TrfDatabase(trfdb) as t:
+    df = t.read()
+    info = t.fieldinfo()
+    glob = t.globalinfo()
+def legend(field):
+    d = info[field]["Description"]
+    return {float(k): v for k, v in (p.split(" = ") for p in d.split(": ", 1)[1].split("; "))}
+def table(p):
+    return pq.read_table(p).to_pylist() if os.path.exists(p) else []
+feats = [r for r in table(f"{run}/features/features.parquet") if r["experiment"] == exp]
+key = lambda r: (r["channel"], r["hit"])
+cls = {key(r): r for r in table(f"{run}/som/classification.parquet") if r["experiment"] == exp}
+clu = {key(r): r for r in table(f"{run}/cluster/clusters.parquet") if r["experiment"] == exp}
+ev = {r["event"]: r for r in table(f"{run}/features/events.parquet") if r["experiment"] == exp}
+bad = []
+def same(what, trai, got, want):
+    g = None if got is None or (isinstance(got, float) and math.isnan(got)) else got
+    if (g is None) != (want is None) or (g is not None and not math.isclose(g, want, rel_tol=1e-12, abs_tol=1e-15)):
+        bad.append(f"TRAI {trai} {what}: {got!r} vs {want!r}")
+def decoded(what, trai, code, want):
+    got = None if code != code else legend(what)[code]
+    if got != want:
+        bad.append(f"TRAI {trai} {what}: {got!r} vs {want!r}")
+for f in feats:
+    trai = f["hit"]
+    if trai not in df.index:
+        bad.append(f"TRAI {trai}: no row")
+        continue
+    row = df.loc[trai]
+    # vallenae leaves out a column that is null in every row.
+    r = {c: row.get(c, float("nan")) for c in info}
+    same("RA", trai, r["RA"], f["ra_ms_per_v"])
+    same("AF", trai, r["AF"], f["af_khz"])
+    same("Event", trai, r["Event"], f["event"])
+    decoded("Criteria", trai, r["Criteria"], f["criteria_label"])
+    decoded("CrackMode", trai, r["CrackMode"], f["crack_mode"])
+    decoded("Zone", trai, r["Zone"], f["zone"])
+    for k in range(25):
+        same(f"PR{k+1:02d}", trai, r[f"PR{k+1:02d}"], f[f"pr_{100*k}_{100*(k+1)}khz"])
+    c = cls.get(key(f))
+    if cls:
+        decoded("SOM_Class", trai, r["SOM_Class"], c and c["som_label"])
+        decoded("SOM_Node", trai, r["SOM_Node"], c and c["node_label"])
+        same("Novel", trai, r["Novel"], None if c is None or c["novel"] is None else float(c["novel"]))
+        same("QE", trai, r["QE"], c and c["quantization_error"])
+    if clu:
+        u = clu.get(key(f))
+        same("Cluster", trai, r["Cluster"], u and u["cluster"])
+    if "X" in info:
+        e = ev.get(f["event"])
+        same("X", trai, r["X"], None if e is None or e["x_m"] is None else e["x_m"] * 1e3)
+print(json.dumps({
+    "rows": len(df), "features": len(feats), "bad": bad[:20],
+    "units": {k: v["Unit"] for k, v in info.items()},
+    "reference_id": str(glob.get("ReferenceID", "")),
+    "writer": str(glob.get("WriterID", "")), "valid_sets": glob.get("ValidSets"),
+}))
+"#;
+    let o = std::process::Command::new("python3")
+        .args(["-c", script])
+        .arg(trfdb)
+        .arg(run)
+        .arg(experiment)
+        .output();
+    let why = match o {
+        Ok(o) if o.status.success() => return Some(serde_json::from_slice(&o.stdout).unwrap()),
+        Ok(o) if o.status.code() == Some(3) => String::from_utf8_lossy(&o.stderr).into_owned(),
+        Ok(o) => panic!(
+            "the comparison failed: {}",
+            String::from_utf8_lossy(&o.stderr)
+        ),
+        Err(e) => format!("python3: {e}"),
+    };
+    crate::skip(
+        "trfdb read back by vallenae",
+        &format!("{why} (pip install vallenae pyarrow)"),
+    );
+    None
+}
+
+/// The `.pridb`'s FileID, read with SQLite directly.
+fn file_id(pridb: &Path) -> String {
+    let c =
+        rusqlite::Connection::open_with_flags(pridb, rusqlite::OpenFlags::SQLITE_OPEN_READ_ONLY)
+            .unwrap();
+    c.query_row(
+        "SELECT Value FROM ae_globalinfo WHERE Key = 'FileID'",
+        [],
+        |r| r.get::<_, String>(0),
+    )
+    .unwrap()
+}
+
+fn run(data: &Path, out: &Path, toml: &str) {
+    let cfg = out.with_extension("toml");
+    std::fs::write(&cfg, toml).unwrap();
+    let (code, said, err) = aepipe(&[
+        "run",
+        "--config",
+        cfg.to_str().unwrap(),
+        data.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert_eq!(code, 0, "{said}\n{err}");
+}
+
+/// The real Vallen pairs run and exported: every transient with a feature row is a row
+/// vallenae reads back with the run's values, the field info gives the units, the file
+/// points at its `.pridb`, and the lab's own `sample.trfdb` beside the pair is untouched.
+#[test]
+fn the_real_vallen_sets_are_written_back_for_visualae() {
+    let Some(real) = crate::real_data("the_real_vallen_sets_are_written_back_for_visualae") else {
+        return;
+    };
+    let t = TempDir::new("trfdb-real");
+    let lab = real.join("vallen/steel_plate/sample.trfdb");
+    let before = std::fs::read(&lab).unwrap();
+    for (set, exp) in [("steel_plate", "sample"), ("bearing", "bearing")] {
+        let out = t.path().join(set);
+        run(
+            &real.join("vallen").join(set),
+            &out,
+            "[export]\ntrfdb = true\n",
+        );
+        let db = out.join("export").join(format!("{exp}.aepipe.trfdb"));
+        assert!(db.is_file(), "{}", db.display());
+        let Some(v) = compare(&db, &out, exp) else {
+            return;
+        };
+        assert!(v["features"].as_u64().unwrap() > 0, "{v}");
+        assert_eq!(v["rows"], v["features"], "{set}: one row per feature row");
+        assert_eq!(v["valid_sets"], v["rows"], "{set}");
+        assert!(
+            v["bad"].as_array().unwrap().is_empty(),
+            "{set}: {}",
+            v["bad"]
+        );
+        assert_eq!(v["units"]["RA"], "[ms/V]");
+        assert_eq!(v["units"]["PR01"], "[1]");
+        assert!(v["writer"].as_str().unwrap().starts_with("aepipe "));
+        let pridb = real.join("vallen").join(set).join(format!("{exp}.pridb"));
+        assert_eq!(
+            v["reference_id"].as_str().unwrap(),
+            file_id(&pridb),
+            "{set}"
+        );
+    }
+    assert!(
+        std::fs::read(&lab).unwrap() == before,
+        "the lab's .trfdb changed"
+    );
+}
+
+/// A synthetic test with two channels' events, clusters and the SOM: `aepipe export trfdb`
+/// writes what `[export] trfdb` wrote, refuses to replace it without `--force` (exit 1,
+/// the file unchanged), and replaces it with `--force`.
+#[test]
+fn a_run_with_clusters_and_events_exports_and_an_export_is_replaced_only_when_forced() {
+    let t = TempDir::new("trfdb-synth");
+    let data = t.path().join("data");
+    let (code, said, err) = aepipe(&[
+        "synth-experiment",
+        "--out",
+        data.to_str().unwrap(),
+        "--hits",
+        "120",
+    ]);
+    assert_eq!(code, 0, "{said}\n{err}");
+    let out = t.path().join("run");
+    run(
+        &data.join("data"),
+        &out,
+        "[export]\ntrfdb = true\n\n[cluster]\nenabled = true\nk_min = 2\nk_max = 3\n",
+    );
+    let exported = out.join("export");
+    let dbs: Vec<_> = std::fs::read_dir(&exported)
+        .unwrap()
+        .flatten()
+        .map(|e| e.path())
+        .collect();
+    assert_eq!(dbs.len(), 1, "{dbs:?}");
+    let db = &dbs[0];
+    let exp = db
+        .file_name()
+        .unwrap()
+        .to_str()
+        .unwrap()
+        .trim_end_matches(".aepipe.trfdb")
+        .to_string();
+    let Some(v) = compare(db, &out, &exp) else {
+        return;
+    };
+    assert_eq!(v["rows"], v["features"], "{v}");
+    assert!(v["bad"].as_array().unwrap().is_empty(), "{}", v["bad"]);
+    assert!(v["units"].get("Cluster").is_some(), "{v}");
+    assert!(v["units"].get("SOM_Class").is_some(), "{v}");
+
+    // Again into the same folder: refused, then forced.
+    let first = std::fs::read(db).unwrap();
+    let (code, _, err) = aepipe(&["export", "trfdb", out.to_str().unwrap()]);
+    assert_eq!(code, 1, "{err}");
+    assert!(err.contains("--force"), "{err}");
+    assert!(std::fs::read(db).unwrap() == first);
+    let (code, said, err) = aepipe(&["export", "trfdb", out.to_str().unwrap(), "--force"]);
+    assert_eq!(code, 0, "{err}");
+    assert!(said.contains(&format!("export {exp}: ")), "{said}");
+    let v = compare(db, &out, &exp).unwrap();
+    assert!(v["bad"].as_array().unwrap().is_empty(), "{}", v["bad"]);
+}
+
+/// A MISTRAS chain is not a Vallen pair: a CSV keyed by aepipe's hit, each row with the
+/// hit number hits.parquet gives its waveform, and the run's values.
+#[test]
+fn a_mistras_chain_gets_a_csv_keyed_by_its_hit_numbers() {
+    let Some(real) = crate::real_data("a_mistras_chain_gets_a_csv_keyed_by_its_hit_numbers") else {
+        return;
+    };
+    let t = TempDir::new("trfdb-dta");
+    let out = t.path().join("run");
+    run(
+        &real.join("mistras_dta"),
+        &out,
+        "[export]\ntrfdb = true\n\n[som]\nenabled = false\n",
+    );
+    let csv = out.join("export").join("210527-CH1-15.aepipe.csv");
+    let mut r = csv::Reader::from_path(&csv).unwrap();
+    let header: Vec<String> = r.headers().unwrap().iter().map(str::to_string).collect();
+    let at = |n: &str| header.iter().position(|h| h == n).unwrap();
+    let (hit, vendor, ra) = (at("hit"), at("vendor_hit"), at("RA"));
+    // The run's own tables: features' hit → RA, hits' transient → hit number.
+    let (fnames, frows) = crate::table_rows(&out.join("features").join("features.parquet"));
+    let fc = |n: &str| fnames.iter().position(|h| h == n).unwrap();
+    let ra_of: std::collections::HashMap<String, String> = frows
+        .iter()
+        .map(|r| (r[fc("hit")].clone(), r[fc("ra_ms_per_v")].clone()))
+        .collect();
+    let (hnames, hrows) = crate::table_rows(&out.join("features").join("hits.parquet"));
+    let hc = |n: &str| hnames.iter().position(|h| h == n).unwrap();
+    let vendor_of: std::collections::HashMap<String, String> = hrows
+        .iter()
+        .filter(|r| !r[hc("transient")].is_empty())
+        .map(|r| (r[hc("transient")].clone(), r[hc("hit")].clone()))
+        .collect();
+    let mut n = 0;
+    for rec in r.records() {
+        let rec = rec.unwrap();
+        let h = rec[hit].to_string();
+        assert_eq!(
+            vendor_of.get(&h).map(String::as_str).unwrap_or(""),
+            &rec[vendor],
+            "hit {h}"
+        );
+        let want: Option<f64> = ra_of[&h].parse().ok();
+        let got: Option<f64> = rec[ra].parse().ok();
+        assert_eq!(got, want, "hit {h}: RA");
+        n += 1;
+    }
+    assert_eq!(n, frows.len(), "one row per feature row");
+    assert!(n > 0);
+}
