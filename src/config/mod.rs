@@ -187,6 +187,10 @@ pub struct ReportConfig {
     /// experiments keeps its tables whole and its report readable. The report says how
     /// many series it has pictures of.
     pub series_figures: usize,
+    /// Hits whose waveform and CWT the explorable charts open on a click, taken from the
+    /// gallery across classes in turn (at most the gallery's hits); any other hit shows the
+    /// `aepipe cwt` command that draws it.
+    pub explorable_hits: usize,
 }
 
 impl Default for ReportConfig {
@@ -195,6 +199,7 @@ impl Default for ReportConfig {
             enabled: true,
             gallery_per_class: 6,
             series_figures: 24,
+            explorable_hits: 48,
         }
     }
 }

@@ -7,6 +7,7 @@
 //! columns and gallery pictures the workflow read and drew. It reads no input recording and
 //! no table; it only embeds the PNG files it is pointed at.
 
+pub mod explore;
 mod sources;
 
 use crate::analysis::trend::TrendReport;
@@ -308,6 +309,8 @@ pub struct Gathered {
     pub cluster_gallery: Gallery,
     /// The features stage's `manifest.json`, as text.
     pub manifest: String,
+    /// The points and hits the explorable charts show.
+    pub explorer: explore::Explorer,
 }
 
 /// The gallery's choice, the first `per` hits of each class in key order, made as the hits
@@ -429,6 +432,7 @@ pre{{background:#f6f6f6;padding:8px;overflow-x:auto}}.missing{{color:#b00}}</sty
     first_lines(&mut h, s);
     inputs_section(&mut h, s);
     classes_section(&mut h, g);
+    explore::section(&mut h, &g.explorer);
     trend_section(&mut h, s);
     som_section(&mut h, s);
     cluster_section(&mut h, s);
@@ -815,10 +819,16 @@ fn gallery_section(h: &mut String, g: &Gallery) {
             let cap = format!("{} ch{} hit {}", k.0, k.1, k.2);
             match png {
                 Some((thumb, full)) => {
+                    // The explorer opens a hit's picture by this key.
+                    let pic = img_swap(thumb, full, &cap, 270).replacen(
+                        "<img ",
+                        &format!("<img data-key=\"{}\" ", esc(&explore::key_text(k))),
+                        1,
+                    );
                     let _ = write!(
                         h,
                         "<figure>{}<figcaption>{}</figcaption></figure>",
-                        img_swap(thumb, full, &cap, 270),
+                        pic,
                         esc(&cap)
                     );
                 }

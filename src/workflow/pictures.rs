@@ -27,6 +27,21 @@ pub(super) fn gather(s: &RunSummary) -> Result<Gathered, WorkflowError> {
     let mut wanted = chosen.clone();
     wanted.extend(by_cluster.iter().map(|(c, k)| (c.clone(), k.clone())));
     let pics = draw_gallery(&s.inputs, &s.config, &wanted, &RunDir::new(&s.out));
+    // The explorer opens the gallery's hits that were drawn.
+    let drawn: BTreeMap<String, Vec<HitKey>> = chosen
+        .iter()
+        .map(|(c, keys)| {
+            let k = keys.iter().filter(|k| pics.contains_key(*k)).cloned();
+            (c.clone(), k.collect())
+        })
+        .collect();
+    let mut explorer = super::explore::explorer(s, &drawn)?;
+    explorer.inputs = s
+        .inputs
+        .iter()
+        .map(|p| format!("'{}'", p.display()))
+        .collect::<Vec<_>>()
+        .join(" ");
     let pictures = |chosen: BTreeMap<String, Vec<HitKey>>| {
         chosen
             .into_iter()
@@ -58,6 +73,7 @@ pub(super) fn gather(s: &RunSummary) -> Result<Gathered, WorkflowError> {
         gallery,
         cluster_gallery,
         manifest,
+        explorer,
     })
 }
 

@@ -14,6 +14,7 @@ mod dta;
 mod e2e;
 mod events;
 mod exit_codes;
+mod explore;
 mod exports;
 mod fidelity;
 mod formats;

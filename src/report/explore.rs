@@ -1,0 +1,207 @@
+//! The explorable part of the report (issue 41): the run's points as data in the page and
+//! a small canvas chart library of our own (no CDN, no request to the network), so the page
+//! stays one file that opens offline.
+//!
+//! Charts: the test over time (the axis chosen), a feature scatter whose axes the reader
+//! chooses (RA against AF to start), the event locations and the cumulative hits per class.
+//! They zoom (drag; double-click resets), pan (drag with Alt, or the arrow keys), name the
+//! point under the pointer (experiment, channel, hit, class), and are linked: a region
+//! selected with Shift-drag in one is highlighted in all. Colour is by any class the run
+//! has (ch. 4.7 label, SOM class, cluster, zone). A click on a point shows its identity and,
+//! for a hit the page embeds (the gallery's), its waveform and CWT; for any other, the
+//! `aepipe cwt` command that draws it.
+
+use crate::store::read::HitKey;
+use std::fmt::Write;
+
+/// One plottable column of the points.
+#[derive(Debug, Clone, Default)]
+pub struct PlotColumn {
+    pub name: String,
+    pub label: String,
+    pub values: Vec<Option<f64>>,
+}
+
+/// A way to colour the points: its name, the class names, each point's class index.
+#[derive(Debug, Clone, Default)]
+pub struct Coloring {
+    pub name: String,
+    pub classes: Vec<String>,
+    pub of_point: Vec<Option<u32>>,
+}
+
+/// The explorer's data.
+#[derive(Debug, Clone, Default)]
+pub struct Explorer {
+    /// Feature rows in the run, and every how many one is a point.
+    pub total: usize,
+    pub stride: usize,
+    pub keys: Vec<HitKey>,
+    pub columns: Vec<PlotColumn>,
+    pub colorings: Vec<Coloring>,
+    /// The source position (x, y, m) of each point's event.
+    pub location: Option<[Vec<Option<f64>>; 2]>,
+    /// Hits whose waveform and CWT the page opens (the gallery's pictures).
+    pub embedded: Vec<HitKey>,
+    /// The run's inputs, as `aepipe cwt` takes them (for the hits not embedded).
+    pub inputs: String,
+}
+
+impl Explorer {
+    /// A column's values by name.
+    pub fn column(&self, name: &str) -> Option<&[Option<f64>]> {
+        self.columns
+            .iter()
+            .find(|c| c.name == name)
+            .map(|c| c.values.as_slice())
+    }
+
+    /// Colour by `name`: each point's class (in point order).
+    pub fn add_coloring(&mut self, name: &str, of_point: Vec<Option<String>>) {
+        let mut classes: Vec<String> = of_point.iter().flatten().cloned().collect();
+        classes.sort();
+        classes.dedup();
+        let of_point = of_point
+            .iter()
+            .map(|c| {
+                c.as_ref()
+                    .and_then(|c| classes.binary_search(c).ok())
+                    .map(|i| i as u32)
+            })
+            .collect();
+        self.colorings.push(Coloring {
+            name: name.to_string(),
+            classes,
+            of_point,
+        });
+    }
+
+    /// The data as JSON (numbers in their shortest round-trip form of f32: the page plots
+    /// them, it does not compute with them).
+    pub fn json(&self) -> String {
+        let mut j = String::with_capacity(self.keys.len() * 120);
+        let mut exps: Vec<&str> = self.keys.iter().map(|k| k.0.as_str()).collect();
+        exps.sort();
+        exps.dedup();
+        let _ = write!(
+            j,
+            "{{\"total\":{},\"stride\":{},\"experiments\":{},",
+            self.total,
+            self.stride,
+            strings(exps.iter().copied())
+        );
+        let ex: Vec<String> = self
+            .keys
+            .iter()
+            .map(|k| exps.binary_search(&k.0.as_str()).unwrap_or(0).to_string())
+            .collect();
+        let _ = write!(j, "\"exp\":[{}],", ex.join(","));
+        let ch: Vec<String> = self.keys.iter().map(|k| k.1.to_string()).collect();
+        let _ = write!(j, "\"ch\":[{}],", ch.join(","));
+        let hit: Vec<String> = self.keys.iter().map(|k| k.2.to_string()).collect();
+        let _ = write!(j, "\"hit\":[{}],\"columns\":[", hit.join(","));
+        for (i, c) in self.columns.iter().enumerate() {
+            let _ = write!(
+                j,
+                "{}{{\"name\":{},\"label\":{},\"v\":{}}}",
+                if i > 0 { "," } else { "" },
+                string(&c.name),
+                string(&c.label),
+                numbers(&c.values)
+            );
+        }
+        j.push_str("],\"colorings\":[");
+        for (i, c) in self.colorings.iter().enumerate() {
+            let of: Vec<String> = c
+                .of_point
+                .iter()
+                .map(|v| v.map_or("null".into(), |v| v.to_string()))
+                .collect();
+            let _ = write!(
+                j,
+                "{}{{\"name\":{},\"classes\":{},\"of\":[{}]}}",
+                if i > 0 { "," } else { "" },
+                string(&c.name),
+                strings(c.classes.iter().map(String::as_str)),
+                of.join(",")
+            );
+        }
+        j.push(']');
+        if let Some([x, y]) = &self.location {
+            let _ = write!(j, ",\"loc_x\":{},\"loc_y\":{}", numbers(x), numbers(y));
+        }
+        let emb: Vec<String> = self.embedded.iter().map(|k| string(&key_text(k))).collect();
+        let _ = write!(
+            j,
+            ",\"embedded\":[{}],\"inputs\":{}}}",
+            emb.join(","),
+            string(&self.inputs)
+        );
+        j
+    }
+}
+
+/// "experiment|channel|hit": how the page names a hit (and the gallery's pictures).
+pub fn key_text(k: &HitKey) -> String {
+    format!("{}|{}|{}", k.0, k.1, k.2)
+}
+
+fn string(s: &str) -> String {
+    // JSON, and safe inside a <script> element (no "</").
+    serde_json::to_string(s)
+        .expect("a string serialises")
+        .replace("</", "<\\/")
+}
+
+fn strings<'a>(v: impl Iterator<Item = &'a str>) -> String {
+    format!("[{}]", v.map(string).collect::<Vec<_>>().join(","))
+}
+
+fn numbers(v: &[Option<f64>]) -> String {
+    let s: Vec<String> = v
+        .iter()
+        .map(|x| match x {
+            Some(x) if x.is_finite() => format!("{}", *x as f32),
+            _ => "null".into(),
+        })
+        .collect();
+    format!("[{}]", s.join(","))
+}
+
+/// The section: its controls, the charts, the detail panel, the data and the code.
+pub fn section(h: &mut String, e: &Explorer) {
+    if e.keys.is_empty() {
+        return;
+    }
+    let thinned = if e.stride > 1 {
+        format!(
+            " Every {}th of the {} feature rows is a point ({} points): the page stays small; the tables hold every row.",
+            e.stride,
+            e.total,
+            e.keys.len()
+        )
+    } else {
+        format!(" All {} feature rows are points.", e.total)
+    };
+    let _ = write!(
+        h,
+        "<h2 id=explore>Explore</h2><p>Drag to zoom, double-click to reset, Alt-drag or arrow \
+         keys to pan; Shift-drag selects a region, highlighted in every chart; a click on a \
+         point opens it.{}</p>\
+         <p>Colour by <select id=ex-color></select> · scatter <select id=ex-x></select> against \
+         <select id=ex-y></select> · over the test <select id=ex-t></select> \
+         <button id=ex-clear>clear selection</button> <span id=ex-sel></span></p>\
+         <style>#ex-tip{{position:absolute;display:none;background:#ffe;border:1px solid #aa8;\
+         padding:2px 6px;font-size:12px;pointer-events:none}}#ex-charts canvas{{border:1px solid #ccc}}\
+         #ex-charts figure{{margin:0 0 8px 0}}</style>\
+         <div id=ex-legend></div><div id=ex-charts></div><div id=ex-tip></div>\
+         <div id=ex-detail><p>Click a point.</p></div>\
+         <script id=explore-data type=application/json>{}</script><script>{}</script>",
+        super::esc(&thinned),
+        e.json(),
+        SCRIPT
+    );
+}
+
+/// The charts' code (canvas, no library).
+const SCRIPT: &str = include_str!("explore.js");

@@ -1,0 +1,193 @@
+//! The explorable report's data (issue 41): one point per feature row — at most
+//! [`MAX_POINTS`], every k-th row beyond, and the page says so — with the columns a reader
+//! plots, its class (SOM, else ch. 4.7), cluster, zone and event location; and the hits
+//! whose waveform and CWT the page can open (the gallery's, up to `[report]
+//! explorable_hits`, taken across classes in turn).
+
+use super::*;
+use crate::model::columns as cols;
+use crate::report::explore::{Explorer, PlotColumn};
+use std::collections::HashMap;
+
+/// Points embedded at most: ~110 B each in the page, so ≤ ~6 MB of data at any size.
+pub const MAX_POINTS: usize = 50_000;
+
+/// The feature columns the reader can put on an axis: (column, label).
+const AXES: [(&str, &str); 13] = [
+    ("time_s", "time (s)"),
+    ("load_n", "load (N)"),
+    ("peak_amplitude_db", "amplitude (dB_AE)"),
+    ("energy_eu", "energy (eu)"),
+    ("duration_s", "duration (s)"),
+    ("rise_time_s", "rise time (s)"),
+    ("counts", "counts"),
+    ("ra_ms_per_v", "RA (ms/V)"),
+    ("af_khz", "AF (kHz)"),
+    ("peak_freq_hz", "peak frequency (Hz)"),
+    ("centroid_freq_hz", "centroid frequency (Hz)"),
+    ("extension_m", "extension (m)"),
+    ("event", "event"),
+];
+
+/// Read the explorer's points from the run's tables.
+pub(super) fn explorer(
+    s: &RunSummary,
+    gallery: &BTreeMap<String, Vec<HitKey>>,
+) -> Result<Explorer, WorkflowError> {
+    let t = TableScan::open(&s.features.table_path)?;
+    let total = t.file_rows();
+    let stride = total.div_ceil(MAX_POINTS).max(1);
+    let have = t.column_names();
+    let has = |c: &str| have.iter().any(|h| h == c);
+    let present: Vec<(&str, &str)> = AXES.into_iter().filter(|(c, _)| has(c)).collect();
+    let mut names = vec![
+        cols::EXPERIMENT.name,
+        cols::CHANNEL.name,
+        cols::HIT.name,
+        cols::CRITERIA_LABEL.name,
+    ];
+    names.extend(present.iter().map(|(c, _)| *c));
+    if has(cols::ZONE.name) {
+        names.push(cols::ZONE.name);
+    }
+    let mut e = Explorer {
+        total,
+        stride,
+        columns: present
+            .iter()
+            .map(|(c, l)| PlotColumn {
+                name: c.to_string(),
+                label: l.to_string(),
+                values: Vec::new(),
+            })
+            .collect(),
+        ..Default::default()
+    };
+    let mut index: HashMap<HitKey, usize> = HashMap::new();
+    let mut criteria = Vec::new();
+    let mut zone = Vec::new();
+    let mut row = 0usize;
+    for batch in t.batches(&names) {
+        let (_, df) = batch?;
+        let keys = t.hit_keys(&df)?;
+        let crit = t.texts(&df, cols::CRITERIA_LABEL)?;
+        let zones = match names.contains(&cols::ZONE.name) {
+            true => t.texts(&df, cols::ZONE)?,
+            false => vec![None; df.height()],
+        };
+        let vals: Vec<Vec<Option<f64>>> = present
+            .iter()
+            .map(|(c, _)| t.f64s(&df, c))
+            .collect::<Result<_, _>>()?;
+        for (i, k) in keys.into_iter().enumerate() {
+            row += 1;
+            if !(row - 1).is_multiple_of(stride) {
+                continue;
+            }
+            index.insert(k.clone(), e.keys.len());
+            e.keys.push(k);
+            criteria.push(crit[i].clone());
+            zone.push(zones[i].clone());
+            for (c, v) in e.columns.iter_mut().zip(&vals) {
+                c.values.push(v[i]);
+            }
+        }
+    }
+    e.add_coloring("ch. 4.7 label", criteria);
+    if let Some(m) = &s.som {
+        e.add_coloring(
+            "SOM class",
+            keyed_texts(&m.classification, cols::SOM_LABEL.name, &index)?,
+        );
+    }
+    if let Some(c) = &s.cluster {
+        let v = keyed_texts(&c.report.clusters, "cluster", &index)?;
+        e.add_coloring("cluster", v);
+    }
+    if zone.iter().any(Option::is_some) {
+        e.add_coloring("zone", zone);
+    }
+    e.location = event_places(s, &e)?;
+    e.embedded = embedded(gallery, s.config.report.explorable_hits);
+    Ok(e)
+}
+
+/// A keyed table's `column` (as text) for the points, in point order.
+fn keyed_texts(
+    path: &Path,
+    column: &str,
+    index: &HashMap<HitKey, usize>,
+) -> Result<Vec<Option<String>>, WorkflowError> {
+    let t = TableScan::open(path)?;
+    let mut out = vec![None; index.len()];
+    let names = [
+        cols::EXPERIMENT.name,
+        cols::CHANNEL.name,
+        cols::HIT.name,
+        column,
+    ];
+    for batch in t.batches(&names) {
+        let (_, df) = batch?;
+        let keys = t.hit_keys(&df)?;
+        let v = t.as_strings(&df, column)?;
+        for (k, v) in keys.iter().zip(v) {
+            if let Some(&i) = index.get(k) {
+                out[i] = v;
+            }
+        }
+    }
+    Ok(out)
+}
+
+/// The event's source position (x, y in m) of each point in an event, when events were
+/// located.
+fn event_places(
+    s: &RunSummary,
+    e: &Explorer,
+) -> Result<Option<[Vec<Option<f64>>; 2]>, WorkflowError> {
+    let path = s.features.table_path.with_file_name("events.parquet");
+    let Some(events) = e.column("event") else {
+        return Ok(None);
+    };
+    if !path.is_file() {
+        return Ok(None);
+    }
+    let t = TableScan::open(&path)?;
+    let df = t.columns(&[
+        cols::EXPERIMENT.name,
+        cols::EVENT.name,
+        cols::X_M.name,
+        cols::Y_M.name,
+    ])?;
+    let ex = t.texts(&df, cols::EXPERIMENT)?;
+    let ev = t.i64s(&df, cols::EVENT)?;
+    let x = t.floats(&df, cols::X_M)?;
+    let y = t.floats(&df, cols::Y_M)?;
+    let at: HashMap<(String, i64), (Option<f64>, Option<f64>)> = (0..df.height())
+        .filter_map(|i| Some(((ex[i].clone()?, ev[i]?), (x[i], y[i]))))
+        .collect();
+    let mut out = [vec![None; e.keys.len()], vec![None; e.keys.len()]];
+    for (i, k) in e.keys.iter().enumerate() {
+        let Some(n) = events[i] else { continue };
+        if let Some((x, y)) = at.get(&(k.0.clone(), n as i64)) {
+            (out[0][i], out[1][i]) = (*x, *y);
+        }
+    }
+    Ok(out[0].iter().any(Option::is_some).then_some(out))
+}
+
+/// The gallery's hits the page opens: across classes in turn, at most `max`.
+fn embedded(gallery: &BTreeMap<String, Vec<HitKey>>, max: usize) -> Vec<HitKey> {
+    let mut out = Vec::new();
+    let deepest = gallery.values().map(Vec::len).max().unwrap_or(0);
+    for j in 0..deepest {
+        for keys in gallery.values() {
+            if let Some(k) = keys.get(j) {
+                if out.len() < max && !out.contains(k) {
+                    out.push(k.clone());
+                }
+            }
+        }
+    }
+    out
+}
