@@ -51,7 +51,7 @@
       this.fig.appendChild(cap);
       $("ex-charts").appendChild(this.fig);
       this.view = null; this.drawn = false; this.points = 0;
-      this.m = { l: 70, r: 12, t: 12, b: 40 };
+      this.m = { l: 78, r: 16, t: 12, b: 40 };
       this.listen();
     }
     xs() { return value(this.xName); }
@@ -102,12 +102,16 @@
       for (let k = 0; k <= 4; k++) {
         const xv = x0 + (x1 - x0) * k / 4, yv = y0 + (y1 - y0) * k / 4;
         const [px] = this.px(xv, y0), [, py] = this.px(x0, yv);
-        g.fillText(fmt(xv), px - 14, H - m.b + 14);
-        g.fillText(fmt(yv), 4, py + 4);
+        g.textAlign = "center";
+        g.fillText(fmt(xv), px, H - m.b + 14);
+        g.textAlign = "right";
+        g.fillText(fmt(yv), m.l - 4, py + 4);
       }
-      g.fillText(label(this.xName), W / 2 - 40, H - 6);
-      g.save(); g.translate(12, H / 2 + 40); g.rotate(-Math.PI / 2);
+      g.textAlign = "center";
+      g.fillText(label(this.xName), m.l + (W - m.l - m.r) / 2, H - 6);
+      g.save(); g.translate(12, m.t + (H - m.t - m.b) / 2); g.rotate(-Math.PI / 2);
       g.fillText(this.opts.yLabel || label(this.yName), 0, 0); g.restore();
+      g.textAlign = "left";
       g.save(); g.beginPath(); g.rect(m.l, m.t, W - m.l - m.r, H - m.t - m.b); g.clip();
       this.points = this.opts.cumulative ? this.drawLines(g) : this.drawPoints(g);
       g.restore();
