@@ -105,8 +105,18 @@ pub struct Flush {
     pub lag_s: f64,
     /// Events built (sources, when two or more channels hear them).
     pub events: u64,
-    /// Each classified row's class, time and load (for the page).
-    pub points: Vec<(String, f64, Option<f64>)>,
+    /// Each classified row with a time (for the page).
+    pub points: Vec<LivePoint>,
+}
+
+/// A classified row as the page shows it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LivePoint {
+    pub key: crate::store::HitKey,
+    pub class: String,
+    pub time_s: f64,
+    pub load_n: Option<f64>,
+    pub amplitude_db: Option<f64>,
 }
 
 impl Flush {
@@ -247,6 +257,11 @@ pub fn watch(
     let model = the_map(cfg, o.threads, &dir, inputs)?;
     let mut follower = follow::Follower::new(cfg.live.settle_s, &state);
     let mut page = page::Page::new(&state);
+    page.inputs = inputs
+        .iter()
+        .map(|p| format!("'{}'", p.display()))
+        .collect::<Vec<_>>()
+        .join(" ");
     page.write(&dir, &state, None, cfg)?;
     say(&format!(
         "watching {} input(s) into {} ({} hits committed before; live page {})",
@@ -526,7 +541,7 @@ fn classify_part(
                 &crate::som::layout::ClassifyDir::new(&cls_dir).classification(),
                 &part,
             )?;
-            f.points.extend(class_points(&part, &features)?);
+            f.points.extend(class_points(experiment, &part, &features)?);
         }
         // A part whose rows are all unusable for the map (flat records): no
         // classification part. Any other error of the map is the run's.
@@ -561,12 +576,13 @@ fn commit_flush(
     Ok(())
 }
 
-/// Each classified row's (class, time, load): the classification part joined with the
-/// features part on (channel, hit); rows without a time are left out.
+/// Each classified row of `experiment`'s part as the page shows it: the classification part
+/// joined with the features part on (channel, hit); rows without a time are left out.
 fn class_points(
+    experiment: &str,
     classification: &Path,
     features: &Path,
-) -> Result<Vec<(String, f64, Option<f64>)>, WatchError> {
+) -> Result<Vec<LivePoint>, WatchError> {
     use crate::store::TableScan;
     use polars::prelude::col;
     let f = TableScan::open(features)?;
@@ -575,14 +591,14 @@ fn class_points(
         col(cols::HIT.name),
         col(cols::TIME_S.name),
         col(cols::LOAD_N.name),
+        col(cols::PEAK_AMPLITUDE_DB.name),
     ])?;
     let (fc, fh) = (f.i32s(&df, cols::CHANNEL)?, f.i64s(&df, cols::HIT)?);
     let (ft, fl) = (f.floats(&df, cols::TIME_S)?, f.floats(&df, cols::LOAD_N)?);
-    let at: std::collections::HashMap<(i64, i64), (Option<f64>, Option<f64>)> = fc
-        .iter()
-        .zip(&fh)
-        .zip(ft.iter().zip(&fl))
-        .filter_map(|((c, h), (t, l))| Some((((*c)? as i64, (*h)?), (*t, *l))))
+    let fa = f.floats(&df, cols::PEAK_AMPLITUDE_DB)?;
+    type At = (Option<f64>, Option<f64>, Option<f64>);
+    let at: std::collections::HashMap<(i32, i64), At> = (0..df.height())
+        .filter_map(|i| Some(((fc[i]?, fh[i]?), (ft[i], fl[i], fa[i]))))
         .collect();
     let c = TableScan::open(classification)?;
     let df = c.select(vec![
@@ -600,8 +616,15 @@ fn class_points(
         .zip(&ch)
         .zip(cl)
         .filter_map(|((c, h), l)| {
-            let (t, load) = at.get(&((*c)? as i64, (*h)?))?;
-            Some((l?, (*t)?, *load))
+            let (c, h) = ((*c)?, (*h)?);
+            let (t, load, amp) = at.get(&(c, h))?;
+            Some(LivePoint {
+                key: (experiment.to_string(), c, h),
+                class: l?,
+                time_s: (*t)?,
+                load_n: *load,
+                amplitude_db: *amp,
+            })
         })
         .collect())
 }

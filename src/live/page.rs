@@ -5,6 +5,8 @@
 use super::{Flush, State, WatchDir, WatchError};
 use crate::config::ValidConfig;
 use crate::report::esc;
+use crate::report::explore::Explorer;
+use crate::store::HitKey;
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
 use std::time::Instant;
@@ -22,6 +24,8 @@ pub struct Page {
     cwts: Vec<(String, String)>,
     /// Class → the classified rows' (time, load) since this watcher started, thinned.
     by_class: BTreeMap<String, Thinned>,
+    /// The watched inputs, as `aepipe cwt` takes them (the explorer's command for a hit).
+    pub inputs: String,
 }
 
 /// Points kept for a picture: every `stride`-th one, the stride doubled whenever more than
@@ -30,14 +34,15 @@ pub struct Page {
 struct Thinned {
     stride: u64,
     seen: u64,
-    pts: Vec<(f64, Option<f64>)>,
+    /// (time, load, the row's key and amplitude).
+    pts: Vec<(f64, Option<f64>, HitKey, Option<f64>)>,
 }
 
 /// Points kept per class at most.
 const KEEP: usize = 4000;
 
 impl Thinned {
-    fn push(&mut self, p: (f64, Option<f64>)) {
+    fn push(&mut self, p: (f64, Option<f64>, HitKey, Option<f64>)) {
         self.stride = self.stride.max(1);
         if self.seen.is_multiple_of(self.stride) {
             self.pts.push(p);
@@ -116,6 +121,7 @@ impl Page {
             lines: Vec::new(),
             cwts: Vec::new(),
             by_class: BTreeMap::new(),
+            inputs: String::new(),
         }
     }
 
@@ -130,8 +136,9 @@ impl Page {
             state.hits,
             state.classes.clone(),
         ));
-        for (c, t, l) in &f.points {
-            self.by_class.entry(c.clone()).or_default().push((*t, *l));
+        for p in &f.points {
+            let th = self.by_class.entry(p.class.clone()).or_default();
+            th.push((p.time_s, p.load_n, p.key.clone(), p.amplitude_db));
         }
         self.lines.push(f.line());
         if self.lines.len() > LINES {
@@ -151,13 +158,16 @@ impl Page {
         let _ = write!(
             h,
             "<!doctype html><html><head><meta charset=\"utf-8\">\
-             <meta http-equiv=\"refresh\" content=\"{refresh}\">\
+             <noscript><meta http-equiv=\"refresh\" content=\"{refresh}\"></noscript>\
              <title>aepipe watch</title><style>\
              body{{font-family:sans-serif;margin:1.5em;color:#222}}\
              td,th{{padding:2px 10px;text-align:right}}th{{text-align:left}}\
              .line{{font-family:monospace;font-size:90%}}</style></head><body>\
              <h1>aepipe watch</h1><p>{} hits, {} feature rows, {} rejects in {} flushes \
-             (this page reloads every {refresh} s).</p>",
+             (this page reloads every {refresh} s; <label><input type=checkbox id=hold> hold \
+             this view</label>).</p><script>setTimeout(function again() {{\
+             if (document.getElementById('hold').checked) return setTimeout(again, 1000);\
+             location.reload(); }}, {refresh}000);</script>",
             state.hits, state.rows, state.rejects, state.flushes
         );
         if let Some(f) = last {
@@ -181,6 +191,7 @@ impl Page {
             }
             h.push_str("</table>");
         }
+        crate::report::explore::section(&mut h, &self.explorer());
         if self.by_class.is_empty() {
             h.push_str(&self.svg(state));
         } else {
@@ -218,6 +229,42 @@ impl Page {
         );
         crate::util::write_atomic(&dir.live_html(), h.as_bytes())?;
         Ok(())
+    }
+
+    /// The classified rows kept, for the explorable charts (each point weighs the rows it
+    /// stands for).
+    fn explorer(&self) -> Explorer {
+        let mut e = Explorer {
+            stride: 1,
+            inputs: self.inputs.clone(),
+            ..Default::default()
+        };
+        let (mut time, mut load, mut amp) = (Vec::new(), Vec::new(), Vec::new());
+        let (mut classes, mut weights) = (Vec::new(), Vec::new());
+        for (c, th) in &self.by_class {
+            for p in &th.pts {
+                e.keys.push(p.2.clone());
+                time.push(Some(p.0));
+                load.push(p.1);
+                amp.push(p.3);
+                classes.push(Some(c.clone()));
+                weights.push(th.stride);
+            }
+            e.total += th.seen as usize;
+        }
+        let col = |name: &str, label: &str, values| crate::report::explore::PlotColumn {
+            name: name.into(),
+            label: label.into(),
+            values,
+        };
+        e.columns = vec![
+            col("time_s", "time (s)", time),
+            col("load_n", "load (N)", load),
+            col("peak_amplitude_db", "amplitude (dB_AE)", amp),
+        ];
+        e.add_coloring("SOM class", classes);
+        e.weights = Some(weights);
+        e
     }
 
     /// Cumulative classified rows per class against the hits' own time (since this

@@ -23,6 +23,8 @@
   // Colour by the SOM class when the run has one, else the first colouring.
   let coloring = Math.max(0, D.colorings.findIndex((c) => c.name === "SOM class"));
   const emb = new Set(D.embedded);
+  // The rows a point stands for.
+  const weight = (i) => (D.w ? D.w[i] : D.stride);
   const keyOf = (i) => D.experiments[D.exp[i]] + "|" + D.ch[i] + "|" + D.hit[i];
   const classOf = (i) => {
     const c = D.colorings[coloring];
@@ -78,7 +80,7 @@
         if (t[i] === null || (selecting && !mask[i])) continue;
         t0 = Math.min(t0, t[i]); t1 = Math.max(t1, t[i]);
         const k = c ? c.of[i] : null;
-        if (k !== null) count[k] += D.stride;
+        if (k !== null) count[k] += weight(i);
       }
       if (!isFinite(t0)) return [0, 1, 0, 1];
       const top = Math.max(1, ...count);
@@ -149,7 +151,7 @@
       for (const i of order) {
         const k = c.of[i];
         if (k === null) continue;
-        count[k] += D.stride;
+        count[k] += weight(i);
         const p = this.px(t[i], count[k]);
         g.strokeStyle = PAL[k % PAL.length];
         if (last[k]) { g.beginPath(); g.moveTo(last[k][0], last[k][1]); g.lineTo(p[0], p[1]); g.stroke(); }
@@ -315,7 +317,7 @@
   }
   if (D.colorings.length) {
     charts.push(new Chart("Cumulative hits per class", tname, tname,
-      { cumulative: true, yLabel: "cumulative hits (points × " + D.stride + ")" }));
+      { cumulative: true, yLabel: D.w || D.stride > 1 ? "cumulative hits (points × rows each)" : "cumulative hits" }));
   }
   $("ex-x").onchange = (e) => { scatter.xName = e.target.value; scatter.view = null; scatter.draw(); };
   $("ex-y").onchange = (e) => { scatter.yName = e.target.value; scatter.view = null; scatter.draw(); };

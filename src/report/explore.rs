@@ -45,6 +45,9 @@ pub struct Explorer {
     pub embedded: Vec<HitKey>,
     /// The run's inputs, as `aepipe cwt` takes them (for the hits not embedded).
     pub inputs: String,
+    /// Rows each point stands for, when points were thinned unevenly (the live page's, per
+    /// class); else every point stands for `stride`.
+    pub weights: Option<Vec<u64>>,
 }
 
 impl Explorer {
@@ -130,6 +133,10 @@ impl Explorer {
         if let Some([x, y]) = &self.location {
             let _ = write!(j, ",\"loc_x\":{},\"loc_y\":{}", numbers(x), numbers(y));
         }
+        if let Some(w) = &self.weights {
+            let w: Vec<String> = w.iter().map(u64::to_string).collect();
+            let _ = write!(j, ",\"w\":[{}]", w.join(","));
+        }
         let emb: Vec<String> = self.embedded.iter().map(|k| string(&key_text(k))).collect();
         let _ = write!(
             j,
@@ -173,15 +180,19 @@ pub fn section(h: &mut String, e: &Explorer) {
     if e.keys.is_empty() {
         return;
     }
-    let thinned = if e.stride > 1 {
+    let thinned = if e.keys.len() < e.total {
         format!(
-            " Every {}th of the {} feature rows is a point ({} points): the page stays small; the tables hold every row.",
-            e.stride,
+            " {} of the {} rows are points, taken evenly{}: the page stays small; the tables \
+             hold every row.",
+            e.keys.len(),
             e.total,
-            e.keys.len()
+            match e.stride > 1 {
+                true => format!(" (every {}th)", e.stride),
+                false => String::new(),
+            }
         )
     } else {
-        format!(" All {} feature rows are points.", e.total)
+        format!(" All {} rows are points.", e.total)
     };
     let _ = write!(
         h,

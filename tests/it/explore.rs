@@ -8,7 +8,8 @@
 use crate::{aepipe, TempDir};
 use std::path::Path;
 
-fn browser(report: &Path) -> Option<serde_json::Value> {
+/// What `tests/python/browser_report.py` saw of `report`, or None after [`crate::skip`].
+pub fn browser(report: &Path) -> Option<serde_json::Value> {
     let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/python/browser_report.py");
     let o = std::process::Command::new("python3")
         .arg(&script)

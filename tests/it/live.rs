@@ -759,4 +759,22 @@ fn watch_a_growing_stream_killed_and_restarted_exactly_once() {
             "events.parquet",
         ],
     );
+    // live.html draws the same explorable charts, in a browser with no error.
+    if let Some(v) = crate::explore::browser(&out.join("live.html")) {
+        assert_eq!(v["errors"], serde_json::json!([]), "{v}");
+        assert_eq!(v["requests"], serde_json::json!([]), "{v}");
+        let charts = v["charts"].as_array().expect("the explorer ran");
+        assert!(charts.len() >= 3, "{v}");
+        for c in charts {
+            assert_eq!(c["drawn"], true, "{c}");
+            assert!(c["points"].as_u64().unwrap() > 0, "{c}");
+        }
+        // A click on a point names that hit (none is embedded: the command draws it).
+        let click = &v["clicks"][1];
+        assert_eq!(click["key"], click["expected"], "{v}");
+        assert!(
+            click["command"].as_str().unwrap().contains("aepipe cwt '"),
+            "{v}"
+        );
+    }
 }
