@@ -36,6 +36,7 @@ impl BenchError {
 pub mod analysis;
 pub mod cluster;
 pub mod detect;
+pub mod report;
 
 pub use crate::util::{peak_rss_bytes, rss_bytes};
 

@@ -186,6 +186,23 @@ pub enum BenchCmd {
     /// at 10 MHz), then `aepipe features` on stream WAVs of growing length (hits/s, × real
     /// time, peak RSS)
     Detect(BenchDetectArgs),
+    /// The report's explorable charts at growing numbers of feature rows: the page's size,
+    /// the time to build it, and in headless Chromium the time to first paint and to load
+    Report(BenchReportArgs),
+}
+
+#[derive(clap::Args)]
+pub struct BenchReportArgs {
+    /// Feature rows, comma-separated
+    #[arg(long, value_delimiter = ',', default_value = "10000,100000,1000000")]
+    pub rows: Vec<usize>,
+    /// Scratch folder
+    #[arg(long, default_value = "bench-report")]
+    pub dir: PathBuf,
+    /// Python with websocket-client, and Chromium on the PATH: the browser's times (none:
+    /// the size and build time alone)
+    #[arg(long)]
+    pub python: Option<PathBuf>,
 }
 
 #[derive(clap::Args)]

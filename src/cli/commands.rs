@@ -609,6 +609,7 @@ fn bench(which: BenchCmd) -> Result<Outcome> {
             print::analysis_bench(&b);
         }
         BenchCmd::Detect(a) => bench_detect(a)?,
+        BenchCmd::Report(a) => bench_report(a)?,
         BenchCmd::Watch(BenchWatchArgs {
             rate,
             seconds,
@@ -635,6 +636,13 @@ fn bench(which: BenchCmd) -> Result<Outcome> {
 }
 
 /// `aepipe bench som`: time our SOM and, given the peers' folder, MiniSom on the same run.
+fn bench_report(a: BenchReportArgs) -> Result<()> {
+    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/python/browser_report.py");
+    let rows = crate::bench::report::bench_report(&a.rows, &a.dir, a.python.as_deref(), &script)?;
+    print!("{}", print::report_bench(&rows));
+    Ok(())
+}
+
 fn bench_detect(a: BenchDetectArgs) -> Result<()> {
     use crate::bench::detect as d;
     let threads = a.threads.max(1);

@@ -286,6 +286,27 @@ pub fn watch_bench(r: &crate::live::bench::WatchBenchResult) {
 }
 
 /// `aepipe cluster`'s table: each k's indices, the chosen one starred, then the clusters.
+/// `aepipe bench report`'s table.
+pub fn report_bench(rows: &[crate::bench::report::ReportRow]) -> String {
+    let mut s = String::from(
+        "explorable charts alone (the rest of a report is bounded by classes, not rows)\n     rows   points   page MB  build s  first paint ms  load s  errors\n",
+    );
+    let opt = |v: Option<f64>, p: usize| v.map_or("–".to_string(), |v| format!("{v:.p$}"));
+    for r in rows {
+        s += &format!(
+            "{:>9} {:>8} {:>9.2} {:>8.2} {:>15} {:>7} {:>7}\n",
+            r.rows,
+            r.points,
+            r.bytes as f64 / 1e6,
+            r.build_s,
+            opt(r.first_paint_ms, 0),
+            opt(r.load_s, 2),
+            r.errors.map_or("–".to_string(), |e| e.to_string())
+        );
+    }
+    s
+}
+
 /// What an export wrote (one line a file) and what it left out.
 pub fn export_summary(s: &crate::export::ExportSummary) -> String {
     let mut out = String::new();

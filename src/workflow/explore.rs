@@ -34,7 +34,28 @@ pub(super) fn explorer(
     s: &RunSummary,
     gallery: &BTreeMap<String, Vec<HitKey>>,
 ) -> Result<Explorer, WorkflowError> {
-    let t = TableScan::open(&s.features.table_path)?;
+    let tables = ExplorerTables {
+        features: &s.features.table_path,
+        classification: s.som.as_ref().map(|m| m.classification.as_path()),
+        clusters: s.cluster.as_ref().map(|c| c.report.clusters.as_path()),
+    };
+    let mut e = explorer_of(&tables)?;
+    e.embedded = embedded(gallery, s.config.report.explorable_hits);
+    Ok(e)
+}
+
+/// The tables the explorer reads.
+pub struct ExplorerTables<'a> {
+    pub features: &'a Path,
+    pub classification: Option<&'a Path>,
+    pub clusters: Option<&'a Path>,
+}
+
+/// The explorer's points of any features table (and its classification and clusters):
+/// what the report embeds, without the gallery's pictures (`aepipe bench report` measures
+/// it alone).
+pub fn explorer_of(tables: &ExplorerTables) -> Result<Explorer, WorkflowError> {
+    let t = TableScan::open(tables.features)?;
     let total = t.file_rows();
     let stride = total.div_ceil(MAX_POINTS).max(1);
     let have = t.column_names();
@@ -94,21 +115,16 @@ pub(super) fn explorer(
         }
     }
     e.add_coloring("ch. 4.7 label", criteria);
-    if let Some(m) = &s.som {
-        e.add_coloring(
-            "SOM class",
-            keyed_texts(&m.classification, cols::SOM_LABEL.name, &index)?,
-        );
+    if let Some(p) = tables.classification {
+        e.add_coloring("SOM class", keyed_texts(p, cols::SOM_LABEL.name, &index)?);
     }
-    if let Some(c) = &s.cluster {
-        let v = keyed_texts(&c.report.clusters, "cluster", &index)?;
-        e.add_coloring("cluster", v);
+    if let Some(p) = tables.clusters {
+        e.add_coloring("cluster", keyed_texts(p, "cluster", &index)?);
     }
     if zone.iter().any(Option::is_some) {
         e.add_coloring("zone", zone);
     }
-    e.location = event_places(s, &e)?;
-    e.embedded = embedded(gallery, s.config.report.explorable_hits);
+    e.location = event_places(tables.features, &e)?;
     Ok(e)
 }
 
@@ -142,10 +158,10 @@ fn keyed_texts(
 /// The event's source position (x, y in m) of each point in an event, when events were
 /// located.
 fn event_places(
-    s: &RunSummary,
+    features: &Path,
     e: &Explorer,
 ) -> Result<Option<[Vec<Option<f64>>; 2]>, WorkflowError> {
-    let path = s.features.table_path.with_file_name("events.parquet");
+    let path = features.with_file_name("events.parquet");
     let Some(events) = e.column("event") else {
         return Ok(None);
     };

@@ -332,7 +332,7 @@ fn input_err(p: &Path, m: impl std::fmt::Display) -> WorkflowError {
 
 mod cluster;
 mod cluster_views;
-mod explore;
+pub mod explore;
 mod headline;
 pub mod layout;
 mod pictures;

@@ -98,8 +98,15 @@ def main():
         page.call("Page.navigate", url="file://" + report)
         page.wait_for("Page.loadEventFired", 120)
         load_s = time.time() - start
-        paint = page.eval(
-            "(performance.getEntriesByName('first-contentful-paint')[0] || {}).startTime || null")
+        paint = page.eval("""new Promise((done) => {
+            const now = performance.getEntriesByName('first-contentful-paint')[0];
+            if (now) return done(now.startTime);
+            new PerformanceObserver((l) => {
+              const e = l.getEntriesByName('first-contentful-paint')[0];
+              if (e) done(e.startTime);
+            }).observe({type: 'paint', buffered: true});
+            setTimeout(() => done(null), 5000);
+          })""")
         charts = page.eval(
             "JSON.stringify(window.aepipeExplore ? aepipeExplore.charts.map("
             "c => ({title: c.title, drawn: c.drawn, points: c.points})) : null)")
