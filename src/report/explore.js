@@ -16,7 +16,7 @@
     return c.v;
   };
   const label = (name) => name === "loc_x" ? "source x (m)" : name === "loc_y" ? "source y (m)"
-    : name === "energy_eu" ? "log10 energy (eu)" : col[name].label;
+    : name === "energy_eu" ? "log10 energy (eu)" : col[name] ? col[name].label : name;
   const has = (name) => { const v = value(name); return !!v && v.some((x) => x !== null); };
   const mask = new Uint8Array(n);
   let selecting = false;
@@ -224,6 +224,36 @@
     }
   }
 
+  // The clustering's validity indices against k (its own data, not the points).
+  class Validity extends Chart {
+    xs() { return D.validity.k; }
+    ys() { return D.validity.indices[this.yName]; }
+    full() {
+      const x = this.xs(), y = this.ys().filter((v) => v !== null);
+      if (!y.length) return [0, 1, 0, 1];
+      const y0 = Math.min(...y), y1 = Math.max(...y), py = (y1 - y0) * 0.1 || 1;
+      return [Math.min(...x) - 0.5, Math.max(...x) + 0.5, y0 - py, y1 + py];
+    }
+    drawPoints(g) {
+      const x = this.xs(), y = this.ys();
+      let drawn = 0, last = null;
+      g.strokeStyle = "#1f77b4"; g.fillStyle = "#1f77b4"; g.lineWidth = 1.5;
+      for (let i = 0; i < x.length; i++) {
+        if (y[i] === null) { last = null; continue; }
+        const p = this.px(x[i], y[i]);
+        if (last) { g.beginPath(); g.moveTo(last[0], last[1]); g.lineTo(p[0], p[1]); g.stroke(); }
+        g.fillRect(p[0] - 3, p[1] - 3, 6, 6);
+        if (x[i] === D.validity.chosen) {
+          g.beginPath(); g.arc(p[0], p[1], 8, 0, 2 * Math.PI); g.stroke();
+          g.fillText("k = " + x[i] + " chosen", p[0] + 10, p[1] - 8);
+        }
+        last = p; drawn++;
+      }
+      return drawn;
+    }
+    nearest() { return -1; }
+  }
+
   function fmt(v) {
     const a = Math.abs(v);
     return a !== 0 && (a < 1e-3 || a >= 1e5) ? v.toExponential(1) : +v.toPrecision(3) + "";
@@ -235,6 +265,7 @@
   }
   // Select the points inside a chart's region (a cumulative chart: its time range).
   function select(chart, x0, x1, y0, y1) {
+    if (chart instanceof Validity) { chart.draw(); return; }
     const x = chart.xs(), y = chart.ys();
     let k = 0;
     for (let i = 0; i < n; i++) {
@@ -318,6 +349,19 @@
   if (D.colorings.length) {
     charts.push(new Chart("Cumulative hits per class", tname, tname,
       { cumulative: true, yLabel: D.w || D.stride > 1 ? "cumulative hits (points × rows each)" : "cumulative hits" }));
+  }
+  if (D.validity && Object.keys(D.validity.indices).length) {
+    const names = Object.keys(D.validity.indices);
+    const v = new Validity("Validity against k", "k", names[0]);
+    charts.push(v);
+    const sel = document.createElement("select");
+    sel.id = "ex-v";
+    for (const nm of names) {
+      const o = document.createElement("option");
+      o.value = nm; o.textContent = nm; sel.appendChild(o);
+    }
+    sel.onchange = (e) => { v.yName = e.target.value; v.view = null; v.draw(); };
+    v.fig.querySelector("figcaption").append(" — index ", sel);
   }
   $("ex-x").onchange = (e) => { scatter.xName = e.target.value; scatter.view = null; scatter.draw(); };
   $("ex-y").onchange = (e) => { scatter.yName = e.target.value; scatter.view = null; scatter.draw(); };

@@ -48,6 +48,17 @@ pub struct Explorer {
     /// Rows each point stands for, when points were thinned unevenly (the live page's, per
     /// class); else every point stands for `stride`.
     pub weights: Option<Vec<u64>>,
+    /// The clustering's validity indices against k.
+    pub validity: Option<ValidityCurves>,
+}
+
+/// Each validity index against k, and the k chosen.
+#[derive(Debug, Clone, Default)]
+pub struct ValidityCurves {
+    pub k: Vec<f64>,
+    /// (index name, its value at each k).
+    pub indices: Vec<(String, Vec<Option<f64>>)>,
+    pub chosen: usize,
 }
 
 impl Explorer {
@@ -132,6 +143,21 @@ impl Explorer {
         j.push(']');
         if let Some([x, y]) = &self.location {
             let _ = write!(j, ",\"loc_x\":{},\"loc_y\":{}", numbers(x), numbers(y));
+        }
+        if let Some(v) = &self.validity {
+            let idx: Vec<String> = v
+                .indices
+                .iter()
+                .map(|(n, vals)| format!("{}:{}", string(n), numbers(vals)))
+                .collect();
+            let ks: Vec<Option<f64>> = v.k.iter().map(|k| Some(*k)).collect();
+            let _ = write!(
+                j,
+                ",\"validity\":{{\"k\":{},\"chosen\":{},\"indices\":{{{}}}}}",
+                numbers(&ks),
+                v.chosen,
+                idx.join(",")
+            );
         }
         if let Some(w) = &self.weights {
             let w: Vec<String> = w.iter().map(u64::to_string).collect();

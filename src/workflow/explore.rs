@@ -41,7 +41,30 @@ pub(super) fn explorer(
     };
     let mut e = explorer_of(&tables)?;
     e.embedded = embedded(gallery, s.config.report.explorable_hits);
+    e.validity = s.cluster.as_ref().map(|c| validity(&c.report));
     Ok(e)
+}
+
+/// The validity indices of the k tried, for the chart.
+fn validity(r: &crate::cluster::ClusterReport) -> crate::report::explore::ValidityCurves {
+    let v = &r.validity;
+    let index = |name: &str, f: fn(&crate::cluster::ValidityRow) -> Option<f64>| {
+        (name.to_string(), v.iter().map(f).collect::<Vec<_>>())
+    };
+    let all = [
+        index("Davies–Bouldin", |r| r.davies_bouldin),
+        index("silhouette", |r| r.silhouette),
+        index("Calinski–Harabasz", |r| r.calinski_harabasz),
+        index("BIC", |r| r.bic),
+    ];
+    crate::report::explore::ValidityCurves {
+        k: v.iter().map(|r| r.k as f64).collect(),
+        indices: all
+            .into_iter()
+            .filter(|(_, vals)| vals.iter().any(Option::is_some))
+            .collect(),
+        chosen: r.k,
+    }
 }
 
 /// The tables the explorer reads.

@@ -81,6 +81,7 @@ fn the_explorable_report_draws_and_opens_a_clicked_hit_in_a_browser() {
         "Feature scatter",
         "Event location",
         "Cumulative hits per class",
+        "Validity against k",
     ] {
         assert!(titles.contains(&want), "{titles:?}");
     }
