@@ -48,3 +48,25 @@ pub fn events_table() -> Table<EventRow> {
         .col(ColumnSpec::new("location_iterations", ColType::Int32, "", "Gauss–Newton iterations of planar location (0 for linear)").nullable(), |e| Value::I32(e.location_iterations))
         .col(ColumnSpec::of(cols::ZONE, "", "`inside` or `outside` the [location] zone; null: no zone or not located").nullable(), |e| Value::Str(e.zone.map(str::to_string)))
 }
+
+/// (experiment, event) → the event's source position (x, y, m; none where not located).
+pub type Places = std::collections::HashMap<(String, i64), (Option<f64>, Option<f64>)>;
+
+/// Every event's source position in an `events.parquet` (the report's explorer and the
+/// VisualAE export place each hit at its event's source).
+pub fn read_places(path: &std::path::Path) -> Result<Places, crate::store::StoreError> {
+    let t = crate::store::TableScan::open(path)?;
+    let df = t.columns(&[
+        cols::EXPERIMENT.name,
+        cols::EVENT.name,
+        cols::X_M.name,
+        cols::Y_M.name,
+    ])?;
+    let e = t.texts(&df, cols::EXPERIMENT)?;
+    let n = t.i64s(&df, cols::EVENT)?;
+    let x = t.floats(&df, cols::X_M)?;
+    let y = t.floats(&df, cols::Y_M)?;
+    Ok((0..df.height())
+        .filter_map(|i| Some(((e[i].clone()?, n[i]?), (x[i], y[i]))))
+        .collect())
+}

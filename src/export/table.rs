@@ -41,9 +41,6 @@ pub(super) fn power_ratio_names() -> Vec<String> {
         .collect()
 }
 
-/// (experiment, event) → the event's source position, m.
-type Places = HashMap<(String, i64), (Option<f64>, Option<f64>)>;
-
 /// A hit's SOM results.
 #[derive(Debug, Clone, Default)]
 struct Classified {
@@ -58,7 +55,7 @@ pub struct Results {
     classes: Option<HashMap<HitKey, Classified>>,
     clusters: Option<HashMap<HitKey, i32>>,
     /// (experiment, event) → source position, m.
-    places: Option<Places>,
+    places: Option<crate::events::table::Places>,
     /// Class name → code (1…).
     codes: HashMap<String, i64>,
     pub columns: Vec<Column>,
@@ -90,7 +87,7 @@ impl Results {
     ) -> Result<Results, StoreError> {
         let classes = classification.map(read_classes).transpose()?;
         let clusters = clusters.map(read_clusters).transpose()?;
-        let places = events.map(read_places).transpose()?;
+        let places = events.map(crate::events::table::read_places).transpose()?;
         // Codes: the mechanisms in their order, then "unlike the references", then any
         // other label a map was trained on, sorted.
         let mut names: Vec<String> = Mechanism::ALL.iter().map(|m| m.to_string()).collect();
@@ -337,22 +334,5 @@ fn read_clusters(path: &Path) -> Result<HashMap<HitKey, i32>, StoreError> {
         .into_iter()
         .zip(c)
         .filter_map(|(k, c)| Some((k, c? as i32)))
-        .collect())
-}
-
-fn read_places(path: &Path) -> Result<Places, StoreError> {
-    let t = TableScan::open(path)?;
-    let df = t.columns(&[
-        cols::EXPERIMENT.name,
-        cols::EVENT.name,
-        cols::X_M.name,
-        cols::Y_M.name,
-    ])?;
-    let e = t.texts(&df, cols::EXPERIMENT)?;
-    let n = t.i64s(&df, cols::EVENT)?;
-    let x = t.floats(&df, cols::X_M)?;
-    let y = t.floats(&df, cols::Y_M)?;
-    Ok((0..df.height())
-        .filter_map(|i| Some(((e[i].clone()?, n[i]?), (x[i], y[i]))))
         .collect())
 }

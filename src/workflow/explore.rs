@@ -191,20 +191,7 @@ fn event_places(
     if !path.is_file() {
         return Ok(None);
     }
-    let t = TableScan::open(&path)?;
-    let df = t.columns(&[
-        cols::EXPERIMENT.name,
-        cols::EVENT.name,
-        cols::X_M.name,
-        cols::Y_M.name,
-    ])?;
-    let ex = t.texts(&df, cols::EXPERIMENT)?;
-    let ev = t.i64s(&df, cols::EVENT)?;
-    let x = t.floats(&df, cols::X_M)?;
-    let y = t.floats(&df, cols::Y_M)?;
-    let at: HashMap<(String, i64), (Option<f64>, Option<f64>)> = (0..df.height())
-        .filter_map(|i| Some(((ex[i].clone()?, ev[i]?), (x[i], y[i]))))
-        .collect();
+    let at = crate::events::table::read_places(&path)?;
     let mut out = [vec![None; e.keys.len()], vec![None; e.keys.len()]];
     for (i, k) in e.keys.iter().enumerate() {
         let Some(n) = events[i] else { continue };
