@@ -282,3 +282,37 @@ fn a_mistras_chain_gets_a_csv_keyed_by_its_hit_numbers() {
     assert_eq!(n, frows.len(), "one row per feature row");
     assert!(n > 0);
 }
+
+/// The demo's own run folder exported afterwards by `aepipe export trfdb`: every row read
+/// back by vallenae with the run's values.
+#[test]
+fn the_demo_run_is_written_back_for_visualae() {
+    let t = TempDir::new("trfdb-demo");
+    let root = t.path().join("demo");
+    let (code, said, err) = aepipe(&["demo", "--out", root.to_str().unwrap(), "--hits", "150"]);
+    assert_eq!(code, 0, "{said}\n{err}");
+    let run = root.join("run");
+    let (code, said, err) = aepipe(&["export", "trfdb", run.to_str().unwrap()]);
+    assert_eq!(code, 0, "{said}\n{err}");
+    let dbs: Vec<_> = std::fs::read_dir(run.join("export"))
+        .unwrap()
+        .flatten()
+        .map(|e| e.path())
+        .collect();
+    assert_eq!(dbs.len(), 1, "{dbs:?}");
+    let exp = dbs[0]
+        .file_name()
+        .unwrap()
+        .to_str()
+        .unwrap()
+        .trim_end_matches(".aepipe.trfdb")
+        .to_string();
+    assert!(said.contains(&format!("export {exp}: ")), "{said}");
+    let Some(v) = compare(&dbs[0], &run, &exp) else {
+        return;
+    };
+    assert!(v["features"].as_u64().unwrap() > 0, "{v}");
+    assert_eq!(v["rows"], v["features"], "{v}");
+    assert!(v["bad"].as_array().unwrap().is_empty(), "{}", v["bad"]);
+    assert!(v["units"].get("SOM_Class").is_some(), "{v}");
+}
