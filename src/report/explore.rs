@@ -62,6 +62,51 @@ pub struct ValidityCurves {
 }
 
 impl Explorer {
+    /// The explorer thinned evenly (every k-th point) so that its section takes at most
+    /// `bytes` (none fit: no points, and the section is left out).
+    pub fn within(&self, bytes: usize) -> Explorer {
+        let have = self.json().len() + 4096;
+        if have <= bytes || self.keys.is_empty() {
+            return self.clone();
+        }
+        let keep = (self.keys.len() as f64 * bytes as f64 / have as f64 * 0.95) as usize;
+        if keep == 0 {
+            return Explorer::default();
+        }
+        let k = self.keys.len().div_ceil(keep);
+        let pick = |n: usize| (0..n).step_by(k);
+        let thin = |v: &Vec<Option<f64>>| pick(v.len()).map(|i| v[i]).collect::<Vec<_>>();
+        Explorer {
+            total: self.total,
+            stride: self.stride * k,
+            keys: pick(self.keys.len())
+                .map(|i| self.keys[i].clone())
+                .collect(),
+            columns: self
+                .columns
+                .iter()
+                .map(|c| PlotColumn {
+                    values: thin(&c.values),
+                    ..c.clone()
+                })
+                .collect(),
+            colorings: self
+                .colorings
+                .iter()
+                .map(|c| Coloring {
+                    of_point: pick(c.of_point.len()).map(|i| c.of_point[i]).collect(),
+                    ..c.clone()
+                })
+                .collect(),
+            location: self.location.as_ref().map(|[x, y]| [thin(x), thin(y)]),
+            weights: self
+                .weights
+                .as_ref()
+                .map(|w| pick(w.len()).map(|i| w[i] * k as u64).collect()),
+            ..self.clone()
+        }
+    }
+
     /// A column's values by name.
     pub fn column(&self, name: &str) -> Option<&[Option<f64>]> {
         self.columns
@@ -242,3 +287,52 @@ pub fn section(h: &mut String, e: &Explorer) {
 
 /// The charts' code (canvas, no library).
 const SCRIPT: &str = include_str!("explore.js");
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn explorer(n: usize) -> Explorer {
+        let mut e = Explorer {
+            total: n,
+            stride: 1,
+            keys: (0..n).map(|i| ("e".to_string(), 1, i as i64 + 1)).collect(),
+            columns: vec![PlotColumn {
+                name: "time_s".into(),
+                label: "time (s)".into(),
+                values: (0..n).map(|i| Some(i as f64 * 0.123_456)).collect(),
+            }],
+            ..Default::default()
+        };
+        e.add_coloring(
+            "class",
+            (0..n).map(|i| Some(format!("c{}", i % 3))).collect(),
+        );
+        e
+    }
+
+    /// Thinned to a byte budget: its JSON fits, every k-th point is kept with its own
+    /// values and class, and the stride says how many rows a point stands for.
+    #[test]
+    fn an_explorer_thins_evenly_to_fit_its_budget() {
+        let e = explorer(10_000);
+        let full = e.json().len();
+        assert_eq!(e.within(full + 10_000).keys.len(), 10_000);
+        let t = e.within(full / 3);
+        assert!(
+            t.json().len() <= full / 3,
+            "{} > {}",
+            t.json().len(),
+            full / 3
+        );
+        let k = t.stride;
+        assert!((3..=5).contains(&k), "stride {k}");
+        assert_eq!(t.keys.len(), 10_000usize.div_ceil(k));
+        for (j, key) in t.keys.iter().enumerate() {
+            assert_eq!(key.2 as usize, j * k + 1);
+            assert_eq!(t.columns[0].values[j], e.columns[0].values[j * k]);
+            assert_eq!(t.colorings[0].of_point[j], e.colorings[0].of_point[j * k]);
+        }
+        assert!(e.within(10).keys.is_empty());
+    }
+}

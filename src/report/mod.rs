@@ -432,7 +432,9 @@ pre{{background:#f6f6f6;padding:8px;overflow-x:auto}}.missing{{color:#b00}}</sty
     first_lines(&mut h, s);
     inputs_section(&mut h, s);
     classes_section(&mut h, g);
-    explore::section(&mut h, &g.explorer);
+    // The explorer goes here once the rest is written: its points fit what is left of the
+    // page's bound.
+    h.push_str(EXPLORE_HERE);
     trend_section(&mut h, s);
     som_section(&mut h, s);
     cluster_section(&mut h, s);
@@ -444,8 +446,17 @@ pre{{background:#f6f6f6;padding:8px;overflow-x:auto}}.missing{{color:#b00}}</sty
     gallery_section(&mut h, &g.gallery);
     gallery_section(&mut h, &g.cluster_gallery);
     footer(&mut h, s, g);
-    h
+    let mut section = String::new();
+    let budget = PAGE_BYTES.saturating_sub(h.len());
+    explore::section(&mut section, &g.explorer.within(budget));
+    h.replacen(EXPLORE_HERE, &section, 1)
 }
+
+/// The report's bound: the explorer's points are thinned evenly so that the whole page
+/// stays within it (the pictures are bounded by the classes and `series_figures`).
+pub const PAGE_BYTES: usize = 25_000_000;
+
+const EXPLORE_HERE: &str = "<!--aepipe:explore-->";
 
 /// What a reader must know before any number below: how much of each test the map's
 /// references describe (issue 39), and which tests have no usable load.
