@@ -46,6 +46,7 @@ pub fn bench_report(
             features: &table,
             classification: None,
             clusters: None,
+            events: None,
         };
         let e = crate::workflow::explore::explorer_of(&tables).map_err(BenchError::run)?;
         let mut page = String::from(

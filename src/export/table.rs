@@ -137,9 +137,11 @@ impl Results {
         if let Some(clusters) = &self.clusters {
             v.push(clusters.get(key).map(|c| *c as f64));
         }
-        let mech: Vec<&str> = Mechanism::ALL.iter().map(|m| m.as_str()).collect();
         v.extend([
-            code_of(&mech, f.criteria.as_deref()),
+            code_of(
+                &Mechanism::ALL.map(Mechanism::as_str),
+                f.criteria.as_deref(),
+            ),
             code_of(&CRACK, f.crack.as_deref()),
             f.ra,
             f.af,
@@ -201,7 +203,7 @@ fn columns(has: (bool, bool, bool), class_legend: &str) -> Vec<Column> {
             true,
         ));
     }
-    let mech: Vec<&str> = Mechanism::ALL.iter().map(|m| m.as_str()).collect();
+    let mech = Mechanism::ALL.map(Mechanism::as_str);
     columns.extend([
         col(
             "Criteria",

@@ -48,6 +48,8 @@ enum Sink {
         conn: rusqlite::Connection,
         tmp: PathBuf,
         path: PathBuf,
+        /// The row insert, written once for the export's columns.
+        insert: String,
         rows: u64,
         /// Rows of a later acquisition (their TRAI repeats the first's): left out.
         later: u64,
@@ -236,10 +238,21 @@ fn open_sink(
     let conn = rusqlite::Connection::open(&tmp).map_err(sqlite_err(&tmp))?;
     create_schema(&conn, res, source_file).map_err(sqlite_err(&tmp))?;
     conn.execute_batch("BEGIN").map_err(sqlite_err(&tmp))?;
+    let names: Vec<String> = res
+        .columns
+        .iter()
+        .map(|c| format!("\"{}\"", c.field))
+        .collect();
+    let marks = vec!["?"; names.len() + 1].join(", ");
+    let insert = format!(
+        "INSERT INTO trf_data (\"TRAI\", {}) VALUES ({marks})",
+        names.join(", ")
+    );
     Ok(Sink::Trfdb {
         conn,
         tmp,
         path,
+        insert,
         rows: 0,
         later: 0,
     })
@@ -321,6 +334,7 @@ fn write_row(
         Sink::Trfdb {
             conn,
             tmp,
+            insert,
             rows,
             later,
             ..
@@ -329,17 +343,7 @@ fn write_row(
                 *later += 1;
                 return Ok(());
             }
-            let marks = vec!["?"; values.len() + 1].join(", ");
-            let names: Vec<String> = res
-                .columns
-                .iter()
-                .map(|c| format!("\"{}\"", c.field))
-                .collect();
-            let sql = format!(
-                "INSERT INTO trf_data (\"TRAI\", {}) VALUES ({marks})",
-                names.join(", ")
-            );
-            let mut st = conn.prepare_cached(&sql).map_err(sqlite_err(tmp))?;
+            let mut st = conn.prepare_cached(insert).map_err(sqlite_err(tmp))?;
             let params: Vec<rusqlite::types::Value> =
                 std::iter::once(rusqlite::types::Value::Integer(key.2))
                     .chain(values.iter().map(|v| match v {
@@ -382,6 +386,7 @@ fn finish(experiment: String, sink: Sink, summary: &mut ExportSummary) -> Result
             path,
             rows,
             later,
+            ..
         } => {
             conn.execute_batch(
                 "UPDATE trf_globalinfo SET Value = (SELECT COUNT(*) FROM trf_data) WHERE Key = 'ValidSets'; COMMIT",

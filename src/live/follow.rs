@@ -310,11 +310,7 @@ impl Follower {
         ) else {
             return true;
         };
-        let written = s
-            .all_files()
-            .flat_map(|f| [f.to_path_buf(), wal(f)])
-            .filter_map(|f| std::fs::metadata(f).and_then(|m| m.modified()).ok())
-            .max();
+        let written = newest_write(s.all_files().flat_map(|f| [f.to_path_buf(), wal(f)]));
         out.extend(windows.into_iter().map(|w| Pending {
             source: s.clone(),
             written,
@@ -363,10 +359,7 @@ impl Follower {
             .filter(|i| matches!(i, Item::Record(_) | Item::Hit(_)))
             .count();
         let hits = items.iter().filter(|i| matches!(i, Item::Hit(_))).count();
-        let written = s
-            .all_files()
-            .filter_map(|f| std::fs::metadata(f).and_then(|m| m.modified()).ok())
-            .max();
+        let written = newest_write(s.all_files());
         out.push(Pending {
             source: s.clone(),
             written,
@@ -419,10 +412,7 @@ impl Follower {
         if h.items.is_empty() {
             return true;
         }
-        let written = s
-            .all_files()
-            .filter_map(|f| std::fs::metadata(f).and_then(|m| m.modified()).ok())
-            .max();
+        let written = newest_write(s.all_files());
         out.push(Pending {
             source: s.clone(),
             written,
@@ -455,6 +445,13 @@ impl Follower {
         }
         (now.duration_since(e.since) >= self.settle).then_some(modified)
     }
+}
+
+/// The newest modification time of `files` (the lag is counted from it).
+fn newest_write<P: AsRef<Path>>(files: impl Iterator<Item = P>) -> Option<SystemTime> {
+    files
+        .filter_map(|f| std::fs::metadata(f).and_then(|m| m.modified()).ok())
+        .max()
 }
 
 /// The write-ahead log beside a SQLite database (where a WAL-mode writer's new rows are).

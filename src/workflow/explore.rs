@@ -34,10 +34,18 @@ pub(super) fn explorer(
     s: &RunSummary,
     gallery: &BTreeMap<String, Vec<HitKey>>,
 ) -> Result<Explorer, WorkflowError> {
+    // The events table the feature stage wrote beside its features.
+    let events = s.features.table_path.parent().map(|d| {
+        crate::pipeline::StreamDir::new(d).table(
+            crate::pipeline::PartTable::Events,
+            crate::pipeline::StreamJob::Features,
+        )
+    });
     let tables = ExplorerTables {
         features: &s.features.table_path,
         classification: s.som.as_ref().map(|m| m.classification.as_path()),
         clusters: s.cluster.as_ref().map(|c| c.report.clusters.as_path()),
+        events: events.as_deref().filter(|p| p.is_file()),
     };
     let mut e = explorer_of(&tables)?;
     e.embedded = embedded(gallery, s.config.report.explorable_hits);
@@ -72,6 +80,8 @@ pub struct ExplorerTables<'a> {
     pub features: &'a Path,
     pub classification: Option<&'a Path>,
     pub clusters: Option<&'a Path>,
+    /// events.parquet: each point placed at its event's source.
+    pub events: Option<&'a Path>,
 }
 
 /// The explorer's points of any features table (and its classification and clusters):
@@ -147,7 +157,10 @@ pub fn explorer_of(tables: &ExplorerTables) -> Result<Explorer, WorkflowError> {
     if zone.iter().any(Option::is_some) {
         e.add_coloring("zone", zone);
     }
-    e.location = event_places(tables.features, &e)?;
+    e.location = match tables.events {
+        Some(p) => event_places(p, &e)?,
+        None => None,
+    };
     Ok(e)
 }
 
@@ -180,18 +193,11 @@ fn keyed_texts(
 
 /// The event's source position (x, y in m) of each point in an event, when events were
 /// located.
-fn event_places(
-    features: &Path,
-    e: &Explorer,
-) -> Result<Option<[Vec<Option<f64>>; 2]>, WorkflowError> {
-    let path = features.with_file_name("events.parquet");
+fn event_places(path: &Path, e: &Explorer) -> Result<Option<[Vec<Option<f64>>; 2]>, WorkflowError> {
     let Some(events) = e.column("event") else {
         return Ok(None);
     };
-    if !path.is_file() {
-        return Ok(None);
-    }
-    let at = crate::events::table::read_places(&path)?;
+    let at = crate::events::table::read_places(path)?;
     let mut out = [vec![None; e.keys.len()], vec![None; e.keys.len()]];
     for (i, k) in e.keys.iter().enumerate() {
         let Some(n) = events[i] else { continue };

@@ -140,6 +140,9 @@ impl StreamTail {
         while live.snaps.len() > 1 && live.snaps[1].given.is_none_or(|g| g <= through) {
             live.snaps.pop_front();
         }
+        if taken.is_empty() {
+            return Ok(self.nothing(next_hit));
+        }
         let snap = live
             .snaps
             .front()
@@ -148,18 +151,15 @@ impl StreamTail {
             Some(s) => (s.frames, s.detectors.clone()),
             None => (self.at.frames, self.at.detectors.clone()),
         };
-        if taken.is_empty() {
-            return Ok(self.nothing(next_hit));
-        }
+        let hits = taken.len();
         let end = Position {
             frames,
             detectors,
-            hits: self.at.hits + taken.len() as u64,
+            hits: self.at.hits + hits as u64,
             through: Some(through),
             counted: self.at.counted.max(frames),
         };
         let items = self.items(taken, &end);
-        let hits = (end.hits - self.at.hits) as usize;
         self.at = end.clone();
         Ok(Handed {
             items,
