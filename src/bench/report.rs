@@ -6,6 +6,11 @@
 //! (so every row is a distinct hit): the explorer reads only the table, so what it embeds at
 //! N rows is what it embeds for any test of N rows. The rest of a report (gallery, pictures)
 //! is bounded by the classes and `[report] series_figures`, not by the rows.
+//!
+//! With `--whole`, the whole report: a synthetic run (`aepipe run` with clusters and linear
+//! location) whose features table is replaced by N repeated rows, and `aepipe report` run on
+//! it as a child process — trend, SOM classification, clustering and power law redone on the
+//! N rows, the pictures drawn from them, the page written and opened in Chromium.
 
 use super::BenchError;
 use arrow::array::{Array, AsArray, Int64Array};
@@ -68,30 +73,132 @@ pub fn bench_report(
             errors: None,
         };
         if let Some(py) = python {
-            let o = std::process::Command::new(py)
-                .arg(script)
-                .arg(&html)
-                .output()
-                .map_err(BenchError::run)?;
-            if !o.status.success() {
-                return Err(BenchError::Peer(
-                    String::from_utf8_lossy(&o.stderr)
-                        .lines()
-                        .last()
-                        .unwrap_or("")
-                        .into(),
-                ));
-            }
-            let v: serde_json::Value =
-                serde_json::from_slice(&o.stdout).map_err(BenchError::run)?;
-            row.first_paint_ms = v["first_paint_ms"].as_f64();
-            row.load_s = v["load_s"].as_f64();
-            row.errors = v["errors"].as_array().map(Vec::len);
+            browse(py, script, &html, &mut row)?;
         }
         let _ = std::fs::remove_file(&table);
         out.push(row);
     }
     Ok(out)
+}
+
+/// The run the whole-report sizes start from: clusters, linear location, the default gallery.
+const WHOLE_PIPELINE: &str = "[cluster]\nenabled = true\nk_min = 2\nk_max = 4\n\n\
+[location]\nkind = \"linear\"\nvelocity_m_s = 700\nsensors = { 1 = [-0.020], 2 = [0.020] }\n\
+zone = [-0.015, 0.015]\n";
+
+/// The whole report at each of `rows`: `exe run` once on a 2 000-hit synthetic test, then
+/// per size its features table replaced by that many rows and `exe report` timed (wall,
+/// as a child process); with `python`, each page opened in Chromium.
+pub fn bench_whole_report(
+    exe: &Path,
+    rows: &[usize],
+    dir: &Path,
+    python: Option<&Path>,
+    script: &Path,
+) -> Result<Vec<ReportRow>, BenchError> {
+    std::fs::create_dir_all(dir).map_err(BenchError::run)?;
+    let synth = dir.join("whole-synth");
+    let run = dir.join("whole-run");
+    let cfg = dir.join("whole.toml");
+    std::fs::write(&cfg, WHOLE_PIPELINE).map_err(BenchError::run)?;
+    let _ = std::fs::remove_dir_all(&run);
+    let step = |args: &[&std::ffi::OsStr]| -> Result<(), BenchError> {
+        let o = std::process::Command::new(exe)
+            .args(args)
+            .output()
+            .map_err(BenchError::run)?;
+        if o.status.success() {
+            Ok(())
+        } else {
+            Err(BenchError::Run(format!(
+                "aepipe {:?}: {}",
+                args.first(),
+                String::from_utf8_lossy(&o.stderr).trim()
+            )))
+        }
+    };
+    let os = |s: &str| std::ffi::OsString::from(s);
+    step(&[
+        &os("synth-experiment"),
+        &os("--out"),
+        synth.as_os_str(),
+        &os("--hits"),
+        &os("2000"),
+    ])?;
+    step(&[
+        &os("run"),
+        &os("--config"),
+        cfg.as_os_str(),
+        synth.join("data").as_os_str(),
+        &os("--out"),
+        run.as_os_str(),
+    ])?;
+    let table = crate::workflow::RunDir::new(&run)
+        .features()
+        .path()
+        .join(crate::pipeline::StreamJob::Features.table_file());
+    let seed = dir.join("whole-seed.parquet");
+    std::fs::copy(&table, &seed).map_err(BenchError::run)?;
+    let html = run.join("report.html");
+    let mut out = Vec::new();
+    for &n in rows {
+        repeat_rows(&seed, &table, n)?;
+        let t0 = std::time::Instant::now();
+        step(&[&os("report"), run.as_os_str()])?;
+        let build_s = t0.elapsed().as_secs_f64();
+        let page = std::fs::read_to_string(&html).map_err(BenchError::run)?;
+        let mut row = ReportRow {
+            rows: n,
+            points: explorer_points(&page),
+            bytes: page.len() as u64,
+            build_s,
+            first_paint_ms: None,
+            load_s: None,
+            errors: None,
+        };
+        if let Some(py) = python {
+            browse(py, script, &html, &mut row)?;
+        }
+        out.push(row);
+    }
+    Ok(out)
+}
+
+/// How many points the page's explorer embeds (its `"hit":[…]` list).
+fn explorer_points(page: &str) -> usize {
+    let Some(at) = page.find("\"hit\":[") else {
+        return 0;
+    };
+    let rest = &page[at + 7..];
+    let list = &rest[..rest.find(']').unwrap_or(0)];
+    if list.is_empty() {
+        0
+    } else {
+        list.matches(',').count() + 1
+    }
+}
+
+/// Open `html` in Chromium through the DevTools `script`, filling `row`'s browser times.
+fn browse(py: &Path, script: &Path, html: &Path, row: &mut ReportRow) -> Result<(), BenchError> {
+    let o = std::process::Command::new(py)
+        .arg(script)
+        .arg(html)
+        .output()
+        .map_err(BenchError::run)?;
+    if !o.status.success() {
+        return Err(BenchError::Peer(
+            String::from_utf8_lossy(&o.stderr)
+                .lines()
+                .last()
+                .unwrap_or("")
+                .into(),
+        ));
+    }
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).map_err(BenchError::run)?;
+    row.first_paint_ms = v["first_paint_ms"].as_f64();
+    row.load_s = v["load_s"].as_f64();
+    row.errors = v["errors"].as_array().map(Vec::len);
+    Ok(())
 }
 
 /// A synthetic test's features (2 000 hits of 1 024 samples, two channels).

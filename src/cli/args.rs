@@ -203,6 +203,10 @@ pub struct BenchReportArgs {
     /// the size and build time alone)
     #[arg(long)]
     pub python: Option<PathBuf>,
+    /// The whole report (`aepipe report` on a synthetic run holding that many feature rows:
+    /// trend, classes, clusters and pictures redone), not the explorable charts alone
+    #[arg(long)]
+    pub whole: bool,
 }
 
 #[derive(clap::Args)]

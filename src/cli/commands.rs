@@ -635,11 +635,23 @@ fn bench(which: BenchCmd) -> Result<Outcome> {
     Ok(Outcome::Success)
 }
 
-/// `aepipe bench som`: time our SOM and, given the peers' folder, MiniSom on the same run.
+/// `aepipe bench report`: the explorable charts alone, or with `--whole` the whole report.
 fn bench_report(a: BenchReportArgs) -> Result<()> {
     let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/python/browser_report.py");
-    let rows = crate::bench::report::bench_report(&a.rows, &a.dir, a.python.as_deref(), &script)?;
-    print!("{}", print::report_bench(&rows));
+    let rows = if a.whole {
+        let exe =
+            std::env::current_exe().map_err(|e| crate::bench::BenchError::Run(e.to_string()))?;
+        crate::bench::report::bench_whole_report(
+            &exe,
+            &a.rows,
+            &a.dir,
+            a.python.as_deref(),
+            &script,
+        )?
+    } else {
+        crate::bench::report::bench_report(&a.rows, &a.dir, a.python.as_deref(), &script)?
+    };
+    print!("{}", print::report_bench(&rows, a.whole));
     Ok(())
 }
 

@@ -287,10 +287,13 @@ pub fn watch_bench(r: &crate::live::bench::WatchBenchResult) {
 
 /// `aepipe cluster`'s table: each k's indices, the chosen one starred, then the clusters.
 /// `aepipe bench report`'s table.
-pub fn report_bench(rows: &[crate::bench::report::ReportRow]) -> String {
-    let mut s = String::from(
-        "explorable charts alone (the rest of a report is bounded by classes, not rows)\n     rows   points   page MB  build s  first paint ms  load s  errors\n",
-    );
+pub fn report_bench(rows: &[crate::bench::report::ReportRow], whole: bool) -> String {
+    let mut s = String::from(if whole {
+        "whole report (`aepipe report` on a synthetic run of that many feature rows; build s = the whole process)\n"
+    } else {
+        "explorable charts alone (the rest of a report is bounded by classes, not rows)\n"
+    });
+    s += "     rows   points   page MB  build s  first paint ms  load s  errors\n";
     let opt = |v: Option<f64>, p: usize| v.map_or("–".to_string(), |v| format!("{v:.p$}"));
     for r in rows {
         s += &format!(
