@@ -368,9 +368,11 @@ pub struct SimulateArgs {
     /// Scenario parameter key=value (repeatable), e.g. point=7, stretch=0.01, dt=1e-8
     #[arg(long = "param", value_parser = crate::sim::scenario::Params::parse_one)]
     pub params: Vec<(String, f64)>,
-    /// Run once per integer value: key=LO..HI (e.g. point=1..12), one hit each
+    /// Run once per value, one hit each: key=LO..HI for integers (point=1..12) or
+    /// key=LO..HI:STEP for real values (stretch=0.010..0.020:0.002); repeated, every
+    /// combination. Writes DIR/sweep.parquet and DIR/sweep.png
     #[arg(long)]
-    pub sweep: Option<String>,
+    pub sweep: Vec<String>,
     /// implicit-euler (the default), explicit-euler, rk4 or verlet
     #[arg(long)]
     pub solver: Option<crate::sim::model::Solver>,

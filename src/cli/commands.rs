@@ -95,9 +95,9 @@ fn simulate(a: SimulateArgs) -> Result<Outcome> {
         params: crate::sim::scenario::Params(a.params),
         sweep: a
             .sweep
-            .as_deref()
-            .map(crate::sim::scenario::parse_sweep)
-            .transpose()?,
+            .iter()
+            .map(|s| crate::sim::scenario::parse_sweep(s))
+            .collect::<std::result::Result<_, _>>()?,
         solver: a.solver,
         out: a.out,
         run: crate::sim::SimOptions {
@@ -112,8 +112,20 @@ fn simulate(a: SimulateArgs) -> Result<Outcome> {
             ..Default::default()
         },
     };
-    for l in crate::sim::run_job(&job)? {
+    let rep = crate::sim::run_job(&job)?;
+    for l in &rep.lines {
         println!("{l}");
+    }
+    if let Some(t) = &rep.sweep {
+        let (f, e) = (job.out.join("sweep.png"), job.out.join("envelopes.png"));
+        crate::plot::sim::sweep_png(&f, t)?;
+        crate::plot::sim::envelopes_png(&e, t)?;
+        println!(
+            "frequency and γ against {} → {}",
+            t.keys.join(", "),
+            f.display()
+        );
+        println!("envelopes and their fits → {}", e.display());
     }
     Ok(Outcome::Success)
 }

@@ -5,6 +5,7 @@
 //! machine (DejaVu Sans or Liberation Sans; `AEPIPE_FONT` names another), so no system font
 //! library is linked. The font is loaded once per process.
 
+pub mod sim;
 pub mod sources;
 
 mod cluster;

@@ -5,12 +5,14 @@
 //! ([`scenario`]). Output: labelled rows of the canonical waveform table ([`output`]).
 
 pub mod acoustic;
+pub mod decay;
 pub mod input;
 pub mod mech;
 pub mod model;
 pub mod output;
 pub mod reference;
 pub mod scenario;
+pub mod sweep;
 
 use acoustic::Field;
 use mech::{Mech, Relaxed};
@@ -250,8 +252,8 @@ pub struct SimJob {
     pub model: Option<std::path::PathBuf>,
     pub scenario: Option<String>,
     pub params: scenario::Params,
-    /// Run the scenario once per integer value of `key` in `lo..=hi`.
-    pub sweep: Option<(String, i64, i64)>,
+    /// Run the scenario once per combination of the sweeps' values (none: once).
+    pub sweep: Vec<scenario::Sweep>,
     pub solver: Option<model::Solver>,
     pub out: std::path::PathBuf,
     pub run: SimOptions,
@@ -259,14 +261,27 @@ pub struct SimJob {
     pub acquisition: output::Acquisition,
 }
 
+/// What a job wrote: the lines to print, and a sweep's table (drawn by the caller: the
+/// simulator sits below the plots).
+#[derive(Debug, Clone, Default)]
+pub struct SimReport {
+    pub lines: Vec<String>,
+    pub sweep: Option<sweep::SweepTable>,
+}
+
 /// Run a job into `job.out`: `waveforms.parquet` (the sensors, when the model has a grid),
-/// `trajectories.parquet` and `snapshots/*.png` when asked. Returns the lines to print.
-pub fn run_job(job: &SimJob) -> Result<Vec<String>, SimError> {
+/// `trajectories.parquet` and `snapshots/*.png` when asked, `sweep.parquet` for a sweep.
+pub fn run_job(job: &SimJob) -> Result<SimReport, SimError> {
     let io = |e: std::io::Error| SimError::Io(format!("{}: {e}", job.out.display()));
     std::fs::create_dir_all(&job.out).map_err(io)?;
     let models = job_models(job)?;
     let mut lines = Vec::new();
     let mut outs = Vec::new();
+    let mut table = sweep::SweepTable {
+        keys: job.sweep.iter().map(|s| s.key.clone()).collect(),
+        rows: Vec::new(),
+    };
+    let grid = scenario::sweep_grid(&job.sweep);
     for (hit, (m, _, json)) in models.iter().enumerate() {
         let t0 = std::time::Instant::now();
         let out = simulate(m, &job.run)?;
@@ -284,6 +299,10 @@ pub fn run_job(job: &SimJob) -> Result<Vec<String>, SimError> {
         ));
         sensor_lines(m, &out, &mut lines);
         write_run_files(job, hit, models.len() > 1, m, &out, &mut lines)?;
+        if !job.sweep.is_empty() {
+            let values = grid[hit].iter().map(|(_, v)| *v).collect();
+            table.push_run(hit as u64 + 1, values, json, m, &out);
+        }
         outs.push(out);
     }
     let runs: Vec<output::Run> = models
@@ -301,26 +320,34 @@ pub fn run_job(job: &SimJob) -> Result<Vec<String>, SimError> {
         })
         .collect();
     write_sensor_signals(job, &runs, &mut lines)?;
-    Ok(lines)
+    let sweep = if job.sweep.is_empty() {
+        None
+    } else {
+        let p = job.out.join("sweep.parquet");
+        let n = table.write(&p)?;
+        lines.push(format!(
+            "{n} sweep rows (frequency and decay per run) → {}",
+            p.display()
+        ));
+        Some(table)
+    };
+    Ok(SimReport { lines, sweep })
 }
 
 /// The job's models, one per sweep value, with source and parameters: all built before a run.
 fn job_models(job: &SimJob) -> Result<Vec<(ModelFile, String, String)>, SimError> {
-    let values: Vec<Option<(String, f64)>> = match &job.sweep {
-        Some((k, lo, hi)) if lo <= hi => (*lo..=*hi).map(|v| Some((k.clone(), v as f64))).collect(),
-        Some((k, lo, hi)) => {
-            return Err(SimError::Model(format!(
-                "--sweep {k}={lo}..{hi}: empty range"
-            )))
-        }
-        None => vec![None],
-    };
+    let runs = scenario::sweep_grid(&job.sweep);
+    if runs.len() > scenario::MAX_SWEEP_VALUES {
+        return Err(SimError::Model(format!(
+            "--sweep: {} runs, more than {}",
+            runs.len(),
+            scenario::MAX_SWEEP_VALUES
+        )));
+    }
     let mut models = Vec::new();
-    for v in &values {
+    for v in &runs {
         let mut params = job.params.clone();
-        if let Some(kv) = v {
-            params.0.push(kv.clone());
-        }
+        params.0.extend(v.iter().cloned());
         let (mut m, source) = match (&job.model, &job.scenario) {
             (Some(path), None) => (input::read_model(path)?, path.display().to_string()),
             (None, Some(name)) => (scenario::build(name, &params)?, format!("scenario:{name}")),
@@ -338,7 +365,7 @@ fn job_models(job: &SimJob) -> Result<Vec<(ModelFile, String, String)>, SimError
     Ok(models)
 }
 
-/// A run's lines on its signals: each sensor's frequency and peak, or a node's frequency.
+/// A run's lines on its signals: each sensor's frequency, peak and decay, or a node's.
 fn sensor_lines(m: &ModelFile, out: &SimOutput, lines: &mut Vec<String>) {
     for (k, s) in out.sensors.iter().enumerate() {
         let (i, j) = (m.sensors[k].i, m.sensors[k].j);
@@ -348,17 +375,35 @@ fn sensor_lines(m: &ModelFile, out: &SimOutput, lines: &mut Vec<String>) {
         };
         let peak = s.iter().fold(0.0f64, |a, v| a.max(v.abs()));
         lines.push(format!(
-            "  sensor {} at cell ({i}, {j}): dominant {:.1} kHz, peak {peak:.3e} Pa (band-limited to the grid)",
+            "  sensor {} at cell ({i}, {j}): dominant {:.1} kHz, peak {peak:.3e} Pa (band-limited to the grid){}",
             k + 1,
-            dominant_frequency(&s, out.sample_rate_hz) / 1e3
+            dominant_frequency(&s, out.sample_rate_hz) / 1e3,
+            decay_words(decay::of_signal(&s, out.sample_rate_hz).as_ref(), m.system.damping)
         ));
     }
     if out.sensors.is_empty() {
-        if let Some((node, f)) = node_frequency(m, out) {
+        if let Some((node, f, d)) = node_frequency(m, out) {
             lines.push(format!(
-                "  no sensors; node {node} oscillates at {f:.4} Hz (zero crossings of y)"
+                "  no sensors; node {node} oscillates at {f:.4} Hz (zero crossings of y){}",
+                decay_words(d.as_ref(), m.system.damping)
             ));
         }
+    }
+}
+
+/// ", decay γ … (α = γ/b …)" for a terminal line; what is missing, said.
+fn decay_words(d: Option<&decay::Decay>, b: f64) -> String {
+    match d {
+        None => ", decay: fewer than three periods above 10⁻³ of the peak (no fit)".into(),
+        Some(d) => format!(
+            ", decay γ {:.4e} 1/s (R² {:.3}){}",
+            d.gamma_hz,
+            d.r2,
+            d.alpha_per_kg(b)
+                .map_or(", no damping b (no α)".into(), |a| format!(
+                    ", α = γ/b {a:.4e} 1/kg"
+                ))
+        ),
     }
 }
 
@@ -431,8 +476,9 @@ fn write_sensor_signals(
 }
 
 /// Frequency of the free node that moves most in y, from the zero crossings of its
-/// displacement about its mean (needs trajectories; used for models without a grid).
-fn node_frequency(m: &ModelFile, out: &SimOutput) -> Option<(usize, f64)> {
+/// displacement about its mean, and the decay of that displacement (needs trajectories;
+/// used for models without a grid).
+fn node_frequency(m: &ModelFile, out: &SimOutput) -> Option<(usize, f64, Option<decay::Decay>)> {
     if out.trajectory.len() < 4 {
         return None;
     }
@@ -451,7 +497,9 @@ fn node_frequency(m: &ModelFile, out: &SimOutput) -> Option<(usize, f64)> {
     })?;
     let t: Vec<f64> = out.trajectory.iter().map(|f| f.t).collect();
     let y: Vec<f64> = out.trajectory.iter().map(|f| f.r[node][1]).collect();
-    zero_crossing_frequency(&t, &y).map(|f| (node, f))
+    let f = zero_crossing_frequency(&t, &y)?;
+    let d = decay::fit(&y, t[1] - t[0], 1.0 / f);
+    Some((node, f, d))
 }
 
 /// Frequency from the upward zero crossings of x − mean(x), linearly interpolated in time:

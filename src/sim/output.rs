@@ -18,6 +18,10 @@ pub struct SimSignal {
     pub sensor_y_m: f64,
     pub scale_v_per_pa: f64,
     pub dominant_frequency_hz: f64,
+    /// Eq. 3.5.1's fit to the band-limited pressure's envelope ([`super::decay`]).
+    pub decay: Option<super::decay::Decay>,
+    /// The model's frictional damping b, kg/s (α = γ/b).
+    pub damping_kg_s: f64,
 }
 
 /// `waveforms` columns, then the simulation's own.
@@ -31,6 +35,9 @@ pub fn sim_waveforms_table() -> Table<SimSignal> {
         .col(f("sensor_y_m", "m", "y of the sensor cell's centre"), |s| Value::F64(Some(s.sensor_y_m)))
         .col(f("pressure_scale_v_per_pa", "V/Pa", "sensor sensitivity: samples_v = pressure × this"), |s| Value::F64(Some(s.scale_v_per_pa)))
         .col(f("dominant_frequency_hz", "Hz", "peak of the band-limited pressure's power spectrum (the whole simulated signal, before noise)"), |s| Value::F64(Some(s.dominant_frequency_hz)))
+        .col(f("decay_gamma_hz", "1/s", "γ of Eq. 3.5.1: the band-limited pressure’s envelope (its largest absolute value per dominant period, from the peak until below 10⁻³ of it) fitted by y0·exp(−γt); null when fewer than three periods stand above that").nullable(), |s| Value::F64(s.decay.as_ref().map(|d| d.gamma_hz)))
+        .col(f("decay_alpha_per_kg", "1/kg", "α = γ/b of Eq. 3.5.2, b the model's frictional damping; null without damping or without γ").nullable(), |s| Value::F64(s.decay.as_ref().and_then(|d| d.alpha_per_kg(s.damping_kg_s))))
+        .col(f("decay_fit_r2", "", "R² of the fit of ln(envelope) against time: 1 for a pure exponential decay, lower where modes beat").nullable(), |s| Value::F64(s.decay.as_ref().map(|d| d.r2)))
 }
 
 /// One node at one time: a row of the trajectory table.
@@ -307,6 +314,8 @@ pub fn rows(run: &Run) -> Vec<SimSignal> {
             sensor_y_m: y,
             scale_v_per_pa: run.acq.scale_v_per_pa,
             dominant_frequency_hz: super::dominant_frequency(p, fs),
+            decay: super::decay::of_signal(p, fs),
+            damping_kg_s: run.model.system.damping,
         }
     };
     let mut out = Vec::new();

@@ -72,20 +72,89 @@ impl Params {
     }
 }
 
-/// `key=LO..HI` with integer bounds: `--sweep point=1..12`.
-pub fn parse_sweep(s: &str) -> Result<(String, i64, i64), SimError> {
-    let bad = || {
+/// The most runs one `--sweep` may ask for.
+pub const MAX_SWEEP_VALUES: usize = 10_000;
+
+/// One swept parameter: `--sweep key=LO..HI` (integers, step 1: `point=1..12`) or
+/// `--sweep key=LO..HI:STEP` (real values: `stretch=0.010..0.020:0.002`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Sweep {
+    pub key: String,
+    /// LO, LO + STEP, …, HI: each the decimal its 12 significant digits give, so that
+    /// `0.010..0.020:0.002` runs 0.016, not 0.016000000000000004.
+    pub values: Vec<f64>,
+}
+
+/// Parse `key=LO..HI[:STEP]`. HI must be LO plus a whole number of STEPs; without STEP both
+/// bounds are integers.
+pub fn parse_sweep(s: &str) -> Result<Sweep, SimError> {
+    let bad = |why: &str| {
         SimError::Model(format!(
-            "--sweep {s}: expected key=LO..HI with integers, e.g. point=1..12"
+            "--sweep {s}: {why}; expected key=LO..HI (integers, e.g. point=1..12) or \
+             key=LO..HI:STEP (e.g. stretch=0.010..0.020:0.002)"
         ))
     };
-    let (k, r) = s.split_once('=').ok_or_else(bad)?;
-    let (lo, hi) = r.split_once("..").ok_or_else(bad)?;
-    Ok((
-        k.trim().to_string(),
-        lo.trim().parse().map_err(|_| bad())?,
-        hi.trim().parse().map_err(|_| bad())?,
-    ))
+    let (k, r) = s.split_once('=').ok_or_else(|| bad("no '='"))?;
+    let (range, step) = match r.split_once(':') {
+        Some((range, step)) => (range, Some(step)),
+        None => (r, None),
+    };
+    let (lo, hi) = range.split_once("..").ok_or_else(|| bad("no '..'"))?;
+    let num = |v: &str| -> Result<f64, SimError> {
+        v.trim()
+            .parse::<f64>()
+            .ok()
+            .filter(|v| v.is_finite())
+            .ok_or_else(|| bad(&format!("{v:?} is not a number")))
+    };
+    let (lo, hi) = (num(lo)?, num(hi)?);
+    let step = match step {
+        Some(st) => num(st)?,
+        None if lo.fract() == 0.0 && hi.fract() == 0.0 => 1.0,
+        None => return Err(bad("real bounds need a step")),
+    };
+    if step <= 0.0 {
+        return Err(bad("the step must be > 0"));
+    }
+    if lo > hi {
+        return Err(bad("empty range (LO > HI)"));
+    }
+    let n = (hi - lo) / step;
+    let whole = n.round();
+    if (n - whole).abs() > 1e-6 * whole.max(1.0) {
+        return Err(bad(&format!(
+            "HI is not LO plus a whole number of steps ({n:.4})"
+        )));
+    }
+    if whole as usize >= MAX_SWEEP_VALUES {
+        return Err(bad(&format!("more than {MAX_SWEEP_VALUES} values")));
+    }
+    let decimal = |v: f64| format!("{v:.11e}").parse::<f64>().unwrap_or(v);
+    let values = (0..=whole as usize)
+        .map(|i| decimal(lo + i as f64 * step))
+        .collect();
+    Ok(Sweep {
+        key: k.trim().to_string(),
+        values,
+    })
+}
+
+/// The runs of several sweeps: every combination, the first sweep varying slowest.
+pub fn sweep_grid(sweeps: &[Sweep]) -> Vec<Vec<(String, f64)>> {
+    let mut runs: Vec<Vec<(String, f64)>> = vec![Vec::new()];
+    for s in sweeps {
+        runs = runs
+            .into_iter()
+            .flat_map(|r| {
+                s.values.iter().map(move |&v| {
+                    let mut r = r.clone();
+                    r.push((s.key.clone(), v));
+                    r
+                })
+            })
+            .collect();
+    }
+    runs
 }
 
 /// Paper fibre material of Table 4.1: E 35 GPa, t 2.8 µm, w 35 µm, ν 0.28, density 1.5 g/cm³.
@@ -618,6 +687,51 @@ fn structure2x1(p: &Params) -> Result<ModelFile, SimError> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn sweeps_take_integers_or_real_values_with_a_step() {
+        let s = parse_sweep("point=1..12").unwrap();
+        assert_eq!(s.key, "point");
+        assert_eq!(s.values, (1..=12).map(f64::from).collect::<Vec<_>>());
+        // Real values: the decimals written, not their float sums.
+        let s = parse_sweep("stretch=0.010..0.020:0.002").unwrap();
+        assert_eq!(s.values, vec![0.010, 0.012, 0.014, 0.016, 0.018, 0.020]);
+        let s = parse_sweep("damping=0..3e-6:1.5e-6").unwrap();
+        assert_eq!(s.values, vec![0.0, 1.5e-6, 3e-6]);
+        assert_eq!(parse_sweep("x=2..2").unwrap().values, vec![2.0]);
+        for bad in [
+            "stretch=0.01..0.02",       // real bounds, no step
+            "stretch=0.01..0.02:0.003", // HI not LO + k·STEP
+            "point=12..1",              // empty
+            "x=0..1:0",                 // step 0
+            "x=0..1:-0.1",
+            "x=0..1e9:1", // too many runs
+            "x=a..b",
+            "x=0..nan:1",
+            "point",
+        ] {
+            let e = parse_sweep(bad).unwrap_err().to_string();
+            assert!(e.contains(bad), "{bad}: {e}");
+        }
+        // Several sweeps: every combination, the first varying slowest.
+        let g = sweep_grid(&[
+            parse_sweep("a=1..2").unwrap(),
+            parse_sweep("b=0.5..1.5:0.5").unwrap(),
+        ]);
+        let flat: Vec<(f64, f64)> = g.iter().map(|r| (r[0].1, r[1].1)).collect();
+        assert_eq!(
+            flat,
+            vec![
+                (1.0, 0.5),
+                (1.0, 1.0),
+                (1.0, 1.5),
+                (2.0, 0.5),
+                (2.0, 1.0),
+                (2.0, 1.5)
+            ]
+        );
+        assert_eq!(sweep_grid(&[]), vec![Vec::<(String, f64)>::new()]);
+    }
 
     #[test]
     fn a_parameter_no_scenario_reads_is_refused_by_name() {

@@ -71,6 +71,70 @@ fn log_decrement(t: &[f64], y: &[f64]) -> f64 {
     -sxy / sxx
 }
 
+/// Eqs. 3.5.1–3.5.2 on the one system whose answer is known: a mass m with frictional
+/// damping b decays as e^(−bt/2m), so γ = b/2m and α = γ/b = 1/2m whatever b. A real-valued
+/// sweep over b through the command line (RK4 at a small step, whose own damping is
+/// negligible), read back from `sweep.parquet`.
+#[test]
+fn a_sweep_over_damping_fits_the_analytic_decay_constant() {
+    let t = TempDir::new("sweep-decay");
+    let out = t.path().join("sho");
+    let (code, said, err) = crate::aepipe(&[
+        "simulate",
+        "--scenario",
+        "sho",
+        "--param",
+        "grid=0",
+        "--param",
+        "amplitude=0.005",
+        "--param",
+        "solver=1",
+        "--param",
+        "dt=0.005",
+        "--param",
+        "iterations=16000",
+        "--trajectories",
+        "1",
+        "--sweep",
+        "damping=0.004..0.012:0.004",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert_eq!(code, 0, "{said}\n{err}");
+    assert!(said.contains("α = γ/b"), "{said}");
+    for f in ["sweep.parquet", "sweep.png", "envelopes.png"] {
+        assert!(out.join(f).is_file(), "no {f}");
+    }
+    let (names, rows) = crate::table_rows(&out.join("sweep.parquet"));
+    let col = |n: &str| -> Vec<Option<f64>> {
+        let c = names
+            .iter()
+            .position(|x| x == n)
+            .unwrap_or_else(|| panic!("no {n}"));
+        rows.iter().map(|r| r[c].parse().ok()).collect()
+    };
+    let (bs, gammas, alphas, r2) = (
+        col("damping"),
+        col("decay_gamma_hz"),
+        col("decay_alpha_per_kg"),
+        col("decay_fit_r2"),
+    );
+    assert_eq!(bs.len(), 3);
+    let m = 0.2;
+    for k in 0..3 {
+        let b = bs[k].unwrap();
+        assert!((b - [0.004, 0.008, 0.012][k]).abs() < 1e-15);
+        let g = gammas[k].expect("a fit");
+        assert!((g / (b / (2.0 * m)) - 1.0).abs() < 0.005, "b {b}: γ {g}");
+        assert!(
+            (alphas[k].unwrap() * 2.0 * m - 1.0).abs() < 0.005,
+            "α {:?}",
+            alphas[k]
+        );
+        assert!(r2[k].unwrap() > 0.99);
+    }
+}
+
 #[test]
 fn implicit_euler_damps_artificially_and_more_with_larger_steps() {
     let f0 = sho_frequency();
@@ -436,7 +500,7 @@ fn simulated_waveforms_feed_the_feature_pipeline_and_match_their_schema() {
         model: None,
         scenario: Some("paper-fibre".into()),
         params: params(&[("iterations", 2000.0)]),
-        sweep: None,
+        sweep: Vec::new(),
         solver: None,
         out: d.path().join("sim"),
         run: SimOptions::default(),
@@ -527,7 +591,7 @@ fn analyse(name: &str, kv: &[(&str, f64)]) -> aepipe::features::Analysis {
         model: None,
         scenario: Some(name.into()),
         params: params(kv),
-        sweep: None,
+        sweep: Vec::new(),
         solver: None,
         out: d.path().to_path_buf(),
         run: SimOptions::default(),

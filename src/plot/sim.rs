@@ -1,0 +1,227 @@
+//! Pictures of a simulator sweep (`aepipe simulate --sweep`): the dominant frequency and the
+//! decay constant against the swept value (Figs. 4.7 and 4.17), and the envelopes with
+//! their exponential fits (Figs. 3.17–3.18).
+
+use super::{ensure_font, err, PlotError};
+use crate::sim::sweep::{SweepRow, SweepTable};
+use plotters::prelude::*;
+use std::path::Path;
+
+/// Curves per picture at most (sensors or values of a second swept key); the rest are left
+/// out and the caption says so.
+const MAX_CURVES: usize = 10;
+
+/// The rows' curves: one per sensor for a one-key sweep, one per value of the second key
+/// (first sensor) for a two-key sweep; each (name, rows sorted by the first key).
+fn curves(t: &SweepTable) -> Vec<(String, Vec<&SweepRow>)> {
+    let mut out: Vec<(String, Vec<&SweepRow>)> = Vec::new();
+    let first_sensor = t.rows.iter().map(|r| r.sensor).min().unwrap_or(0);
+    for r in &t.rows {
+        let name = if t.keys.len() >= 2 {
+            if r.sensor != first_sensor {
+                continue;
+            }
+            format!("{} = {}", t.keys[1], short(r.values[1]))
+        } else if r.sensor == 0 {
+            "node".to_string()
+        } else {
+            format!("sensor {}", r.sensor)
+        };
+        match out.iter_mut().find(|(n, _)| *n == name) {
+            Some((_, v)) => v.push(r),
+            None => out.push((name, vec![r])),
+        }
+    }
+    for (_, v) in &mut out {
+        v.sort_by(|a, b| a.values[0].total_cmp(&b.values[0]));
+    }
+    out
+}
+
+/// Dominant frequency (kHz) and γ (1/s) against the first swept key, side by side.
+pub fn sweep_png(path: &Path, t: &SweepTable) -> Result<(), PlotError> {
+    ensure_font()?;
+    let e = err(path);
+    let root = BitMapBackend::new(path, (1100, 420)).into_drawing_area();
+    root.fill(&WHITE).map_err(&e)?;
+    let areas = root.split_evenly((1, 2));
+    let all = curves(t);
+    let left_out = all.len().saturating_sub(MAX_CURVES);
+    let shown = &all[..all.len().min(MAX_CURVES)];
+    let key = t.keys.first().map(String::as_str).unwrap_or("value");
+    type Get = fn(&SweepRow) -> Option<f64>;
+    let panels: [(&str, Get); 2] = [
+        ("dominant frequency, kHz", |r| {
+            Some(r.dominant_frequency_hz / 1e3)
+        }),
+        ("decay constant γ, 1/s (Eq. 3.5.1)", |r| {
+            r.decay.as_ref().map(|d| d.gamma_hz)
+        }),
+    ];
+    for ((title, get), area) in panels.iter().zip(&areas) {
+        let pts: Vec<Vec<(f64, f64)>> = shown
+            .iter()
+            .map(|(_, rows)| {
+                rows.iter()
+                    .filter_map(|r| get(r).map(|v| (r.values[0], v)))
+                    .collect()
+            })
+            .collect();
+        let (x, y) = bounds(pts.iter().flatten().copied());
+        let mut c = ChartBuilder::on(area)
+            .caption(
+                if left_out > 0 {
+                    format!("{title} ({left_out} curves not drawn)")
+                } else {
+                    title.to_string()
+                },
+                ("sans-serif", 14),
+            )
+            .margin(10)
+            .x_label_area_size(35)
+            .y_label_area_size(70)
+            .build_cartesian_2d(x.0..x.1, y.0..y.1)
+            .map_err(&e)?;
+        c.configure_mesh().x_desc(key).draw().map_err(&e)?;
+        for (i, ((name, _), p)) in shown.iter().zip(&pts).enumerate() {
+            let col = Palette99::pick(i).to_rgba();
+            c.draw_series(LineSeries::new(p.iter().copied(), col.stroke_width(2)))
+                .map_err(&e)?
+                .label(name.as_str())
+                .legend(move |(x, y)| {
+                    PathElement::new(vec![(x, y), (x + 16, y)], col.stroke_width(2))
+                });
+            c.draw_series(p.iter().map(|q| Circle::new(*q, 3, col.filled())))
+                .map_err(&e)?;
+        }
+        c.configure_series_labels()
+            .position(SeriesLabelPosition::UpperRight)
+            .background_style(WHITE.mix(0.8))
+            .border_style(BLACK)
+            .draw()
+            .map_err(&e)?;
+    }
+    root.present().map_err(&e)?;
+    Ok(())
+}
+
+/// Each run's envelope at its first sensor (points) and its fit y₀·e^(−γt) (line), on a
+/// log axis: Figs. 3.17–3.18 for a sweep over the damping b.
+pub fn envelopes_png(path: &Path, t: &SweepTable) -> Result<(), PlotError> {
+    ensure_font()?;
+    let e = err(path);
+    let first_sensor = t.rows.iter().map(|r| r.sensor).min().unwrap_or(0);
+    let runs: Vec<&SweepRow> = t
+        .rows
+        .iter()
+        .filter(|r| r.sensor == first_sensor && r.decay.is_some())
+        .collect();
+    let left_out = runs.len().saturating_sub(MAX_CURVES);
+    let runs = &runs[..runs.len().min(MAX_CURVES)];
+    let pts = runs
+        .iter()
+        .flat_map(|r| r.decay.iter().flat_map(|d| d.points.iter().copied()));
+    let (x, y) = bounds(pts.map(|(t, v)| (t * 1e6, v)));
+    let root = BitMapBackend::new(path, (800, 480)).into_drawing_area();
+    root.fill(&WHITE).map_err(&e)?;
+    let caption = format!(
+        "envelope (points) and its fit y0·exp(−γt) (lines), {}{}",
+        if first_sensor == 0 {
+            "node displacement".to_string()
+        } else {
+            format!("sensor {first_sensor}")
+        },
+        if left_out > 0 {
+            format!(" ({left_out} runs not drawn)")
+        } else {
+            String::new()
+        }
+    );
+    let lo = y.0.max(y.1 * 1e-4).max(f64::MIN_POSITIVE);
+    let mut c = ChartBuilder::on(&root)
+        .caption(caption, ("sans-serif", 14))
+        .margin(10)
+        .x_label_area_size(35)
+        .y_label_area_size(70)
+        .build_cartesian_2d(x.0..x.1, (lo..y.1 * 1.5).log_scale())
+        .map_err(&e)?;
+    c.configure_mesh()
+        .x_desc("time, µs")
+        .y_desc(if first_sensor == 0 {
+            "envelope, m"
+        } else {
+            "envelope, Pa"
+        })
+        .draw()
+        .map_err(&e)?;
+    for (i, r) in runs.iter().enumerate() {
+        let Some(d) = &r.decay else { continue };
+        let col = Palette99::pick(i).to_rgba();
+        let label = format!(
+            "{}γ = {:.3e} 1/s",
+            t.keys
+                .iter()
+                .zip(&r.values)
+                .map(|(k, v)| format!("{k} = {}, ", short(*v)))
+                .collect::<String>(),
+            d.gamma_hz
+        );
+        c.draw_series(
+            d.points
+                .iter()
+                .map(|&(t, v)| Cross::new((t * 1e6, v), 3, col.stroke_width(1))),
+        )
+        .map_err(&e)?;
+        let (t0, t1) = (d.points[0].0, d.points[d.points.len() - 1].0);
+        let line = (0..=50).map(|k| {
+            let t = t0 + (t1 - t0) * k as f64 / 50.0;
+            (t * 1e6, d.at(t).max(lo))
+        });
+        c.draw_series(LineSeries::new(line, col.stroke_width(2)))
+            .map_err(&e)?
+            .label(label)
+            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 16, y)], col.stroke_width(2)));
+    }
+    c.configure_series_labels()
+        .position(SeriesLabelPosition::UpperRight)
+        .background_style(WHITE.mix(0.8))
+        .border_style(BLACK)
+        .draw()
+        .map_err(&e)?;
+    root.present().map_err(&e)?;
+    Ok(())
+}
+
+/// A swept value as a legend shows it: plain for everyday sizes, else in e-notation.
+fn short(v: f64) -> String {
+    if v == 0.0 || (1e-3..1e5).contains(&v.abs()) {
+        format!("{v}")
+    } else {
+        format!("{v:e}")
+    }
+}
+
+/// Axis ranges around points, padded; (0, 1) for none.
+fn bounds(pts: impl Iterator<Item = (f64, f64)>) -> ((f64, f64), (f64, f64)) {
+    let (mut x0, mut x1, mut y0, mut y1) = (
+        f64::INFINITY,
+        f64::NEG_INFINITY,
+        f64::INFINITY,
+        f64::NEG_INFINITY,
+    );
+    for (x, y) in pts.filter(|p| p.0.is_finite() && p.1.is_finite()) {
+        (x0, x1, y0, y1) = (x0.min(x), x1.max(x), y0.min(y), y1.max(y));
+    }
+    if x0 > x1 {
+        return ((0.0, 1.0), (0.0, 1.0));
+    }
+    let pad = |a: f64, b: f64| {
+        let p = if b > a {
+            0.06 * (b - a)
+        } else {
+            a.abs().max(1.0) * 0.1
+        };
+        (a - p, b + p)
+    };
+    (pad(x0, x1), pad(y0, y1))
+}
