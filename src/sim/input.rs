@@ -442,6 +442,7 @@ fn parse_grid(
         rho: s.num(t, row, &["rho"])?,
         c: s.num(t, row, &["c"])?,
         order,
+        dipole_m: None,
     };
     let mut sensors = Vec::new();
     if let Some(st) = s.get("Sensor") {

@@ -173,6 +173,7 @@ fn couple(mech: &Mech, u_prev: &[[f64; 2]], g: &GridSpec, f: &mut Field) {
     let geo = mech.geometry();
     let h = g.dx();
     let inv_area = 1.0 / (h * h);
+    let arm = g.dipole_m.map_or(1.0, |d| d / h);
     for i in 0..mech.len() {
         if mech.held[i] || geo[i].count == 0 {
             continue;
@@ -184,7 +185,7 @@ fn couple(mech: &Mech, u_prev: &[[f64; 2]], g: &GridSpec, f: &mut Field) {
         let tg = geo[i].tangent;
         let nrm = [-tg[1], tg[0]];
         let an = a[0] * nrm[0] + a[1] * nrm[1];
-        let s = g.rho * geo[i].length * an * inv_area;
+        let s = g.rho * geo[i].length * an * inv_area * arm;
         let r = mech.r[i];
         splat(f, g, [r[0] + 0.5 * h * nrm[0], r[1] + 0.5 * h * nrm[1]], s);
         splat(f, g, [r[0] - 0.5 * h * nrm[0], r[1] - 0.5 * h * nrm[1]], -s);

@@ -184,6 +184,12 @@ pub struct GridSpec {
     pub rho: f64,
     pub c: f64,
     pub order: Order,
+    /// The dipole moment's arm, m: a mass's ± sources (Eq. 3.4.6) stand half a cell either
+    /// side of the fibre, so their moment is ρ·ℓ·aₙ times the cell. None: the cell (the
+    /// thesis's coupling). A grid refined by `grid_um` keeps its original cell here, so that
+    /// a fibre radiates the same dipole whatever the cell (grid convergence).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub dipole_m: Option<f64>,
 }
 
 impl GridSpec {

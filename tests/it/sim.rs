@@ -728,3 +728,67 @@ fn absurd_model_sizes_are_refused_before_anything_is_allocated() {
     m.system.iterations = usize::MAX;
     assert!(m.check().unwrap_err().to_string().contains("iterations"));
 }
+
+/// `grid_um` refines the acoustic grid with the coupling's dipole arm held at the original
+/// cell: the plucked paper fibre's field below 500 kHz is the same at 72 and 36 µm (grid
+/// convergence), where halving the arm with the cell (the thesis's coupling taken literally)
+/// halves it; the finer grid carries 3 MHz and samples at 20 MHz.
+#[test]
+fn a_refined_grid_keeps_the_fibres_field_and_carries_3_mhz() {
+    use aepipe::sim::acoustic::{band_limit, low_pass};
+    let low = |m: &ModelFile| -> Vec<f64> {
+        let out = simulate(m, &SimOptions::default()).unwrap();
+        out.sensors[..3]
+            .iter()
+            .map(|s| {
+                let y = low_pass(s, out.sample_rate_hz, 450e3, 550e3);
+                y.iter().fold(0.0f64, |a, v| a.max(v.abs()))
+            })
+            .collect()
+    };
+    let coarse = scenario::build("paper-fibre", &params(&[])).unwrap();
+    let fine = scenario::build("paper-fibre", &params(&[("grid_um", 36.0)])).unwrap();
+    let g = fine.grid.as_ref().unwrap();
+    assert_eq!((g.nx, g.ny), (500, 500));
+    assert!((g.dt - 5e-8).abs() < 1e-15, "{}", g.dt);
+    assert!((g.alpha() - coarse.grid.as_ref().unwrap().alpha()).abs() < 1e-9);
+    assert!(band_limit(g).pass_hz > 2.9e6, "{:?}", band_limit(g));
+    let (a, b) = (low(&coarse), low(&fine));
+    for k in 0..3 {
+        assert!(
+            (b[k] / a[k] - 1.0).abs() < 0.03,
+            "sensor {}: {} vs {}",
+            k + 1,
+            b[k],
+            a[k]
+        );
+    }
+    // The same grid with the arm shrunk to its cell radiates half the field.
+    let mut literal = fine.clone();
+    literal.grid.as_mut().unwrap().dipole_m = None;
+    let c = low(&literal);
+    assert!((c[0] / a[0] - 0.5).abs() < 0.05, "{} vs {}", c[0], a[0]);
+    // A model without a grid has none to refine.
+    let e = scenario::build("rubber-band", &params(&[("grid_um", 36.0)])).unwrap_err();
+    assert!(e.to_string().contains("grid_um"), "{e}");
+}
+
+/// Figs. 4.26–4.28 on the 36 µm grid: the fibre failure's dominant frequency at the sensor
+/// below the structure rises with the break point from ~860 kHz past 1.6 MHz (points 1, 7,
+/// 11; on the Appendix-A grid points 9–12 cannot rise above its 1.51 MHz).
+#[test]
+fn on_the_fine_grid_the_fibre_failure_frequency_rises_past_1_6_mhz() {
+    let mut f = Vec::new();
+    for point in [1.0, 7.0, 11.0] {
+        let m = scenario::build(
+            "structure2x1-fibre-failure",
+            &params(&[("point", point), ("grid_um", 36.0)]),
+        )
+        .unwrap();
+        let out = simulate(&m, &SimOptions::default()).unwrap();
+        let p = aepipe::sim::output::band_limited(&out.sensors[0], m.grid.as_ref().unwrap());
+        f.push(aepipe::sim::dominant_frequency(&p, out.sample_rate_hz));
+    }
+    assert!(f[0] > 800e3 && f[0] < f[1] && f[1] < f[2], "{f:?}");
+    assert!(f[2] > 1.6e6, "{f:?}");
+}
