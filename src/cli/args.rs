@@ -362,7 +362,8 @@ pub struct SimulateArgs {
     /// Model file: the thesis's sectioned format (Appendix A) or .toml
     pub model: Option<PathBuf>,
     /// Built-in scenario instead of a file: sho, five-mass-fibre, fibre-single-constraint,
-    /// rubber-band, paper-fibre, mesh3x3-bond-failure, structure2x1-fibre-failure
+    /// rubber-band, paper-fibre, mesh3x3-bond-failure, structure2x1-fibre-failure,
+    /// fibre-stiff-string
     #[arg(long)]
     pub scenario: Option<String>,
     /// Scenario parameter key=value (repeatable), e.g. point=7, stretch=0.01, dt=1e-8

@@ -12,6 +12,7 @@ pub mod model;
 pub mod output;
 pub mod reference;
 pub mod scenario;
+pub mod string;
 pub mod sweep;
 
 use acoustic::Field;
@@ -273,6 +274,9 @@ pub struct SimReport {
 /// Run a job into `job.out`: `waveforms.parquet` (the sensors, when the model has a grid),
 /// `trajectories.parquet` and `snapshots/*.png` when asked, `sweep.parquet` for a sweep.
 pub fn run_job(job: &SimJob) -> Result<SimReport, SimError> {
+    if job.scenario.as_deref() == Some(string::NAME) && job.model.is_none() {
+        return string::run_job(job);
+    }
     let io = |e: std::io::Error| SimError::Io(format!("{}: {e}", job.out.display()));
     std::fs::create_dir_all(&job.out).map_err(io)?;
     let models = job_models(job)?;

@@ -167,8 +167,54 @@ pub const FIBRE_RHO: f64 = 1500.0;
 /// Build a scenario by name. `params` overrides its defaults; the keys each one reads are
 /// listed in the README.
 pub fn build(name: &str, p: &Params) -> Result<ModelFile, SimError> {
+    if name == super::string::NAME {
+        return Err(SimError::Model(format!(
+            "{name} is a continuum model, not a mass/spring one: `aepipe simulate --scenario \
+             {name}` runs it"
+        )));
+    }
+    asked_only(name, p, |p| build_asked(name, p))
+}
+
+/// The stiff string of §6.2 from its parameters (`fibre-stiff-string`): `tension_n`,
+/// `length_m`, `radius_m`, `youngs_pa`, `density_kg_m3`, `damping` (1/s), `duration_s`,
+/// `amplitude_m`, `intervals`, `dt` (0: half the stable step); the defaults are the paper
+/// fibre of Table 3.8 as a string.
+pub fn build_string(p: &Params) -> Result<super::string::StiffString, SimError> {
+    asked_only(super::string::NAME, p, |p| {
+        let d = super::string::StiffString::paper_fibre();
+        let intervals = p.get("intervals", d.intervals as f64);
+        if intervals.fract() != 0.0 || intervals < 0.0 {
+            return Err(SimError::Model(format!(
+                "{}: intervals must be a whole number, got {intervals}",
+                super::string::NAME
+            )));
+        }
+        super::string::StiffString {
+            tension_n: p.get("tension_n", d.tension_n),
+            length_m: p.get("length_m", d.length_m),
+            radius_m: p.get("radius_m", d.radius_m),
+            youngs_pa: p.get("youngs_pa", d.youngs_pa),
+            density_kg_m3: p.get("density_kg_m3", d.density_kg_m3),
+            damping: p.get("damping", d.damping),
+            duration_s: p.get("duration_s", d.duration_s),
+            amplitude_m: p.get("amplitude_m", d.amplitude_m),
+            intervals: intervals as usize,
+            dt: p.get("dt", 0.0),
+        }
+        .checked()
+    })
+}
+
+/// Run `f` and refuse, by name, a parameter it never asked for (a typo never runs the
+/// default).
+fn asked_only<T>(
+    name: &str,
+    p: &Params,
+    f: impl FnOnce(&Params) -> Result<T, SimError>,
+) -> Result<T, SimError> {
     ASKED.with(|a| *a.borrow_mut() = Some(Default::default()));
-    let built = build_asked(name, p);
+    let built = f(p);
     let asked = ASKED.with(|a| a.borrow_mut().take()).unwrap_or_default();
     let m = built?;
     let unknown: Vec<&str> =
@@ -204,8 +250,9 @@ fn build_asked(name: &str, p: &Params) -> Result<ModelFile, SimError> {
         "structure2x1-fibre-failure" => structure2x1(p)?,
         _ => {
             return Err(SimError::Model(format!(
-                "unknown scenario {name:?}; known: {}",
-                NAMES.join(", ")
+                "unknown scenario {name:?}; known: {}, {}",
+                NAMES.join(", "),
+                super::string::NAME
             )))
         }
     };

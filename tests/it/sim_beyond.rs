@@ -1,0 +1,257 @@
+//! The simulator past the thesis (§6.2 and the figures it could not redraw), against analytic
+//! answers: the decay constant of Eqs. 3.5.1–3.5.2 through a real-valued sweep, a refined
+//! acoustic grid whose field converges, and the fibre as a stiff string (Eq. 6.2.1).
+
+use crate::sim::{params, track};
+use crate::TempDir;
+use aepipe::sim::model::ModelFile;
+use aepipe::sim::scenario;
+use aepipe::sim::{simulate, zero_crossing_frequency, SimOptions};
+
+/// Eqs. 3.5.1–3.5.2 on the one system whose answer is known: a mass m with frictional
+/// damping b decays as e^(−bt/2m), so γ = b/2m and α = γ/b = 1/2m whatever b. A real-valued
+/// sweep over b through the command line (RK4 at a small step, whose own damping is
+/// negligible), read back from `sweep.parquet`.
+#[test]
+fn a_sweep_over_damping_fits_the_analytic_decay_constant() {
+    let t = TempDir::new("sweep-decay");
+    let out = t.path().join("sho");
+    let (code, said, err) = crate::aepipe(&[
+        "simulate",
+        "--scenario",
+        "sho",
+        "--param",
+        "grid=0",
+        "--param",
+        "amplitude=0.005",
+        "--param",
+        "solver=1",
+        "--param",
+        "dt=0.005",
+        "--param",
+        "iterations=16000",
+        "--trajectories",
+        "1",
+        "--sweep",
+        "damping=0.004..0.012:0.004",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert_eq!(code, 0, "{said}\n{err}");
+    assert!(said.contains("α = γ/b"), "{said}");
+    for f in ["sweep.parquet", "sweep.png", "envelopes.png"] {
+        assert!(out.join(f).is_file(), "no {f}");
+    }
+    let (names, rows) = crate::table_rows(&out.join("sweep.parquet"));
+    let col = |n: &str| -> Vec<Option<f64>> {
+        let c = names
+            .iter()
+            .position(|x| x == n)
+            .unwrap_or_else(|| panic!("no {n}"));
+        rows.iter().map(|r| r[c].parse().ok()).collect()
+    };
+    let (bs, gammas, alphas, r2) = (
+        col("damping"),
+        col("decay_gamma_hz"),
+        col("decay_alpha_per_kg"),
+        col("decay_fit_r2"),
+    );
+    assert_eq!(bs.len(), 3);
+    let m = 0.2;
+    for k in 0..3 {
+        let b = bs[k].unwrap();
+        assert!((b - [0.004, 0.008, 0.012][k]).abs() < 1e-15);
+        let g = gammas[k].expect("a fit");
+        assert!((g / (b / (2.0 * m)) - 1.0).abs() < 0.005, "b {b}: γ {g}");
+        assert!(
+            (alphas[k].unwrap() * 2.0 * m - 1.0).abs() < 0.005,
+            "α {:?}",
+            alphas[k]
+        );
+        assert!(r2[k].unwrap() > 0.99);
+    }
+}
+
+/// `grid_um` refines the acoustic grid with the coupling's dipole arm held at the original
+/// cell: the plucked paper fibre's field below 500 kHz is the same at 72 and 36 µm (grid
+/// convergence), where halving the arm with the cell (the thesis's coupling taken literally)
+/// halves it; the finer grid carries 3 MHz and samples at 20 MHz.
+#[test]
+fn a_refined_grid_keeps_the_fibres_field_and_carries_3_mhz() {
+    use aepipe::sim::acoustic::{band_limit, low_pass};
+    let low = |m: &ModelFile| -> Vec<f64> {
+        let out = simulate(m, &SimOptions::default()).unwrap();
+        out.sensors[..3]
+            .iter()
+            .map(|s| {
+                let y = low_pass(s, out.sample_rate_hz, 450e3, 550e3);
+                y.iter().fold(0.0f64, |a, v| a.max(v.abs()))
+            })
+            .collect()
+    };
+    let coarse = scenario::build("paper-fibre", &params(&[])).unwrap();
+    let fine = scenario::build("paper-fibre", &params(&[("grid_um", 36.0)])).unwrap();
+    let g = fine.grid.as_ref().unwrap();
+    assert_eq!((g.nx, g.ny), (500, 500));
+    assert!((g.dt - 5e-8).abs() < 1e-15, "{}", g.dt);
+    assert!((g.alpha() - coarse.grid.as_ref().unwrap().alpha()).abs() < 1e-9);
+    assert!(band_limit(g).pass_hz > 2.9e6, "{:?}", band_limit(g));
+    let (a, b) = (low(&coarse), low(&fine));
+    for k in 0..3 {
+        assert!(
+            (b[k] / a[k] - 1.0).abs() < 0.03,
+            "sensor {}: {} vs {}",
+            k + 1,
+            b[k],
+            a[k]
+        );
+    }
+    // The same grid with the arm shrunk to its cell radiates half the field.
+    let mut literal = fine.clone();
+    literal.grid.as_mut().unwrap().dipole_m = None;
+    let c = low(&literal);
+    assert!((c[0] / a[0] - 0.5).abs() < 0.05, "{} vs {}", c[0], a[0]);
+    // A model without a grid has none to refine.
+    let e = scenario::build("rubber-band", &params(&[("grid_um", 36.0)])).unwrap_err();
+    assert!(e.to_string().contains("grid_um"), "{e}");
+}
+
+/// Figs. 4.26–4.28 on the 36 µm grid: the fibre failure's dominant frequency at the sensor
+/// below the structure rises with the break point from ~860 kHz past 1.6 MHz (points 1, 7,
+/// 11; on the Appendix-A grid points 9–12 cannot rise above its 1.51 MHz).
+#[test]
+fn on_the_fine_grid_the_fibre_failure_frequency_rises_past_1_6_mhz() {
+    let mut f = Vec::new();
+    for point in [1.0, 7.0, 11.0] {
+        let m = scenario::build(
+            "structure2x1-fibre-failure",
+            &params(&[("point", point), ("grid_um", 36.0)]),
+        )
+        .unwrap();
+        let out = simulate(&m, &SimOptions::default()).unwrap();
+        let p = aepipe::sim::output::band_limited(&out.sensors[0], m.grid.as_ref().unwrap());
+        f.push(aepipe::sim::dominant_frequency(&p, out.sample_rate_hz));
+    }
+    assert!(f[0] > 800e3 && f[0] < f[1] && f[1] < f[2], "{f:?}");
+    assert!(f[2] > 1.6e6, "{f:?}");
+}
+
+/// §6.2's stiff string (Eq. 6.2.1 with the bending term subtracted): the pinned string's
+/// modes n·f_s·√(1 + B·n²) and their common decay α/2, measured from the run's modal
+/// coordinates, on a string stiff enough (B = 0.026) that the flexible answer n·f_s misses
+/// mode 5 by 12 %.
+#[test]
+fn the_stiff_string_rings_at_its_analytic_modes_and_decays_at_half_alpha() {
+    let s = scenario::build_string(&params(&[("tension_n", 0.01), ("damping", 2e4)])).unwrap();
+    let (f_s, b) = (s.f_s(), s.b());
+    assert!((b - 0.0264).abs() < 0.001, "B {b}");
+    let run = s.run(None);
+    for n in [1usize, 3, 5] {
+        let (f, d) = run.mode(n).unwrap();
+        let nf = n as f64;
+        let want = (nf * nf * f_s * f_s * (1.0 + b * nf * nf)
+            - (2e4 / (4.0 * std::f64::consts::PI)).powi(2))
+        .sqrt();
+        assert!((f / want - 1.0).abs() < 1e-3, "mode {n}: {f} vs {want}");
+        let g = d.unwrap().gamma_hz;
+        assert!((g / 1e4 - 1.0).abs() < 0.01, "mode {n}: γ {g}");
+        if n == 5 {
+            assert!(
+                f / (nf * f_s) - 1.0 > 0.1,
+                "the bending shows: {f} vs {}",
+                nf * f_s
+            );
+        }
+    }
+    // A step at or above 2/√λ_max is refused, naming the limit; sizes are checked first.
+    let limit = s.stable_dt();
+    let e = scenario::build_string(&params(&[("tension_n", 0.01), ("dt", 1.01 * limit)]))
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("stable step"), "{e}");
+    for bad in [
+        ("intervals", 1e9),
+        ("duration_s", 1e3),
+        ("radius_m", -1.0),
+        ("nodes", 3.0),
+    ] {
+        assert!(scenario::build_string(&params(&[bad])).is_err(), "{bad:?}");
+    }
+}
+
+/// The plucked paper fibre of Table 3.8 in both models: the mass/spring chain and the stiff
+/// string (the fibre's 2.8 × 35 µm section as a circle of the same area), each against the
+/// thesis's 253.91 kHz; the string's bending raises its fundamental by √(1 + B) only.
+#[test]
+fn the_paper_fibre_as_springs_and_as_a_stiff_string_side_by_side() {
+    let m = scenario::build(
+        "paper-fibre",
+        &params(&[("grid", 0.0), ("damping", 0.0), ("amplitude", 1e-6)]),
+    )
+    .unwrap();
+    let (t, y) = track(&m, 14);
+    let springs = zero_crossing_frequency(&t, &y).unwrap();
+    let s = scenario::build_string(&params(&[])).unwrap();
+    let (string, _) = s.run(None).mode(1).unwrap();
+    for f in [springs, string] {
+        assert!((f / 253.91e3 - 1.0).abs() < 0.05, "{f} vs 253.91 kHz");
+    }
+    assert!(
+        (string / springs - 1.0).abs() < 0.01,
+        "{string} vs {springs}"
+    );
+    assert!((string / s.f_s() / (1.0 + s.b()).sqrt() - 1.0).abs() < 1e-3);
+    println!(
+        "paper fibre: springs {:.2} kHz, stiff string {:.2} kHz (flexible {:.2}), thesis 253.91",
+        springs / 1e3,
+        string / 1e3,
+        s.f_s() / 1e3
+    );
+}
+
+/// `aepipe simulate --scenario fibre-stiff-string --trajectories N` writes its nodes'
+/// motion as the other scenarios do; a parameter it does not read is refused by name.
+#[test]
+fn the_stiff_string_scenario_writes_its_trajectories() {
+    let t = TempDir::new("stiff-string");
+    let out = t.path().join("s");
+    let (code, said, err) = crate::aepipe(&[
+        "simulate",
+        "--scenario",
+        "fibre-stiff-string",
+        "--param",
+        "intervals=40",
+        "--param",
+        "duration_s=2e-6",
+        "--param",
+        "dt=5e-9",
+        "--trajectories",
+        "100",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert_eq!(code, 0, "{said}\n{err}");
+    // 400 steps: frames at 0, 100, …, 400, each of 41 nodes.
+    let (names, rows) = crate::table_rows(&out.join("trajectories.parquet"));
+    assert_eq!(rows.len(), 5 * 41, "{names:?}");
+    let ni = names.iter().position(|n| n == "node").unwrap();
+    let yi = names.iter().position(|n| n == "y_m").unwrap();
+    // Pinned ends; the centre starts at the pluck (10 µm).
+    for r in &rows {
+        if r[ni] == "0" || r[ni] == "40" {
+            assert_eq!(r[yi].parse::<f64>().unwrap(), 0.0);
+        }
+    }
+    assert!((rows[20][yi].parse::<f64>().unwrap() - 1e-5).abs() < 1e-12);
+    let (code, _, err) = crate::aepipe(&[
+        "simulate",
+        "--scenario",
+        "fibre-stiff-string",
+        "--param",
+        "tension=1",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert_eq!(code, 1);
+    assert!(err.contains("no parameter tension"), "{err}");
+}
