@@ -7,6 +7,7 @@
 pub mod acoustic;
 pub mod decay;
 pub mod input;
+pub mod material;
 pub mod mech;
 pub mod model;
 pub mod output;

@@ -46,6 +46,9 @@ pub struct ReferenceConfig {
     pub noise_db: f64,
     #[serde(default = "pretrigger")]
     pub pretrigger: usize,
+    /// The fibres' material (none: Table 4.1's paper fibre); the material draws scale it.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub material: Option<super::material::Material>,
     pub scenario: Vec<ScenarioGrid>,
 }
 
@@ -132,6 +135,10 @@ impl ReferenceFile {
                 )));
             }
         }
+        if let Some(m) = &f.reference.material {
+            m.check()
+                .map_err(|e| SimError::Model(format!("{}: {e}", path.display())))?;
+        }
         if !(0.0..0.5).contains(&f.reference.material_spread) || f.reference.variants == 0 {
             return Err(SimError::Model(format!(
                 "{}: need variants ≥ 1 and 0 ≤ material_spread < 0.5",
@@ -164,17 +171,54 @@ pub fn expand(cfg: &ReferenceConfig) -> Vec<(String, Params, usize)> {
         for c in combos {
             for v in 0..cfg.variants {
                 let mut p = c.clone();
+                let mut scales: Vec<(&str, f64)> = match &cfg.material {
+                    Some(m) => m.scales().to_vec(),
+                    None => Vec::new(),
+                };
                 if v > 0 || cfg.variants > 1 {
                     let s = cfg.material_spread;
                     for key in ["e_scale", "t_scale", "w_scale"] {
-                        p.push((key.to_string(), rng.range(1.0 - s, 1.0 + s)));
+                        let draw = rng.range(1.0 - s, 1.0 + s);
+                        match scales.iter_mut().find(|(k, _)| *k == key) {
+                            Some((_, base)) => *base *= draw,
+                            None => scales.push((key, draw)),
+                        }
                     }
                 }
+                p.extend(scales.into_iter().map(|(k, v)| (k.to_string(), v)));
                 runs.push((g.name.clone(), Params(p), g.erroneous));
             }
         }
     }
     runs
+}
+
+/// The plucked paper fibre's fundamental (Table 3.8 as simulated, 1 mm at 1 %), Hz: a
+/// material's fibres ring near this times [`super::material::Material::frequency_ratio`].
+const PAPER_FIBRE_HZ: f64 = 243.04e3;
+
+/// Refuse a material whose fibres ring too slowly for the run to hold three of their periods
+/// (a library of silence): the rubber band's 1.5 kHz in 60 µs, say.
+fn audible_in_time(
+    mat: &super::material::Material,
+    m: &super::model::ModelFile,
+) -> Result<(), SimError> {
+    let f = PAPER_FIBRE_HZ * mat.frequency_ratio();
+    let dur = m.system.dt * m.system.iterations as f64;
+    if f * dur < 3.0 {
+        return Err(SimError::Model(format!(
+            "material {:?}: its fibres ring near {:.3e} Hz (√(E/ρ) against the paper fibre's), \
+             and {} runs {:.1e} s — {:.2} periods, not a signal; give the scenario \
+             `iterations` for at least {:.1e} s (and a grid that resolves it)",
+            mat.name,
+            f,
+            m.name,
+            dur,
+            f * dur,
+            3.0 / f
+        )));
+    }
+    Ok(())
 }
 
 /// Run the library into `out/waveforms.parquet`. Returns (runs, signals, seconds).
@@ -267,6 +311,11 @@ pub fn build_library_controlled(
     } else {
         indicatif::ProgressBar::hidden()
     };
+    if let Some(mat) = &cfg.material {
+        for (_, (name, p, _)) in &runs {
+            audible_in_time(mat, &scenario::build(name, p)?)?;
+        }
+    }
     let results: Vec<_> = runs
         .par_iter()
         .map(|(_, (name, p, _))| {

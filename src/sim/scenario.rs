@@ -275,17 +275,19 @@ fn build_asked(name: &str, p: &Params) -> Result<ModelFile, SimError> {
     if p.has("grid_um") {
         refine(&mut m, p.get("grid_um", 0.0) * 1e-6)?;
     }
-    // Material variation (Table 4.1 gives ranges): Young's modulus, thickness and width
-    // scaled; masses follow thickness × width (the density is fixed).
-    let (es, ts, ws) = (
+    // Material variation (Table 4.1 gives ranges) and other materials
+    // (`sim::material`): Young's modulus, thickness and width scaled; masses follow
+    // thickness × width × density; Poisson's ratio set.
+    let (es, ts, ws, rs) = (
         p.get("e_scale", 1.0),
         p.get("t_scale", 1.0),
         p.get("w_scale", 1.0),
+        p.get("rho_scale", 1.0),
     );
-    if (es, ts, ws) != (1.0, 1.0, 1.0) {
-        if !(es > 0.0 && ts > 0.0 && ws > 0.0) {
+    if (es, ts, ws, rs) != (1.0, 1.0, 1.0, 1.0) {
+        if !(es > 0.0 && ts > 0.0 && ws > 0.0 && rs > 0.0) {
             return Err(SimError::Model(format!(
-                "{name}: e_scale, t_scale and w_scale must be > 0"
+                "{name}: e_scale, t_scale, w_scale and rho_scale must be > 0"
             )));
         }
         for s in &mut m.springs {
@@ -294,7 +296,16 @@ fn build_asked(name: &str, p: &Params) -> Result<ModelFile, SimError> {
             s.w *= ws;
         }
         for n in &mut m.nodes {
-            n.mass *= ts * ws;
+            n.mass *= ts * ws * rs;
+        }
+    }
+    if p.has("nu") {
+        let nu = p.get("nu", 0.0);
+        if !(-1.0..0.5).contains(&nu) {
+            return Err(SimError::Model(format!("{name}: nu must be in [-1, 0.5)")));
+        }
+        for s in &mut m.springs {
+            s.poisson = nu;
         }
     }
     m.check()?;

@@ -255,3 +255,67 @@ fn the_stiff_string_scenario_writes_its_trajectories() {
     assert_eq!(code, 1);
     assert!(err.contains("no parameter tension"), "{err}");
 }
+
+/// The material presets of `pipelines/materials/`, each a reference library from TOML: the
+/// thesis's paper written out gives the default library's signals sample for sample; another
+/// paper grade and a cloth move the bond failure's tone as √(E/ρ) (the tension E·A·ε over
+/// the mass ρ·A·L); the rubber band, whose fibres would ring at 1.5 kHz, is refused with why.
+#[test]
+fn material_presets_build_libraries_whose_tones_move_as_the_root_of_e_over_rho() {
+    use aepipe::sim::reference::{build_library, ReferenceFile, ScenarioGrid};
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("pipelines/materials");
+    let t = TempDir::new("materials");
+    // One bond failure per library, one material draw: the preset's own values.
+    let one = |mut f: ReferenceFile| {
+        f.reference.variants = 1;
+        f.reference.scenario = vec![ScenarioGrid {
+            name: "mesh3x3-bond-failure".into(),
+            params: [("t2".to_string(), vec![-1.0])].into_iter().collect(),
+            erroneous: 0,
+        }];
+        f.reference
+    };
+    let tone = |name: &str, cfg| -> (Vec<String>, f64) {
+        let out = t.path().join(name);
+        build_library(&cfg, &out, false).unwrap();
+        let (names, rows) = crate::table_rows(&out.join("waveforms.parquet"));
+        let col = |n: &str| names.iter().position(|x| x == n).unwrap();
+        let r = rows
+            .iter()
+            .find(|r| r[col("channel")] == "1")
+            .expect("sensor 1 heard it");
+        (
+            rows.iter().map(|r| r[col("samples_v")].clone()).collect(),
+            r[col("dominant_frequency_hz")].parse().unwrap(),
+        )
+    };
+    let (default_samples, f0) = tone("default", one(ReferenceFile::default_library()));
+    let read = |f: &str| ReferenceFile::read(&dir.join(f)).unwrap();
+    let (thesis_samples, f_thesis) = tone("thesis", one(read("paper-thesis.toml")));
+    assert_eq!(thesis_samples, default_samples);
+    assert_eq!(f_thesis, f0);
+    for preset in ["paper-hardwood.toml", "cloth-cotton.toml"] {
+        let f = read(preset);
+        let ratio = f.reference.material.as_ref().unwrap().frequency_ratio();
+        assert!(ratio < 0.9, "{preset}: {ratio}");
+        let (_, fm) = tone(preset, one(f));
+        assert!(
+            (fm / f0 / ratio - 1.0).abs() < 0.05,
+            "{preset}: {fm} Hz against {f0} × {ratio}"
+        );
+    }
+    let e = build_library(
+        &one(read("rubber-band.toml")),
+        &t.path().join("rubber"),
+        false,
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(e.contains("periods"), "{e}");
+    // Every preset names its source and passes the material's checks.
+    for entry in std::fs::read_dir(&dir).unwrap() {
+        let f = ReferenceFile::read(&entry.unwrap().path()).unwrap();
+        let m = f.reference.material.expect("a preset names its material");
+        assert!(!m.source.is_empty());
+    }
+}
