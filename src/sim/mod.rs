@@ -5,6 +5,7 @@
 //! ([`scenario`]). Output: labelled rows of the canonical waveform table ([`output`]).
 
 pub mod acoustic;
+pub mod acoustic3d;
 pub mod decay;
 pub mod input;
 pub mod material;
