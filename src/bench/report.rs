@@ -32,6 +32,21 @@ pub struct ReportRow {
     pub errors: Option<usize>,
 }
 
+impl ReportRow {
+    /// A size measured without the browser (its times filled by [`browse`]).
+    fn measured(rows: usize, points: usize, bytes: usize, build_s: f64) -> ReportRow {
+        ReportRow {
+            rows,
+            points,
+            bytes: bytes as u64,
+            build_s,
+            first_paint_ms: None,
+            load_s: None,
+            errors: None,
+        }
+    }
+}
+
 /// Measure the explorer's page at each of `rows`, in `dir`; with `python`, the DevTools
 /// `script` opens each page in Chromium.
 pub fn bench_report(
@@ -63,15 +78,7 @@ pub fn bench_report(
         let html = dir.join(format!("explore_{n}.html"));
         std::fs::write(&html, &page).map_err(BenchError::run)?;
         let build_s = t0.elapsed().as_secs_f64();
-        let mut row = ReportRow {
-            rows: n,
-            points: e.keys.len(),
-            bytes: page.len() as u64,
-            build_s,
-            first_paint_ms: None,
-            load_s: None,
-            errors: None,
-        };
+        let mut row = ReportRow::measured(n, e.keys.len(), page.len(), build_s);
         if let Some(py) = python {
             browse(py, script, &html, &mut row)?;
         }
@@ -147,15 +154,7 @@ pub fn bench_whole_report(
         step(&[&os("report"), run.as_os_str()])?;
         let build_s = t0.elapsed().as_secs_f64();
         let page = std::fs::read_to_string(&html).map_err(BenchError::run)?;
-        let mut row = ReportRow {
-            rows: n,
-            points: explorer_points(&page),
-            bytes: page.len() as u64,
-            build_s,
-            first_paint_ms: None,
-            load_s: None,
-            errors: None,
-        };
+        let mut row = ReportRow::measured(n, explorer_points(&page), page.len(), build_s);
         if let Some(py) = python {
             browse(py, script, &html, &mut row)?;
         }

@@ -310,6 +310,26 @@ pub fn report_bench(rows: &[crate::bench::report::ReportRow], whole: bool) -> St
     s
 }
 
+/// The 3-D field bench's table.
+pub fn field3d(rows: &[crate::bench::Field3dRow]) {
+    println!(
+        "3-D acoustic field, 4th order, {} thread(s):\n   cells     steps   seconds  Mcell-steps/s  fields MB  peak RSS MB",
+        rayon::current_num_threads()
+    );
+    for r in rows {
+        let cells = (r.n * r.n * r.n) as f64;
+        println!(
+            "{:>5}³ {:>9} {:>9.2} {:>14.1} {:>10.0} {:>12.0}",
+            r.n,
+            r.steps,
+            r.seconds,
+            cells * r.steps as f64 / r.seconds / 1e6,
+            r.field_bytes as f64 / 1048576.0,
+            r.peak_rss as f64 / 1048576.0
+        );
+    }
+}
+
 /// What an export wrote (one line a file) and what it left out.
 pub fn export_summary(s: &crate::export::ExportSummary) -> String {
     let mut out = String::new();

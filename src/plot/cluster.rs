@@ -1,7 +1,7 @@
 //! Pictures of the clustering stage: the validity curves against k, RA against AF, the
 //! cumulative hits per cluster against time and load, and the feature distributions.
 
-use super::{ensure_font, err, PlotError};
+use super::{boxed_legend, ensure_font, err, PlotError};
 use crate::cluster::ValidityRow;
 use plotters::prelude::*;
 use std::path::Path;
@@ -70,20 +70,6 @@ pub fn validity_png(path: &Path, rows: &[ValidityRow]) -> Result<(), PlotError> 
     }
     root.present().map_err(&e)?;
     Ok(())
-}
-
-/// The series' legend in a box at `at`.
-fn boxed_legend<'a, DB: DrawingBackend + 'a, CT: plotters::coord::CoordTranslate>(
-    c: &mut ChartContext<'a, DB, CT>,
-    at: SeriesLabelPosition,
-    path: &Path,
-) -> Result<(), PlotError> {
-    c.configure_series_labels()
-        .position(at)
-        .background_style(WHITE.mix(0.8))
-        .border_style(BLACK)
-        .draw()
-        .map_err(err(path))
 }
 
 /// A cluster number's colour (mechanism names keep theirs).

@@ -38,6 +38,20 @@ impl crate::util::HasKind for PlotError {
     }
 }
 
+/// The series' legend in a box at `at`.
+pub(crate) fn boxed_legend<'a, DB: DrawingBackend + 'a, CT: plotters::coord::CoordTranslate>(
+    c: &mut ChartContext<'a, DB, CT>,
+    at: SeriesLabelPosition,
+    path: &Path,
+) -> Result<(), PlotError> {
+    c.configure_series_labels()
+        .position(at)
+        .background_style(WHITE.mix(0.8))
+        .border_style(BLACK)
+        .draw()
+        .map_err(err(path))
+}
+
 /// Register the sans-serif font with plotters once: the file `AEPIPE_FONT` names, else
 /// DejaVu Sans embedded in the binary (the `dejavu` crate), so pictures never depend on the
 /// machine's fonts.

@@ -2,7 +2,7 @@
 //! decay constant against the swept value (Figs. 4.7 and 4.17), and the envelopes with
 //! their exponential fits (Figs. 3.17–3.18).
 
-use super::{ensure_font, err, PlotError};
+use super::{boxed_legend, ensure_font, err, PlotError};
 use crate::sim::sweep::{SweepRow, SweepTable};
 use plotters::prelude::*;
 use std::path::Path;
@@ -94,12 +94,7 @@ pub fn sweep_png(path: &Path, t: &SweepTable) -> Result<(), PlotError> {
             c.draw_series(p.iter().map(|q| Circle::new(*q, 3, col.filled())))
                 .map_err(&e)?;
         }
-        c.configure_series_labels()
-            .position(SeriesLabelPosition::UpperRight)
-            .background_style(WHITE.mix(0.8))
-            .border_style(BLACK)
-            .draw()
-            .map_err(&e)?;
+        boxed_legend(&mut c, SeriesLabelPosition::UpperRight, path)?;
     }
     root.present().map_err(&e)?;
     Ok(())
@@ -182,12 +177,7 @@ pub fn envelopes_png(path: &Path, t: &SweepTable) -> Result<(), PlotError> {
             .label(label)
             .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 16, y)], col.stroke_width(2)));
     }
-    c.configure_series_labels()
-        .position(SeriesLabelPosition::UpperRight)
-        .background_style(WHITE.mix(0.8))
-        .border_style(BLACK)
-        .draw()
-        .map_err(&e)?;
+    boxed_legend(&mut c, SeriesLabelPosition::UpperRight, path)?;
     root.present().map_err(&e)?;
     Ok(())
 }

@@ -39,6 +39,23 @@ pub struct Grid3 {
 }
 
 impl Grid3 {
+    /// n³ cells of size `h` from the origin, 4th order (not yet checked).
+    pub fn cube(n: usize, h: f64, dt: f64, c: f64, rho: f64) -> Grid3 {
+        Grid3 {
+            x1: 0.0,
+            y1: 0.0,
+            z1: 0.0,
+            h,
+            nx: n,
+            ny: n,
+            nz: n,
+            dt,
+            c,
+            rho,
+            order: Order::Fourth,
+        }
+    }
+
     /// Courant number cΔt/Δh.
     pub fn alpha(&self) -> f64 {
         self.c * self.dt / self.h

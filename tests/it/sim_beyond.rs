@@ -330,19 +330,8 @@ fn a_3d_point_source_falls_as_one_over_r_and_travels_at_c() {
     use aepipe::sim::acoustic3d::{Field3, Grid3};
     use aepipe::sim::model::Order;
     let n = 72;
-    let g = Grid3 {
-        x1: 0.0,
-        y1: 0.0,
-        z1: 0.0,
-        h: 1.0,
-        nx: n,
-        ny: n,
-        nz: n,
-        dt: 0.45,
-        c: 1.0,
-        rho: 1.0,
-        order: Order::Fourth,
-    };
+    let g = Grid3::cube(n, 1.0, 0.45, 1.0, 1.0);
+    assert_eq!(g.order, Order::Fourth);
     let f0 = 1.0 / 16.0; // 16 cells per wavelength at the peak frequency
     let ricker = |t: f64| {
         let a = (std::f64::consts::PI * f0 * (t - 1.5 / f0)).powi(2);
