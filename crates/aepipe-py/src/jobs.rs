@@ -24,14 +24,14 @@ pub fn simulate(
         model,
         scenario,
         params: Params(params),
-        sweep: None,
+        sweep: Vec::new(),
         solver: None,
         out: dir.path().to_path_buf(),
         run: SimOptions::default(),
         acquisition: Default::default(),
     };
     let done = control::run(py, None, move |_| -> Result<_, SimError> {
-        let lines = aepipe::sim::run_job(&job)?;
+        let lines = aepipe::sim::run_job(&job)?.lines;
         let wf = job.out.join("waveforms.parquet");
         if !wf.is_file() {
             return Err(SimError::Model(
