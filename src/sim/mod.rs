@@ -336,6 +336,13 @@ pub fn run_job(job: &SimJob) -> Result<SimReport, SimError> {
             "{n} sweep rows (frequency and decay per run) → {}",
             p.display()
         ));
+        if n == 0 {
+            lines.push(
+                "  (no sensors and no trajectories: a model without a grid is measured from its \
+                 nodes; give --trajectories 1)"
+                    .into(),
+            );
+        }
         Some(table)
     };
     Ok(SimReport { lines, sweep })
