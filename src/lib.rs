@@ -29,6 +29,7 @@
 //! - [`demo`]: the demo on data it makes itself.
 //! - [`bench`]: benchmarks against the peers.
 //! - [`live`]: `aepipe watch`: a running test followed, classified and committed exactly once.
+//! - [`thesis`]: `aepipe thesis`: the thesis's computed results beside its own values.
 //! - [`cli`]: the command line (feature `cli`, on by default; the library builds without it).
 
 pub mod analysis;
@@ -54,5 +55,6 @@ pub mod sim;
 pub mod som;
 pub mod store;
 pub mod synth;
+pub mod thesis;
 pub mod util;
 pub mod workflow;

@@ -117,6 +117,10 @@ pub enum Cmd {
     Watch(WatchArgs),
     /// Write RUN_DIR/report.html again from a finished `aepipe run` folder
     Report(ReportArgs),
+    /// The thesis's computed results by one command: each entry (fig-3.14, table-3.8, …)
+    /// runs what the thesis ran, writes OUT/ID/ (PNG and Parquet) and prints aepipe's value
+    /// beside the thesis's, with the tolerance and a verdict (docs/thesis.md)
+    Thesis(ThesisArgs),
     /// Write a finished run's results back for the lab's tools
     #[command(subcommand)]
     Export(ExportCmd),
@@ -355,6 +359,14 @@ pub struct SchemaArgs {
     pub table: String,
     #[arg(long)]
     pub config: Option<PathBuf>,
+}
+
+#[derive(clap::Args)]
+pub struct ThesisArgs {
+    /// Entries to run (none: every one)
+    pub ids: Vec<String>,
+    #[arg(long, default_value = "thesis")]
+    pub out: PathBuf,
 }
 
 #[derive(clap::Args)]

@@ -53,6 +53,7 @@ pub fn dispatch(cli: Cli) -> Result<Outcome> {
         Cmd::Run(a) => run(a),
         Cmd::Merge(a) => merge(a),
         Cmd::Report(a) => report(a),
+        Cmd::Thesis(a) => thesis(a),
         Cmd::Watch(a) => watch(a),
         Cmd::SynthExperiment(a) => synth_experiment(a),
         Cmd::Demo(a) => demo(a),
@@ -127,6 +128,27 @@ fn simulate(a: SimulateArgs) -> Result<Outcome> {
         );
         println!("envelopes and their fits → {}", e.display());
     }
+    Ok(Outcome::Success)
+}
+
+/// `aepipe thesis`: every selected entry run, its line printed as it finishes.
+fn thesis(a: ThesisArgs) -> Result<Outcome> {
+    let entries = crate::thesis::select(&a.ids)?;
+    println!("{}", print::thesis_header());
+    let t0 = std::time::Instant::now();
+    let mut failed = 0;
+    for e in &entries {
+        let o = crate::thesis::run(e, &a.out)?;
+        failed += usize::from(!o.pass);
+        println!("{}", print::thesis_line(&o));
+    }
+    println!(
+        "{} entries, {} within tolerance, in {:.1} s → {}",
+        entries.len(),
+        entries.len() - failed,
+        t0.elapsed().as_secs_f64(),
+        a.out.display()
+    );
     Ok(Outcome::Success)
 }
 

@@ -310,6 +310,30 @@ pub fn report_bench(rows: &[crate::bench::report::ReportRow], whole: bool) -> St
     s
 }
 
+/// The head of `aepipe thesis`'s table.
+pub fn thesis_header() -> String {
+    format!(
+        "{:<10} {:<28} {:>12} {:>12} {:>9} {:>6}  {:<7} compared",
+        "entry", "thesis", "thesis val", "aepipe", "dev", "tol", "verdict"
+    )
+}
+
+/// One entry's line.
+pub fn thesis_line(o: &crate::thesis::Outcome) -> String {
+    let e = &o.entry;
+    format!(
+        "{:<10} {:<28} {:>12.5} {:>12.5} {:>+8.1}% {:>5.0}%  {:<7} {}",
+        e.id,
+        e.section,
+        e.thesis,
+        o.aepipe,
+        o.deviation * 100.0,
+        e.tolerance * 100.0,
+        if o.pass { "agrees" } else { "DEPARTS" },
+        e.compared
+    )
+}
+
 /// The 3-D field bench's table.
 pub fn field3d(rows: &[crate::bench::Field3dRow]) {
     println!(

@@ -28,6 +28,7 @@ mod shard;
 mod sim;
 mod sim_beyond;
 mod som;
+mod thesis;
 mod trend;
 mod trfdb;
 mod vendor;

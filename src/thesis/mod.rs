@@ -1,0 +1,237 @@
+//! `aepipe thesis`: the thesis's computed results by one command, each beside the thesis's
+//! own value, with the tolerance and a verdict. The entries are declared once, in
+//! [`ENTRIES`]: each names its thesis section, runs what the thesis ran (a scenario or a
+//! sweep), writes its figure (PNG) and data (Parquet) into `OUT/<id>/`, and compares one
+//! number. `docs/thesis.md` is the reproduction record; a test checks that every entry it
+//! names is declared here.
+//!
+//! The first entries are the simulator's (ch. 3–4 and §6.2); the rest of the record
+//! (`docs/thesis.md`) says what is not yet an entry.
+
+use crate::sim::scenario::{parse_sweep, Params};
+use crate::sim::{SimJob, SimOptions};
+use std::path::{Path, PathBuf};
+
+/// Why an entry could not be run.
+#[derive(Debug, thiserror::Error)]
+pub enum ThesisError {
+    #[error("unknown entry {0:?}; known: {1}")]
+    Unknown(String, String),
+    #[error(transparent)]
+    Sim(#[from] crate::sim::SimError),
+    #[error(transparent)]
+    Plot(#[from] crate::plot::PlotError),
+    #[error("{id}: {message}")]
+    Measure { id: &'static str, message: String },
+}
+
+impl crate::util::HasKind for ThesisError {
+    fn kind(&self) -> crate::util::ErrorKind {
+        match self {
+            ThesisError::Unknown(..) => crate::util::ErrorKind::Usage,
+            ThesisError::Sim(e) => e.kind(),
+            ThesisError::Plot(e) => e.kind(),
+            ThesisError::Measure { .. } => crate::util::ErrorKind::Failed,
+        }
+    }
+}
+
+/// One computed result of the thesis.
+#[derive(Debug, Clone, Copy)]
+pub struct Entry {
+    /// `fig-3.14`, `table-3.8`, …: the contract of `aepipe thesis ID`.
+    pub id: &'static str,
+    /// Where the thesis has it.
+    pub section: &'static str,
+    /// What is compared, and its unit.
+    pub compared: &'static str,
+    /// The thesis's value, in that unit.
+    pub thesis: f64,
+    /// Relative tolerance of the verdict.
+    pub tolerance: f64,
+    /// The scenario, its parameters and its sweep (`key=LO..HI[:STEP]`).
+    pub scenario: &'static str,
+    pub params: &'static [(&'static str, f64)],
+    pub sweep: &'static str,
+    /// Node trajectories kept (a model without a grid is measured from its nodes).
+    pub trajectories: bool,
+    /// The number aepipe compares, from the sweep's table.
+    pub measure: fn(&crate::sim::sweep::SweepTable) -> Option<f64>,
+}
+
+/// Every entry, in the thesis's order.
+pub const ENTRIES: &[Entry] = &[
+    Entry {
+        id: "fig-3.14",
+        section: "§3.2.9, Fig. 3.14",
+        compared: "γ of the plucked paper fibre, implicit Euler at Δt = 4.5e-8 s, b = 0 (1/s)",
+        thesis: 5.0e4,
+        tolerance: 0.15,
+        scenario: "paper-fibre",
+        params: &[("grid", 0.0), ("damping", 0.0)],
+        sweep: "dt=1.5e-8..4.5e-8:1e-8",
+        trajectories: true,
+        measure: |t| gamma_at(t, 4.5e-8),
+    },
+    Entry {
+        id: "table-3.8",
+        section: "§3.5.3, Table 3.8 (§4.4)",
+        compared: "fundamental of the plucked paper fibre (kHz)",
+        thesis: 253.91,
+        tolerance: 0.05,
+        scenario: "paper-fibre",
+        params: &[("grid", 0.0), ("damping", 0.0), ("amplitude", 1e-6)],
+        sweep: "stretch=0.01..0.01:0.01",
+        trajectories: true,
+        measure: |t| first(t).map(|r| r.dominant_frequency_hz / 1e3),
+    },
+    Entry {
+        id: "fig-3.31",
+        section: "§3.5.2, Figs. 3.31–3.32",
+        compared: "fundamental of the plucked rubber band (Hz)",
+        thesis: 189.21,
+        tolerance: 0.03,
+        scenario: "rubber-band",
+        params: &[],
+        sweep: "damping=7e-4..7e-4:1e-4",
+        trajectories: true,
+        measure: |t| first(t).map(|r| r.dominant_frequency_hz),
+    },
+    Entry {
+        id: "fig-4.17",
+        section: "§4.5.5, Fig. 4.17",
+        compared: "plucked fibre at 0.6 % extension, sensor 1 (kHz; the thesis's line F = 1.27e7·x + 115.21)",
+        thesis: 191.41,
+        tolerance: 0.05,
+        scenario: "paper-fibre",
+        params: &[],
+        sweep: "stretch=0.002..0.010:0.002",
+        trajectories: false,
+        measure: |t| at_sensor(t, 1, 0.006).map(|f| f / 1e3),
+    },
+    Entry {
+        id: "fig-4.26",
+        section: "§4.6.3, Fig. 4.26",
+        compared: "fibre failure at break point 1, 36 µm grid, sensor 1 (kHz)",
+        thesis: 800.0,
+        tolerance: 0.10,
+        scenario: "structure2x1-fibre-failure",
+        params: &[("grid_um", 36.0)],
+        sweep: "point=1..1",
+        trajectories: false,
+        measure: |t| at_sensor(t, 1, 1.0).map(|f| f / 1e3),
+    },
+    Entry {
+        id: "fig-4.27",
+        section: "§4.6.3, Fig. 4.27",
+        compared: "fibre failure at break point 12, 36 µm grid, sensor 1 (kHz)",
+        thesis: 1750.0,
+        tolerance: 0.10,
+        scenario: "structure2x1-fibre-failure",
+        params: &[("grid_um", 36.0)],
+        sweep: "point=12..12",
+        trajectories: false,
+        measure: |t| at_sensor(t, 1, 12.0).map(|f| f / 1e3),
+    },
+    Entry {
+        id: "fig-4.28",
+        section: "§4.6.3, Fig. 4.28",
+        compared: "fibre failure at break point 7, 36 µm grid, sensor 1 (kHz)",
+        thesis: 1250.0,
+        tolerance: 0.10,
+        scenario: "structure2x1-fibre-failure",
+        params: &[("grid_um", 36.0)],
+        sweep: "point=7..7",
+        trajectories: false,
+        measure: |t| at_sensor(t, 1, 7.0).map(|f| f / 1e3),
+    },
+];
+
+/// The first row of the table.
+fn first(t: &crate::sim::sweep::SweepTable) -> Option<&crate::sim::sweep::SweepRow> {
+    t.rows.first()
+}
+
+/// The dominant frequency at `sensor` of the run whose (first) swept value is `value`.
+fn at_sensor(t: &crate::sim::sweep::SweepTable, sensor: u32, value: f64) -> Option<f64> {
+    t.rows
+        .iter()
+        .find(|r| r.sensor == sensor && (r.values[0] - value).abs() <= 1e-9 * value.abs())
+        .map(|r| r.dominant_frequency_hz)
+}
+
+/// γ of the run whose swept value is `value`.
+fn gamma_at(t: &crate::sim::sweep::SweepTable, value: f64) -> Option<f64> {
+    t.rows
+        .iter()
+        .find(|r| (r.values[0] - value).abs() <= 1e-9 * value.abs())
+        .and_then(|r| r.decay.as_ref().map(|d| d.gamma_hz))
+}
+
+/// What an entry gave.
+#[derive(Debug, Clone)]
+pub struct Outcome {
+    pub entry: Entry,
+    pub aepipe: f64,
+    /// aepipe / thesis − 1.
+    pub deviation: f64,
+    pub pass: bool,
+    pub dir: PathBuf,
+    pub seconds: f64,
+}
+
+/// The entries named (all for none), in declared order; an unknown id is refused before
+/// anything runs.
+pub fn select(ids: &[String]) -> Result<Vec<Entry>, ThesisError> {
+    for id in ids {
+        if !ENTRIES.iter().any(|e| e.id == id) {
+            let known: Vec<&str> = ENTRIES.iter().map(|e| e.id).collect();
+            return Err(ThesisError::Unknown(id.clone(), known.join(", ")));
+        }
+    }
+    Ok(ENTRIES
+        .iter()
+        .filter(|e| ids.is_empty() || ids.iter().any(|i| i == e.id))
+        .copied()
+        .collect())
+}
+
+/// Run one entry into `out/<id>/`: the simulation's tables, `sweep.parquet`, `sweep.png`
+/// and `envelopes.png`, and the comparison.
+pub fn run(e: &Entry, out: &Path) -> Result<Outcome, ThesisError> {
+    let t0 = std::time::Instant::now();
+    let dir = out.join(e.id);
+    let job = SimJob {
+        model: None,
+        scenario: Some(e.scenario.to_string()),
+        params: Params(e.params.iter().map(|(k, v)| (k.to_string(), *v)).collect()),
+        sweep: vec![parse_sweep(e.sweep)?],
+        solver: None,
+        out: dir.clone(),
+        run: SimOptions {
+            trajectory_every: e.trajectories.then_some(1),
+            snapshot_every: None,
+        },
+        acquisition: Default::default(),
+    };
+    let rep = crate::sim::run_job(&job)?;
+    let table = rep.sweep.ok_or_else(|| ThesisError::Measure {
+        id: e.id,
+        message: "the run wrote no sweep table".into(),
+    })?;
+    crate::plot::sim::sweep_png(&dir.join("sweep.png"), &table)?;
+    crate::plot::sim::envelopes_png(&dir.join("envelopes.png"), &table)?;
+    let aepipe = (e.measure)(&table).ok_or_else(|| ThesisError::Measure {
+        id: e.id,
+        message: "the compared value is not in the run's table".into(),
+    })?;
+    let deviation = aepipe / e.thesis - 1.0;
+    Ok(Outcome {
+        entry: *e,
+        aepipe,
+        deviation,
+        pass: deviation.abs() <= e.tolerance,
+        dir,
+        seconds: t0.elapsed().as_secs_f64(),
+    })
+}

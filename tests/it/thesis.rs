@@ -1,0 +1,52 @@
+//! `aepipe thesis` against its record: every entry `docs/thesis.md` names is declared and
+//! every declared entry is named there; each runs (all are cheap) and gives the verdict the
+//! record states; an unknown entry is refused before anything runs.
+
+use crate::{aepipe, TempDir};
+
+/// (entry, verdict) of each row of docs/thesis.md's table.
+fn record() -> Vec<(String, String)> {
+    let text =
+        std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/docs/thesis.md")).unwrap();
+    text.lines()
+        .filter(|l| l.starts_with("| `"))
+        .map(|l| {
+            let cells: Vec<&str> = l.split('|').map(str::trim).collect();
+            (
+                cells[1].trim_matches('`').to_string(),
+                cells[cells.len() - 2].to_string(),
+            )
+        })
+        .collect()
+}
+
+#[test]
+fn every_entry_runs_and_gives_the_verdict_the_record_states() {
+    let rows = record();
+    let declared: Vec<&str> = aepipe::thesis::ENTRIES.iter().map(|e| e.id).collect();
+    let named: Vec<&str> = rows.iter().map(|(id, _)| id.as_str()).collect();
+    assert_eq!(
+        named, declared,
+        "docs/thesis.md and thesis::ENTRIES disagree"
+    );
+    let t = TempDir::new("thesis");
+    for e in aepipe::thesis::ENTRIES {
+        let o = aepipe::thesis::run(e, t.path()).unwrap();
+        let want = &rows.iter().find(|(id, _)| id == e.id).unwrap().1;
+        let got = if o.pass { "agrees" } else { "departs" };
+        assert_eq!(
+            got, want,
+            "{}: aepipe {} against {}",
+            e.id, o.aepipe, e.thesis
+        );
+        for f in ["sweep.parquet", "sweep.png", "envelopes.png"] {
+            assert!(o.dir.join(f).is_file(), "{}: no {f}", e.id);
+        }
+    }
+    let (code, _, err) = aepipe(&["thesis", "fig-9.99", "--out", t.path().to_str().unwrap()]);
+    assert_eq!(code, 1);
+    assert!(
+        err.contains("unknown entry") && err.contains("fig-3.14"),
+        "{err}"
+    );
+}
