@@ -65,10 +65,24 @@ impl Explorer {
     /// The explorer thinned evenly (every k-th point) so that its section takes at most
     /// `bytes` (none fit: no points, and the section is left out).
     pub fn within(&self, bytes: usize) -> Explorer {
-        let have = self.json().len() + 4096;
+        self.fitted(bytes).0.into_owned()
+    }
+
+    /// [`Explorer::within`] with the fitted explorer's JSON: serialised once when the whole
+    /// explorer fits (the usual case), and borrowed rather than copied.
+    pub fn fitted(&self, bytes: usize) -> (std::borrow::Cow<'_, Explorer>, String) {
+        let json = self.json();
+        let have = json.len() + 4096;
         if have <= bytes || self.keys.is_empty() {
-            return self.clone();
+            return (std::borrow::Cow::Borrowed(self), json);
         }
+        let thin = self.thinned(have, bytes);
+        let json = thin.json();
+        (std::borrow::Cow::Owned(thin), json)
+    }
+
+    /// Every k-th point, so that `have` bytes of section become at most `bytes`.
+    fn thinned(&self, have: usize, bytes: usize) -> Explorer {
         let keep = (self.keys.len() as f64 * bytes as f64 / have as f64 * 0.95) as usize;
         if keep == 0 {
             return Explorer::default();
@@ -248,6 +262,11 @@ fn numbers(v: &[Option<f64>]) -> String {
 
 /// The section: its controls, the charts, the detail panel, the data and the code.
 pub fn section(h: &mut String, e: &Explorer) {
+    section_with(h, e, &e.json());
+}
+
+/// [`section`] with the explorer's JSON already made ([`Explorer::fitted`]).
+pub fn section_with(h: &mut String, e: &Explorer, json: &str) {
     if e.keys.is_empty() {
         return;
     }
@@ -280,7 +299,7 @@ pub fn section(h: &mut String, e: &Explorer) {
          <div id=ex-detail><p>Click a point.</p></div>\
          <script id=explore-data type=application/json>{}</script><script>{}</script>",
         super::esc(&thinned),
-        e.json(),
+        json,
         SCRIPT
     );
 }

@@ -448,7 +448,8 @@ pre{{background:#f6f6f6;padding:8px;overflow-x:auto}}.missing{{color:#b00}}</sty
     footer(&mut h, s, g);
     let mut section = String::new();
     let budget = PAGE_BYTES.saturating_sub(h.len());
-    explore::section(&mut section, &g.explorer.within(budget));
+    let (fitted, json) = g.explorer.fitted(budget);
+    explore::section_with(&mut section, &fitted, &json);
     h.replacen(EXPLORE_HERE, &section, 1)
 }
 
