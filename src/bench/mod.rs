@@ -754,9 +754,8 @@ pub struct Field3dRow {
     pub n: usize,
     pub steps: usize,
     pub seconds: f64,
-    /// The process's peak RSS after this size (sizes run smallest first, so it is this
-    /// size's), bytes.
-    pub peak_rss: u64,
+    /// The process's resident memory with this size's field still held, bytes.
+    pub rss: u64,
     /// What the field's four arrays hold, bytes.
     pub field_bytes: u64,
 }
@@ -778,11 +777,12 @@ pub fn field3d(sizes: &[usize], steps: usize) -> Result<Vec<Field3dRow>, BenchEr
         }
         let seconds = t0.elapsed().as_secs_f64();
         std::hint::black_box(f.energy());
+        // Measured while `f` is alive: what this size holds, not an earlier stage's peak.
         out.push(Field3dRow {
             n,
             steps,
             seconds,
-            peak_rss: peak_rss_bytes().unwrap_or(0),
+            rss: rss_bytes().unwrap_or(0),
             field_bytes: (4 * n * n * n * 8) as u64,
         });
     }

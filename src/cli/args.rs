@@ -602,8 +602,8 @@ pub struct BenchSimArgs {
     pub steps: usize,
     #[arg(long, default_value_t = 3)]
     pub repeats: usize,
-    /// The 3-D acoustic field at N³ cells, comma-separated (none: skip)
-    #[arg(long, default_value = "96,192", value_delimiter = ',')]
+    /// Also the 3-D acoustic field at N³ cells, comma-separated (e.g. 96,192)
+    #[arg(long, value_delimiter = ',')]
     pub field3d: Vec<usize>,
     /// Steps of the 3-D field per size
     #[arg(long, default_value_t = 50)]

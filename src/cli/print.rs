@@ -337,7 +337,7 @@ pub fn thesis_line(o: &crate::thesis::Outcome) -> String {
 /// The 3-D field bench's table.
 pub fn field3d(rows: &[crate::bench::Field3dRow]) {
     println!(
-        "3-D acoustic field, 4th order, {} thread(s):\n   cells     steps   seconds  Mcell-steps/s  fields MB  peak RSS MB",
+        "3-D acoustic field, 4th order, {} thread(s):\n   cells     steps   seconds  Mcell-steps/s  fields MB       RSS MB",
         rayon::current_num_threads()
     );
     for r in rows {
@@ -349,7 +349,7 @@ pub fn field3d(rows: &[crate::bench::Field3dRow]) {
             r.seconds,
             cells * r.steps as f64 / r.seconds / 1e6,
             r.field_bytes as f64 / 1048576.0,
-            r.peak_rss as f64 / 1048576.0
+            r.rss as f64 / 1048576.0
         );
     }
 }

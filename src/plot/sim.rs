@@ -21,7 +21,12 @@ fn curves(t: &SweepTable) -> Vec<(String, Vec<&SweepRow>)> {
             if r.sensor != first_sensor {
                 continue;
             }
-            format!("{} = {}", t.keys[1], short(r.values[1]))
+            t.keys[1..]
+                .iter()
+                .zip(&r.values[1..])
+                .map(|(k, v)| format!("{k} = {}", short(*v)))
+                .collect::<Vec<_>>()
+                .join(", ")
         } else if r.sensor == 0 {
             "node".to_string()
         } else {

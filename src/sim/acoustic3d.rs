@@ -5,7 +5,7 @@
 //! (each cell of the next level depends only on the two levels before it, so any split gives
 //! the same numbers).
 //!
-//! Stability: α = cΔt/Δh with α²·3·max S ≤ 1, max S = 1 (2nd order) or 4/3 (4th): α ≤ 1/√3
+//! Stability: α = cΔt/Δh with α²·3·max S < 1, max S = 1 (2nd order) or 4/3 (4th): α < 1/√3
 //! or 1/2 (in 2-D the same rule gives Eq. 3.3.12's 1/√2 and √(3/8)).
 //!
 //! This is the 3-D field alone, verified against the free-space answers (a point source's
@@ -98,7 +98,7 @@ impl Grid3 {
                 self.nx, self.ny, self.nz
             )));
         }
-        if self.alpha() > self.alpha_max() {
+        if self.alpha() >= self.alpha_max() {
             return Err(bad(format!(
                 "Courant number cΔt/Δh = {:.4} above the stable {:.4} of the {:?} order",
                 self.alpha(),

@@ -26,7 +26,7 @@ pub struct Decay {
     pub t0_s: f64,
     /// Coefficient of determination of the fit of ln y.
     pub r2: f64,
-    /// The envelope points fitted: (t s, |x|).
+    /// The envelope points fitted: (t s, half the swing of that period).
     pub points: Vec<(f64, f64)>,
 }
 
@@ -71,12 +71,11 @@ pub fn fit(x: &[f64], dt: f64, period_s: f64) -> Option<Decay> {
         if swing <= 0.0 || points.first().is_some_and(|p| swing < FLOOR * p.1) {
             break;
         }
-        // The window's time: where it swings most from its centre.
-        let c = 0.5 * (hi + lo);
-        let kk = (0..w)
-            .max_by(|&i, &j| (win[i] - c).abs().total_cmp(&(win[j] - c).abs()))
-            .unwrap_or(0);
-        points.push(((k + kk) as f64 * dt, swing));
+        // The window's time: midway between its crest and its trough (which of the two is
+        // "farther" from the centre would be decided by rounding).
+        let at = |v: f64| win.iter().position(|&x| x == v).unwrap_or(0);
+        let kk = 0.5 * (at(hi) + at(lo)) as f64;
+        points.push(((k as f64 + kk) * dt, swing));
         k += w;
     }
     if points.len() < 3 {

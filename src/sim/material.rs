@@ -51,9 +51,9 @@ impl Material {
                 return Err(bad(format!("{k} must be > 0, got {v}")));
             }
         }
-        if !(self.poisson.is_finite() && (-1.0..0.5).contains(&self.poisson)) {
+        if !(self.poisson.is_finite() && (0.0..0.5).contains(&self.poisson)) {
             return Err(bad(format!(
-                "poisson must be in [-1, 0.5), got {}",
+                "poisson must be in [0, 0.5), got {}",
                 self.poisson
             )));
         }

@@ -276,6 +276,7 @@ pub struct SimReport {
 /// Run a job into `job.out`: `waveforms.parquet` (the sensors, when the model has a grid),
 /// `trajectories.parquet` and `snapshots/*.png` when asked, `sweep.parquet` for a sweep.
 pub fn run_job(job: &SimJob) -> Result<SimReport, SimError> {
+    scenario::check_sweeps(&job.sweep)?;
     if job.scenario.as_deref() == Some(string::NAME) && job.model.is_none() {
         return string::run_job(job);
     }
@@ -351,13 +352,6 @@ pub fn run_job(job: &SimJob) -> Result<SimReport, SimError> {
 /// The job's models, one per sweep value, with source and parameters: all built before a run.
 fn job_models(job: &SimJob) -> Result<Vec<(ModelFile, String, String)>, SimError> {
     let runs = scenario::sweep_grid(&job.sweep);
-    if runs.len() > scenario::MAX_SWEEP_VALUES {
-        return Err(SimError::Model(format!(
-            "--sweep: {} runs, more than {}",
-            runs.len(),
-            scenario::MAX_SWEEP_VALUES
-        )));
-    }
     let mut models = Vec::new();
     for v in &runs {
         let mut params = job.params.clone();

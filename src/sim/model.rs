@@ -394,6 +394,12 @@ impl ModelFile {
                 "grid: need x2 > x1, y2 > y1 and at least 8×8 cells".into()
             ));
         }
+        if g.dipole_m.is_some_and(|d| !(d.is_finite() && d > 0.0)) {
+            return Err(bad(format!(
+                "grid: dipole_m must be > 0, got {:?}",
+                g.dipole_m
+            )));
+        }
         if ((g.dx() - g.dy()) / g.dx()).abs() > 1e-6 {
             return Err(bad(format!(
                 "grid: cells must be square (Δx = {:e}, Δy = {:e})",

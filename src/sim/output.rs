@@ -35,7 +35,7 @@ pub fn sim_waveforms_table() -> Table<SimSignal> {
         .col(f("sensor_y_m", "m", "y of the sensor cell's centre"), |s| Value::F64(Some(s.sensor_y_m)))
         .col(f("pressure_scale_v_per_pa", "V/Pa", "sensor sensitivity: samples_v = pressure × this"), |s| Value::F64(Some(s.scale_v_per_pa)))
         .col(f("dominant_frequency_hz", "Hz", "peak of the band-limited pressure's power spectrum (the whole simulated signal, before noise)"), |s| Value::F64(Some(s.dominant_frequency_hz)))
-        .col(f("decay_gamma_hz", "1/s", "γ of Eq. 3.5.1: the band-limited pressure’s envelope (its largest absolute value per dominant period, from the peak until below 10⁻³ of it) fitted by y0·exp(−γt); null when fewer than three periods stand above that").nullable(), |s| Value::F64(s.decay.as_ref().map(|d| d.gamma_hz)))
+        .col(f("decay_gamma_hz", "1/s", "γ of Eq. 3.5.1: the band-limited pressure’s envelope (half its peak-to-peak swing in each dominant period, from the peak’s period until below 10⁻³ of the first) fitted by y0·exp(−γt); null when fewer than three periods stand above that").nullable(), |s| Value::F64(s.decay.as_ref().map(|d| d.gamma_hz)))
         .col(f("decay_alpha_per_kg", "1/kg", "α = γ/b of Eq. 3.5.2, b the model's frictional damping; null without damping or without γ").nullable(), |s| Value::F64(s.decay.as_ref().and_then(|d| d.alpha_per_kg(s.damping_kg_s))))
         .col(f("decay_fit_r2", "", "R² of the fit of ln(envelope) against time: 1 for a pure exponential decay, lower where modes beat").nullable(), |s| Value::F64(s.decay.as_ref().map(|d| d.r2)))
 }

@@ -139,6 +139,26 @@ pub fn parse_sweep(s: &str) -> Result<Sweep, SimError> {
     })
 }
 
+/// Several sweeps checked before their combinations are made: no key twice (the first would
+/// silently do nothing), and at most [`MAX_SWEEP_VALUES`] runs in all.
+pub fn check_sweeps(sweeps: &[Sweep]) -> Result<usize, SimError> {
+    for (i, s) in sweeps.iter().enumerate() {
+        if sweeps[..i].iter().any(|o| o.key == s.key) {
+            return Err(SimError::Model(format!(
+                "--sweep {}: the key is swept twice",
+                s.key
+            )));
+        }
+    }
+    sweeps
+        .iter()
+        .try_fold(1usize, |n, s| n.checked_mul(s.values.len()))
+        .filter(|&n| n <= MAX_SWEEP_VALUES)
+        .ok_or_else(|| {
+            SimError::Model(format!("--sweep: more than {MAX_SWEEP_VALUES} runs in all"))
+        })
+}
+
 /// The runs of several sweeps: every combination, the first sweep varying slowest.
 pub fn sweep_grid(sweeps: &[Sweep]) -> Vec<Vec<(String, f64)>> {
     let mut runs: Vec<Vec<(String, f64)>> = vec![Vec::new()];
@@ -301,8 +321,8 @@ fn build_asked(name: &str, p: &Params) -> Result<ModelFile, SimError> {
     }
     if p.has("nu") {
         let nu = p.get("nu", 0.0);
-        if !(-1.0..0.5).contains(&nu) {
-            return Err(SimError::Model(format!("{name}: nu must be in [-1, 0.5)")));
+        if !(0.0..0.5).contains(&nu) {
+            return Err(SimError::Model(format!("{name}: nu must be in [0, 0.5)")));
         }
         for s in &mut m.springs {
             s.poisson = nu;
@@ -837,6 +857,16 @@ mod tests {
             ]
         );
         assert_eq!(sweep_grid(&[]), vec![Vec::<(String, f64)>::new()]);
+        // Checked before the combinations are made: a key swept twice, too many runs.
+        let s = |t: &str| parse_sweep(t).unwrap();
+        assert_eq!(
+            check_sweeps(&[s("a=1..100"), s("b=1..100")]).unwrap(),
+            10_000
+        );
+        let e = check_sweeps(&[s("a=1..1000"), s("b=1..1000")]).unwrap_err();
+        assert!(e.to_string().contains("runs in all"), "{e}");
+        let e = check_sweeps(&[s("a=1..2"), s("a=3..4")]).unwrap_err();
+        assert!(e.to_string().contains("swept twice"), "{e}");
     }
 
     #[test]

@@ -24,6 +24,8 @@ pub const NAME: &str = "fibre-stiff-string";
 /// 240 MB at the cap) or pieces: checked before anything is allocated.
 pub const MAX_STEPS: usize = 5_000_000;
 pub const MAX_INTERVALS: usize = 100_000;
+/// At most this many node positions in the kept frames (320 MB).
+pub const MAX_FRAME_POINTS: usize = 10_000_000;
 
 /// A pinned stiff string, checked.
 #[derive(Debug, Clone, PartialEq)]
@@ -121,6 +123,24 @@ impl StiffString {
             )));
         }
         Ok(self)
+    }
+
+    /// Refuse trajectories of more than [`MAX_FRAME_POINTS`] node positions (32 bytes each)
+    /// before the run, so that `--trajectories` cannot outgrow memory either.
+    pub fn check_frames(&self, every: Option<usize>) -> Result<(), SimError> {
+        let Some(e) = every.filter(|e| *e > 0) else {
+            return Ok(());
+        };
+        let steps = (self.duration_s / self.dt).round() as usize;
+        let points = (steps / e + 1).saturating_mul(self.intervals + 1);
+        if points > MAX_FRAME_POINTS {
+            return Err(SimError::Model(format!(
+                "{NAME}: --trajectories {e} keeps {points} node positions, more than \
+                 {MAX_FRAME_POINTS}; keep every {}th step or fewer",
+                (steps + 1) * (self.intervals + 1) / MAX_FRAME_POINTS + 1
+            )));
+        }
+        Ok(())
     }
 
     /// Mass per length μ = ρπr², kg/m.
@@ -272,6 +292,12 @@ impl StringRun {
 /// print, `trajectories[_N].parquet` with `--trajectories`, `sweep.parquet` for a sweep.
 pub(super) fn run_job(job: &super::SimJob) -> Result<super::SimReport, SimError> {
     use super::sweep::{SweepRow, SweepTable};
+    if job.solver.is_some() || job.run.snapshot_every.is_some() {
+        return Err(SimError::Model(format!(
+            "{NAME} has its own scheme (leapfrog) and no acoustic grid: --solver and \
+             --snapshots do not apply"
+        )));
+    }
     let io = |e: std::io::Error| SimError::Io(format!("{}: {e}", job.out.display()));
     std::fs::create_dir_all(&job.out).map_err(io)?;
     let grid = super::scenario::sweep_grid(&job.sweep);
@@ -280,7 +306,9 @@ pub(super) fn run_job(job: &super::SimJob) -> Result<super::SimReport, SimError>
     for v in &grid {
         let mut p = job.params.clone();
         p.0.extend(v.iter().cloned());
-        strings.push((super::scenario::build_string(&p)?, p.to_json()));
+        let s = super::scenario::build_string(&p)?;
+        s.check_frames(job.run.trajectory_every)?;
+        strings.push((s, p.to_json()));
     }
     let mut lines = Vec::new();
     let mut table = SweepTable {
@@ -330,8 +358,7 @@ pub(super) fn run_job(job: &super::SimJob) -> Result<super::SimReport, SimError>
             let rows = super::output::write_trajectories(&p, &run.frames)?;
             lines.push(format!("  {rows} trajectory rows → {}", p.display()));
         }
-        if !job.sweep.is_empty() {
-            let (f, decay) = run.mode(1).unwrap_or((0.0, None));
+        if let (false, Some((f, decay))) = (job.sweep.is_empty(), run.mode(1)) {
             table.rows.push(SweepRow {
                 hit: k as u64 + 1,
                 values: grid[k].iter().map(|(_, v)| *v).collect(),
@@ -340,7 +367,7 @@ pub(super) fn run_job(job: &super::SimJob) -> Result<super::SimReport, SimError>
                 dominant_frequency_hz: f,
                 peak: run.centre.iter().fold(0.0f64, |a, v| a.max(v.abs())),
                 decay,
-                damping_kg_s: s.damping,
+                damping_kg_s: None,
             });
         }
     }

@@ -25,8 +25,9 @@ pub struct SweepRow {
     /// Largest |p| (Pa) of the band-limited pressure, or |y − mean| (m) of the node.
     pub peak: f64,
     pub decay: Option<Decay>,
-    /// The model's frictional damping b, kg/s.
-    pub damping_kg_s: f64,
+    /// The model's frictional damping b, kg/s (none: the model's damping is not a b, as
+    /// the stiff string's α in 1/s).
+    pub damping_kg_s: Option<f64>,
 }
 
 /// A sweep's rows, with the swept keys.
@@ -54,7 +55,7 @@ impl SweepTable {
             dominant_frequency_hz: f,
             peak,
             decay,
-            damping_kg_s: m.system.damping,
+            damping_kg_s: Some(m.system.damping),
         };
         if let Some(g) = &m.grid {
             for (k, s) in out.sensors.iter().enumerate() {
@@ -89,7 +90,7 @@ impl SweepTable {
             f("decay_gamma_hz", "1/s", "γ of Eq. 3.5.1 (`sim::decay`)").nullable(),
             f("decay_alpha_per_kg", "1/kg", "α = γ/b of Eq. 3.5.2").nullable(),
             f("decay_fit_r2", "", "R² of the fit of ln(envelope)").nullable(),
-            f("damping_kg_s", "kg/s", "the model's frictional damping b"),
+            f("damping_kg_s", "kg/s", "the model's frictional damping b; null for a model whose damping is not a b (the stiff string's α, 1/s, is in sim_params)").nullable(),
         ];
         for k in &self.keys {
             // A key named like a fixed column is prefixed rather than shadowing it.
@@ -119,9 +120,9 @@ impl SweepTable {
                 Value::F64(Some(r.dominant_frequency_hz)),
                 Value::F64(Some(r.peak)),
                 Value::F64(d.map(|d| d.gamma_hz)),
-                Value::F64(d.and_then(|d| d.alpha_per_kg(r.damping_kg_s))),
+                Value::F64(d.and_then(|d| r.damping_kg_s.and_then(|b| d.alpha_per_kg(b)))),
                 Value::F64(d.map(|d| d.r2)),
-                Value::F64(Some(r.damping_kg_s)),
+                Value::F64(r.damping_kg_s),
             ];
             cells.extend(r.values.iter().map(|v| Value::F64(Some(*v))));
             w.push(store::Row::new(cells)).map_err(io)?;

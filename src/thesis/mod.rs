@@ -108,7 +108,11 @@ pub const ENTRIES: &[Entry] = &[
         sweep: "damping=5.5e-4..5.5e-4:1e-4",
         trajectories: true,
         measure: |t| {
-            first(t).and_then(|r| r.decay.as_ref().and_then(|d| d.alpha_per_kg(r.damping_kg_s)))
+            first(t).and_then(|r| {
+                r.decay
+                    .as_ref()
+                    .and_then(|d| r.damping_kg_s.and_then(|b| d.alpha_per_kg(b)))
+            })
         },
     },
     Entry {
