@@ -747,6 +747,58 @@ pub fn sim_scale(sizes: &[usize], steps: usize) -> Result<Vec<SimScale>, BenchEr
     Ok(rows)
 }
 
+/// One row of Tables 3.2/3.4: a scenario run by one solver.
+#[derive(Debug, Clone)]
+pub struct SolverRow {
+    pub scenario: &'static str,
+    pub solver: crate::sim::model::Solver,
+    pub dt: f64,
+    pub iterations: usize,
+    /// Median wall time of the whole run, s.
+    pub seconds: f64,
+}
+
+/// Tables 3.2 and 3.4 as the thesis ran them: the SHO of Table 3.1 and the five-mass fibre
+/// of Table 3.3 (no acoustics), each by the three explicit solvers at Δt = 0.01 s for 10 000
+/// steps and by implicit Euler at 0.5 s for 200; median of `repeats` runs.
+pub fn solver_table(repeats: usize) -> Result<Vec<SolverRow>, BenchError> {
+    use crate::sim::model::Solver;
+    let mut out = Vec::new();
+    for scenario in ["sho", "five-mass-fibre"] {
+        for (solver, dt, iterations) in [
+            (Solver::ExplicitEuler, 0.01, 10_000),
+            (Solver::Rk4, 0.01, 10_000),
+            (Solver::Verlet, 0.01, 10_000),
+            (Solver::ImplicitEuler, 0.5, 200),
+        ] {
+            let p = crate::sim::scenario::Params(vec![
+                ("grid".into(), 0.0),
+                ("dt".into(), dt),
+                ("iterations".into(), iterations as f64),
+            ]);
+            let mut m = crate::sim::scenario::build(scenario, &p).map_err(BenchError::run)?;
+            m.system.solver = solver;
+            let mut err = None;
+            let seconds = median_time(repeats, || {
+                if let Err(e) = crate::sim::simulate(&m, &Default::default()) {
+                    err = Some(e);
+                }
+            });
+            if let Some(e) = err {
+                return Err(BenchError::run(e));
+            }
+            out.push(SolverRow {
+                scenario,
+                solver,
+                dt,
+                iterations,
+                seconds,
+            });
+        }
+    }
+    Ok(out)
+}
+
 /// One size of the 3-D field bench.
 #[derive(Debug, Clone)]
 pub struct Field3dRow {

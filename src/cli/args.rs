@@ -602,6 +602,9 @@ pub struct BenchSimArgs {
     pub steps: usize,
     #[arg(long, default_value_t = 3)]
     pub repeats: usize,
+    /// Also Tables 3.2/3.4: the SHO and the five-mass fibre by each solver
+    #[arg(long)]
+    pub solvers: bool,
     /// Also the 3-D acoustic field at N³ cells, comma-separated (e.g. 96,192)
     #[arg(long, value_delimiter = ',')]
     pub field3d: Vec<usize>,

@@ -605,11 +605,15 @@ fn bench(which: BenchCmd) -> Result<Outcome> {
             repeats,
             field3d,
             field3d_steps,
+            solvers,
         }) => {
             let rows = crate::bench::sim_scale(&masses, steps)?;
             print::sim_scale(&rows, steps);
             let t = crate::bench::sim_mesh(repeats)?;
             println!("mesh3x3-bond-failure, 250×250 grid, 40 µs (relaxation + 4 000 implicit steps + 400 FDTD steps): median {t:.3} s");
+            if solvers {
+                print::solver_table(&crate::bench::solver_table(repeats)?);
+            }
             if !field3d.is_empty() {
                 print::field3d(&crate::bench::field3d(&field3d, field3d_steps)?);
             }

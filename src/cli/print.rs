@@ -334,6 +334,26 @@ pub fn thesis_line(o: &crate::thesis::Outcome) -> String {
     )
 }
 
+/// Tables 3.2/3.4 as measured.
+pub fn solver_table(rows: &[crate::bench::SolverRow]) {
+    println!("Tables 3.2/3.4 (no acoustics; median wall time of the whole run):");
+    println!(
+        "{:<16} {:<14} {:>7} {:>10} {:>10} {:>16}",
+        "scenario", "solver", "Δt s", "steps", "time ms", "µs per step"
+    );
+    for r in rows {
+        println!(
+            "{:<16} {:<14} {:>7} {:>10} {:>10.3} {:>16.3}",
+            r.scenario,
+            format!("{:?}", r.solver),
+            r.dt,
+            r.iterations,
+            r.seconds * 1e3,
+            r.seconds * 1e6 / r.iterations as f64
+        );
+    }
+}
+
 /// The 3-D field bench's table.
 pub fn field3d(rows: &[crate::bench::Field3dRow]) {
     println!(
