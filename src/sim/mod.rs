@@ -309,7 +309,7 @@ pub fn run_job(job: &SimJob) -> Result<SimReport, SimError> {
         write_run_files(job, hit, models.len() > 1, m, &out, &mut lines)?;
         if !job.sweep.is_empty() {
             let values = grid[hit].iter().map(|(_, v)| *v).collect();
-            table.push_run(hit as u64 + 1, values, json, m, &out);
+            table.push_run(hit as u64 + 1, values, json, (m, &out), secs);
         }
         outs.push(out);
     }

@@ -318,6 +318,7 @@ pub(super) fn run_job(job: &super::SimJob) -> Result<super::SimReport, SimError>
     for (k, (s, json)) in strings.iter().enumerate() {
         let t0 = std::time::Instant::now();
         let run = s.run(job.run.trajectory_every);
+        let run_s = t0.elapsed().as_secs_f64();
         lines.push(format!(
             "{NAME} {json}: {} pieces, {} steps of {:.3e} s (stable below {:.3e} s) in {:.2} s; \
              f_s {:.2} kHz, B {:.3e}",
@@ -325,7 +326,7 @@ pub(super) fn run_job(job: &super::SimJob) -> Result<super::SimReport, SimError>
             run.steps,
             s.dt,
             s.stable_dt(),
-            t0.elapsed().as_secs_f64(),
+            run_s,
             s.f_s() / 1e3,
             s.b()
         ));
@@ -368,6 +369,7 @@ pub(super) fn run_job(job: &super::SimJob) -> Result<super::SimReport, SimError>
                 peak: run.centre.iter().fold(0.0f64, |a, v| a.max(v.abs())),
                 decay,
                 damping_kg_s: None,
+                run_s,
             });
         }
     }

@@ -28,6 +28,8 @@ pub struct SweepRow {
     /// The model's frictional damping b, kg/s (none: the model's damping is not a b, as
     /// the stiff string's α in 1/s).
     pub damping_kg_s: Option<f64>,
+    /// Wall time of the run (relaxation and steps), s: Fig. 3.16's run time against Δt.
+    pub run_s: f64,
 }
 
 /// A sweep's rows, with the swept keys.
@@ -38,14 +40,15 @@ pub struct SweepTable {
 }
 
 impl SweepTable {
-    /// The rows of run `hit` (1-based) of model `m` with output `out`, the swept `values`.
+    /// The rows of run `hit` (1-based) of model `m` with output `out`, the swept `values`,
+    /// which took `run_s` seconds.
     pub fn push_run(
         &mut self,
         hit: u64,
         values: Vec<f64>,
         params: &str,
-        m: &ModelFile,
-        out: &SimOutput,
+        (m, out): (&ModelFile, &SimOutput),
+        run_s: f64,
     ) {
         let row = |sensor: u32, f: f64, peak: f64, decay: Option<Decay>| SweepRow {
             hit,
@@ -56,6 +59,7 @@ impl SweepTable {
             peak,
             decay,
             damping_kg_s: Some(m.system.damping),
+            run_s,
         };
         if let Some(g) = &m.grid {
             for (k, s) in out.sensors.iter().enumerate() {
@@ -87,6 +91,7 @@ impl SweepTable {
             ),
             f("dominant_frequency_hz", "Hz", "dominant frequency of the band-limited pressure (sensor) or of the node's y (zero crossings)"),
             f("peak", "Pa or m", "largest absolute value of the band-limited pressure (Pa), or of the node’s y about its mean (m)"),
+            f("run_s", "s", "wall time of the run on the machine that ran it (relaxation and steps)"),
             f("decay_gamma_hz", "1/s", "γ of Eq. 3.5.1 (`sim::decay`)").nullable(),
             f("decay_alpha_per_kg", "1/kg", "α = γ/b of Eq. 3.5.2").nullable(),
             f("decay_fit_r2", "", "R² of the fit of ln(envelope)").nullable(),
@@ -119,6 +124,7 @@ impl SweepTable {
                 Value::I32(Some(r.sensor as i32)),
                 Value::F64(Some(r.dominant_frequency_hz)),
                 Value::F64(Some(r.peak)),
+                Value::F64(Some(r.run_s)),
                 Value::F64(d.map(|d| d.gamma_hz)),
                 Value::F64(d.and_then(|d| r.damping_kg_s.and_then(|b| d.alpha_per_kg(b)))),
                 Value::F64(d.map(|d| d.r2)),

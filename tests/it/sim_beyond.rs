@@ -69,6 +69,8 @@ fn a_sweep_over_damping_fits_the_analytic_decay_constant() {
             alphas[k]
         );
         assert!(r2[k].unwrap() > 0.99);
+        assert!(col("run_s")[k].unwrap() > 0.0);
+        assert_eq!(col("damping_kg_s")[k], Some(b));
     }
 }
 
