@@ -112,12 +112,6 @@ pub fn fit(x: &[f64], dt: f64, period_s: f64) -> Option<Decay> {
     })
 }
 
-/// The decay of a signal sampled at `fs` Hz, its period that of its dominant frequency.
-pub fn of_signal(x: &[f64], fs: f64) -> Option<Decay> {
-    let f = super::dominant_frequency(x, fs);
-    fit(x, 1.0 / fs, 1.0 / f)
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;

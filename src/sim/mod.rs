@@ -285,10 +285,7 @@ pub fn run_job(job: &SimJob) -> Result<SimReport, SimError> {
     let models = job_models(job)?;
     let mut lines = Vec::new();
     let mut outs = Vec::new();
-    let mut table = sweep::SweepTable {
-        keys: job.sweep.iter().map(|s| s.key.clone()).collect(),
-        rows: Vec::new(),
-    };
+    let mut table = sweep::SweepTable::of(&job.sweep);
     let grid = scenario::sweep_grid(&job.sweep);
     for (hit, (m, _, json)) in models.iter().enumerate() {
         let t0 = std::time::Instant::now();
@@ -305,11 +302,18 @@ pub fn run_job(job: &SimJob) -> Result<SimReport, SimError> {
             out.relaxed.steps,
             if out.relaxed.converged { String::new() } else { format!(" (NOT converged, residual {:.1e})", out.relaxed.residual) },
         ));
-        sensor_lines(m, &out, &mut lines);
+        let heard = heard(m, &out);
+        sensor_lines(m, &heard, &mut lines);
         write_run_files(job, hit, models.len() > 1, m, &out, &mut lines)?;
         if !job.sweep.is_empty() {
             let values = grid[hit].iter().map(|(_, v)| *v).collect();
-            table.push_run(hit as u64 + 1, values, json, (m, &out), secs);
+            table.push_run(
+                hit as u64 + 1,
+                values,
+                json,
+                &heard,
+                (Some(m.system.damping), secs),
+            );
         }
         outs.push(out);
     }
@@ -328,22 +332,19 @@ pub fn run_job(job: &SimJob) -> Result<SimReport, SimError> {
         })
         .collect();
     write_sensor_signals(job, &runs, &mut lines)?;
+    finish(job, table, lines)
+}
+
+/// The job's report: a sweep's table written (when there is a sweep) beside the lines.
+fn finish(
+    job: &SimJob,
+    table: sweep::SweepTable,
+    mut lines: Vec<String>,
+) -> Result<SimReport, SimError> {
     let sweep = if job.sweep.is_empty() {
         None
     } else {
-        let p = job.out.join("sweep.parquet");
-        let n = table.write(&p)?;
-        lines.push(format!(
-            "{n} sweep rows (frequency and decay per run) → {}",
-            p.display()
-        ));
-        if n == 0 {
-            lines.push(
-                "  (no sensors and no trajectories: a model without a grid is measured from its \
-                 nodes; give --trajectories 1)"
-                    .into(),
-            );
-        }
+        table.write_into(&job.out, &mut lines)?;
         Some(table)
     };
     Ok(SimReport { lines, sweep })
@@ -373,29 +374,79 @@ fn job_models(job: &SimJob) -> Result<Vec<(ModelFile, String, String)>, SimError
     Ok(models)
 }
 
-/// A run's lines on its signals: each sensor's frequency, peak and decay, or a node's.
-fn sensor_lines(m: &ModelFile, out: &SimOutput, lines: &mut Vec<String>) {
-    for (k, s) in out.sensors.iter().enumerate() {
-        let (i, j) = (m.sensors[k].i, m.sensors[k].j);
-        let s = match &m.grid {
-            Some(g) => output::band_limited(s, g),
-            None => s.clone(),
-        };
-        let peak = s.iter().fold(0.0f64, |a, v| a.max(v.abs()));
-        lines.push(format!(
-            "  sensor {} at cell ({i}, {j}): dominant {:.1} kHz, peak {peak:.3e} Pa (band-limited to the grid){}",
-            k + 1,
-            dominant_frequency(&s, out.sample_rate_hz) / 1e3,
-            decay_words(decay::of_signal(&s, out.sample_rate_hz).as_ref(), m.system.damping)
-        ));
-    }
-    if out.sensors.is_empty() {
+/// What a run shows at one place: a sensor's band-limited pressure, or (with no sensors)
+/// the free node that moves most, measured once for the terminal and a sweep's table.
+#[derive(Debug, Clone)]
+pub struct Heard {
+    /// Sensor number (1-based); 0: the node.
+    pub sensor: u32,
+    /// The node (`sensor` 0).
+    pub node: usize,
+    /// Largest |p| (Pa), or |y − mean| (m) of the node.
+    pub peak: f64,
+    pub dominant_hz: f64,
+    pub decay: Option<decay::Decay>,
+}
+
+/// Each sensor's band-limited pressure measured (peak, dominant frequency, decay); with no
+/// sensors, the node that moves most (needs trajectories).
+pub fn heard(m: &ModelFile, out: &SimOutput) -> Vec<Heard> {
+    let fs = out.sample_rate_hz;
+    let mut v: Vec<Heard> = out
+        .sensors
+        .iter()
+        .enumerate()
+        .map(|(k, s)| {
+            let p = match &m.grid {
+                Some(g) => output::band_limited(s, g),
+                None => s.clone(),
+            };
+            let f = dominant_frequency(&p, fs);
+            Heard {
+                sensor: k as u32 + 1,
+                node: 0,
+                peak: p.iter().fold(0.0f64, |a, v| a.max(v.abs())),
+                dominant_hz: f,
+                decay: decay::fit(&p, 1.0 / fs, 1.0 / f),
+            }
+        })
+        .collect();
+    if v.is_empty() {
         if let Some((node, f, d)) = node_frequency(m, out) {
-            lines.push(format!(
-                "  no sensors; node {node} oscillates at {f:.4} Hz (zero crossings of y){}",
-                decay_words(d.as_ref(), m.system.damping)
-            ));
+            let y: Vec<f64> = out.trajectory.iter().map(|fr| fr.r[node][1]).collect();
+            let mean = y.iter().sum::<f64>() / y.len() as f64;
+            v.push(Heard {
+                sensor: 0,
+                node,
+                peak: y.iter().fold(0.0f64, |a, v| a.max((v - mean).abs())),
+                dominant_hz: f,
+                decay: d,
+            });
         }
+    }
+    v
+}
+
+/// A run's lines on what it showed: each sensor's frequency, peak and decay, or a node's.
+fn sensor_lines(m: &ModelFile, heard: &[Heard], lines: &mut Vec<String>) {
+    for h in heard {
+        let words = decay_words(h.decay.as_ref(), m.system.damping);
+        lines.push(match h.sensor {
+            0 => format!(
+                "  no sensors; node {} oscillates at {:.4} Hz (zero crossings of y){words}",
+                h.node, h.dominant_hz
+            ),
+            k => {
+                let s = &m.sensors[k as usize - 1];
+                format!(
+                    "  sensor {k} at cell ({}, {}): dominant {:.1} kHz, peak {:.3e} Pa (band-limited to the grid){words}",
+                    s.i,
+                    s.j,
+                    h.dominant_hz / 1e3,
+                    h.peak
+                )
+            }
+        });
     }
 }
 
@@ -415,6 +466,28 @@ fn decay_words(d: Option<&decay::Decay>, b: f64) -> String {
     }
 }
 
+/// Write run `hit`'s kept node frames, if any, to `trajectories.parquet` (numbered
+/// `trajectories_N.parquet` when the job has `several` runs), with a line.
+fn write_trajectories(
+    job: &SimJob,
+    hit: usize,
+    several: bool,
+    frames: &[Frame],
+    lines: &mut Vec<String>,
+) -> Result<(), SimError> {
+    if frames.is_empty() {
+        return Ok(());
+    }
+    let p = job.out.join(if several {
+        format!("trajectories_{}.parquet", hit + 1)
+    } else {
+        "trajectories.parquet".into()
+    });
+    let n = output::write_trajectories(&p, frames)?;
+    lines.push(format!("  {n} trajectory rows → {}", p.display()));
+    Ok(())
+}
+
 /// Write a run's trajectories and snapshots if kept (numbered when `several`), with lines.
 fn write_run_files(
     job: &SimJob,
@@ -425,15 +498,7 @@ fn write_run_files(
     lines: &mut Vec<String>,
 ) -> Result<(), SimError> {
     let io = |e: std::io::Error| SimError::Io(format!("{}: {e}", job.out.display()));
-    if !out.trajectory.is_empty() {
-        let p = job.out.join(if several {
-            format!("trajectories_{}.parquet", hit + 1)
-        } else {
-            "trajectories.parquet".into()
-        });
-        let n = output::write_trajectories(&p, &out.trajectory)?;
-        lines.push(format!("  {n} trajectory rows → {}", p.display()));
-    }
+    write_trajectories(job, hit, several, &out.trajectory, lines)?;
     if !out.snapshots.is_empty() {
         let dir = job.out.join("snapshots");
         std::fs::create_dir_all(&dir).map_err(io)?;

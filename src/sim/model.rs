@@ -199,6 +199,19 @@ impl GridSpec {
     pub fn dy(&self) -> f64 {
         (self.y2 - self.y1) / self.ny as f64
     }
+    /// The cell of this grid holding the centre of cell (i, j) of the grid it was refined
+    /// from by `grid_um` (whose cell `dipole_m` keeps); (i, j) itself for a grid never
+    /// refined. Sensors given in the original grid's cells stay where they were.
+    pub fn original_cell(&self, i: usize, j: usize) -> Option<(usize, usize)> {
+        let Some(h0) = self.dipole_m else {
+            return Some((i, j));
+        };
+        self.cell(
+            self.x1 + (i as f64 + 0.5) * h0,
+            self.y1 + (j as f64 + 0.5) * h0,
+        )
+    }
+
     /// Courant number α = c·Δt/Δh.
     pub fn alpha(&self) -> f64 {
         self.c * self.dt / self.dx()

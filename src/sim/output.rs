@@ -292,6 +292,7 @@ pub fn rows(run: &Run) -> Vec<SimSignal> {
                params: String,
                (x, y): (f64, f64),
                p: &[f64]| {
+        let dominant = super::dominant_frequency(p, fs);
         SimSignal {
             wave: store::WaveformRow::from(crate::model::AeRecord {
                 experiment: run.model.name.clone(),
@@ -313,8 +314,8 @@ pub fn rows(run: &Run) -> Vec<SimSignal> {
             sensor_x_m: x,
             sensor_y_m: y,
             scale_v_per_pa: run.acq.scale_v_per_pa,
-            dominant_frequency_hz: super::dominant_frequency(p, fs),
-            decay: super::decay::of_signal(p, fs),
+            dominant_frequency_hz: dominant,
+            decay: super::decay::fit(p, 1.0 / fs, 1.0 / dominant),
             damping_kg_s: run.model.system.damping,
         }
     };

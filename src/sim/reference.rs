@@ -324,20 +324,13 @@ pub fn build_library_controlled(
             }
             let mut m = scenario::build(name, p)?;
             if let (false, Some(g)) = (cfg.sensors.is_empty(), m.grid.as_ref()) {
-                // The library's cells are the scenario's own grid's; a grid refined by
-                // `grid_um` keeps its original cell as the dipole arm, so they are moved to
-                // the cells holding the same points.
-                let h0 = g.dipole_m.unwrap_or(g.dx());
+                // The library's cells are the scenario's own grid's: on a grid refined by
+                // `grid_um`, the cells holding the same points (outside: refused by check).
                 m.sensors = cfg
                     .sensors
                     .iter()
                     .map(|&[i, j]| {
-                        let (x, y) = (g.x1 + (i as f64 + 0.5) * h0, g.y1 + (j as f64 + 0.5) * h0);
-                        let (i, j) = if g.dipole_m.is_some() {
-                            g.cell(x, y).unwrap_or((usize::MAX, usize::MAX))
-                        } else {
-                            (i, j)
-                        };
+                        let (i, j) = g.original_cell(i, j).unwrap_or((usize::MAX, usize::MAX));
                         SensorSpec { i, j }
                     })
                     .collect();

@@ -361,16 +361,14 @@ fn refine(m: &mut ModelFile, h: f64) -> Result<(), SimError> {
     }
     let courant = g.alpha();
     g.dipole_m = Some(g.dipole_m.unwrap_or(g.dx()));
-    let old: Vec<(f64, f64)> = m.sensors.iter().map(|s| g.centre(s.i, s.j)).collect();
     g.nx = nx as usize;
     g.ny = ny as usize;
     let ratio = (courant * g.dx() / g.c / m.system.dt + 1e-9)
         .floor()
         .max(1.0);
     g.dt = ratio * m.system.dt;
-    for (s, (x, y)) in m.sensors.iter_mut().zip(old) {
-        let (i, j) = g.cell(x, y).unwrap_or((s.i, s.j));
-        (s.i, s.j) = (i, j);
+    for s in &mut m.sensors {
+        (s.i, s.j) = g.original_cell(s.i, s.j).unwrap_or((s.i, s.j));
     }
     Ok(())
 }

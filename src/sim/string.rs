@@ -311,10 +311,7 @@ pub(super) fn run_job(job: &super::SimJob) -> Result<super::SimReport, SimError>
         strings.push((s, p.to_json()));
     }
     let mut lines = Vec::new();
-    let mut table = SweepTable {
-        keys: job.sweep.iter().map(|s| s.key.clone()).collect(),
-        rows: Vec::new(),
-    };
+    let mut table = SweepTable::of(&job.sweep);
     for (k, (s, json)) in strings.iter().enumerate() {
         let t0 = std::time::Instant::now();
         let run = s.run(job.run.trajectory_every);
@@ -330,9 +327,12 @@ pub(super) fn run_job(job: &super::SimJob) -> Result<super::SimReport, SimError>
             s.f_s() / 1e3,
             s.b()
         ));
-        for n in [1, 3, 5] {
+        // Modes 1, 3 and 5 (a centre pluck excites odd modes only), measured once.
+        let modes: Vec<_> = [1, 3, 5].into_iter().map(|n| (n, run.mode(n))).collect();
+        for (n, measured) in &modes {
+            let n = *n;
             let want = s.damped_mode_hz(n);
-            match run.mode(n) {
+            match measured {
                 Some((f, d)) => lines.push(format!(
                     "  mode {n}: {:.3} kHz against n·f_s·√(1+Bn²) {:.3} kHz ({:+.3} %){}",
                     f / 1e3,
@@ -350,36 +350,20 @@ pub(super) fn run_job(job: &super::SimJob) -> Result<super::SimReport, SimError>
                 None => lines.push(format!("  mode {n}: too few oscillations to measure")),
             }
         }
-        if !run.frames.is_empty() {
-            let p = job.out.join(if strings.len() > 1 {
-                format!("trajectories_{}.parquet", k + 1)
-            } else {
-                "trajectories.parquet".into()
-            });
-            let rows = super::output::write_trajectories(&p, &run.frames)?;
-            lines.push(format!("  {rows} trajectory rows → {}", p.display()));
-        }
-        if let (false, Some((f, decay))) = (job.sweep.is_empty(), run.mode(1)) {
+        super::write_trajectories(job, k, strings.len() > 1, &run.frames, &mut lines)?;
+        if let (false, (_, Some((f, decay)))) = (job.sweep.is_empty(), &modes[0]) {
             table.rows.push(SweepRow {
                 hit: k as u64 + 1,
                 values: grid[k].iter().map(|(_, v)| *v).collect(),
                 params: json.clone(),
                 sensor: 0,
-                dominant_frequency_hz: f,
+                dominant_frequency_hz: *f,
                 peak: run.centre.iter().fold(0.0f64, |a, v| a.max(v.abs())),
-                decay,
+                decay: decay.clone(),
                 damping_kg_s: None,
                 run_s,
             });
         }
     }
-    let sweep = if job.sweep.is_empty() {
-        None
-    } else {
-        let p = job.out.join("sweep.parquet");
-        let n = table.write(&p)?;
-        lines.push(format!("{n} sweep rows (mode 1 per run) → {}", p.display()));
-        Some(table)
-    };
-    Ok(super::SimReport { lines, sweep })
+    super::finish(job, table, lines)
 }

@@ -4,9 +4,8 @@
 //! extension) and 3.17–3.18 (the decay against b) are this table drawn
 //! (`plot::sim`).
 
-use super::decay::{self, Decay};
-use super::model::ModelFile;
-use super::{SimError, SimOutput};
+use super::decay::Decay;
+use super::SimError;
 use crate::store::{self, ColType, ColumnSpec, TableSchema, TableWriter, Value};
 use std::path::Path;
 
@@ -40,41 +39,53 @@ pub struct SweepTable {
 }
 
 impl SweepTable {
-    /// The rows of run `hit` (1-based) of model `m` with output `out`, the swept `values`,
-    /// which took `run_s` seconds.
+    /// An empty table for `sweeps`' keys.
+    pub fn of(sweeps: &[super::scenario::Sweep]) -> SweepTable {
+        SweepTable {
+            keys: sweeps.iter().map(|s| s.key.clone()).collect(),
+            rows: Vec::new(),
+        }
+    }
+
+    /// The rows of run `hit` (1-based) with the swept `values`: one per place it was heard
+    /// ([`super::heard`]), with the model's damping b and the run's wall time.
     pub fn push_run(
         &mut self,
         hit: u64,
         values: Vec<f64>,
         params: &str,
-        (m, out): (&ModelFile, &SimOutput),
-        run_s: f64,
+        heard: &[super::Heard],
+        (damping_kg_s, run_s): (Option<f64>, f64),
     ) {
-        let row = |sensor: u32, f: f64, peak: f64, decay: Option<Decay>| SweepRow {
+        self.rows.extend(heard.iter().map(|h| SweepRow {
             hit,
             values: values.clone(),
             params: params.to_string(),
-            sensor,
-            dominant_frequency_hz: f,
-            peak,
-            decay,
-            damping_kg_s: Some(m.system.damping),
+            sensor: h.sensor,
+            dominant_frequency_hz: h.dominant_hz,
+            peak: h.peak,
+            decay: h.decay.clone(),
+            damping_kg_s,
             run_s,
-        };
-        if let Some(g) = &m.grid {
-            for (k, s) in out.sensors.iter().enumerate() {
-                let p = super::output::band_limited(s, g);
-                let peak = p.iter().fold(0.0f64, |a, v| a.max(v.abs()));
-                let f = super::dominant_frequency(&p, out.sample_rate_hz);
-                let d = decay::fit(&p, 1.0 / out.sample_rate_hz, 1.0 / f);
-                self.rows.push(row(k as u32 + 1, f, peak, d));
-            }
-        } else if let Some((node, f, d)) = super::node_frequency(m, out) {
-            let y: Vec<f64> = out.trajectory.iter().map(|fr| fr.r[node][1]).collect();
-            let mean = y.iter().sum::<f64>() / y.len() as f64;
-            let peak = y.iter().fold(0.0f64, |a, v| a.max((v - mean).abs()));
-            self.rows.push(row(0, f, peak, d));
+        }));
+    }
+
+    /// Write `DIR/sweep.parquet` with its line (and why, when nothing was measured).
+    pub fn write_into(&self, dir: &Path, lines: &mut Vec<String>) -> Result<(), SimError> {
+        let p = dir.join("sweep.parquet");
+        let n = self.write(&p)?;
+        lines.push(format!(
+            "{n} sweep rows (frequency and decay per run) → {}",
+            p.display()
+        ));
+        if n == 0 {
+            lines.push(
+                "  (no sensors and no trajectories: a model without a grid is measured from its \
+                 nodes; give --trajectories 1)"
+                    .into(),
+            );
         }
+        Ok(())
     }
 
     /// The table's schema: fixed columns, then one float64 column per swept key.
