@@ -606,6 +606,7 @@ pub fn random_network(masses: usize, seed: u64) -> crate::sim::model::ModelFile 
             nodes.push(NodeSpec {
                 x,
                 y,
+                z: None,
                 mass: m,
                 fixed: edge || k == 0 || k == per - 1,
             });
@@ -707,7 +708,7 @@ pub fn sim_scale(sizes: &[usize], steps: usize) -> Result<Vec<SimScale>, BenchEr
     for &n in sizes {
         let model = random_network(n, 7);
         model.check().map_err(BenchError::run)?;
-        let mut mech = Mech::new(&model);
+        let mut mech = Mech::<2>::new(&model);
         let side = model
             .nodes
             .iter()

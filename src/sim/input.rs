@@ -189,6 +189,15 @@ impl<'a> Sections<'a> {
         })
     }
 
+    /// A number from a column the format leaves optional (the third dimension's): `None`
+    /// when the header has no such column.
+    fn opt_num(&self, t: &Table, row: &Row, names: &[&str]) -> Result<Option<f64>, SimError> {
+        match t.col(names) {
+            Some(_) => self.num(t, row, names).map(Some),
+            None => Ok(None),
+        }
+    }
+
     fn word(&self, t: &Table, row: &Row, names: &[&str]) -> Result<String, SimError> {
         let c = t
             .col(names)
@@ -274,6 +283,7 @@ fn parse_nodes(s: &Sections) -> Result<Vec<NodeSpec>, SimError> {
         nodes.push(NodeSpec {
             x: s.num(t, row, &["x"])?,
             y: s.num(t, row, &["y"])?,
+            z: s.opt_num(t, row, &["z"])?,
             mass: s.num(t, row, &["m", "mass"])?,
             fixed: ty == 1,
         });
@@ -332,6 +342,8 @@ fn parse_initial(s: &Sections, stretch: bool) -> Result<Vec<InitialSpec>, SimErr
             dy: s.num(t, row, &["dy"])?,
             du: s.num(t, row, &["du"])?,
             dv: s.num(t, row, &["dv"])?,
+            dz: s.opt_num(t, row, &["dz"])?.unwrap_or(0.0),
+            dw: s.opt_num(t, row, &["dw"])?.unwrap_or(0.0),
             kind,
         });
     }
@@ -351,6 +363,7 @@ fn parse_forces(
                 node: s.index(t, row, &["Node"])?,
                 fx: s.num(t, row, &["Fx"])?,
                 fy: s.num(t, row, &["Fy"])?,
+                fz: s.opt_num(t, row, &["Fz"])?.unwrap_or(0.0),
                 start: s.num(t, row, &["Start"])?,
                 finish: s.num(t, row, &["Finish"])?,
             });
@@ -362,6 +375,7 @@ fn parse_forces(
                 node: i,
                 fx: 0.0,
                 fy: -gravity * nd.mass,
+                fz: 0.0,
                 start: f64::NEG_INFINITY,
                 finish: f64::INFINITY,
             });
@@ -443,6 +457,14 @@ fn parse_grid(
         c: s.num(t, row, &["c"])?,
         order,
         dipole_m: None,
+        z: match t.col(&["Nz"]) {
+            None => None,
+            Some(_) => Some(ZAxis {
+                z1: s.num(t, row, &["z1"])?,
+                z2: s.num(t, row, &["z2"])?,
+                nz: s.index(t, row, &["Nz"])?,
+            }),
+        },
     };
     let mut sensors = Vec::new();
     if let Some(st) = s.get("Sensor") {
@@ -450,6 +472,10 @@ fn parse_grid(
             sensors.push(SensorSpec {
                 i: s.index(st, row, &["X"])?,
                 j: s.index(st, row, &["Y"])?,
+                k: match st.col(&["Z"]) {
+                    Some(_) => Some(s.index(st, row, &["Z"])?),
+                    None => None,
+                },
             });
         }
     }

@@ -1,5 +1,8 @@
 //! The mass/spring model (ch. 3.2): forces with Poisson's ratio, the four solvers, the
-//! initial-condition relaxation of Alg. 7 and the damage events of Alg. 8 and 9.
+//! initial-condition relaxation of Alg. 7 and the damage events of Alg. 8 and 9 — in the
+//! thesis's plane (`D` = 2) or in space (`D` = 3, §6.2). The arithmetic is written once for
+//! both: every sum over components starts from its first term and adds the rest in order,
+//! so the plane model computes exactly what it computed before it had a third axis.
 
 // Index loops over nodes and 2×2 components read like the equations they implement.
 #![allow(clippy::needless_range_loop)]
@@ -46,11 +49,11 @@ impl Spring {
     }
 }
 
-/// The state and structure of a mass/spring model.
+/// The state and structure of a mass/spring model in `D` dimensions.
 #[derive(Debug, Clone)]
-pub struct Mech {
-    pub r: Vec<[f64; 2]>,
-    pub u: Vec<[f64; 2]>,
+pub struct Mech<const D: usize> {
+    pub r: Vec<[f64; D]>,
+    pub u: Vec<[f64; D]>,
     pub m: Vec<f64>,
     /// Clamped now (fixed nodes, and nodes held by an initial condition).
     pub held: Vec<bool>,
@@ -60,11 +63,64 @@ pub struct Mech {
     pub damping: f64,
     pub forces: Vec<ForceSpec>,
     /// Velocity Verlet keeps the acceleration between steps.
-    acc: Vec<[f64; 2]>,
+    acc: Vec<[f64; D]>,
     acc_valid: bool,
-    implicit: Implicit,
+    implicit: Implicit<D>,
     /// Scratch of the explicit solvers, reused from step to step.
-    work: Vec<Vec<[f64; 2]>>,
+    work: Vec<Vec<[f64; D]>>,
+}
+
+/// a − b.
+#[inline]
+fn sub<const D: usize>(a: [f64; D], b: [f64; D]) -> [f64; D] {
+    std::array::from_fn(|c| a[c] - b[c])
+}
+
+/// a·b, summed from the first component on.
+#[inline]
+fn dotv<const D: usize>(a: [f64; D], b: [f64; D]) -> f64 {
+    let mut s = a[0] * b[0];
+    for c in 1..D {
+        s += a[c] * b[c];
+    }
+    s
+}
+
+/// A D×D block times a vector (row by row, as [`dotv`]).
+#[inline]
+fn block_mul<const D: usize>(m: &[[f64; D]; D], x: [f64; D]) -> [f64; D] {
+    std::array::from_fn(|a| dotv(m[a], x))
+}
+
+/// The inverse of a 2×2 or 3×3 block (the block-Jacobi preconditioner), by cofactors.
+fn block_inverse<const D: usize>(m: &[[f64; D]; D]) -> [[f64; D]; D] {
+    let mut out = [[0.0; D]; D];
+    if D == 2 {
+        let det = m[0][0] * m[1][1] - m[0][1] * m[1][0];
+        out[0][0] = m[1][1] / det;
+        out[0][1] = -m[0][1] / det;
+        out[1][0] = -m[1][0] / det;
+        out[1][1] = m[0][0] / det;
+    } else {
+        // Cofactor C[i][j] from the rows and columns other than i and j, cyclically.
+        let cof = |i: usize, j: usize| {
+            let (i1, i2, j1, j2) = ((i + 1) % 3, (i + 2) % 3, (j + 1) % 3, (j + 2) % 3);
+            m[i1][j1] * m[i2][j2] - m[i1][j2] * m[i2][j1]
+        };
+        let det = m[0][0] * cof(0, 0) + m[0][1] * cof(0, 1) + m[0][2] * cof(0, 2);
+        for i in 0..D {
+            for j in 0..D {
+                out[i][j] = cof(j, i) / det;
+            }
+        }
+    }
+    out
+}
+
+/// A node's position in `D` dimensions (z is 0 where the file gives none).
+fn position<const D: usize>(nd: &super::model::NodeSpec) -> [f64; D] {
+    let v = [nd.x, nd.y, nd.z.unwrap_or(0.0)];
+    std::array::from_fn(|c| v[c])
 }
 
 /// What the relaxation did.
@@ -76,8 +132,8 @@ pub struct Relaxed {
     pub residual: f64,
 }
 
-impl Mech {
-    pub fn new(model: &ModelFile) -> Mech {
+impl<const D: usize> Mech<D> {
+    pub fn new(model: &ModelFile) -> Mech<D> {
         let n = model.nodes.len();
         let springs = model
             .springs
@@ -98,15 +154,15 @@ impl Mech {
             .collect();
         let fixed: Vec<bool> = model.nodes.iter().map(|nd| nd.fixed).collect();
         Mech {
-            r: model.nodes.iter().map(|nd| [nd.x, nd.y]).collect(),
-            u: vec![[0.0; 2]; n],
+            r: model.nodes.iter().map(position::<D>).collect(),
+            u: vec![[0.0; D]; n],
             m: model.nodes.iter().map(|nd| nd.mass).collect(),
             held: fixed.clone(),
             fixed,
             springs,
             damping: model.system.damping,
             forces: model.forces.clone(),
-            acc: vec![[0.0; 2]; n],
+            acc: vec![[0.0; D]; n],
             acc_valid: false,
             implicit: Implicit::default(),
             work: Vec::new(),
@@ -122,41 +178,42 @@ impl Mech {
     }
 
     /// Spring and applied forces at time `t` on every node, positions `r` (no damping).
-    fn spring_forces(&self, r: &[[f64; 2]], t: f64, out: &mut [[f64; 2]]) {
-        out.iter_mut().for_each(|f| *f = [0.0; 2]);
+    fn spring_forces(&self, r: &[[f64; D]], t: f64, out: &mut [[f64; D]]) {
+        out.iter_mut().for_each(|f| *f = [0.0; D]);
         for s in self.springs.iter().filter(|s| !s.broken) {
-            let d = [r[s.b][0] - r[s.a][0], r[s.b][1] - r[s.a][1]];
-            let l = (d[0] * d[0] + d[1] * d[1]).sqrt();
+            let d = sub(r[s.b], r[s.a]);
+            let l = dotv(d, d).sqrt();
             if l == 0.0 {
                 continue;
             }
             let (f, _) = s.tension(l);
-            let g = [f * d[0] / l, f * d[1] / l];
-            out[s.a][0] += g[0];
-            out[s.a][1] += g[1];
-            out[s.b][0] -= g[0];
-            out[s.b][1] -= g[1];
+            for c in 0..D {
+                let g = f * d[c] / l;
+                out[s.a][c] += g;
+                out[s.b][c] -= g;
+            }
         }
         for fs in &self.forces {
             if t >= fs.start && t < fs.finish {
-                out[fs.node][0] += fs.fx;
-                out[fs.node][1] += fs.fy;
+                let v = [fs.fx, fs.fy, fs.fz];
+                for c in 0..D {
+                    out[fs.node][c] += v[c];
+                }
             }
         }
     }
 
     /// Accelerations (Eq. 3.2.10a) with damping `b`; zero for held nodes.
-    fn accel(&self, r: &[[f64; 2]], u: &[[f64; 2]], t: f64, b: f64, out: &mut [[f64; 2]]) {
+    fn accel(&self, r: &[[f64; D]], u: &[[f64; D]], t: f64, b: f64, out: &mut [[f64; D]]) {
         self.spring_forces(r, t, out);
         for i in 0..out.len() {
             if self.held[i] {
-                out[i] = [0.0; 2];
+                out[i] = [0.0; D];
             } else {
                 let inv = 1.0 / self.m[i];
-                out[i] = [
-                    (out[i][0] - b * u[i][0]) * inv,
-                    (out[i][1] - b * u[i][1]) * inv,
-                ];
+                for c in 0..D {
+                    out[i][c] = (out[i][c] - b * u[i][c]) * inv;
+                }
             }
         }
     }
@@ -204,8 +261,10 @@ impl Mech {
     /// with their initial velocities and keep the StIC nodes held.
     pub fn relax(&mut self, model: &ModelFile, enabled: bool) -> Relaxed {
         for ic in &model.initial {
-            self.r[ic.node][0] += ic.dx;
-            self.r[ic.node][1] += ic.dy;
+            let d = [ic.dx, ic.dy, ic.dz];
+            for c in 0..D {
+                self.r[ic.node][c] += d[c];
+            }
             self.held[ic.node] = true;
         }
         self.freeze_areas();
@@ -232,7 +291,7 @@ impl Mech {
                 .iter()
                 .map(|s| s.l0)
                 .fold(f64::INFINITY, f64::min);
-            let mut f = vec![[0.0; 2]; self.len()];
+            let mut f = vec![[0.0; D]; self.len()];
             let max_steps = 100_000;
             out.converged = false;
             while out.steps < max_steps {
@@ -262,9 +321,9 @@ impl Mech {
             self.acc_valid = false;
             self.implicit.pattern_valid = false;
             let damping = std::mem::replace(&mut self.damping, 0.0);
-            let mut f = vec![[0.0; 2]; self.len()];
+            let mut f = vec![[0.0; D]; self.len()];
             for _ in 0..20 {
-                self.u.iter_mut().for_each(|u| *u = [0.0; 2]);
+                self.u.iter_mut().for_each(|u| *u = [0.0; D]);
                 if self.implicit_step(1.0, -1.0).is_err() {
                     break;
                 }
@@ -280,11 +339,12 @@ impl Mech {
             self.damping = damping;
         }
         self.freeze_areas();
-        self.u.iter_mut().for_each(|u| *u = [0.0; 2]);
+        self.u.iter_mut().for_each(|u| *u = [0.0; D]);
         for ic in &model.initial {
             if ic.kind == IcKind::Eq && !self.fixed[ic.node] {
                 self.held[ic.node] = false;
-                self.u[ic.node] = [ic.du, ic.dv];
+                let v = [ic.du, ic.dv, ic.dw];
+                self.u[ic.node] = std::array::from_fn(|c| v[c]);
             }
         }
         self.acc_valid = false;
@@ -319,7 +379,7 @@ impl Mech {
                 self.fixed.push(fixed);
                 self.held[node] = fixed;
                 self.held.push(fixed);
-                self.acc.push([0.0; 2]);
+                self.acc.push([0.0; D]);
                 for s in self.springs.iter_mut() {
                     if s.fibre != keep {
                         if s.a == node {
@@ -344,7 +404,7 @@ impl Mech {
                 self.accel(&self.r, &self.u, t, b, &mut a);
                 for i in 0..self.len() {
                     if !self.held[i] {
-                        for c in 0..2 {
+                        for c in 0..D {
                             self.u[i][c] += dt * a[i][c];
                             self.r[i][c] += dt * self.u[i][c];
                         }
@@ -365,12 +425,12 @@ impl Mech {
                     w.push(Vec::new());
                 }
                 let uh = &mut w[0];
-                uh.resize(n, [0.0; 2]);
+                uh.resize(n, [0.0; D]);
                 for i in 0..n {
                     if self.held[i] {
                         continue;
                     }
-                    for c in 0..2 {
+                    for c in 0..D {
                         self.r[i][c] += self.u[i][c] * dt + 0.5 * a[i][c] * dt * dt;
                         uh[i][c] = self.u[i][c] + 0.5 * a[i][c] * dt;
                     }
@@ -378,7 +438,7 @@ impl Mech {
                 self.accel(&self.r, uh, t + dt, b, &mut a);
                 for i in 0..n {
                     if !self.held[i] {
-                        for c in 0..2 {
+                        for c in 0..D {
                             self.u[i][c] = uh[i][c] + 0.5 * a[i][c] * dt;
                         }
                     }
@@ -399,7 +459,7 @@ impl Mech {
         let mut w = std::mem::take(&mut self.work);
         w.resize(12, Vec::new());
         for v in w.iter_mut() {
-            v.resize(n, [0.0; 2]);
+            v.resize(n, [0.0; D]);
         }
         let (state, k) = w.split_at_mut(4);
         let [r0, u0, rt, ut] = state else {
@@ -414,7 +474,7 @@ impl Mech {
         for s in 0..4 {
             if s > 0 {
                 for i in 0..n {
-                    for c in 0..2 {
+                    for c in 0..D {
                         rt[i][c] = r0[i][c] + frac[s] * dt * kv[s - 1][i][c];
                         ut[i][c] = u0[i][c] + frac[s] * dt * ka[s - 1][i][c];
                     }
@@ -422,14 +482,14 @@ impl Mech {
             }
             self.accel(rt, ut, t + frac[s] * dt, b, &mut ka[s]);
             for i in 0..n {
-                kv[s][i] = if self.held[i] { [0.0; 2] } else { ut[i] };
+                kv[s][i] = if self.held[i] { [0.0; D] } else { ut[i] };
             }
         }
         for i in 0..n {
             if self.held[i] {
                 continue;
             }
-            for c in 0..2 {
+            for c in 0..D {
                 self.r[i][c] = r0[i][c]
                     + dt / 6.0
                         * (kv[0][i][c] + 2.0 * kv[1][i][c] + 2.0 * kv[2][i][c] + kv[3][i][c]);
@@ -454,42 +514,38 @@ impl Mech {
         let mut f = std::mem::take(&mut self.acc);
         self.spring_forces(&self.r, t, &mut f);
         let im = &mut self.implicit;
-        im.vals.iter_mut().for_each(|v| *v = [0.0; 4]);
+        im.vals.iter_mut().for_each(|v| *v = [[0.0; D]; D]);
         im.rhs.clear();
-        im.rhs.resize(2 * n, 0.0);
+        im.rhs.resize(D * n, 0.0);
         // ∂F/∂r·u accumulates in ku.
-        let mut ku = vec![[0.0f64; 2]; n];
+        let mut ku = vec![[0.0f64; D]; n];
         for (k, s) in self.springs.iter().enumerate() {
             if s.broken {
                 continue;
             }
-            let d = [
-                self.r[s.b][0] - self.r[s.a][0],
-                self.r[s.b][1] - self.r[s.a][1],
-            ];
-            let l = (d[0] * d[0] + d[1] * d[1]).sqrt();
+            let d = sub(self.r[s.b], self.r[s.a]);
+            let l = dotv(d, d).sqrt();
             if l == 0.0 {
                 continue;
             }
             let (fl, dfl) = s.tension(l);
-            let nx = [d[0] / l, d[1] / l];
+            let nx: [f64; D] = std::array::from_fn(|c| d[c] / l);
             let g = fl / l;
             // K = f'·n̂n̂ᵀ + (f/l)(I − n̂n̂ᵀ)
-            let kk = [
-                dfl * nx[0] * nx[0] + g * (1.0 - nx[0] * nx[0]),
-                (dfl - g) * nx[0] * nx[1],
-                (dfl - g) * nx[0] * nx[1],
-                dfl * nx[1] * nx[1] + g * (1.0 - nx[1] * nx[1]),
-            ];
-            let du = [
-                self.u[s.b][0] - self.u[s.a][0],
-                self.u[s.b][1] - self.u[s.a][1],
-            ];
-            let kd = [kk[0] * du[0] + kk[1] * du[1], kk[2] * du[0] + kk[3] * du[1]];
-            ku[s.a][0] += kd[0];
-            ku[s.a][1] += kd[1];
-            ku[s.b][0] -= kd[0];
-            ku[s.b][1] -= kd[1];
+            let kk: [[f64; D]; D] = std::array::from_fn(|a| {
+                std::array::from_fn(|c| {
+                    if a == c {
+                        dfl * nx[a] * nx[a] + g * (1.0 - nx[a] * nx[a])
+                    } else {
+                        (dfl - g) * nx[a.min(c)] * nx[a.max(c)]
+                    }
+                })
+            });
+            let kd = block_mul(&kk, sub(self.u[s.b], self.u[s.a]));
+            for c in 0..D {
+                ku[s.a][c] += kd[c];
+                ku[s.b][c] -= kd[c];
+            }
             let (ab, ba) = im.spring_slots[k];
             for (node, off) in [(s.a, ab), (s.b, ba)] {
                 if self.held[node] {
@@ -497,36 +553,39 @@ impl Mech {
                 }
                 let c = dt * dt / self.m[node];
                 let di = im.diag[node];
-                for q in 0..4 {
-                    im.vals[di][q] += c * kk[q];
-                    im.vals[off][q] -= c * kk[q];
+                for q in 0..D {
+                    for w in 0..D {
+                        im.vals[di][q][w] += c * kk[q][w];
+                        im.vals[off][q][w] -= c * kk[q][w];
+                    }
                 }
             }
         }
         for i in 0..n {
             let di = im.diag[i];
             if self.held[i] {
-                im.vals[di] = [1.0, 0.0, 0.0, 1.0];
+                im.vals[di] = std::array::from_fn(|a| std::array::from_fn(|c| f64::from(a == c)));
                 continue;
             }
             let damp = 1.0 + dt * b / self.m[i];
-            im.vals[di][0] += damp;
-            im.vals[di][3] += damp;
+            for q in 0..D {
+                im.vals[di][q][q] += damp;
+            }
             let c = dt / self.m[i];
-            for q in 0..2 {
+            for q in 0..D {
                 let force = f[i][q] - b * self.u[i][q];
-                im.rhs[2 * i + q] = c * (force + dt * ku[i][q]);
+                im.rhs[D * i + q] = c * (force + dt * ku[i][q]);
             }
         }
         self.acc = f;
-        im.x.resize(2 * n, 0.0);
+        im.x.resize(D * n, 0.0);
         im.solve()?;
         for i in 0..n {
             if self.held[i] {
                 continue;
             }
-            for q in 0..2 {
-                self.u[i][q] += self.implicit.x[2 * i + q];
+            for q in 0..D {
+                self.u[i][q] += self.implicit.x[D * i + q];
                 self.r[i][q] += dt * self.u[i][q];
             }
         }
@@ -537,28 +596,26 @@ impl Mech {
     /// Per node: the fibre length it stands for (half its intact springs' rest lengths), its
     /// unit normal (perpendicular to the mean direction of its springs) and, for a free fibre
     /// end (one spring), its outward tangent and the fibre width.
-    pub fn geometry(&self) -> Vec<NodeGeom> {
+    pub fn geometry(&self) -> Vec<NodeGeom<D>> {
         let mut g = vec![
             NodeGeom {
                 length: 0.0,
-                tangent: [0.0; 2],
+                tangent: [0.0; D],
                 count: 0,
                 width: 0.0,
+                thickness: 0.0,
             };
             self.len()
         ];
         for s in self.springs.iter().filter(|s| !s.broken) {
-            let d = [
-                self.r[s.b][0] - self.r[s.a][0],
-                self.r[s.b][1] - self.r[s.a][1],
-            ];
+            let d = sub(self.r[s.b], self.r[s.a]);
             let l = norm(d).max(1e-300);
-            let tv = [d[0] / l, d[1] / l];
+            let tv: [f64; D] = std::array::from_fn(|c| d[c] / l);
             for (node, sign) in [(s.a, 1.0), (s.b, -1.0)] {
                 let e = &mut g[node];
                 e.length += 0.5 * s.l0;
                 // Orient the tangents alike (a fibre passing through has one direction).
-                let dot = e.tangent[0] * tv[0] + e.tangent[1] * tv[1];
+                let dot = dotv(e.tangent, tv);
                 let sg = if e.count == 0 {
                     sign
                 } else if dot < 0.0 {
@@ -566,16 +623,18 @@ impl Mech {
                 } else {
                     1.0
                 };
-                e.tangent[0] += sg * tv[0];
-                e.tangent[1] += sg * tv[1];
+                for c in 0..D {
+                    e.tangent[c] += sg * tv[c];
+                }
                 e.count += 1;
                 e.width = s.w;
+                e.thickness = s.t;
             }
         }
         for e in &mut g {
             let l = norm(e.tangent);
             if l > 0.0 {
-                e.tangent = [e.tangent[0] / l, e.tangent[1] / l];
+                e.tangent = std::array::from_fn(|c| e.tangent[c] / l);
             }
         }
         g
@@ -584,32 +643,38 @@ impl Mech {
 
 /// Geometry of a node for the acoustic coupling.
 #[derive(Debug, Clone, Copy)]
-pub struct NodeGeom {
+pub struct NodeGeom<const D: usize> {
     pub length: f64,
     /// Unit tangent of the fibre at the node; for a free end (count 1) it points from the
     /// end into the fibre.
-    pub tangent: [f64; 2],
+    pub tangent: [f64; D],
     pub count: usize,
+    /// The fibre's cross-section: width (in the sheet's plane) and thickness, m.
     pub width: f64,
+    pub thickness: f64,
 }
 
-pub fn dist(a: [f64; 2], b: [f64; 2]) -> f64 {
-    ((b[0] - a[0]).powi(2) + (b[1] - a[1]).powi(2)).sqrt()
+pub fn dist<const D: usize>(a: [f64; D], b: [f64; D]) -> f64 {
+    let mut s = (b[0] - a[0]).powi(2);
+    for c in 1..D {
+        s += (b[c] - a[c]).powi(2);
+    }
+    s.sqrt()
 }
 
-fn norm(a: [f64; 2]) -> f64 {
-    (a[0] * a[0] + a[1] * a[1]).sqrt()
+fn norm<const D: usize>(a: [f64; D]) -> f64 {
+    dotv(a, a).sqrt()
 }
 
-/// The implicit solver's sparse matrix (2×2 blocks, CSR by node) and BiCGSTAB workspace.
+/// The implicit solver's sparse matrix (D×D blocks, CSR by node) and BiCGSTAB workspace.
 /// The pattern is rebuilt only when the topology changes (a damage event); the values are
 /// assembled each step.
-#[derive(Debug, Clone, Default)]
-struct Implicit {
+#[derive(Debug, Clone)]
+struct Implicit<const D: usize> {
     pattern_valid: bool,
     row_ptr: Vec<usize>,
     cols: Vec<usize>,
-    vals: Vec<[f64; 4]>,
+    vals: Vec<[[f64; D]; D]>,
     diag: Vec<usize>,
     /// Per spring: the (a, b) block in row a and the (b, a) block in row b.
     spring_slots: Vec<(usize, usize)>,
@@ -617,11 +682,29 @@ struct Implicit {
     /// Δu, kept between steps as the next initial guess.
     x: Vec<f64>,
     work: Vec<Vec<f64>>,
-    pinv: Vec<[f64; 4]>,
+    pinv: Vec<[[f64; D]; D]>,
     pub iterations: usize,
 }
 
-impl Implicit {
+impl<const D: usize> Default for Implicit<D> {
+    fn default() -> Self {
+        Implicit {
+            pattern_valid: false,
+            row_ptr: Vec::new(),
+            cols: Vec::new(),
+            vals: Vec::new(),
+            diag: Vec::new(),
+            spring_slots: Vec::new(),
+            rhs: Vec::new(),
+            x: Vec::new(),
+            work: Vec::new(),
+            pinv: Vec::new(),
+            iterations: 0,
+        }
+    }
+}
+
+impl<const D: usize> Implicit<D> {
     fn build_pattern(&mut self, n: usize, springs: &[Spring]) {
         let mut nb: Vec<Vec<usize>> = (0..n).map(|i| vec![i]).collect();
         for s in springs.iter().filter(|s| !s.broken) {
@@ -661,29 +744,29 @@ impl Implicit {
                 }
             })
             .collect();
-        self.vals = vec![[0.0; 4]; self.cols.len()];
-        self.x = vec![0.0; 2 * n];
+        self.vals = vec![[[0.0; D]; D]; self.cols.len()];
+        self.x = vec![0.0; D * n];
         self.pattern_valid = true;
     }
 
     fn matvec(&self, x: &[f64], y: &mut [f64]) {
+        let block = |c: usize| -> [f64; D] { std::array::from_fn(|q| x[D * c + q]) };
         for i in 0..self.row_ptr.len() - 1 {
-            let (mut y0, mut y1) = (0.0, 0.0);
+            let mut yi = [0.0; D];
             for k in self.row_ptr[i]..self.row_ptr[i + 1] {
-                let (c, v) = (self.cols[k], &self.vals[k]);
-                y0 += v[0] * x[2 * c] + v[1] * x[2 * c + 1];
-                y1 += v[2] * x[2 * c] + v[3] * x[2 * c + 1];
+                let v = block_mul(&self.vals[k], block(self.cols[k]));
+                for q in 0..D {
+                    yi[q] += v[q];
+                }
             }
-            y[2 * i] = y0;
-            y[2 * i + 1] = y1;
+            y[D * i..D * i + D].copy_from_slice(&yi);
         }
     }
 
     fn precond(&self, x: &[f64], y: &mut [f64]) {
         for (i, p) in self.pinv.iter().enumerate() {
-            let (a, b) = (x[2 * i], x[2 * i + 1]);
-            y[2 * i] = p[0] * a + p[1] * b;
-            y[2 * i + 1] = p[2] * a + p[3] * b;
+            let xi: [f64; D] = std::array::from_fn(|q| x[D * i + q]);
+            y[D * i..D * i + D].copy_from_slice(&block_mul(p, xi));
         }
     }
 
@@ -693,11 +776,7 @@ impl Implicit {
         self.pinv = self
             .diag
             .iter()
-            .map(|&d| {
-                let v = self.vals[d];
-                let det = v[0] * v[3] - v[1] * v[2];
-                [v[3] / det, -v[1] / det, -v[2] / det, v[0] / det]
-            })
+            .map(|&d| block_inverse(&self.vals[d]))
             .collect();
         if self.work.len() != 7 || self.work[0].len() != n2 {
             self.work = vec![vec![0.0; n2]; 7];
@@ -774,7 +853,7 @@ fn dot(a: &[f64], b: &[f64]) -> f64 {
     a.iter().zip(b).map(|(x, y)| x * y).sum()
 }
 
-impl Mech {
+impl<const D: usize> Mech<D> {
     /// BiCGSTAB iterations so far (implicit solver).
     pub fn solver_iterations(&self) -> usize {
         self.implicit.iterations

@@ -7,19 +7,21 @@
 pub mod acoustic;
 pub mod acoustic3d;
 pub mod decay;
+pub mod hybrid;
 pub mod input;
 pub mod material;
 pub mod mech;
 pub mod model;
+pub mod network3d;
 pub mod output;
 pub mod reference;
 pub mod scenario;
 pub mod string;
 pub mod sweep;
 
-use acoustic::Field;
-use mech::{Mech, Relaxed};
-use model::{GridSpec, ModelFile};
+pub use hybrid::simulate;
+use mech::Relaxed;
+use model::ModelFile;
 
 #[derive(Debug, thiserror::Error)]
 pub enum SimError {
@@ -70,12 +72,12 @@ pub struct SimOptions {
     pub snapshot_every: Option<usize>,
 }
 
-/// Node positions at one time.
+/// Node positions at one time (z 0 in a plane model).
 #[derive(Debug, Clone)]
 pub struct Frame {
     pub t: f64,
-    pub r: Vec<[f64; 2]>,
-    pub u: Vec<[f64; 2]>,
+    pub r: Vec<[f64; 3]>,
+    pub u: Vec<[f64; 3]>,
 }
 
 #[derive(Debug, Clone)]
@@ -89,136 +91,8 @@ pub struct SimOutput {
     pub snapshots: Vec<(f64, Vec<f64>)>,
     pub solver_iterations: usize,
     pub mass_steps: usize,
-}
-
-/// Run a model. Damage events fire at the first step whose time reaches theirs.
-pub fn simulate(model: &ModelFile, opts: &SimOptions) -> Result<SimOutput, SimError> {
-    model.check()?;
-    let sys = &model.system;
-    let mut mech = Mech::new(model);
-    let relaxed = mech.relax(model, sys.relax);
-    let mut field = model.grid.as_ref().map(Field::new);
-    let ratio = model
-        .grid
-        .as_ref()
-        .map(|g| (g.dt / sys.dt).round() as usize)
-        .unwrap_or(1);
-    let mut events = model.damage.clone();
-    events.sort_by(|a, b| a.time().total_cmp(&b.time()));
-    let mut next_event = 0;
-    let mut u_prev = mech.u.clone();
-    let mut out = SimOutput {
-        sensors: vec![Vec::with_capacity(sys.iterations / ratio + 1); model.sensors.len()],
-        sample_rate_hz: model.grid.as_ref().map(|g| 1.0 / g.dt).unwrap_or(0.0),
-        relaxed,
-        trajectory: Vec::new(),
-        snapshots: Vec::new(),
-        solver_iterations: 0,
-        mass_steps: sys.iterations,
-    };
-    let keep_frame = |n: usize| {
-        opts.trajectory_every
-            .is_some_and(|e| e > 0 && n.is_multiple_of(e))
-    };
-    if keep_frame(0) {
-        out.trajectory.push(Frame {
-            t: 0.0,
-            r: mech.r.clone(),
-            u: mech.u.clone(),
-        });
-    }
-    for n in 0..sys.iterations {
-        let t = n as f64 * sys.dt;
-        while next_event < events.len() && events[next_event].time() <= t + 0.5 * sys.dt {
-            if let Some(j) = mech.damage(&events[next_event]) {
-                debug_assert_eq!(j, u_prev.len());
-                u_prev.push(mech.u[j]);
-            }
-            next_event += 1;
-        }
-        mech.step(sys.solver, sys.dt, t)?;
-        if keep_frame(n + 1) {
-            out.trajectory.push(Frame {
-                t: t + sys.dt,
-                r: mech.r.clone(),
-                u: mech.u.clone(),
-            });
-        }
-        if let (Some(f), Some(g)) = (field.as_mut(), model.grid.as_ref()) {
-            if (n + 1) % ratio == 0 {
-                couple(&mech, &u_prev, g, f);
-                u_prev.clone_from(&mech.u);
-                f.step();
-                for (s, spec) in out.sensors.iter_mut().zip(&model.sensors) {
-                    s.push(f.at(spec.i, spec.j));
-                }
-                let k = (n + 1) / ratio;
-                if opts
-                    .snapshot_every
-                    .is_some_and(|e| e > 0 && k.is_multiple_of(e))
-                {
-                    out.snapshots.push((t + sys.dt, f.cur.clone()));
-                }
-            }
-        }
-    }
-    out.solver_iterations = mech.solver_iterations();
-    Ok(out)
-}
-
-/// The coupling of ch. 3.4: each mass's acceleration over the acoustic step displaces fluid.
-/// A mass standing for fibre length ℓ moving with normal acceleration aₙ is a volumetric
-/// acceleration ℓ·aₙ per unit depth: a source +ρ·ℓ·aₙ/Δh² just in front of the fibre and
-/// −ρ·ℓ·aₙ/Δh² just behind (a dipole, Fig. 3.28), each split bilinearly over the four nearest
-/// cells. A free fibre end (after a fibre failure) also pushes or leaves fluid with its end
-/// face (width w): one source ρ·w·aₒ/Δh² ahead of it, which is the monopole of Fig. 4.21.
-fn couple(mech: &Mech, u_prev: &[[f64; 2]], g: &GridSpec, f: &mut Field) {
-    let geo = mech.geometry();
-    let h = g.dx();
-    let inv_area = 1.0 / (h * h);
-    let arm = g.dipole_m.map_or(1.0, |d| d / h);
-    for i in 0..mech.len() {
-        if mech.held[i] || geo[i].count == 0 {
-            continue;
-        }
-        let a = [
-            (mech.u[i][0] - u_prev[i][0]) / g.dt,
-            (mech.u[i][1] - u_prev[i][1]) / g.dt,
-        ];
-        let tg = geo[i].tangent;
-        let nrm = [-tg[1], tg[0]];
-        let an = a[0] * nrm[0] + a[1] * nrm[1];
-        let s = g.rho * geo[i].length * an * inv_area * arm;
-        let r = mech.r[i];
-        splat(f, g, [r[0] + 0.5 * h * nrm[0], r[1] + 0.5 * h * nrm[1]], s);
-        splat(f, g, [r[0] - 0.5 * h * nrm[0], r[1] - 0.5 * h * nrm[1]], -s);
-        if geo[i].count == 1 {
-            let o = [-tg[0], -tg[1]];
-            let ao = a[0] * o[0] + a[1] * o[1];
-            let se = g.rho * geo[i].width * ao * inv_area;
-            splat(f, g, [r[0] + 0.5 * h * o[0], r[1] + 0.5 * h * o[1]], se);
-        }
-    }
-}
-
-/// Add `s` at point p, split bilinearly over the four nearest cell centres.
-fn splat(f: &mut Field, g: &GridSpec, p: [f64; 2], s: f64) {
-    let h = g.dx();
-    let fx = (p[0] - g.x1) / h - 0.5;
-    let fy = (p[1] - g.y1) / h - 0.5;
-    let (i0, j0) = (fx.floor(), fy.floor());
-    let (wx, wy) = (fx - i0, fy - j0);
-    for (di, dj, w) in [
-        (0, 0, (1.0 - wx) * (1.0 - wy)),
-        (1, 0, wx * (1.0 - wy)),
-        (0, 1, (1.0 - wx) * wy),
-        (1, 1, wx * wy),
-    ] {
-        let (i, j) = (i0 as i64 + di, j0 as i64 + dj);
-        if i >= 0 && j >= 0 && (i as usize) < g.nx && (j as usize) < g.ny && w > 0.0 {
-            f.add_source(i as usize, j as usize, s * w);
-        }
-    }
+    /// 2 (the thesis's plane) or 3 (§6.2).
+    pub dims: usize,
 }
 
 /// Dominant frequency of a signal: the largest bin of its zero-padded power spectrum
@@ -438,10 +312,15 @@ fn sensor_lines(m: &ModelFile, heard: &[Heard], lines: &mut Vec<String>) {
             ),
             k => {
                 let s = &m.sensors[k as usize - 1];
+                let cell = match m.dims() {
+                    3 => {
+                        let (i, j, l) = m.sensor_cell3(s);
+                        format!("({i}, {j}, {l})")
+                    }
+                    _ => format!("({}, {})", s.i, s.j),
+                };
                 format!(
-                    "  sensor {k} at cell ({}, {}): dominant {:.1} kHz, peak {:.3e} Pa (band-limited to the grid){words}",
-                    s.i,
-                    s.j,
+                    "  sensor {k} at cell {cell}: dominant {:.1} kHz, peak {:.3e} Pa (band-limited to the grid){words}",
                     h.dominant_hz / 1e3,
                     h.peak
                 )
@@ -473,6 +352,7 @@ fn write_trajectories(
     hit: usize,
     several: bool,
     frames: &[Frame],
+    dims: usize,
     lines: &mut Vec<String>,
 ) -> Result<(), SimError> {
     if frames.is_empty() {
@@ -483,7 +363,7 @@ fn write_trajectories(
     } else {
         "trajectories.parquet".into()
     });
-    let n = output::write_trajectories(&p, frames)?;
+    let n = output::write_trajectories(&p, frames, dims)?;
     lines.push(format!("  {n} trajectory rows → {}", p.display()));
     Ok(())
 }
@@ -498,7 +378,7 @@ fn write_run_files(
     lines: &mut Vec<String>,
 ) -> Result<(), SimError> {
     let io = |e: std::io::Error| SimError::Io(format!("{}: {e}", job.out.display()));
-    write_trajectories(job, hit, several, &out.trajectory, lines)?;
+    write_trajectories(job, hit, several, &out.trajectory, out.dims, lines)?;
     if !out.snapshots.is_empty() {
         let dir = job.out.join("snapshots");
         std::fs::create_dir_all(&dir).map_err(io)?;

@@ -84,6 +84,10 @@ fn yes() -> bool {
 pub struct NodeSpec {
     pub x: f64,
     pub y: f64,
+    /// Height, m: a node with a z makes the model three-dimensional (§6.2); absent in a
+    /// plane model (Appendix A).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub z: Option<f64>,
     /// kg
     pub mass: f64,
     /// Clamped for the whole simulation.
@@ -135,6 +139,11 @@ pub struct InitialSpec {
     pub du: f64,
     #[serde(default)]
     pub dv: f64,
+    /// Displacement and velocity along z (a 3-D model only).
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub dz: f64,
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub dw: f64,
     pub kind: IcKind,
 }
 
@@ -144,6 +153,9 @@ pub struct ForceSpec {
     pub node: usize,
     pub fx: f64,
     pub fy: f64,
+    /// Along z (a 3-D model only).
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub fz: f64,
     /// Applied for start ≤ t < finish, s (t < 0 is the relaxation).
     pub start: f64,
     pub finish: f64,
@@ -190,6 +202,23 @@ pub struct GridSpec {
     /// a fibre radiates the same dipole whatever the cell (grid convergence).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub dipole_m: Option<f64>,
+    /// A third axis, z1…z2 in nz cells (cubic: (z2 − z1)/nz = Δx): the field of a 3-D
+    /// model ([`super::acoustic3d`]). Absent: the plane grid of ch. 3.3.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub z: Option<ZAxis>,
+}
+
+/// The z extent of a 3-D grid.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ZAxis {
+    pub z1: f64,
+    pub z2: f64,
+    pub nz: usize,
+}
+
+fn is_zero(v: &f64) -> bool {
+    *v == 0.0
 }
 
 impl GridSpec {
@@ -210,6 +239,24 @@ impl GridSpec {
             self.x1 + (i as f64 + 0.5) * h0,
             self.y1 + (j as f64 + 0.5) * h0,
         )
+    }
+
+    /// The 3-D field's grid, for a grid with a z axis.
+    pub fn grid3(&self) -> Option<super::acoustic3d::Grid3> {
+        let z = self.z?;
+        Some(super::acoustic3d::Grid3 {
+            x1: self.x1,
+            y1: self.y1,
+            z1: z.z1,
+            h: self.dx(),
+            nx: self.nx,
+            ny: self.ny,
+            nz: z.nz,
+            dt: self.dt,
+            c: self.c,
+            rho: self.rho,
+            order: self.order,
+        })
     }
 
     /// Courant number α = c·Δt/Δh.
@@ -238,6 +285,10 @@ pub struct SensorSpec {
     /// Grid cell.
     pub i: usize,
     pub j: usize,
+    /// Layer of a 3-D grid. Absent: the sheet's surface, the first layer above the highest
+    /// mass ([`ModelFile::surface_k`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub k: Option<usize>,
 }
 
 /// A whole simulation input.
@@ -281,6 +332,7 @@ impl ModelFile {
         let n = self.nodes.len();
         self.check_nodes_and_springs(n)?;
         self.check_damage(n)?;
+        self.check_dims()?;
         if let Some(g) = &self.grid {
             self.check_grid(g)?;
         } else if !self.sensors.is_empty() {
@@ -396,7 +448,8 @@ impl ModelFile {
     /// The grid's size, shape and step, the acoustic stability condition and the sensors' cells.
     fn check_grid(&self, g: &GridSpec) -> Result<(), SimError> {
         let s = &self.system;
-        if g.nx.checked_mul(g.ny).is_none_or(|c| c > MAX_GRID_CELLS) {
+        // A 3-D grid's cells are capped by `acoustic3d::MAX_CELLS` (check_dims).
+        if g.z.is_none() && g.nx.checked_mul(g.ny).is_none_or(|c| c > MAX_GRID_CELLS) {
             return Err(bad(format!(
                 "grid: {} × {} cells exceed the limit of {MAX_GRID_CELLS}",
                 g.nx, g.ny
@@ -456,7 +509,94 @@ impl ModelFile {
         let sp = &self.springs[k];
         sp.length.unwrap_or_else(|| {
             let (a, b) = (&self.nodes[sp.a], &self.nodes[sp.b]);
-            ((b.x - a.x).powi(2) + (b.y - a.y).powi(2)).sqrt()
+            let plane = (b.x - a.x).powi(2) + (b.y - a.y).powi(2);
+            match (a.z, b.z) {
+                (None, None) => plane.sqrt(),
+                (za, zb) => (plane + (zb.unwrap_or(0.0) - za.unwrap_or(0.0)).powi(2)).sqrt(),
+            }
         })
+    }
+
+    /// 3 when a node has a height or the grid a z axis (§6.2's third dimension), else 2.
+    pub fn dims(&self) -> usize {
+        let grid3 = self.grid.as_ref().is_some_and(|g| g.z.is_some());
+        if grid3 || self.nodes.iter().any(|n| n.z.is_some()) {
+            3
+        } else {
+            2
+        }
+    }
+
+    /// The sheet's surface in a 3-D grid: the first layer above the one holding the highest
+    /// mass (where a sensor stands unless its `k` says otherwise).
+    pub fn surface_k(&self) -> Option<usize> {
+        let g = self.grid.as_ref()?;
+        let z = g.z?;
+        let top = self
+            .nodes
+            .iter()
+            .map(|n| n.z.unwrap_or(0.0))
+            .fold(f64::NEG_INFINITY, f64::max);
+        let k = ((top - z.z1) / g.dx()).floor() + 1.0;
+        Some(k.clamp(0.0, z.nz.saturating_sub(1) as f64) as usize)
+    }
+
+    /// The cell a 3-D model's sensor reads: (i, j, its k or the surface).
+    pub fn sensor_cell3(&self, s: &SensorSpec) -> (usize, usize, usize) {
+        (s.i, s.j, s.k.or(self.surface_k()).unwrap_or(0))
+    }
+
+    /// What a 3-D model needs besides the plane checks: a z axis on its grid with cubic cells
+    /// inside the cell cap at a stable Courant number, finite heights, sensors' layers inside;
+    /// a plane model uses no z at all.
+    fn check_dims(&self) -> Result<(), SimError> {
+        let uses_z = self.initial.iter().any(|ic| ic.dz != 0.0 || ic.dw != 0.0)
+            || self.forces.iter().any(|f| f.fz != 0.0)
+            || self.sensors.iter().any(|s| s.k.is_some());
+        if self.dims() == 2 {
+            return match uses_z {
+                true => Err(bad(
+                    "dz, dw, fz or a sensor's k need a 3-D model (nodes with z, a grid with z)"
+                        .into(),
+                )),
+                false => Ok(()),
+            };
+        }
+        if let Some(i) = self
+            .nodes
+            .iter()
+            .position(|n| n.z.is_some_and(|z| !z.is_finite()))
+        {
+            return Err(bad(format!("node {i}: z must be finite")));
+        }
+        let Some(g) = &self.grid else {
+            return Ok(());
+        };
+        let Some(z) = g.z else {
+            return Err(bad(
+                "nodes with z need a grid with a z axis (z1, z2, nz), or no grid".into(),
+            ));
+        };
+        if !(z.z2 > z.z1 && z.z1.is_finite() && z.z2.is_finite()) {
+            return Err(bad("grid: need z2 > z1".into()));
+        }
+        if z.nz == 0 || ((z.z2 - z.z1) / z.nz as f64 - g.dx()).abs() > 1e-6 * g.dx() {
+            return Err(bad(format!(
+                "grid: cells must be cubes (Δz = {:e}, Δx = {:e})",
+                (z.z2 - z.z1) / z.nz.max(1) as f64,
+                g.dx()
+            )));
+        }
+        g.grid3().expect("a z axis").check()?;
+        for (k, se) in self.sensors.iter().enumerate() {
+            let (_, _, layer) = self.sensor_cell3(se);
+            if layer >= z.nz {
+                return Err(bad(format!(
+                    "sensor {k}: layer {layer} outside the grid's {} layers",
+                    z.nz
+                )));
+            }
+        }
+        Ok(())
     }
 }

@@ -16,6 +16,8 @@ pub struct SimSignal {
     pub sim_params: String,
     pub sensor_x_m: f64,
     pub sensor_y_m: f64,
+    /// The sensor's height in a 3-D model.
+    pub sensor_z_m: Option<f64>,
     pub scale_v_per_pa: f64,
     pub dominant_frequency_hz: f64,
     /// Eq. 3.5.1's fit to the band-limited pressure's envelope ([`super::decay`]).
@@ -33,6 +35,7 @@ pub fn sim_waveforms_table() -> Table<SimSignal> {
         .col(ColumnSpec::new("sim_params", ColType::Utf8, "", "scenario parameters as JSON (`{}` for a model file)"), |s| Value::Str(Some(s.sim_params.clone())))
         .col(f("sensor_x_m", "m", "x of the sensor cell's centre"), |s| Value::F64(Some(s.sensor_x_m)))
         .col(f("sensor_y_m", "m", "y of the sensor cell's centre"), |s| Value::F64(Some(s.sensor_y_m)))
+        .col(f("sensor_z_m", "m", "z of the sensor cell's centre in a 3-D model (§6.2); null in the thesis's plane").nullable(), |s| Value::F64(s.sensor_z_m))
         .col(f("pressure_scale_v_per_pa", "V/Pa", "sensor sensitivity: samples_v = pressure × this"), |s| Value::F64(Some(s.scale_v_per_pa)))
         .col(f("dominant_frequency_hz", "Hz", "peak of the band-limited pressure's power spectrum (the whole simulated signal, before noise)"), |s| Value::F64(Some(s.dominant_frequency_hz)))
         .col(f("decay_gamma_hz", "1/s", "γ of Eq. 3.5.1: the band-limited pressure’s envelope (half its peak-to-peak swing in each dominant period, from the peak’s period until below 10⁻³ of the first) fitted by y0·exp(−γt); null when fewer than three periods stand above that").nullable(), |s| Value::F64(s.decay.as_ref().map(|d| d.gamma_hz)))
@@ -40,18 +43,32 @@ pub fn sim_waveforms_table() -> Table<SimSignal> {
         .col(f("decay_fit_r2", "", "R² of the fit of ln(envelope) against time: 1 for a pure exponential decay, lower where modes beat").nullable(), |s| Value::F64(s.decay.as_ref().map(|d| d.r2)))
 }
 
+/// The trajectory table of a 3-D model: the plane one's columns, then z and its velocity.
+pub fn trajectory_table_3d() -> Table<TrajectoryPoint> {
+    let f = |name: &str, unit: &str, doc: &str| ColumnSpec::new(name, ColType::Float64, unit, doc);
+    trajectory_columns("sim_trajectories_3d")
+        .col(f("z_m", "m", "position, height"), |p: &TrajectoryPoint| {
+            Value::F64(Some(p.r[2]))
+        })
+        .col(f("w_m_s", "m/s", "velocity, z"), |p| Value::F64(Some(p.u[2])))
+}
+
 /// One node at one time: a row of the trajectory table.
 pub struct TrajectoryPoint {
     pub t_s: f64,
     pub node: usize,
-    pub r: [f64; 2],
-    pub u: [f64; 2],
+    pub r: [f64; 3],
+    pub u: [f64; 3],
 }
 
 /// Node trajectory table.
 pub fn trajectory_table() -> Table<TrajectoryPoint> {
+    trajectory_columns("sim_trajectories")
+}
+
+fn trajectory_columns(name: &str) -> Table<TrajectoryPoint> {
     let f = |name: &str, unit: &str, doc: &str| ColumnSpec::new(name, ColType::Float64, unit, doc);
-    Table::new("sim_trajectories")
+    Table::new(name)
         .col(f("t_s", "s", "simulation time"), |p: &TrajectoryPoint| {
             Value::F64(Some(p.t_s))
         })
@@ -290,7 +307,7 @@ pub fn rows(run: &Run) -> Vec<SimSignal> {
                rec: Recorded,
                label: Option<String>,
                params: String,
-               (x, y): (f64, f64),
+               (x, y, z): (f64, f64, Option<f64>),
                p: &[f64]| {
         let dominant = super::dominant_frequency(p, fs);
         SimSignal {
@@ -313,6 +330,7 @@ pub fn rows(run: &Run) -> Vec<SimSignal> {
             sim_params: params,
             sensor_x_m: x,
             sensor_y_m: y,
+            sensor_z_m: z,
             scale_v_per_pa: run.acq.scale_v_per_pa,
             dominant_frequency_hz: dominant,
             decay: super::decay::fit(p, 1.0 / fs, 1.0 / dominant),
@@ -329,7 +347,7 @@ pub fn rows(run: &Run) -> Vec<SimSignal> {
                 rec,
                 run.model.label.clone(),
                 run.params.clone(),
-                g.centre(spec.i, spec.j),
+                sensor_position(run.model, spec),
                 p,
             ));
         }
@@ -348,11 +366,24 @@ pub fn rows(run: &Run) -> Vec<SimSignal> {
             rec,
             Some(crate::model::Mechanism::Erroneous.as_str().to_string()),
             serde_json::Value::Object(params).to_string(),
-            g.centre(run.model.sensors[a].i, run.model.sensors[a].j),
+            sensor_position(run.model, &run.model.sensors[a]),
             &pressures[a],
         ));
     }
     out
+}
+
+/// The centre of a sensor's cell: (x, y) and, in a 3-D model, z.
+fn sensor_position(m: &ModelFile, spec: &super::model::SensorSpec) -> (f64, f64, Option<f64>) {
+    let Some(g) = &m.grid else {
+        return (0.0, 0.0, None);
+    };
+    let (x, y) = g.centre(spec.i, spec.j);
+    let z = g.z.map(|z| {
+        let (_, _, k) = m.sensor_cell3(spec);
+        z.z1 + (k as f64 + 0.5) * g.dx()
+    });
+    (x, y, z)
 }
 
 /// Write the simulated waveform table (atomic, like every table).
@@ -379,9 +410,14 @@ pub fn write_waveforms(path: &Path, runs: &[Run]) -> Result<u64, SimError> {
     w.finish().map_err(io)
 }
 
-pub fn write_trajectories(path: &Path, frames: &[Frame]) -> Result<u64, SimError> {
+/// Write node frames: the plane table, or with `dims` 3 the one with z (`sim_trajectories_3d`).
+pub fn write_trajectories(path: &Path, frames: &[Frame], dims: usize) -> Result<u64, SimError> {
     let io = |e: store::StoreError| SimError::Io(e.to_string());
-    let table = trajectory_table();
+    let table = if dims == 3 {
+        trajectory_table_3d()
+    } else {
+        trajectory_table()
+    };
     let mut w = TableWriter::create(path, table.schema(), &[], 65_536).map_err(io)?;
     for f in frames {
         for (node, (r, u)) in f.r.iter().zip(&f.u).enumerate() {

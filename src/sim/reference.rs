@@ -331,7 +331,7 @@ pub fn build_library_controlled(
                     .iter()
                     .map(|&[i, j]| {
                         let (i, j) = g.original_cell(i, j).unwrap_or((usize::MAX, usize::MAX));
-                        SensorSpec { i, j }
+                        SensorSpec { i, j, k: None }
                     })
                     .collect();
                 m.check()?;

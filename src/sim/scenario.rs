@@ -268,13 +268,17 @@ fn build_asked(name: &str, p: &Params) -> Result<ModelFile, SimError> {
         "paper-fibre" => paper_fibre(p),
         "mesh3x3-bond-failure" => mesh3x3(p),
         "structure2x1-fibre-failure" => structure2x1(p)?,
-        _ => {
-            return Err(SimError::Model(format!(
-                "unknown scenario {name:?}; known: {}, {}",
-                NAMES.join(", "),
-                super::string::NAME
-            )))
-        }
+        _ => match super::network3d::build(name, p) {
+            Some(m) => m?,
+            None => {
+                return Err(SimError::Model(format!(
+                    "unknown scenario {name:?}; known: {}, {}, {}",
+                    NAMES.join(", "),
+                    super::network3d::NAMES.join(", "),
+                    super::string::NAME
+                )))
+            }
+        },
     };
     if let Some(s) = solver {
         m.system.solver = s;
@@ -351,24 +355,44 @@ fn refine(m: &mut ModelFile, h: f64) -> Result<(), SimError> {
     }
     let (w, hgt) = (g.x2 - g.x1, g.y2 - g.y1);
     let (nx, ny) = ((w / h).round(), (hgt / h).round());
-    if nx < 8.0 || ny < 8.0 || nx * ny > crate::sim::model::MAX_GRID_CELLS as f64 {
+    let nz = g.z.map_or(1.0, |z| ((z.z2 - z.z1) / h).round());
+    let cap = match g.z {
+        Some(_) => super::acoustic3d::MAX_CELLS,
+        None => crate::sim::model::MAX_GRID_CELLS,
+    };
+    if nx < 8.0 || ny < 8.0 || nz < 1.0 || nx * ny * nz > cap as f64 {
         return Err(SimError::Model(format!(
-            "{}: grid_um = {} µm makes a {nx} × {ny} grid (at least 8 × 8, at most {} cells)",
+            "{}: grid_um = {} µm makes a {nx} × {ny}{} grid (at least 8 × 8, at most {cap} cells)",
             m.name,
             h * 1e6,
-            crate::sim::model::MAX_GRID_CELLS
+            g.z.map_or(String::new(), |_| format!(" × {nz}")),
         )));
     }
     let courant = g.alpha();
-    g.dipole_m = Some(g.dipole_m.unwrap_or(g.dx()));
+    let old_z1 = g.z.map(|z| z.z1);
+    let h0 = g.dipole_m.unwrap_or(g.dx());
+    g.dipole_m = Some(h0);
     g.nx = nx as usize;
     g.ny = ny as usize;
+    let cell = g.dx();
+    if let Some(z) = g.z.as_mut() {
+        // Cubic cells: the z extent is nz cells of the new size about the same centre.
+        let centre = 0.5 * (z.z1 + z.z2);
+        z.nz = nz as usize;
+        z.z1 = centre - 0.5 * nz * cell;
+        z.z2 = centre + 0.5 * nz * cell;
+    }
     let ratio = (courant * g.dx() / g.c / m.system.dt + 1e-9)
         .floor()
         .max(1.0);
     g.dt = ratio * m.system.dt;
+    let z0 = old_z1.zip(g.z.map(|z| z.z1));
     for s in &mut m.sensors {
         (s.i, s.j) = g.original_cell(s.i, s.j).unwrap_or((s.i, s.j));
+        // A sensor's layer: the one holding its old cell's centre.
+        if let (Some(k), Some((before, now))) = (s.k.as_mut(), z0) {
+            *k = ((before + (*k as f64 + 0.5) * h0 - now) / cell).floor() as usize;
+        }
     }
     Ok(())
 }
@@ -397,16 +421,24 @@ fn spring(
 }
 
 fn node(x: f64, y: f64, mass: f64, fixed: bool) -> NodeSpec {
-    NodeSpec { x, y, mass, fixed }
+    NodeSpec {
+        x,
+        y,
+        z: None,
+        mass,
+        fixed,
+    }
 }
 
-fn eq(node: usize, dx: f64, dy: f64) -> InitialSpec {
+pub(super) fn eq(node: usize, dx: f64, dy: f64) -> InitialSpec {
     InitialSpec {
         node,
         dx,
         dy,
         du: 0.0,
         dv: 0.0,
+        dz: 0.0,
+        dw: 0.0,
         kind: IcKind::Eq,
     }
 }
@@ -418,6 +450,8 @@ fn st(node: usize, dx: f64, dy: f64) -> InitialSpec {
         dy,
         du: 0.0,
         dv: 0.0,
+        dz: 0.0,
+        dw: 0.0,
         kind: IcKind::St,
     }
 }
@@ -448,7 +482,7 @@ fn chain(
     (nodes, springs)
 }
 
-fn system(dt: f64, damping: f64, iterations: usize) -> System {
+pub(super) fn system(dt: f64, damping: f64, iterations: usize) -> System {
     System {
         dt,
         damping,
@@ -475,7 +509,11 @@ fn sho(p: &Params) -> ModelFile {
         forces: vec![],
         damage: vec![],
         grid: Some(test_grid(dt * 10.0)),
-        sensors: vec![SensorSpec { i: 50, j: 60 }],
+        sensors: vec![SensorSpec {
+            i: 50,
+            j: 60,
+            k: None,
+        }],
     }
 }
 
@@ -493,6 +531,7 @@ pub fn test_grid(dt: f64) -> GridSpec {
         c: 1.0,
         order: Order::Fourth,
         dipole_m: None,
+        z: None,
     }
 }
 
@@ -571,6 +610,7 @@ pub fn paper_grid() -> GridSpec {
         c: 350.0,
         order: Order::Fourth,
         dipole_m: None,
+        z: None,
     }
 }
 
@@ -630,7 +670,7 @@ fn paper_fibre(p: &Params) -> ModelFile {
             (5, 5),
         ]
         .iter()
-        .map(|&(i, j)| SensorSpec { i, j })
+        .map(|&(i, j)| SensorSpec { i, j, k: None })
         .collect(),
     }
 }
@@ -639,15 +679,15 @@ fn paper_fibre(p: &Params) -> ModelFile {
 /// (ix·a, iy·a), ix, iy ∈ −14…14: horizontal fibres at the given iy, vertical at the given
 /// ix. Where two cross they share one bond mass of twice the fibre mass. Fibre ends are
 /// held by StICs that stretch every fibre by `stretch` (the damage zone's 1 %, ch. 4.3.3).
-struct Lattice {
-    nodes: Vec<NodeSpec>,
-    springs: Vec<SpringSpec>,
-    initial: Vec<InitialSpec>,
-    index: std::collections::HashMap<(i32, i32), usize>,
-    a: f64,
+pub(super) struct Lattice {
+    pub(super) nodes: Vec<NodeSpec>,
+    pub(super) springs: Vec<SpringSpec>,
+    pub(super) initial: Vec<InitialSpec>,
+    pub(super) index: std::collections::HashMap<(i32, i32), usize>,
+    pub(super) a: f64,
 }
 
-fn lattice(rows: &[i32], cols: &[i32], stretch: &dyn Fn(u32) -> f64) -> Lattice {
+pub(super) fn lattice(rows: &[i32], cols: &[i32], stretch: &dyn Fn(u32) -> f64) -> Lattice {
     let len = 2e-3;
     let a = len / 28.0;
     let m = FIBRE_RHO * FIBRE_T * FIBRE_W * a;
@@ -759,7 +799,16 @@ fn mesh3x3(p: &Params) -> ModelFile {
         forces: vec![],
         damage,
         grid: Some(paper_grid()),
-        sensors: vec![SensorSpec { i: 125, j: 100 }, SensorSpec { i: 100, j: 125 }],
+        sensors: vec![SensorSpec {
+                i: 125,
+                j: 100,
+                k: None,
+            },
+            SensorSpec {
+                i: 100,
+                j: 125,
+                k: None,
+            },],
     }
 }
 
@@ -804,7 +853,16 @@ fn structure2x1(p: &Params) -> Result<ModelFile, SimError> {
             time: p.get("t1", 1e-6),
         }],
         grid: Some(paper_grid()),
-        sensors: vec![SensorSpec { i: 125, j: 100 }, SensorSpec { i: 100, j: 125 }],
+        sensors: vec![SensorSpec {
+                i: 125,
+                j: 100,
+                k: None,
+            },
+            SensorSpec {
+                i: 100,
+                j: 125,
+                k: None,
+            },],
     })
 }
 

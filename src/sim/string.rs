@@ -254,9 +254,9 @@ impl StiffString {
                 run.frames.push(Frame {
                     t: k as f64 * dt,
                     r: (0..=n)
-                        .map(|i| [x(i) - 0.5 * self.length_m, y[i]])
+                        .map(|i| [x(i) - 0.5 * self.length_m, y[i], 0.0])
                         .collect(),
-                    u: (0..=n).map(|i| [0.0, (y[i] - prev[i]) / dt]).collect(),
+                    u: (0..=n).map(|i| [0.0, (y[i] - prev[i]) / dt, 0.0]).collect(),
                 });
             }
             if k == steps {
@@ -350,7 +350,7 @@ pub(super) fn run_job(job: &super::SimJob) -> Result<super::SimReport, SimError>
                 None => lines.push(format!("  mode {n}: too few oscillations to measure")),
             }
         }
-        super::write_trajectories(job, k, strings.len() > 1, &run.frames, &mut lines)?;
+        super::write_trajectories(job, k, strings.len() > 1, &run.frames, 2, &mut lines)?;
         if let (false, (_, Some((f, decay)))) = (job.sweep.is_empty(), &modes[0]) {
             table.rows.push(SweepRow {
                 hit: k as u64 + 1,

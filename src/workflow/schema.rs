@@ -18,6 +18,7 @@ pub const TABLES: &[&str] = &[
     "cycles",
     "sim_waveforms",
     "sim_trajectories",
+    "sim_trajectories_3d",
     "sim_sweep",
     "truth",
     "truth_cycles",
@@ -43,6 +44,7 @@ pub fn table_schema(name: &str, cfg: &PipelineConfig) -> Option<crate::store::Ta
         "cycles" => crate::analysis::cycles::cycles_table().schema(),
         "sim_waveforms" => crate::sim::output::sim_waveforms_table().schema(),
         "sim_trajectories" => crate::sim::output::trajectory_table().schema(),
+        "sim_trajectories_3d" => crate::sim::output::trajectory_table_3d().schema(),
         // The fixed columns; a sweep adds one per swept key.
         "sim_sweep" => crate::sim::sweep::SweepTable::default().schema(),
         "truth" => crate::synth::truth_table().schema(),

@@ -26,6 +26,7 @@ mod resume;
 mod scale;
 mod shard;
 mod sim;
+mod sim3d;
 mod sim_beyond;
 mod som;
 mod thesis;

@@ -363,7 +363,7 @@ fn bond_failure_splits_the_mass_and_fibre_failure_cuts_the_spring() {
         &params(&[("grid", 0.0), ("iterations", 300.0)]),
     )
     .unwrap();
-    let mut mech = aepipe::sim::mech::Mech::new(&m);
+    let mut mech = aepipe::sim::mech::Mech::<2>::new(&m);
     mech.relax(&m, true);
     let (node, total) = match m.damage[0] {
         DamageSpec::Bond { node, .. } => (node, mech.m.iter().sum::<f64>()),
@@ -408,7 +408,7 @@ fn bond_failure_splits_the_mass_and_fibre_failure_cuts_the_spring() {
         &params(&[("point", 3.0), ("grid", 0.0)]),
     )
     .unwrap();
-    let mut mech = aepipe::sim::mech::Mech::new(&s);
+    let mut mech = aepipe::sim::mech::Mech::<2>::new(&s);
     mech.relax(&s, true);
     let DamageSpec::Fibre { spring, .. } = s.damage[0] else {
         unreachable!()
