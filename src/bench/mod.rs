@@ -37,6 +37,8 @@ pub mod analysis;
 pub mod cluster;
 pub mod detect;
 pub mod report;
+pub mod space;
+pub use space::{field3d, network3d, Field3dRow, Network3dRow};
 
 pub use crate::util::{peak_rss_bytes, rss_bytes};
 
@@ -796,48 +798,6 @@ pub fn solver_table(repeats: usize) -> Result<Vec<SolverRow>, BenchError> {
                 seconds,
             });
         }
-    }
-    Ok(out)
-}
-
-/// One size of the 3-D field bench.
-#[derive(Debug, Clone)]
-pub struct Field3dRow {
-    /// Cells per side.
-    pub n: usize,
-    pub steps: usize,
-    pub seconds: f64,
-    /// The process's resident memory with this size's field still held, bytes.
-    pub rss: u64,
-    /// What the field's four arrays hold, bytes.
-    pub field_bytes: u64,
-}
-
-/// The 3-D acoustic field (4th order, one-way faces, a source at the centre) at n³ cells for
-/// each n of `sizes` (ascending), `steps` steps each, on the current rayon pool.
-pub fn field3d(sizes: &[usize], steps: usize) -> Result<Vec<Field3dRow>, BenchError> {
-    use crate::sim::acoustic3d::{Field3, Grid3};
-    let mut sizes = sizes.to_vec();
-    sizes.sort_unstable();
-    let mut out = Vec::new();
-    for n in sizes {
-        let g = Grid3::cube(n, 1.0, 0.45, 1.0, 1.0);
-        let mut f = Field3::new(&g).map_err(BenchError::run)?;
-        let t0 = std::time::Instant::now();
-        for s in 0..steps {
-            f.add_source(n / 2, n / 2, n / 2, (s as f64 * 0.2).sin());
-            f.step();
-        }
-        let seconds = t0.elapsed().as_secs_f64();
-        std::hint::black_box(f.energy());
-        // Measured while `f` is alive: what this size holds, not an earlier stage's peak.
-        out.push(Field3dRow {
-            n,
-            steps,
-            seconds,
-            rss: rss_bytes().unwrap_or(0),
-            field_bytes: (4 * n * n * n * 8) as u64,
-        });
     }
     Ok(out)
 }

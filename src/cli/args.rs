@@ -375,7 +375,7 @@ pub struct SimulateArgs {
     pub model: Option<PathBuf>,
     /// Built-in scenario instead of a file: sho, five-mass-fibre, fibre-single-constraint,
     /// rubber-band, paper-fibre, mesh3x3-bond-failure, structure2x1-fibre-failure,
-    /// fibre-stiff-string
+    /// fibre-stiff-string, and in 3-D network3d-bond-failure, network3d-fibre-failure
     #[arg(long)]
     pub scenario: Option<String>,
     /// Scenario parameter key=value (repeatable), e.g. point=7, stretch=0.01, dt=1e-8
@@ -611,6 +611,10 @@ pub struct BenchSimArgs {
     /// Steps of the 3-D field per size
     #[arg(long, default_value_t = 50)]
     pub field3d_steps: usize,
+    /// Also the 3-D scenarios and the plane fine-grid fibre failure end to end at these cell
+    /// sizes, µm, comma-separated (e.g. 72,36): wall time and peak memory
+    #[arg(long, value_delimiter = ',')]
+    pub network3d: Vec<f64>,
 }
 
 #[derive(clap::Args)]

@@ -606,6 +606,7 @@ fn bench(which: BenchCmd) -> Result<Outcome> {
             field3d,
             field3d_steps,
             solvers,
+            network3d,
         }) => {
             let rows = crate::bench::sim_scale(&masses, steps)?;
             print::sim_scale(&rows, steps);
@@ -616,6 +617,9 @@ fn bench(which: BenchCmd) -> Result<Outcome> {
             }
             if !field3d.is_empty() {
                 print::field3d(&crate::bench::field3d(&field3d, field3d_steps)?);
+            }
+            if !network3d.is_empty() {
+                print::network3d(&crate::bench::network3d(&network3d)?);
             }
         }
         BenchCmd::Som(a) => bench_som(a)?,

@@ -374,6 +374,26 @@ pub fn field3d(rows: &[crate::bench::Field3dRow]) {
     }
 }
 
+/// The 3-D scenarios' bench table.
+pub fn network3d(rows: &[crate::bench::Network3dRow]) {
+    println!(
+        "scenarios end to end (relaxation, 4 000 implicit steps, the field's steps), {} thread(s):\n{:<28} {:>8} {:>11} {:>7} {:>9} {:>12}",
+        rayon::current_num_threads(),
+        "scenario", "grid µm", "cells", "steps", "seconds", "peak RSS MB"
+    );
+    for r in rows {
+        println!(
+            "{:<28} {:>8} {:>11} {:>7} {:>9.2} {:>12.0}",
+            r.scenario,
+            r.grid_um,
+            r.cells,
+            r.acoustic_steps,
+            r.seconds,
+            r.peak_rss as f64 / 1048576.0
+        );
+    }
+}
+
 /// What an export wrote (one line a file) and what it left out.
 pub fn export_summary(s: &crate::export::ExportSummary) -> String {
     let mut out = String::new();

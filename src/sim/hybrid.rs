@@ -212,11 +212,7 @@ impl<'a> Space<'a> {
     fn new(m: &ModelFile, g: &'a GridSpec) -> Result<Space<'a>, SimError> {
         let f = Field3::new(&g.grid3().expect("a 3-D model's grid has a z axis"))?;
         let cells: Vec<_> = m.sensors.iter().map(|s| m.sensor_cell3(s)).collect();
-        let layer = cells
-            .first()
-            .map(|c| c.2)
-            .or(m.surface_k())
-            .unwrap_or(0);
+        let layer = cells.first().map(|c| c.2).or(m.surface_k()).unwrap_or(0);
         Ok(Space { f, g, cells, layer })
     }
 

@@ -50,7 +50,9 @@ pub fn trajectory_table_3d() -> Table<TrajectoryPoint> {
         .col(f("z_m", "m", "position, height"), |p: &TrajectoryPoint| {
             Value::F64(Some(p.r[2]))
         })
-        .col(f("w_m_s", "m/s", "velocity, z"), |p| Value::F64(Some(p.u[2])))
+        .col(f("w_m_s", "m/s", "velocity, z"), |p| {
+            Value::F64(Some(p.u[2]))
+        })
 }
 
 /// One node at one time: a row of the trajectory table.

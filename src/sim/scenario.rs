@@ -799,7 +799,8 @@ fn mesh3x3(p: &Params) -> ModelFile {
         forces: vec![],
         damage,
         grid: Some(paper_grid()),
-        sensors: vec![SensorSpec {
+        sensors: vec![
+            SensorSpec {
                 i: 125,
                 j: 100,
                 k: None,
@@ -808,7 +809,8 @@ fn mesh3x3(p: &Params) -> ModelFile {
                 i: 100,
                 j: 125,
                 k: None,
-            },],
+            },
+        ],
     }
 }
 
@@ -853,7 +855,8 @@ fn structure2x1(p: &Params) -> Result<ModelFile, SimError> {
             time: p.get("t1", 1e-6),
         }],
         grid: Some(paper_grid()),
-        sensors: vec![SensorSpec {
+        sensors: vec![
+            SensorSpec {
                 i: 125,
                 j: 100,
                 k: None,
@@ -862,7 +865,8 @@ fn structure2x1(p: &Params) -> Result<ModelFile, SimError> {
                 i: 100,
                 j: 125,
                 k: None,
-            },],
+            },
+        ],
     })
 }
 
