@@ -688,8 +688,14 @@ pub(super) struct Lattice {
 }
 
 pub(super) fn lattice(rows: &[i32], cols: &[i32], stretch: &dyn Fn(u32) -> f64) -> Lattice {
+    lattice_fine(rows, cols, stretch, 1)
+}
+
+/// [`lattice`] with each fibre's 28 springs cut into `k` (ix, iy ∈ −14k…14k, spacing
+/// 2 mm/28k; rows and columns given in those units).
+fn lattice_fine(rows: &[i32], cols: &[i32], stretch: &dyn Fn(u32) -> f64, k: i32) -> Lattice {
     let len = 2e-3;
-    let a = len / 28.0;
+    let a = len / (28 * k) as f64;
     let m = FIBRE_RHO * FIBRE_T * FIBRE_W * a;
     let mut lat = Lattice {
         nodes: vec![],
@@ -718,7 +724,7 @@ pub(super) fn lattice(rows: &[i32], cols: &[i32], stretch: &dyn Fn(u32) -> f64) 
         fibre += 1;
     }
     for &(f, horizontal, off) in &lines {
-        let ids: Vec<usize> = (-14..=14)
+        let ids: Vec<usize> = (-14 * k..=14 * k)
             .map(|s| {
                 if horizontal {
                     at(&mut lat, s, off)
@@ -733,7 +739,7 @@ pub(super) fn lattice(rows: &[i32], cols: &[i32], stretch: &dyn Fn(u32) -> f64) 
             ));
         }
         let d = stretch(f) * len / 2.0;
-        let (first, last) = (ids[0], ids[28]);
+        let (first, last) = (ids[0], ids[ids.len() - 1]);
         if horizontal {
             lat.initial.push(st(first, -d, 0.0));
             lat.initial.push(st(last, d, 0.0));
@@ -830,13 +836,29 @@ fn structure2x1(p: &Params) -> Result<ModelFile, SimError> {
     let point = point as i32;
     let s3 = p.get("stretch", 0.01);
     let s1 = p.get("stretch1", 0.002);
+    let k = p.get("split", 1.0);
+    if !(1.0..=8.0).contains(&k) || k.fract() != 0.0 {
+        return Err(SimError::Model(format!(
+            "structure2x1-fibre-failure: split must be 1…8 springs per spring, got {k}"
+        )));
+    }
+    let k = k as i32;
     // Fibre ids: 0 = fibre 3 (horizontal), 1 = fibre 1, 2 = fibre 2.
-    let lat = lattice(&[0], &[-7, 7], &|f| match f {
-        0 => s3,
-        1 => s1,
-        _ => s3,
-    });
-    let (lo, hi) = (lat.index[&(-7 + point, 0)], lat.index[&(-6 + point, 0)]);
+    let lat = lattice_fine(
+        &[0],
+        &[-7 * k, 7 * k],
+        &|f| match f {
+            0 => s3,
+            1 => s1,
+            _ => s3,
+        },
+        k,
+    );
+    // The break: the first of the k springs that make up spring `point` + 1 of the 14. A
+    // split fibre's masses are 1/k of the plain one's: the default damping b is divided by k
+    // so that every mode still decays at b/2m.
+    let at = (-7 + point) * k;
+    let (lo, hi) = (lat.index[&(at, 0)], lat.index[&(at + 1, 0)]);
     let spring = lat
         .springs
         .iter()
@@ -845,7 +867,11 @@ fn structure2x1(p: &Params) -> Result<ModelFile, SimError> {
     Ok(ModelFile {
         name: format!("structure2x1-fibre-failure-p{point}"),
         label: Some(crate::model::Mechanism::FibreFailure.as_str().into()),
-        system: system(p.get("dt", 1e-8), p.get("damping", 1.5e-6), 4_000),
+        system: system(
+            p.get("dt", 1e-8),
+            p.get("damping", 1.5e-6 / k as f64),
+            4_000,
+        ),
         nodes: lat.nodes,
         springs: lat.springs,
         initial: lat.initial,

@@ -418,3 +418,75 @@ fn a_3d_point_source_falls_as_one_over_r_and_travels_at_c() {
     let e = Field3::new(&fast).unwrap_err().to_string();
     assert!(e.contains("Courant"), "{e}");
 }
+
+/// `split=K` cuts each spring of the fibre-failure structure into K: the same fibres (mass,
+/// length, the break inside the spring the point names), the default damping b/K (every mode
+/// still decays at b/2m), and the same static state — the bonds relax to the same place.
+#[test]
+fn a_split_fibre_is_the_same_fibre_cut_finer() {
+    let build = |k: f64| {
+        scenario::build(
+            "structure2x1-fibre-failure",
+            &params(&[
+                ("point", 7.0),
+                ("split", k),
+                ("grid", 0.0),
+                ("iterations", 1.0),
+            ]),
+        )
+        .unwrap()
+    };
+    let (one, two) = (build(1.0), build(2.0));
+    // Lumped masses ρ·A·a: half as heavy, twice as many (the fibre ends and bonds carry one
+    // lump each, so the totals differ by those lumps' halves: under 2 %).
+    assert!((two.nodes[1].mass * 2.0 / one.nodes[1].mass - 1.0).abs() < 1e-12);
+    let mass = |m: &ModelFile| m.nodes.iter().map(|n| n.mass).sum::<f64>();
+    assert!((mass(&two) / mass(&one) - 1.0).abs() < 0.02);
+    assert_eq!(two.springs.len(), 2 * one.springs.len());
+    assert!((two.system.damping * 2.0 / one.system.damping - 1.0).abs() < 1e-12);
+    let fibre3 = |m: &ModelFile| {
+        (0..m.springs.len())
+            .filter(|&k| m.springs[k].fibre == 0)
+            .map(|k| m.rest_length(k))
+            .sum::<f64>()
+    };
+    assert!((fibre3(&two) / fibre3(&one) - 1.0).abs() < 1e-12);
+    let span = |m: &ModelFile| {
+        let Some(aepipe::sim::model::DamageSpec::Fibre { spring, .. }) = m.damage.first() else {
+            panic!("a fibre failure")
+        };
+        let s = &m.springs[*spring];
+        let (a, b) = (m.nodes[s.a].x, m.nodes[s.b].x);
+        (a.min(b), a.max(b))
+    };
+    let ((lo1, hi1), (lo2, hi2)) = (span(&one), span(&two));
+    assert!(lo2 >= lo1 - 1e-15 && hi2 <= hi1 + 1e-15 && hi2 - lo2 < 0.6 * (hi1 - lo1));
+    // The bonds of fibre 3 with fibres 1 and 2 (x = ∓0.5 mm), relaxed.
+    let bonds = |m: &ModelFile| {
+        let out = simulate(
+            m,
+            &SimOptions {
+                trajectory_every: Some(1),
+                snapshot_every: None,
+            },
+        )
+        .unwrap();
+        let r = &out.trajectory[0].r;
+        let mut at: Vec<[f64; 3]> = m
+            .nodes
+            .iter()
+            .enumerate()
+            .filter(|(_, n)| n.y == 0.0 && (n.x.abs() - 0.5e-3).abs() < 1e-9)
+            .map(|(i, _)| r[i])
+            .collect();
+        at.sort_by(|a, b| a[0].total_cmp(&b[0]));
+        at
+    };
+    let (b1, b2) = (bonds(&one), bonds(&two));
+    assert_eq!(b1.len(), 2);
+    for (p, q) in b1.iter().zip(&b2) {
+        let d = ((p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2)).sqrt();
+        // Against the bond's 5 µm displacement under the load: within 0.2 %.
+        assert!(d < 1e-8, "bond at {p:?} and {q:?}: {d:e} m apart");
+    }
+}
