@@ -89,6 +89,8 @@ pub const ENERGY_EU: Col<F64> = Col::new("energy_eu");
 pub const SOM_LABEL: Col<Str> = Col::new("som_label");
 pub const NODE_LABEL: Col<Str> = Col::new("node_label");
 pub const REFERENCE_LABEL: Col<Str> = Col::new("reference_label");
+pub const BMU_ROW: Col<I32> = Col::new("bmu_row");
+pub const BMU_COL: Col<I32> = Col::new("bmu_col");
 
 // `events.parquet` and `truth.parquet`.
 pub const X_M: Col<F64> = Col::new("x_m");

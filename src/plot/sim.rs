@@ -220,3 +220,117 @@ fn bounds(pts: impl Iterator<Item = (f64, f64)>) -> ((f64, f64), (f64, f64)) {
     };
     (pad(x0, x1), pad(y0, y1))
 }
+
+/// A source heard on a ring (`aepipe thesis fig-3.23`, `fig-3.27`): its amplitude against
+/// direction with the analytic directivity, and its pressure on the strongest axis.
+pub fn directivity_png(path: &Path, h: &crate::sim::sources::Heard) -> Result<(), PlotError> {
+    ensure_font()?;
+    let e = err(path);
+    let root = BitMapBackend::new(path, (1100, 420)).into_drawing_area();
+    root.fill(&WHITE).map_err(&e)?;
+    let areas = root.split_evenly((1, 2));
+    let deg: Vec<f64> = h.theta.iter().map(|t| t.to_degrees()).collect();
+    let top = h
+        .amplitude
+        .iter()
+        .fold(0.0f64, |a, &v| a.max(v))
+        .max(1e-300);
+    let mut c = ChartBuilder::on(&areas[0])
+        .caption(
+            format!(
+                "{:?} ({:?}) on the ring: measured (points), analytic (line)",
+                h.pole, h.drive
+            ),
+            ("sans-serif", 14),
+        )
+        .margin(10)
+        .x_label_area_size(35)
+        .y_label_area_size(70)
+        .build_cartesian_2d(0.0..360.0, 0.0..1.1 * top)
+        .map_err(&e)?;
+    c.configure_mesh()
+        .x_desc("direction θ from the x axis, degrees")
+        .y_desc("amplitude, Pa")
+        .draw()
+        .map_err(&e)?;
+    c.draw_series(LineSeries::new(
+        deg.iter().copied().zip(h.analytic.iter().copied()),
+        BLUE.stroke_width(2),
+    ))
+    .map_err(&e)?;
+    c.draw_series(
+        deg.iter()
+            .zip(&h.amplitude)
+            .map(|(x, y)| Circle::new((*x, *y), 3, RED.filled())),
+    )
+    .map_err(&e)?;
+    let t: Vec<f64> = (0..h.on_axis.len())
+        .map(|k| (k + 1) as f64 / h.sample_rate_hz)
+        .collect();
+    let (x, y) = bounds(t.iter().copied().zip(h.on_axis.iter().copied()));
+    let mut c = ChartBuilder::on(&areas[1])
+        .caption("pressure 6 m out on the strongest axis", ("sans-serif", 14))
+        .margin(10)
+        .x_label_area_size(35)
+        .y_label_area_size(70)
+        .build_cartesian_2d(x.0..x.1, y.0..y.1)
+        .map_err(&e)?;
+    c.configure_mesh()
+        .x_desc("time, s")
+        .y_desc("pressure, Pa")
+        .draw()
+        .map_err(&e)?;
+    c.draw_series(LineSeries::new(
+        t.iter().copied().zip(h.on_axis.iter().copied()),
+        BLACK.stroke_width(1),
+    ))
+    .map_err(&e)?;
+    root.present().map_err(&e)?;
+    Ok(())
+}
+
+/// Named curves on one chart: the first drawn as points, the rest as lines.
+pub fn curves_png(
+    path: &Path,
+    title: &str,
+    x_desc: &str,
+    y_desc: &str,
+    curves: &[(&str, Vec<(f64, f64)>)],
+) -> Result<(), PlotError> {
+    ensure_font()?;
+    let e = err(path);
+    let root = BitMapBackend::new(path, (800, 480)).into_drawing_area();
+    root.fill(&WHITE).map_err(&e)?;
+    let (x, y) = bounds(curves.iter().flat_map(|(_, p)| p.iter().copied()));
+    let mut c = ChartBuilder::on(&root)
+        .caption(title, ("sans-serif", 15))
+        .margin(10)
+        .x_label_area_size(35)
+        .y_label_area_size(70)
+        .build_cartesian_2d(x.0..x.1, y.0..y.1)
+        .map_err(&e)?;
+    c.configure_mesh()
+        .x_desc(x_desc)
+        .y_desc(y_desc)
+        .draw()
+        .map_err(&e)?;
+    for (i, (name, p)) in curves.iter().enumerate() {
+        let col = Palette99::pick(i).to_rgba();
+        if i == 0 {
+            c.draw_series(p.iter().map(|q| Circle::new(*q, 4, col.filled())))
+                .map_err(&e)?
+                .label(*name)
+                .legend(move |(x, y)| Circle::new((x + 8, y), 4, col.filled()));
+        } else {
+            c.draw_series(LineSeries::new(p.iter().copied(), col.stroke_width(2)))
+                .map_err(&e)?
+                .label(*name)
+                .legend(move |(x, y)| {
+                    PathElement::new(vec![(x, y), (x + 16, y)], col.stroke_width(2))
+                });
+        }
+    }
+    boxed_legend(&mut c, SeriesLabelPosition::UpperRight, path)?;
+    root.present().map_err(&e)?;
+    Ok(())
+}

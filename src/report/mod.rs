@@ -8,13 +8,16 @@
 //! no table; it only embeds the PNG files it is pointed at.
 
 pub mod explore;
+mod gallery;
 mod sources;
+
+use gallery::{disagree_section, gallery_section};
+pub use gallery::{Disagreements, Gallery, GalleryChoice, GalleryPicture};
 
 use crate::analysis::trend::TrendReport;
 use crate::model::Mechanism;
 use crate::pipeline::RunReport;
 use crate::som::tables::Confusion;
-use crate::store::HitKey;
 use crate::util::{base64, write_atomic, IoAt};
 use std::collections::{BTreeMap, BTreeSet};
 use std::fmt::Write as _;
@@ -284,19 +287,6 @@ impl TruthScore {
     }
 }
 
-/// A gallery hit's thumbnail (the window about the burst) and its whole record's picture.
-pub type GalleryPicture = (PathBuf, PathBuf);
-
-/// A CWT picture per chosen hit of each class (`None`: it could not be drawn).
-#[derive(Default)]
-pub struct Gallery {
-    /// "SOM" or "criteria": which labels chose the hits.
-    pub by: &'static str,
-    /// Per class: each hit with its thumbnail (the window about the burst) and its whole
-    /// record's picture, or None where it could not be drawn.
-    pub classes: BTreeMap<String, Vec<(HitKey, Option<GalleryPicture>)>>,
-}
-
 /// What the report shows besides the summary, gathered by the workflow from the run folder.
 #[derive(Default)]
 pub struct Gathered {
@@ -311,46 +301,8 @@ pub struct Gathered {
     pub manifest: String,
     /// The points and hits the explorable charts show.
     pub explorer: explore::Explorer,
-}
-
-/// The gallery's choice, the first `per` hits of each class in key order, made as the hits
-/// stream by in any order: each class keeps the `per` smallest keys it has seen (a bounded max-heap), so memory holds `per` keys a class.
-#[derive(Debug, Clone)]
-pub struct GalleryChoice {
-    per: usize,
-    heaps: BTreeMap<String, std::collections::BinaryHeap<HitKey>>,
-}
-
-impl GalleryChoice {
-    pub fn new(per: usize) -> GalleryChoice {
-        GalleryChoice {
-            per,
-            heaps: BTreeMap::new(),
-        }
-    }
-
-    pub fn offer(&mut self, key: &HitKey, class: &str) {
-        if self.per == 0 {
-            return;
-        }
-        if !self.heaps.contains_key(class) {
-            self.heaps.insert(class.to_string(), Default::default());
-        }
-        let h = self.heaps.get_mut(class).expect("inserted");
-        if h.len() < self.per {
-            h.push(key.clone());
-        } else if h.peek().is_some_and(|top| key < top) {
-            h.pop();
-            h.push(key.clone());
-        }
-    }
-
-    pub fn chosen(self) -> BTreeMap<String, Vec<HitKey>> {
-        self.heaps
-            .into_iter()
-            .map(|(c, h)| (c, h.into_sorted_vec()))
-            .collect()
-    }
+    /// The hits the SOM reads otherwise than their reference label (Table 5.3).
+    pub disagree: Disagreements,
 }
 
 /// Text made safe inside HTML (element content and quoted attributes).
@@ -437,6 +389,11 @@ pre{{background:#f6f6f6;padding:8px;overflow-x:auto}}.missing{{color:#b00}}</sty
     h.push_str(EXPLORE_HERE);
     trend_section(&mut h, s);
     som_section(&mut h, s);
+    disagree_section(
+        &mut h,
+        &g.disagree,
+        "the reference label (`reference_label`: the ch. 4.7 criteria by default)",
+    );
     cluster_section(&mut h, s);
     statistics_section(&mut h, s);
     profile_section(&mut h, s);
@@ -817,42 +774,6 @@ fn truth_section(h: &mut String, s: &RunSummary) {
     }
 }
 
-fn gallery_section(h: &mut String, g: &Gallery) {
-    if g.classes.is_empty() {
-        return;
-    }
-    let _ = match g.by {
-        "cluster" => write!(h, "<h2>CWT gallery by cluster</h2>"),
-        by => write!(h, "<h2>CWT gallery by {by} class (Appendix B)</h2>"),
-    };
-    for (class, pics) in &g.classes {
-        let _ = write!(h, "<h3>{}</h3><div class=gallery>", esc(class));
-        for (k, png) in pics {
-            let cap = format!("{} ch{} hit {}", k.0, k.1, k.2);
-            match png {
-                Some((thumb, full)) => {
-                    // The explorer opens a hit's picture by this key.
-                    let pic = img_swap(thumb, full, &cap, 270).replacen(
-                        "<img ",
-                        &format!("<img data-key=\"{}\" ", esc(&explore::key_text(k))),
-                        1,
-                    );
-                    let _ = write!(
-                        h,
-                        "<figure>{}<figcaption>{}</figcaption></figure>",
-                        pic,
-                        esc(&cap)
-                    );
-                }
-                None => {
-                    let _ = write!(h, "<p class=missing>{}: not drawn</p>", esc(&cap));
-                }
-            }
-        }
-        h.push_str("</div>");
-    }
-}
-
 /// "features 0.4 s (75 MB), trend 0.1 s (40 MB), …": each stage's time and peak memory.
 pub fn stage_line(s: &RunSummary) -> String {
     s.stages()
@@ -878,22 +799,4 @@ document.body.setAttribute('data-images-loaded',i.filter(function(x){{return x.c
         esc(&stage_line(s)),
         esc(manifest)
     );
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn gallery_takes_the_first_hits_of_each_class() {
-        let k = |h: i64| ("e".to_string(), 1, h);
-        // Offered out of key order, as the classification streams them.
-        let mut g = GalleryChoice::new(2);
-        for (key, class) in [(k(3), "b"), (k(1), "a"), (k(4), "b"), (k(2), "b")] {
-            g.offer(&key, class);
-        }
-        let c = g.chosen();
-        assert_eq!(c["a"], vec![k(1)]);
-        assert_eq!(c["b"], vec![k(2), k(3)]);
-    }
 }

@@ -16,6 +16,7 @@ pub mod network3d;
 pub mod output;
 pub mod reference;
 pub mod scenario;
+pub mod sources;
 pub mod string;
 pub mod sweep;
 

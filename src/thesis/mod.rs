@@ -8,6 +8,9 @@
 //! The first entries are the simulator's (ch. 3–4 and §6.2); the rest of the record
 //! (`docs/thesis.md`) says what is not yet an entry.
 
+mod field;
+mod spring;
+
 use crate::sim::scenario::{parse_sweep, Params};
 use crate::sim::{SimJob, SimOptions};
 use std::path::{Path, PathBuf};
@@ -49,14 +52,27 @@ pub struct Entry {
     pub thesis: f64,
     /// Relative tolerance of the verdict.
     pub tolerance: f64,
-    /// The scenario, its parameters and its sweep (`key=LO..HI[:STEP]`).
-    pub scenario: &'static str,
-    pub params: &'static [(&'static str, f64)],
-    pub sweep: &'static str,
-    /// Node trajectories kept (a model without a grid is measured from its nodes).
-    pub trajectories: bool,
-    /// The number aepipe compares, from the sweep's table.
-    pub measure: fn(&crate::sim::sweep::SweepTable) -> Option<f64>,
+    /// What runs.
+    pub how: How,
+}
+
+/// How an entry is computed.
+#[derive(Debug, Clone, Copy)]
+pub enum How {
+    /// A scenario swept as `aepipe simulate --sweep` runs it.
+    Sweep {
+        /// The scenario, its parameters and its sweep (`key=LO..HI[:STEP]`).
+        scenario: &'static str,
+        params: &'static [(&'static str, f64)],
+        sweep: &'static str,
+        /// Node trajectories kept (a model without a grid is measured from its nodes).
+        trajectories: bool,
+        /// The number aepipe compares, from the sweep's table.
+        measure: fn(&crate::sim::sweep::SweepTable) -> Option<f64>,
+    },
+    /// Its own computation, which writes its figure and data into the folder it is given
+    /// and returns the number compared ([`field`]).
+    Own(fn(&Path) -> Result<f64, ThesisError>),
 }
 
 /// Every entry, in the thesis's order.
@@ -67,11 +83,29 @@ pub const ENTRIES: &[Entry] = &[
         compared: "γ of the plucked paper fibre, implicit Euler at Δt = 4.5e-8 s, b = 0 (1/s)",
         thesis: 5.0e4,
         tolerance: 0.15,
-        scenario: "paper-fibre",
-        params: &[("grid", 0.0), ("damping", 0.0)],
-        sweep: "dt=1.5e-8..4.5e-8:1e-8",
-        trajectories: true,
-        measure: |t| gamma_at(t, 4.5e-8),
+        how: How::Sweep {
+            scenario: "paper-fibre",
+            params: &[("grid", 0.0), ("damping", 0.0)],
+            sweep: "dt=1.5e-8..4.5e-8:1e-8",
+            trajectories: true,
+            measure:     |t| gamma_at(t, 4.5e-8),
+        },
+    },
+    Entry {
+        id: "fig-3.23",
+        section: "§3.3.5, Fig. 3.23",
+        compared: "quadrupole pulse (two opposite dipoles) heard on a ring 3 wavelengths out: correlation of its amplitude with the analytic |sin 2θ| (1: the four lobes exactly)",
+        thesis: 1.0,
+        tolerance: 0.03,
+        how: How::Own(field::fig_3_23),
+    },
+    Entry {
+        id: "fig-3.27",
+        section: "§3.3.6, Fig. 3.27",
+        compared: "continuous dipole, settled, 6 m out on its axis: share of the pressure's power a sine at the drive's frequency explains (1: \"sinusoidal without any significant high frequency component\")",
+        thesis: 1.0,
+        tolerance: 0.01,
+        how: How::Own(field::fig_3_27),
     },
     Entry {
         id: "table-3.8",
@@ -79,11 +113,13 @@ pub const ENTRIES: &[Entry] = &[
         compared: "fundamental of the plucked paper fibre (kHz)",
         thesis: 253.91,
         tolerance: 0.05,
-        scenario: "paper-fibre",
-        params: &[("grid", 0.0), ("damping", 0.0), ("amplitude", 1e-6)],
-        sweep: "stretch=0.01..0.01:0.01",
-        trajectories: true,
-        measure: |t| first(t).map(|r| r.dominant_frequency_hz / 1e3),
+        how: How::Sweep {
+            scenario: "paper-fibre",
+            params: &[("grid", 0.0), ("damping", 0.0), ("amplitude", 1e-6)],
+            sweep: "stretch=0.01..0.01:0.01",
+            trajectories: true,
+            measure:     |t| first(t).map(|r| r.dominant_frequency_hz / 1e3),
+        },
     },
     Entry {
         id: "fig-3.31",
@@ -91,11 +127,13 @@ pub const ENTRIES: &[Entry] = &[
         compared: "fundamental of the plucked rubber band (Hz)",
         thesis: 189.21,
         tolerance: 0.03,
-        scenario: "rubber-band",
-        params: &[],
-        sweep: "damping=7e-4..7e-4:1e-4",
-        trajectories: true,
-        measure: |t| first(t).map(|r| r.dominant_frequency_hz),
+        how: How::Sweep {
+            scenario: "rubber-band",
+            params: &[],
+            sweep: "damping=7e-4..7e-4:1e-4",
+            trajectories: true,
+            measure:     |t| first(t).map(|r| r.dominant_frequency_hz),
+        },
     },
     Entry {
         id: "eq-3.5.2",
@@ -103,16 +141,18 @@ pub const ENTRIES: &[Entry] = &[
         compared: "α = γ/b of the plucked rubber band at b = 5.5e-4 kg/s (1/kg)",
         thesis: 3.15e4,
         tolerance: 0.10,
-        scenario: "rubber-band",
-        params: &[],
-        sweep: "damping=5.5e-4..5.5e-4:1e-4",
-        trajectories: true,
-        measure: |t| {
-            first(t).and_then(|r| {
-                r.decay
-                    .as_ref()
-                    .and_then(|d| r.damping_kg_s.and_then(|b| d.alpha_per_kg(b)))
-            })
+        how: How::Sweep {
+            scenario: "rubber-band",
+            params: &[],
+            sweep: "damping=5.5e-4..5.5e-4:1e-4",
+            trajectories: true,
+            measure:     |t| {
+                first(t).and_then(|r| {
+                    r.decay
+                        .as_ref()
+                        .and_then(|d| r.damping_kg_s.and_then(|b| d.alpha_per_kg(b)))
+                })
+            },
         },
     },
     Entry {
@@ -121,11 +161,13 @@ pub const ENTRIES: &[Entry] = &[
         compared: "bond failure (1) in the 3×3 mesh, sensor 1, dominant (kHz)",
         thesis: 250.0,
         tolerance: 0.10,
-        scenario: "mesh3x3-bond-failure",
-        params: &[("t2", -1.0)],
-        sweep: "kink=1e-5..1e-5:1e-5",
-        trajectories: false,
-        measure: |t| at_sensor(t, 1, 1e-5).map(|f| f / 1e3),
+        how: How::Sweep {
+            scenario: "mesh3x3-bond-failure",
+            params: &[("t2", -1.0)],
+            sweep: "kink=1e-5..1e-5:1e-5",
+            trajectories: false,
+            measure:     |t| at_sensor(t, 1, 1e-5).map(|f| f / 1e3),
+        },
     },
     Entry {
         id: "fig-4.17",
@@ -133,11 +175,21 @@ pub const ENTRIES: &[Entry] = &[
         compared: "plucked fibre at 0.6 % extension, sensor 1 (kHz; the thesis's line F = 1.27e7·x + 115.21)",
         thesis: 191.41,
         tolerance: 0.05,
-        scenario: "paper-fibre",
-        params: &[],
-        sweep: "stretch=0.002..0.010:0.002",
-        trajectories: false,
-        measure: |t| at_sensor(t, 1, 0.006).map(|f| f / 1e3),
+        how: How::Sweep {
+            scenario: "paper-fibre",
+            params: &[],
+            sweep: "stretch=0.002..0.010:0.002",
+            trajectories: false,
+            measure:     |t| at_sensor(t, 1, 0.006).map(|f| f / 1e3),
+        },
+    },
+    Entry {
+        id: "fig-4.20",
+        section: "§4.6.1, Fig. 4.20, Eq. 4.6.1",
+        compared: "a broken fibre as Fig. 3.1's mass on a spring, free length 0.5 mm, paper (Table 4.1), m the free length's mass: simulated (kHz) against Eq. 4.6.1",
+        thesis: 1537.6,
+        tolerance: 0.01,
+        how: How::Own(spring::fig_4_20),
     },
     Entry {
         id: "fig-4.26",
@@ -145,11 +197,13 @@ pub const ENTRIES: &[Entry] = &[
         compared: "fibre failure at break point 1, 36 µm grid, sensor 1 (kHz)",
         thesis: 800.0,
         tolerance: 0.10,
-        scenario: "structure2x1-fibre-failure",
-        params: &[("grid_um", 36.0)],
-        sweep: "point=1..1",
-        trajectories: false,
-        measure: |t| at_sensor(t, 1, 1.0).map(|f| f / 1e3),
+        how: How::Sweep {
+            scenario: "structure2x1-fibre-failure",
+            params: &[("grid_um", 36.0)],
+            sweep: "point=1..1",
+            trajectories: false,
+            measure:     |t| at_sensor(t, 1, 1.0).map(|f| f / 1e3),
+        },
     },
     Entry {
         id: "fig-4.27",
@@ -157,11 +211,13 @@ pub const ENTRIES: &[Entry] = &[
         compared: "fibre failure at break point 12, 36 µm grid, sensor 1 (kHz)",
         thesis: 1750.0,
         tolerance: 0.10,
-        scenario: "structure2x1-fibre-failure",
-        params: &[("grid_um", 36.0)],
-        sweep: "point=12..12",
-        trajectories: false,
-        measure: |t| at_sensor(t, 1, 12.0).map(|f| f / 1e3),
+        how: How::Sweep {
+            scenario: "structure2x1-fibre-failure",
+            params: &[("grid_um", 36.0)],
+            sweep: "point=12..12",
+            trajectories: false,
+            measure:     |t| at_sensor(t, 1, 12.0).map(|f| f / 1e3),
+        },
     },
     Entry {
         id: "fig-4.28",
@@ -169,11 +225,13 @@ pub const ENTRIES: &[Entry] = &[
         compared: "fibre failure at break point 7, 36 µm grid, sensor 1 (kHz)",
         thesis: 1250.0,
         tolerance: 0.10,
-        scenario: "structure2x1-fibre-failure",
-        params: &[("grid_um", 36.0)],
-        sweep: "point=7..7",
-        trajectories: false,
-        measure: |t| at_sensor(t, 1, 7.0).map(|f| f / 1e3),
+        how: How::Sweep {
+            scenario: "structure2x1-fibre-failure",
+            params: &[("grid_um", 36.0)],
+            sweep: "point=7..7",
+            trajectories: false,
+            measure:     |t| at_sensor(t, 1, 7.0).map(|f| f / 1e3),
+        },
     },
 ];
 
@@ -231,30 +289,20 @@ pub fn select(ids: &[String]) -> Result<Vec<Entry>, ThesisError> {
 pub fn run(e: &Entry, out: &Path) -> Result<Outcome, ThesisError> {
     let t0 = std::time::Instant::now();
     let dir = out.join(e.id);
-    let job = SimJob {
-        model: None,
-        scenario: Some(e.scenario.to_string()),
-        params: Params(e.params.iter().map(|(k, v)| (k.to_string(), *v)).collect()),
-        sweep: vec![parse_sweep(e.sweep)?],
-        solver: None,
-        out: dir.clone(),
-        run: SimOptions {
-            trajectory_every: e.trajectories.then_some(1),
-            snapshot_every: None,
-        },
-        acquisition: Default::default(),
+    let aepipe = match e.how {
+        How::Own(f) => {
+            std::fs::create_dir_all(&dir)
+                .map_err(|x| crate::sim::SimError::Io(format!("{}: {x}", dir.display())))?;
+            f(&dir)?
+        }
+        How::Sweep {
+            scenario,
+            params,
+            sweep,
+            trajectories,
+            measure,
+        } => swept(e.id, &dir, scenario, params, sweep, trajectories, measure)?,
     };
-    let rep = crate::sim::run_job(&job)?;
-    let table = rep.sweep.ok_or_else(|| ThesisError::Measure {
-        id: e.id,
-        message: "the run wrote no sweep table".into(),
-    })?;
-    crate::plot::sim::sweep_png(&dir.join("sweep.png"), &table)?;
-    crate::plot::sim::envelopes_png(&dir.join("envelopes.png"), &table)?;
-    let aepipe = (e.measure)(&table).ok_or_else(|| ThesisError::Measure {
-        id: e.id,
-        message: "the compared value is not in the run's table".into(),
-    })?;
     let deviation = aepipe / e.thesis - 1.0;
     Ok(Outcome {
         entry: *e,
@@ -263,5 +311,42 @@ pub fn run(e: &Entry, out: &Path) -> Result<Outcome, ThesisError> {
         pass: deviation.abs() <= e.tolerance,
         dir,
         seconds: t0.elapsed().as_secs_f64(),
+    })
+}
+
+/// A scenario swept into `dir` (its tables, `sweep.parquet`, `sweep.png`, `envelopes.png`),
+/// and the number measured from the sweep's table.
+fn swept(
+    id: &'static str,
+    dir: &Path,
+    scenario: &str,
+    params: &[(&str, f64)],
+    sweep: &str,
+    trajectories: bool,
+    measure: fn(&crate::sim::sweep::SweepTable) -> Option<f64>,
+) -> Result<f64, ThesisError> {
+    let job = SimJob {
+        model: None,
+        scenario: Some(scenario.to_string()),
+        params: Params(params.iter().map(|(k, v)| (k.to_string(), *v)).collect()),
+        sweep: vec![parse_sweep(sweep)?],
+        solver: None,
+        out: dir.to_path_buf(),
+        run: SimOptions {
+            trajectory_every: trajectories.then_some(1),
+            snapshot_every: None,
+        },
+        acquisition: Default::default(),
+    };
+    let rep = crate::sim::run_job(&job)?;
+    let table = rep.sweep.ok_or_else(|| ThesisError::Measure {
+        id,
+        message: "the run wrote no sweep table".into(),
+    })?;
+    crate::plot::sim::sweep_png(&dir.join("sweep.png"), &table)?;
+    crate::plot::sim::envelopes_png(&dir.join("envelopes.png"), &table)?;
+    measure(&table).ok_or_else(|| ThesisError::Measure {
+        id,
+        message: "the compared value is not in the run's table".into(),
     })
 }

@@ -23,10 +23,20 @@ pub(super) fn gather(s: &RunSummary) -> Result<Gathered, WorkflowError> {
         Some(c) => cluster_choice(&c.report.clusters, per)?.chosen(),
         None => BTreeMap::new(),
     };
-    // One pass over the inputs draws both galleries' hits.
+    let mut disagree = match &s.som {
+        Some(m) => disagreements(&m.classification, per)?,
+        None => crate::report::Disagreements::new(0),
+    };
+    // One pass over the inputs draws the galleries' hits and the disagreeing ones.
     let mut wanted = chosen.clone();
     wanted.extend(by_cluster.iter().map(|(c, k)| (c.clone(), k.clone())));
+    wanted.insert("disagree".into(), disagree.first.keys().cloned().collect());
     let pics = draw_gallery(&s.inputs, &s.config, &wanted, &RunDir::new(&s.out));
+    disagree.pictures = disagree
+        .first
+        .keys()
+        .filter_map(|k| pics.get(k).map(|p| (k.clone(), p.clone())))
+        .collect();
     // The explorer opens the gallery's hits that were drawn.
     let drawn: BTreeMap<String, Vec<HitKey>> = chosen
         .iter()
@@ -74,7 +84,41 @@ pub(super) fn gather(s: &RunSummary) -> Result<Gathered, WorkflowError> {
         cluster_gallery,
         manifest,
         explorer,
+        disagree,
     })
+}
+
+/// Table 5.3's hits: those whose SOM class differs from their reference label, counted, the
+/// first `keep` kept with their node (a batch at a time).
+fn disagreements(
+    classification: &Path,
+    keep: usize,
+) -> Result<crate::report::Disagreements, WorkflowError> {
+    let mut d = crate::report::Disagreements::new(keep);
+    let t = TableScan::open(classification)?;
+    let sel = [
+        cols::EXPERIMENT.name,
+        cols::CHANNEL.name,
+        cols::HIT.name,
+        cols::SOM_LABEL.name,
+        cols::REFERENCE_LABEL.name,
+        cols::BMU_ROW.name,
+        cols::BMU_COL.name,
+    ];
+    for b in t.batches(&sel) {
+        let (_, df) = b?;
+        let keys = t.hit_keys(&df)?;
+        let som = t.texts(&df, cols::SOM_LABEL)?;
+        let reference = t.texts(&df, cols::REFERENCE_LABEL)?;
+        let (rows, cols_) = (t.i32s(&df, cols::BMU_ROW)?, t.i32s(&df, cols::BMU_COL)?);
+        for i in 0..keys.len() {
+            if let Some(s) = &som[i] {
+                let node = (rows[i].unwrap_or(-1), cols_[i].unwrap_or(-1));
+                d.offer(&keys[i], s, reference[i].as_deref(), node);
+            }
+        }
+    }
+    Ok(d)
 }
 
 /// The cluster gallery's choice: the first `per` hits of each cluster in key order.
