@@ -191,6 +191,10 @@ pub struct ReportConfig {
     /// gallery across classes in turn (at most the gallery's hits); any other hit shows the
     /// `aepipe cwt` command that draws it.
     pub explorable_hits: usize,
+    /// Appendix B: the CWT of every hit, in key order, up to this many, on pages of 100
+    /// thumbnails linked from the report (`appendix-b/`); 0: none. Each picture costs an
+    /// analysis and a drawing (~25 ms), so a whole test is asked for, not drawn by default.
+    pub appendix_b_hits: usize,
 }
 
 impl Default for ReportConfig {
@@ -200,6 +204,7 @@ impl Default for ReportConfig {
             gallery_per_class: 6,
             series_figures: 24,
             explorable_hits: 48,
+            appendix_b_hits: 0,
         }
     }
 }

@@ -246,6 +246,133 @@ pub(super) fn disagree_section(h: &mut String, d: &Disagreements, reference: &st
     h.push_str("</div>");
 }
 
+/// Appendix B's pages as written: where, how many hits drawn of how many.
+#[derive(Debug, Clone)]
+pub struct AppendixB {
+    pub index: PathBuf,
+    pub pages: usize,
+    /// Hits shown (drawn or said not drawn) and the run's hits.
+    pub shown: usize,
+    pub drawn: usize,
+    pub total: usize,
+}
+
+/// Thumbnails per page of Appendix B.
+pub const APPENDIX_B_PAGE: usize = 100;
+
+/// Write Appendix B: `dir/page-NNN.html`, 100 thumbnails each (linked, not embedded: a
+/// page stays small however many hits), and `dir/index.html` listing the pages with their
+/// first and last hits. `hits` in key order, each with its thumbnail if it was drawn.
+pub fn write_appendix_b(
+    dir: &std::path::Path,
+    hits: &[(HitKey, Option<PathBuf>)],
+    total: usize,
+) -> std::io::Result<AppendixB> {
+    std::fs::create_dir_all(dir)?;
+    let pages: Vec<&[(HitKey, Option<PathBuf>)]> = hits.chunks(APPENDIX_B_PAGE).collect();
+    let name = |k: usize| format!("page-{:03}.html", k + 1);
+    let id = |k: &HitKey| format!("{} ch{} hit {}", k.0, k.1, k.2);
+    let head = |title: &str| {
+        format!(
+            "<!doctype html><html><head><meta charset=utf-8><title>{t}</title><style>\
+             body{{font-family:sans-serif;margin:1em}}figure{{display:inline-block;margin:4px}}\
+             figcaption{{font-size:12px}}img{{width:270px}}</style></head><body><h1>{t}</h1>",
+            t = esc(title)
+        )
+    };
+    for (k, page) in pages.iter().enumerate() {
+        let mut h = head(&format!("Appendix B, page {} of {}", k + 1, pages.len()));
+        let _ = write!(h, "<p><a href=index.html>index</a>");
+        if k > 0 {
+            let _ = write!(h, " · <a href={}>previous</a>", name(k - 1));
+        }
+        if k + 1 < pages.len() {
+            let _ = write!(h, " · <a href={}>next</a>", name(k + 1));
+        }
+        h.push_str("</p>");
+        for (key, png) in page.iter() {
+            match png {
+                Some(p) => {
+                    // Relative to the page: the run folder moves as one.
+                    let rel = format!(
+                        "../gallery/{}",
+                        p.file_name()
+                            .map(|f| f.to_string_lossy())
+                            .unwrap_or_default()
+                    );
+                    let _ = write!(
+                        h,
+                        "<figure><img loading=lazy src=\"{}\" alt=\"{}\"><figcaption>{}</figcaption></figure>",
+                        esc(&rel),
+                        esc(&id(key)),
+                        esc(&id(key))
+                    );
+                }
+                None => {
+                    let _ = write!(h, "<p class=missing>{}: not drawn</p>", esc(&id(key)));
+                }
+            }
+        }
+        h.push_str("</body></html>\n");
+        std::fs::write(dir.join(name(k)), h)?;
+    }
+    let drawn = hits.iter().filter(|(_, p)| p.is_some()).count();
+    let mut h = head("Appendix B: the CWT of every hit");
+    let _ = write!(
+        h,
+        "<p>{} of the run's {total} hits, in key order ({drawn} drawn), {} to a page.</p><ul>",
+        hits.len(),
+        APPENDIX_B_PAGE
+    );
+    for (k, page) in pages.iter().enumerate() {
+        let (a, b) = (&page[0].0, &page[page.len() - 1].0);
+        let _ = write!(
+            h,
+            "<li><a href={}>page {}</a>: {} … {}</li>",
+            name(k),
+            k + 1,
+            esc(&id(a)),
+            esc(&id(b))
+        );
+    }
+    h.push_str("</ul></body></html>\n");
+    let index = dir.join("index.html");
+    std::fs::write(&index, h)?;
+    Ok(AppendixB {
+        index,
+        pages: pages.len(),
+        shown: hits.len(),
+        drawn,
+        total,
+    })
+}
+
+/// The report's link to Appendix B (nothing when it was not asked for).
+pub(super) fn appendix_b_section(h: &mut String, a: Option<&AppendixB>) {
+    let Some(a) = a else {
+        return;
+    };
+    let _ = write!(
+        h,
+        "<h2>Appendix B</h2><p>The CWT of {} of the run's {} hits in key order ({} drawn), \
+         on {} pages of {}: <a href=\"appendix-b/index.html\">appendix-b/index.html</a> \
+         (beside this report; the pages link the thumbnails in <code>gallery/</code>).{}</p>",
+        a.shown,
+        a.total,
+        a.drawn,
+        a.pages,
+        APPENDIX_B_PAGE,
+        if a.shown < a.total {
+            format!(
+                " The rest are left out by <code>[report] appendix_b_hits = {}</code>.",
+                a.shown
+            )
+        } else {
+            String::new()
+        }
+    );
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -261,6 +388,45 @@ mod tests {
         let c = g.chosen();
         assert_eq!(c["a"], vec![k(1)]);
         assert_eq!(c["b"], vec![k(2), k(3)]);
+    }
+
+    #[test]
+    fn appendix_b_pages_hold_a_hundred_hits_each_and_link_their_thumbnails() {
+        let dir = std::env::temp_dir().join(format!("aepipe-appendix-b-{}", std::process::id()));
+        let hits: Vec<(HitKey, Option<PathBuf>)> = (1..=250)
+            .map(|h| {
+                let png =
+                    (h % 50 != 0).then(|| PathBuf::from(format!("/run/gallery/e_ch1_hit{h}.png")));
+                (("e".to_string(), 1, h as i64), png)
+            })
+            .collect();
+        let a = write_appendix_b(&dir, &hits, 300).unwrap();
+        assert_eq!((a.pages, a.shown, a.drawn, a.total), (3, 250, 245, 300));
+        let page =
+            |k: usize| std::fs::read_to_string(dir.join(format!("page-{k:03}.html"))).unwrap();
+        // Hits 50 and 100 were not drawn: said, in their place.
+        assert_eq!(page(1).matches("<figure>").count(), 98);
+        assert_eq!(page(1).matches("not drawn").count(), 2);
+        assert_eq!(
+            page(3).matches("<figure>").count() + page(3).matches("not drawn").count(),
+            50
+        );
+        assert!(
+            page(2).contains("src=\"../gallery/e_ch1_hit101.png\""),
+            "{}",
+            page(2)
+        );
+        assert!(page(2).contains("e ch1 hit 150: not drawn"));
+        let index = std::fs::read_to_string(&a.index).unwrap();
+        assert!(
+            index.contains("250 of the run's 300 hits")
+                && index.contains("e ch1 hit 201 … e ch1 hit 250"),
+            "{index}"
+        );
+        let mut h = String::new();
+        appendix_b_section(&mut h, Some(&a));
+        assert!(h.contains("appendix_b_hits = 250"), "{h}");
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 
     #[test]

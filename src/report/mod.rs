@@ -11,8 +11,10 @@ pub mod explore;
 mod gallery;
 mod sources;
 
-use gallery::{disagree_section, gallery_section};
-pub use gallery::{Disagreements, Gallery, GalleryChoice, GalleryPicture};
+use gallery::{appendix_b_section, disagree_section, gallery_section};
+pub use gallery::{
+    write_appendix_b, AppendixB, Disagreements, Gallery, GalleryChoice, GalleryPicture,
+};
 
 use crate::analysis::trend::TrendReport;
 use crate::model::Mechanism;
@@ -303,6 +305,8 @@ pub struct Gathered {
     pub explorer: explore::Explorer,
     /// The hits the SOM reads otherwise than their reference label (Table 5.3).
     pub disagree: Disagreements,
+    /// Appendix B's pages, when asked for (`[report] appendix_b_hits`).
+    pub appendix_b: Option<AppendixB>,
 }
 
 /// Text made safe inside HTML (element content and quoted attributes).
@@ -401,6 +405,7 @@ pre{{background:#f6f6f6;padding:8px;overflow-x:auto}}.missing{{color:#b00}}</sty
     sources::evolution_section(&mut h, s);
     truth_section(&mut h, s);
     gallery_section(&mut h, &g.gallery);
+    appendix_b_section(&mut h, g.appendix_b.as_ref());
     gallery_section(&mut h, &g.cluster_gallery);
     footer(&mut h, s, g);
     let mut section = String::new();

@@ -103,6 +103,11 @@ impl RunDir {
         ))
     }
 
+    /// Appendix B's pages (`[report] appendix_b_hits`).
+    pub fn appendix_b(&self) -> PathBuf {
+        self.0.join("appendix-b")
+    }
+
     pub fn report_html(&self) -> PathBuf {
         self.0.join("report.html")
     }

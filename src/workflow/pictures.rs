@@ -23,6 +23,11 @@ pub(super) fn gather(s: &RunSummary) -> Result<Gathered, WorkflowError> {
         Some(c) => cluster_choice(&c.report.clusters, per)?.chosen(),
         None => BTreeMap::new(),
     };
+    // Appendix B: the first `appendix_b_hits` hits of the run in key order, whatever class.
+    let appendix: Vec<HitKey> = match s.config.report.appendix_b_hits {
+        0 => Vec::new(),
+        n => first_hits(&s.features.table_path, n)?,
+    };
     let mut disagree = match &s.som {
         Some(m) => disagreements(&m.classification, per)?,
         None => crate::report::Disagreements::new(0),
@@ -31,7 +36,29 @@ pub(super) fn gather(s: &RunSummary) -> Result<Gathered, WorkflowError> {
     let mut wanted = chosen.clone();
     wanted.extend(by_cluster.iter().map(|(c, k)| (c.clone(), k.clone())));
     wanted.insert("disagree".into(), disagree.first.keys().cloned().collect());
-    let pics = draw_gallery(&s.inputs, &s.config, &wanted, &RunDir::new(&s.out));
+    let thumbs_only: std::collections::BTreeSet<HitKey> = appendix
+        .iter()
+        .filter(|k| !wanted.values().flatten().any(|w| w == *k))
+        .cloned()
+        .collect();
+    wanted.insert("appendix B".into(), appendix.clone());
+    let run = RunDir::new(&s.out);
+    let pics = draw_gallery(&s.inputs, &s.config, &wanted, &thumbs_only, &run);
+    let total: usize = criteria.values().sum();
+    let appendix_b = match appendix.is_empty() {
+        true => None,
+        false => {
+            let drawn: Vec<(HitKey, Option<PathBuf>)> = appendix
+                .iter()
+                .map(|k| (k.clone(), pics.get(k).map(|p| p.0.clone())))
+                .collect();
+            let dir = run.appendix_b();
+            Some(
+                crate::report::write_appendix_b(&dir, &drawn, total)
+                    .map_err(|e| input_err(&dir, e))?,
+            )
+        }
+    };
     disagree.pictures = disagree
         .first
         .keys()
@@ -85,7 +112,23 @@ pub(super) fn gather(s: &RunSummary) -> Result<Gathered, WorkflowError> {
         manifest,
         explorer,
         disagree,
+        appendix_b,
     })
+}
+
+/// The first `n` hits of the features table in key order (a bounded choice, a batch at a
+/// time).
+fn first_hits(features: &Path, n: usize) -> Result<Vec<HitKey>, WorkflowError> {
+    let mut choice = crate::report::GalleryChoice::new(n);
+    let t = TableScan::open(features)?;
+    let sel = [cols::EXPERIMENT.name, cols::CHANNEL.name, cols::HIT.name];
+    for b in t.batches(&sel) {
+        let (_, df) = b?;
+        for k in t.hit_keys(&df)? {
+            choice.offer(&k, "all");
+        }
+    }
+    Ok(choice.chosen().remove("all").unwrap_or_default())
 }
 
 /// Table 5.3's hits: those whose SOM class differs from their reference label, counted, the
@@ -176,6 +219,7 @@ fn draw_gallery(
     inputs: &[PathBuf],
     cfg: &ValidConfig,
     chosen: &BTreeMap<String, Vec<HitKey>>,
+    thumbs_only: &std::collections::BTreeSet<HitKey>,
     run: &RunDir,
 ) -> BTreeMap<HitKey, (PathBuf, PathBuf)> {
     let dir = run.gallery();
@@ -197,7 +241,9 @@ fn draw_gallery(
             }
             let png = run.gallery_png(&key);
             let full = run.gallery_full_png(&key);
-            if burst_picture(&mut ex, &r, &png, Some(&full)).is_ok() {
+            // Appendix B's pages show thumbnails only: no whole-record picture for them.
+            let whole = (!thumbs_only.contains(&key)).then_some(full.as_path());
+            if burst_picture(&mut ex, &r, &png, whole).is_ok() {
                 out.insert(key, (png, full));
             }
         }
