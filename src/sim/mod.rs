@@ -19,6 +19,7 @@ pub mod scenario;
 pub mod sources;
 pub mod string;
 pub mod sweep;
+pub mod velocity;
 
 pub use hybrid::simulate;
 use mech::Relaxed;
