@@ -82,6 +82,8 @@ fn run<const D: usize>(
         t,
         r: lift(&mech.r),
         u: lift(&mech.u),
+        tension: mech.tensions(),
+        energy: Some(mech.energy()),
     };
     if keep_frame(0) {
         out.trajectory.push(frame(0.0, &mech));

@@ -854,6 +854,36 @@ fn dot(a: &[f64], b: &[f64]) -> f64 {
 }
 
 impl<const D: usize> Mech<D> {
+    /// Each spring's tension now, N (0 for a broken one): Fig. 3.4c, Storage `Tension`.
+    pub fn tensions(&self) -> Vec<f64> {
+        self.springs
+            .iter()
+            .map(|s| match s.broken {
+                true => 0.0,
+                false => s.tension(dist(self.r[s.a], self.r[s.b])).0,
+            })
+            .collect()
+    }
+
+    /// Kinetic energy of the free masses and elastic energy ½k(l − L)² of the intact
+    /// springs, J (Storage `Energy`).
+    pub fn energy(&self) -> [f64; 2] {
+        let kinetic = (0..self.len())
+            .filter(|&i| !self.held[i])
+            .map(|i| 0.5 * self.m[i] * dotv(self.u[i], self.u[i]))
+            .sum();
+        let potential = self
+            .springs
+            .iter()
+            .filter(|s| !s.broken)
+            .map(|s| {
+                let (f, k) = s.tension(dist(self.r[s.a], self.r[s.b]));
+                0.5 * f * f / k
+            })
+            .sum();
+        [kinetic, potential]
+    }
+
     /// BiCGSTAB iterations so far (implicit solver).
     pub fn solver_iterations(&self) -> usize {
         self.implicit.iterations

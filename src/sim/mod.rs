@@ -80,6 +80,10 @@ pub struct Frame {
     pub t: f64,
     pub r: Vec<[f64; 3]>,
     pub u: Vec<[f64; 3]>,
+    /// Each spring's tension, N (empty for a continuum model).
+    pub tension: Vec<f64>,
+    /// Kinetic and elastic energy, J (none for a continuum model).
+    pub energy: Option<[f64; 2]>,
 }
 
 #[derive(Debug, Clone)]
@@ -367,6 +371,25 @@ fn write_trajectories(
     });
     let n = output::write_trajectories(&p, frames, dims)?;
     lines.push(format!("  {n} trajectory rows → {}", p.display()));
+    // Beside them, the springs' tension and the energies of the same frames (Appendix A's
+    // Storage `Tension` and `Energy`; Fig. 3.4c).
+    let numbered = |stem: &str| {
+        job.out.join(if several {
+            format!("{stem}_{}.parquet", hit + 1)
+        } else {
+            format!("{stem}.parquet")
+        })
+    };
+    if frames.iter().any(|f| !f.tension.is_empty()) {
+        let p = numbered("tension");
+        let n = output::write_tension(&p, frames)?;
+        lines.push(format!("  {n} spring tension rows → {}", p.display()));
+    }
+    if frames.iter().any(|f| f.energy.is_some()) {
+        let p = numbered("energy");
+        let n = output::write_energy(&p, frames)?;
+        lines.push(format!("  {n} energy rows → {}", p.display()));
+    }
     Ok(())
 }
 

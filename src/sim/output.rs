@@ -435,6 +435,83 @@ pub fn write_trajectories(path: &Path, frames: &[Frame], dims: usize) -> Result<
     w.finish().map_err(io)
 }
 
+/// The springs' tension in each kept frame (`sim_tension`).
+pub fn tension_table() -> Table<(f64, usize, f64)> {
+    Table::new("sim_tension")
+        .col(
+            ColumnSpec::new("t_s", ColType::Float64, "s", "simulation time"),
+            |r: &(f64, usize, f64)| Value::F64(Some(r.0)),
+        )
+        .col(
+            ColumnSpec::new(
+                "spring",
+                ColType::Int32,
+                "",
+                "spring index, as in the model",
+            ),
+            |r| Value::I32(Some(r.1 as i32)),
+        )
+        .col(
+            ColumnSpec::new(
+                "tension_n",
+                ColType::Float64,
+                "N",
+                "k·(l − L), k = E·A/L with A at the load (Eq. 3.2.9); 0 once broken",
+            ),
+            |r| Value::F64(Some(r.2)),
+        )
+}
+
+/// The energies in each kept frame (`sim_energy`).
+pub fn energy_table() -> Table<(f64, [f64; 2])> {
+    let f = |name: &str, doc: &str| ColumnSpec::new(name, ColType::Float64, "J", doc);
+    Table::new("sim_energy")
+        .col(
+            ColumnSpec::new("t_s", ColType::Float64, "s", "simulation time"),
+            |r: &(f64, [f64; 2])| Value::F64(Some(r.0)),
+        )
+        .col(f("kinetic_j", "Σ ½·m·|u|² of the free masses"), |r| {
+            Value::F64(Some(r.1[0]))
+        })
+        .col(
+            f("potential_j", "Σ ½·k·(l − L)² of the intact springs"),
+            |r| Value::F64(Some(r.1[1])),
+        )
+        .col(
+            f(
+                "total_j",
+                "kinetic + potential: constant without damping, for an exact solver",
+            ),
+            |r| Value::F64(Some(r.1[0] + r.1[1])),
+        )
+}
+
+/// Write each frame's spring tensions (long format).
+pub fn write_tension(path: &Path, frames: &[Frame]) -> Result<u64, SimError> {
+    let io = |e: store::StoreError| SimError::Io(e.to_string());
+    let table = tension_table();
+    let mut w = TableWriter::create(path, table.schema(), &[], 65_536).map_err(io)?;
+    for f in frames {
+        for (k, t) in f.tension.iter().enumerate() {
+            w.push(table.row((f.t, k, *t))).map_err(io)?;
+        }
+    }
+    w.finish().map_err(io)
+}
+
+/// Write each frame's energies.
+pub fn write_energy(path: &Path, frames: &[Frame]) -> Result<u64, SimError> {
+    let io = |e: store::StoreError| SimError::Io(e.to_string());
+    let table = energy_table();
+    let mut w = TableWriter::create(path, table.schema(), &[], 65_536).map_err(io)?;
+    for f in frames {
+        if let Some(e) = f.energy {
+            w.push(table.row((f.t, e))).map_err(io)?;
+        }
+    }
+    w.finish().map_err(io)
+}
+
 /// A pressure snapshot as a PNG, one pixel block per cell, red positive, blue negative,
 /// white zero, symmetric scale ±`max` (north up).
 pub fn snapshot_png(

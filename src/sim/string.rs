@@ -257,6 +257,8 @@ impl StiffString {
                         .map(|i| [x(i) - 0.5 * self.length_m, y[i], 0.0])
                         .collect(),
                     u: (0..=n).map(|i| [0.0, (y[i] - prev[i]) / dt, 0.0]).collect(),
+                    tension: Vec::new(),
+                    energy: None,
                 });
             }
             if k == steps {

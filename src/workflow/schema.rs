@@ -20,6 +20,8 @@ pub const TABLES: &[&str] = &[
     "sim_trajectories",
     "sim_trajectories_3d",
     "sim_sweep",
+    "sim_tension",
+    "sim_energy",
     "truth",
     "truth_cycles",
     "clusters",
@@ -47,6 +49,8 @@ pub fn table_schema(name: &str, cfg: &PipelineConfig) -> Option<crate::store::Ta
         "sim_trajectories_3d" => crate::sim::output::trajectory_table_3d().schema(),
         // The fixed columns; a sweep adds one per swept key.
         "sim_sweep" => crate::sim::sweep::SweepTable::default().schema(),
+        "sim_tension" => crate::sim::output::tension_table().schema(),
+        "sim_energy" => crate::sim::output::energy_table().schema(),
         "truth" => crate::synth::truth_table().schema(),
         "truth_cycles" => crate::synth::loading::cycle_truth_table().schema(),
         "clusters" => crate::cluster::stage::clusters_table().schema(),
