@@ -790,3 +790,45 @@ fn the_particle_velocity_form_agrees_with_the_pressure_form() {
         );
     }
 }
+
+/// Table 3.6 / Figs. 3.8–3.9: the fibre held at masses 9, 10 (lifted 0.1 m) and 11 while the
+/// rest relaxes, then let go. The relaxation leaves 9 and 11 on the axis and 10 at 0.1 m (the
+/// kink of Fig. 3.8a); the motion stays mirror-symmetric about the centre — to round-off under
+/// implicit Euler (10⁻¹²), and within 10⁻⁶ under the explicit solvers, whose round-off grows
+/// (1.6·10⁻⁹ explicit Euler, 4.7·10⁻⁹ Verlet at 20 s; the thesis's visibly asymmetric Fig. 3.8f
+/// is not reproduced).
+#[test]
+fn the_fibre_with_multiple_constraints_is_released_from_its_kink_and_stays_symmetric() {
+    for (solver, tol) in [(3.0, 1e-12), (0.0, 1e-6), (2.0, 1e-6)] {
+        let m = aepipe::sim::scenario::build(
+            "fibre-multiple-constraints",
+            &params(&[("solver", solver)]),
+        )
+        .unwrap();
+        let out = simulate(&m, &every_step()).unwrap();
+        let y0 = &out.trajectory[0].r;
+        assert!(y0[9][1].abs() < 1e-12 && y0[11][1].abs() < 1e-12);
+        assert!((y0[10][1] - 0.1).abs() < 1e-12);
+        let top = out
+            .trajectory
+            .iter()
+            .flat_map(|f| f.r.iter().map(|r| r[1].abs()))
+            .fold(0.0f64, f64::max);
+        let asym = out
+            .trajectory
+            .iter()
+            .flat_map(|f| (0..21).map(move |i| (f.r[i][1] - f.r[20 - i][1]).abs()))
+            .fold(0.0f64, f64::max);
+        assert!(
+            asym < tol * top,
+            "solver {solver}: asymmetry {asym:e} of {top}"
+        );
+        // Released: mass 9 leaves the axis.
+        let moved = out
+            .trajectory
+            .iter()
+            .map(|f| f.r[9][1].abs())
+            .fold(0.0, f64::max);
+        assert!(moved > 0.01, "solver {solver}: mass 9 moved {moved}");
+    }
+}
