@@ -59,3 +59,54 @@ fn every_entry_runs_and_gives_the_verdict_the_record_states() {
         "{err}"
     );
 }
+
+/// docs/thesis.md covers chapters 3–6: every figure and table the thesis captions (read from
+/// its text in `../shared/seed/`) has its row in the record's coverage table.
+#[test]
+fn the_record_names_every_figure_and_table() {
+    let seed = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../shared/seed/000_25ce7f3daeccd66a.txt");
+    let Ok(thesis) = std::fs::read_to_string(&seed) else {
+        crate::skip(
+            "the_record_names_every_figure_and_table",
+            &format!("{} is absent (the thesis's text)", seed.display()),
+        );
+        return;
+    };
+    let record =
+        std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/docs/thesis.md")).unwrap();
+    let rows: std::collections::BTreeSet<&str> = record
+        .lines()
+        .filter_map(|l| l.strip_prefix("| "))
+        .filter_map(|l| l.split(" |").next())
+        .collect();
+    let mut captions = Vec::new();
+    for line in thesis.lines() {
+        for (word, short) in [("Figure ", "Fig. "), ("Table ", "Table ")] {
+            let Some(rest) = line.strip_prefix(word) else {
+                continue;
+            };
+            let Some((id, _)) = rest.split_once(':') else {
+                continue;
+            };
+            let chapter = id.split('.').next().unwrap_or("");
+            if ["3", "4", "5", "6"].contains(&chapter)
+                && id.split('.').count() == 2
+                && id.chars().all(|c| c.is_ascii_digit() || c == '.')
+            {
+                captions.push(format!("{short}{id}"));
+            }
+        }
+    }
+    captions.sort();
+    captions.dedup();
+    assert!(captions.len() > 80, "{} captions read", captions.len());
+    let missing: Vec<&String> = captions
+        .iter()
+        .filter(|c| !rows.contains(c.as_str()))
+        .collect();
+    assert!(
+        missing.is_empty(),
+        "no row in docs/thesis.md for {missing:?}"
+    );
+}
