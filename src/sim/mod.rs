@@ -14,6 +14,7 @@ pub mod mech;
 pub mod model;
 pub mod network3d;
 pub mod output;
+pub mod paper;
 pub mod reference;
 pub mod scenario;
 pub mod sources;

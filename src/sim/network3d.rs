@@ -9,7 +9,8 @@
 //! of Fig. 4.8 and Fig. 4.19, the same masses, springs and stretch).
 
 use super::model::*;
-use super::scenario::{eq, lattice, system, Lattice, Params, FIBRE_T};
+use super::paper::{lattice, Lattice};
+use super::scenario::{eq, system, Params, FIBRE_T};
 use super::SimError;
 
 /// The 3-D scenarios (names are contracts).

@@ -2,6 +2,7 @@
 //! and its two damage structures (Fig. 4.8, Fig. 4.19), built with the material of Table 4.1.
 
 use super::model::*;
+use super::paper::{mesh3x3, structure2x1};
 use super::SimError;
 
 /// Scenario names, for the CLI and errors.
@@ -400,7 +401,7 @@ fn refine(m: &mut ModelFile, h: f64) -> Result<(), SimError> {
 }
 
 #[allow(clippy::too_many_arguments)]
-fn spring(
+pub(super) fn spring(
     a: usize,
     b: usize,
     e: f64,
@@ -422,7 +423,7 @@ fn spring(
     }
 }
 
-fn node(x: f64, y: f64, mass: f64, fixed: bool) -> NodeSpec {
+pub(super) fn node(x: f64, y: f64, mass: f64, fixed: bool) -> NodeSpec {
     NodeSpec {
         x,
         y,
@@ -445,7 +446,7 @@ pub(super) fn eq(node: usize, dx: f64, dy: f64) -> InitialSpec {
     }
 }
 
-fn st(node: usize, dx: f64, dy: f64) -> InitialSpec {
+pub(super) fn st(node: usize, dx: f64, dy: f64) -> InitialSpec {
     InitialSpec {
         node,
         dx,
@@ -686,227 +687,6 @@ fn paper_fibre(p: &Params) -> ModelFile {
         .map(|&(i, j)| SensorSpec { i, j, k: None })
         .collect(),
     }
-}
-
-/// A lattice of straight 2 mm fibres of 29 masses (spacing a = 2 mm/28) on the points
-/// (ix·a, iy·a), ix, iy ∈ −14…14: horizontal fibres at the given iy, vertical at the given
-/// ix. Where two cross they share one bond mass of twice the fibre mass. Fibre ends are
-/// held by StICs that stretch every fibre by `stretch` (the damage zone's 1 %, ch. 4.3.3).
-pub(super) struct Lattice {
-    pub(super) nodes: Vec<NodeSpec>,
-    pub(super) springs: Vec<SpringSpec>,
-    pub(super) initial: Vec<InitialSpec>,
-    pub(super) index: std::collections::HashMap<(i32, i32), usize>,
-    pub(super) a: f64,
-}
-
-pub(super) fn lattice(rows: &[i32], cols: &[i32], stretch: &dyn Fn(u32) -> f64) -> Lattice {
-    lattice_fine(rows, cols, stretch, 1)
-}
-
-/// [`lattice`] with each fibre's 28 springs cut into `k` (ix, iy ∈ −14k…14k, spacing
-/// 2 mm/28k; rows and columns given in those units).
-fn lattice_fine(rows: &[i32], cols: &[i32], stretch: &dyn Fn(u32) -> f64, k: i32) -> Lattice {
-    let len = 2e-3;
-    let a = len / (28 * k) as f64;
-    let m = FIBRE_RHO * FIBRE_T * FIBRE_W * a;
-    let mut lat = Lattice {
-        nodes: vec![],
-        springs: vec![],
-        initial: vec![],
-        index: Default::default(),
-        a,
-    };
-    let at = |lat: &mut Lattice, ix: i32, iy: i32| -> usize {
-        if let Some(&k) = lat.index.get(&(ix, iy)) {
-            lat.nodes[k].mass += m;
-            return k;
-        }
-        lat.nodes.push(node(ix as f64 * a, iy as f64 * a, m, false));
-        lat.index.insert((ix, iy), lat.nodes.len() - 1);
-        lat.nodes.len() - 1
-    };
-    let mut fibre = 0u32;
-    let mut lines: Vec<(u32, bool, i32)> = vec![];
-    for &iy in rows {
-        lines.push((fibre, true, iy));
-        fibre += 1;
-    }
-    for &ix in cols {
-        lines.push((fibre, false, ix));
-        fibre += 1;
-    }
-    for &(f, horizontal, off) in &lines {
-        let ids: Vec<usize> = (-14 * k..=14 * k)
-            .map(|s| {
-                if horizontal {
-                    at(&mut lat, s, off)
-                } else {
-                    at(&mut lat, off, s)
-                }
-            })
-            .collect();
-        for w in ids.windows(2) {
-            lat.springs.push(spring(
-                w[0], w[1], FIBRE_E, None, FIBRE_T, FIBRE_W, FIBRE_NU, f,
-            ));
-        }
-        let d = stretch(f) * len / 2.0;
-        let (first, last) = (ids[0], ids[ids.len() - 1]);
-        if horizontal {
-            lat.initial.push(st(first, -d, 0.0));
-            lat.initial.push(st(last, d, 0.0));
-        } else {
-            lat.initial.push(st(first, 0.0, -d));
-            lat.initial.push(st(last, 0.0, d));
-        }
-    }
-    lat
-}
-
-/// Fig. 4.8: a Cartesian mesh of 2 mm fibres (three horizontal, three vertical, 0.5 mm
-/// apart, so the middle square is the 1 mm damage zone) with 9 bonds. Before the failure the
-/// middle horizontal fibre is bent across the damage zone, its two 0.5 mm halves meeting at
-/// bond (1) (Fig. 4.13b). The mass/spring model has no bending stiffness, so a kink would
-/// hold every harmonic with equal acceleration; the bent shape is the smooth
-/// `kink`·sin²(πξ) over the zone (ξ = 0…1): its fundamental and a third harmonic of 20 %
-/// amplitude, the mix of the first harmonics the thesis describes. It leaves bonds (2) at
-/// the zone's edges tangentially, so they are in equilibrium at the release. (The earlier
-/// shape, sin πξ + sin 3πξ / 9, met them at a slope: its tension jerked the crossing
-/// fibres along their length and rang their ~1.2 MHz longitudinal resonance, a flash at
-/// the onset that made the criteria read every bond failure heard from below as "both".)
-/// At `t1` (0) it is released and bond (1), the centre, fails: the fibre rings at the 1 mm
-/// free length's fundamental (~250 kHz) and third harmonic (~750 kHz).
-/// Bond (2), at (+0.5 mm, 0), fails at `t2` (20 µs; negative: never), lengthening the free
-/// fibre to 1.5 mm.
-fn mesh3x3(p: &Params) -> ModelFile {
-    let stretch = p.get("stretch", 0.01);
-    let lat = lattice(&[-7, 0, 7], &[-7, 0, 7], &|_| stretch);
-    let kink = p.get("kink", 1e-5);
-    let b1 = lat.index[&(0, 0)];
-    let b2 = lat.index[&(7, 0)];
-    let mut initial = lat.initial;
-    for ix in -6..=6 {
-        let xi = (ix + 7) as f64 / 14.0;
-        let pi = std::f64::consts::PI;
-        let dy = kink * (pi * xi).sin().powi(2);
-        // The fibre is already stretched 1 %: its nodes sit at the stretched spacing.
-        initial.push(eq(lat.index[&(ix, 0)], stretch * ix as f64 * lat.a, dy));
-    }
-    // The vertical fibre through bond (1) carries the bond's displacement as a whole (its
-    // held ends shifted alike), so it holds no extra longitudinal strain: when the bond
-    // fails it stays put instead of recoiling along its length at its ~1.2 MHz
-    // longitudinal resonance, which would drown the horizontal fibre's ring.
-    let shift = kink;
-    for end in [lat.index[&(0, -14)], lat.index[&(0, 14)]] {
-        if let Some(ic) = initial.iter_mut().find(|ic| ic.node == end) {
-            ic.dy += shift;
-        }
-    }
-    let (t1, t2) = (p.get("t1", 0.0), p.get("t2", 20e-6));
-    let mut damage = vec![DamageSpec::Bond { node: b1, time: t1 }];
-    if t2 >= 0.0 {
-        damage.push(DamageSpec::Bond { node: b2, time: t2 });
-    }
-    ModelFile {
-        name: "mesh3x3-bond-failure".into(),
-        label: Some(crate::model::Mechanism::BondFailure.as_str().into()),
-        system: system(p.get("dt", 1e-8), p.get("damping", 1.5e-6), 4_000),
-        nodes: lat.nodes,
-        springs: lat.springs,
-        initial,
-        forces: vec![],
-        damage,
-        grid: Some(paper_grid()),
-        sensors: vec![
-            SensorSpec {
-                i: 125,
-                j: 100,
-                k: None,
-            },
-            SensorSpec {
-                i: 100,
-                j: 125,
-                k: None,
-            },
-        ],
-    }
-}
-
-/// Fig. 4.19: fibre 3 (horizontal, y = 0) bonded to fibre 1 (vertical, x = −0.5 mm) and
-/// fibre 2 (vertical, x = +0.5 mm). Fibre 3 and fibre 2 are stretched 1 %, fibre 1 only
-/// 0.2 % (so fibre 2 is under the higher tension, Fig. 4.22). Fibre 3's 14 springs between
-/// the bonds are the candidate break points; `point` p = 1…12 removes the (p+1)-th of them
-/// at `t1` (1 µs), leaving p springs on fibre 1's side and 13 − p on fibre 2's: points p and
-/// 13 − p mirror each other, as (1) and (12) do in the thesis.
-fn structure2x1(p: &Params) -> Result<ModelFile, SimError> {
-    let point = p.get("point", 7.0);
-    if !(1.0..=12.0).contains(&point) || point.fract() != 0.0 {
-        return Err(SimError::Model(format!(
-            "structure2x1-fibre-failure: point must be 1…12, got {point}"
-        )));
-    }
-    let point = point as i32;
-    let s3 = p.get("stretch", 0.01);
-    let s1 = p.get("stretch1", 0.002);
-    let k = p.get("split", 1.0);
-    if !(1.0..=8.0).contains(&k) || k.fract() != 0.0 {
-        return Err(SimError::Model(format!(
-            "structure2x1-fibre-failure: split must be 1…8 springs per spring, got {k}"
-        )));
-    }
-    let k = k as i32;
-    // Fibre ids: 0 = fibre 3 (horizontal), 1 = fibre 1, 2 = fibre 2.
-    let lat = lattice_fine(
-        &[0],
-        &[-7 * k, 7 * k],
-        &|f| match f {
-            0 => s3,
-            1 => s1,
-            _ => s3,
-        },
-        k,
-    );
-    // The break: the first of the k springs that make up spring `point` + 1 of the 14. A
-    // split fibre's masses are 1/k of the plain one's: the default damping b is divided by k
-    // so that every mode still decays at b/2m.
-    let at = (-7 + point) * k;
-    let (lo, hi) = (lat.index[&(at, 0)], lat.index[&(at + 1, 0)]);
-    let spring = lat
-        .springs
-        .iter()
-        .position(|s| (s.a == lo && s.b == hi) || (s.a == hi && s.b == lo))
-        .expect("fibre 3 has the spring");
-    Ok(ModelFile {
-        name: format!("structure2x1-fibre-failure-p{point}"),
-        label: Some(crate::model::Mechanism::FibreFailure.as_str().into()),
-        system: system(
-            p.get("dt", 1e-8),
-            p.get("damping", 1.5e-6 / k as f64),
-            4_000,
-        ),
-        nodes: lat.nodes,
-        springs: lat.springs,
-        initial: lat.initial,
-        forces: vec![],
-        damage: vec![DamageSpec::Fibre {
-            spring,
-            time: p.get("t1", 1e-6),
-        }],
-        grid: Some(paper_grid()),
-        sensors: vec![
-            SensorSpec {
-                i: 125,
-                j: 100,
-                k: None,
-            },
-            SensorSpec {
-                i: 100,
-                j: 125,
-                k: None,
-            },
-        ],
-    })
 }
 
 #[cfg(test)]
