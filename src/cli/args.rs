@@ -374,7 +374,7 @@ pub struct SimulateArgs {
     /// Model file: the thesis's sectioned format (Appendix A) or .toml
     pub model: Option<PathBuf>,
     /// Built-in scenario instead of a file: sho, five-mass-fibre, fibre-single-constraint,
-    /// fibre-multiple-constraints,
+    /// fibre-multiple-constraints, two-fibres,
     /// rubber-band, paper-fibre, mesh3x3-bond-failure, structure2x1-fibre-failure,
     /// fibre-stiff-string, and in 3-D network3d-bond-failure, network3d-fibre-failure
     #[arg(long)]

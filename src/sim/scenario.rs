@@ -11,6 +11,7 @@ pub const NAMES: &[&str] = &[
     "five-mass-fibre",
     "fibre-single-constraint",
     "fibre-multiple-constraints",
+    "two-fibres",
     "rubber-band",
     "paper-fibre",
     "mesh3x3-bond-failure",
@@ -267,6 +268,7 @@ fn build_asked(name: &str, p: &Params) -> Result<ModelFile, SimError> {
         "five-mass-fibre" => five_mass(p),
         "fibre-single-constraint" => single_constraint(p),
         "fibre-multiple-constraints" => multiple_constraints(p),
+        "two-fibres" => two_fibres(p)?,
         "rubber-band" => rubber_band(p),
         "paper-fibre" => paper_fibre(p),
         "mesh3x3-bond-failure" => mesh3x3(p),
@@ -583,6 +585,64 @@ fn multiple_constraints(p: &Params) -> ModelFile {
     m.initial.push(eq(9, 0.0, 0.0));
     m.initial.push(eq(11, 0.0, 0.0));
     m
+}
+
+/// Figs. 3.11–3.13: two fibres of Table 3.5's material (21 masses, 1 m at rest) crossing at
+/// their centres, where they share a bond mass. `ic` 3 (Fig. 3.13): the four ends pulled out
+/// by `stretch` (StICs); 1 (Fig. 3.11): and the bond lifted by `amplitude` (an EqIC); 2
+/// (Fig. 3.12): and the horizontal fibre's quarter points lifted by half that too. Alg. 7
+/// relaxes the rest; the motion after t = 0 is the release.
+fn two_fibres(p: &Params) -> Result<ModelFile, SimError> {
+    let ic = p.get("ic", 1.0);
+    if ![1.0, 2.0, 3.0].contains(&ic) {
+        return Err(SimError::Model(format!(
+            "two-fibres: ic must be 1 (a single displacement), 2 (several) or 3 (stretching only), got {ic}"
+        )));
+    }
+    let (stretch, amp) = (p.get("stretch", 0.1), p.get("amplitude", 0.03));
+    let m = 1.0 / 21.0;
+    let (mut nodes, mut springs) = chain(21, -0.5, 0.5, m, 1.0, 0.05, 1.0, 0.25, 0.0);
+    // The vertical fibre: its own 20 masses, its centre the horizontal fibre's (node 10).
+    let mut ids = Vec::new();
+    for k in 0..21 {
+        if k == 10 {
+            nodes[10].mass += m;
+            ids.push(10);
+        } else {
+            nodes.push(node(0.0, -0.5 + 0.05 * k as f64, m, k == 0 || k == 20));
+            ids.push(nodes.len() - 1);
+        }
+    }
+    for w in ids.windows(2) {
+        springs.push(spring(w[0], w[1], 1.0, Some(0.05), 1.0, 0.25, 0.0, 1));
+    }
+    let d = 0.5 * stretch;
+    let mut initial = vec![
+        st(0, -d, 0.0),
+        st(20, d, 0.0),
+        st(ids[0], 0.0, -d),
+        st(ids[20], 0.0, d),
+    ];
+    if ic != 3.0 {
+        initial.push(eq(10, 0.0, amp));
+    }
+    if ic == 2.0 {
+        // The quarter points where the stretch puts them, lifted by half.
+        initial.push(eq(5, -0.25 * stretch, 0.5 * amp));
+        initial.push(eq(15, 0.25 * stretch, 0.5 * amp));
+    }
+    Ok(ModelFile {
+        name: "two-fibres".into(),
+        label: None,
+        system: system(p.get("dt", 0.01), 0.0, 2_000),
+        nodes,
+        springs,
+        initial,
+        forces: vec![],
+        damage: vec![],
+        grid: None,
+        sensors: vec![],
+    })
 }
 
 /// Table 3.7: a rubber band of 11 masses over ±76 mm, plucked 10 mm at the centre

@@ -832,3 +832,57 @@ fn the_fibre_with_multiple_constraints_is_released_from_its_kink_and_stays_symme
         assert!(moved > 0.01, "solver {solver}: mass 9 moved {moved}");
     }
 }
+
+/// Figs. 3.11–3.13 and Alg. 7 against statics: a weightless string held at points is
+/// straight between them with one tension along each straight piece. The two crossing fibres
+/// of `two-fibres`, relaxed: stretched only (Fig. 3.13), every spring carries k·L·stretch;
+/// with the bond lifted (Fig. 3.11) or the bond and the quarter points (Fig. 3.12), the
+/// horizontal fibre is straight between the held points and its tension constant along each
+/// piece. (Fig. 3.10's false equilibrium cannot happen: Alg. 7 is finished by Newton steps on
+/// the static equilibrium when the damped dynamics crawl.)
+#[test]
+fn two_fibres_relax_to_the_statics_of_a_weightless_string() {
+    for ic in [3.0, 1.0, 2.0] {
+        let m =
+            aepipe::sim::scenario::build("two-fibres", &params(&[("ic", ic), ("iterations", 1.0)]))
+                .unwrap();
+        let out = simulate(&m, &every_step()).unwrap();
+        assert!(out.relaxed.converged, "ic {ic}: {:?}", out.relaxed);
+        let f = &out.trajectory[0];
+        let t = &f.tension;
+        if ic == 3.0 {
+            // k = E·t·w/L = 5 N/m, each spring stretched 0.05·0.1 m.
+            for (k, v) in t.iter().enumerate() {
+                assert!((v / 0.025 - 1.0).abs() < 1e-6, "spring {k}: {v} N");
+            }
+            continue;
+        }
+        let held: &[usize] = if ic == 1.0 {
+            &[0, 10, 20]
+        } else {
+            &[0, 5, 10, 15, 20]
+        };
+        for w in held.windows(2) {
+            let (a, b) = (f.r[w[0]], f.r[w[1]]);
+            let len = ((b[0] - a[0]).powi(2) + (b[1] - a[1]).powi(2)).sqrt();
+            for i in w[0] + 1..w[1] {
+                let p = f.r[i];
+                let off =
+                    ((b[0] - a[0]) * (p[1] - a[1]) - (b[1] - a[1]) * (p[0] - a[0])).abs() / len;
+                assert!(
+                    off < 1e-9,
+                    "ic {ic}: node {i} is {off:e} m off the line {w:?}"
+                );
+            }
+            // Springs w[0]..w[1] of the horizontal fibre (spring k joins nodes k and k+1).
+            let piece = &t[w[0]..w[1]];
+            let spread = piece
+                .iter()
+                .fold(0.0f64, |a, v| a.max((v - piece[0]).abs()));
+            assert!(
+                spread < 1e-6 * piece[0].abs(),
+                "ic {ic}: tension along {w:?}: {piece:?}"
+            );
+        }
+    }
+}
