@@ -9,8 +9,8 @@
 //! of Fig. 4.8 and Fig. 4.19, the same masses, springs and stretch).
 
 use super::model::*;
-use super::paper::{lattice, Lattice};
-use super::scenario::{eq, system, Params, FIBRE_T};
+use super::paper::{mesh, structure, Across};
+use super::scenario::{Params, FIBRE_T};
 use super::SimError;
 
 /// The 3-D scenarios (names are contracts).
@@ -51,11 +51,11 @@ pub fn lift(m: &mut ModelFile, z: &[f64], grid: Option<GridSpec>) {
     m.grid = grid;
 }
 
-/// Heights of a lattice's nodes: a node on one fibre at that fibre's layer × thickness; a
+/// Heights of a model's nodes: a node on one fibre at that fibre's layer × thickness; a
 /// bond halfway between its fibres' layers.
-fn heights(lat: &Lattice, layer: &dyn Fn(u32) -> u32) -> Vec<f64> {
-    let mut on: Vec<Vec<u32>> = vec![Vec::new(); lat.nodes.len()];
-    for s in &lat.springs {
+fn heights(m: &ModelFile, layer: &dyn Fn(u32) -> u32) -> Vec<f64> {
+    let mut on: Vec<Vec<u32>> = vec![Vec::new(); m.nodes.len()];
+    for s in &m.springs {
         for n in [s.a, s.b] {
             if !on[n].contains(&s.fibre) {
                 on[n].push(s.fibre);
@@ -68,6 +68,16 @@ fn heights(lat: &Lattice, layer: &dyn Fn(u32) -> u32) -> Vec<f64> {
             FIBRE_T * sum / fs.len().max(1) as f64
         })
         .collect()
+}
+
+/// Lay a plane structure in layers (`layer` of each fibre id), in the 3-D grid, with the
+/// two 3-D sensors.
+fn layered(mut m: ModelFile, layer: &dyn Fn(u32) -> u32) -> ModelFile {
+    let z = heights(&m, layer);
+    let g = grid3();
+    m.sensors = sensors(&g);
+    lift(&mut m, &z, Some(g));
+    m
 }
 
 /// The two sensors of a 3-D scenario: on the sheet's surface 1.8 mm from the zone's centre
@@ -108,45 +118,11 @@ pub fn build(name: &str, p: &Params) -> Option<Result<ModelFile, SimError>> {
 /// lifted by `kink`·sin²(πξ), the plane model's shape turned into z, as a fibre pressed over
 /// another one is — and bond (1) at the centre fails at `t1`: the freed 1 mm length rings
 /// through the sheet at its fundamental (~250 kHz). Bond (2), at (+0.5 mm, 0), fails at `t2`
-/// (negative: never).
+/// (negative, the default: never).
 fn bond_failure(p: &Params) -> ModelFile {
-    let stretch = p.get("stretch", 0.01);
-    let lat = lattice(&[-7, 0, 7], &[-7, 0, 7], &|_| stretch);
-    let z = heights(&lat, &|f| if f < 3 { 2 * f } else { 2 * (f - 3) + 1 });
-    let kink = p.get("kink", 1e-5);
-    let b1 = lat.index[&(0, 0)];
-    let b2 = lat.index[&(7, 0)];
-    let mut initial = lat.initial.clone();
-    for ix in -6..=6 {
-        let xi = (ix + 7) as f64 / 14.0;
-        let dz = kink * (std::f64::consts::PI * xi).sin().powi(2);
-        let mut ic = eq(lat.index[&(ix, 0)], stretch * ix as f64 * lat.a, 0.0);
-        ic.dz = dz;
-        initial.push(ic);
-    }
-    // The vertical fibre through bond (1) is carried up with it, as in the plane model.
-    for end in [lat.index[&(0, -14)], lat.index[&(0, 14)]] {
-        if let Some(ic) = initial.iter_mut().find(|ic| ic.node == end) {
-            ic.dz += kink;
-        }
-    }
-    let (t1, t2) = (p.get("t1", 0.0), p.get("t2", -1.0));
-    let mut damage = vec![DamageSpec::Bond { node: b1, time: t1 }];
-    if t2 >= 0.0 {
-        damage.push(DamageSpec::Bond { node: b2, time: t2 });
-    }
-    let g = grid3();
-    let mut m = plane_model(
-        "network3d-bond-failure",
-        crate::model::Mechanism::BondFailure,
-        lat,
-        initial,
-        damage,
-        p,
-    );
-    m.sensors = sensors(&g);
-    lift(&mut m, &z, Some(g));
-    m
+    let m = mesh(p, "network3d-bond-failure", Across::Sheet, -1.0);
+    // Fibre ids: the three horizontal fibres 0–2, then the three vertical ones 3–5.
+    layered(m, &|f| if f < 3 { 2 * f } else { 2 * (f - 3) + 1 })
 }
 
 /// Fig. 4.19's structure as layers: fibres 1 and 2 (vertical, x = ∓0.5 mm) at the bottom,
@@ -154,61 +130,7 @@ fn bond_failure(p: &Params) -> ModelFile {
 /// 0.2 %. Spring `point` + 1 of fibre 3's 14 between the bonds breaks at `t1` (1 µs): the
 /// two ends recoil along the fibre, and the pieces, tilted down to the bonds, swing.
 fn fibre_failure(p: &Params) -> Result<ModelFile, SimError> {
-    let point = p.get("point", 7.0);
-    if !(1.0..=12.0).contains(&point) || point.fract() != 0.0 {
-        return Err(SimError::Model(format!(
-            "network3d-fibre-failure: point must be 1…12, got {point}"
-        )));
-    }
-    let point = point as i32;
-    let (s3, s1) = (p.get("stretch", 0.01), p.get("stretch1", 0.002));
-    let lat = lattice(&[0], &[-7, 7], &|f| if f == 1 { s1 } else { s3 });
-    let z = heights(&lat, &|f| u32::from(f == 0));
-    let (lo, hi) = (lat.index[&(-7 + point, 0)], lat.index[&(-6 + point, 0)]);
-    let spring = lat
-        .springs
-        .iter()
-        .position(|s| (s.a == lo && s.b == hi) || (s.a == hi && s.b == lo))
-        .expect("fibre 3 has the spring");
-    let initial = lat.initial.clone();
-    let damage = vec![DamageSpec::Fibre {
-        spring,
-        time: p.get("t1", 1e-6),
-    }];
-    let g = grid3();
-    let mut m = plane_model(
-        &format!("network3d-fibre-failure-p{point}"),
-        crate::model::Mechanism::FibreFailure,
-        lat,
-        initial,
-        damage,
-        p,
-    );
-    m.sensors = sensors(&g);
-    lift(&mut m, &z, Some(g));
-    Ok(m)
-}
-
-/// The lattice as a model with the paper scenarios' system (implicit Euler, 10 ns, b =
-/// 1.5e-6 kg/s, 4 000 steps), before it is lifted.
-fn plane_model(
-    name: &str,
-    label: crate::model::Mechanism,
-    lat: Lattice,
-    initial: Vec<InitialSpec>,
-    damage: Vec<DamageSpec>,
-    p: &Params,
-) -> ModelFile {
-    ModelFile {
-        name: name.into(),
-        label: Some(label.as_str().into()),
-        system: system(p.get("dt", 1e-8), p.get("damping", 1.5e-6), 4_000),
-        nodes: lat.nodes,
-        springs: lat.springs,
-        initial,
-        forces: vec![],
-        damage,
-        grid: None,
-        sensors: vec![],
-    }
+    let m = structure(p, "network3d-fibre-failure", false)?;
+    // Fibre id 0 is fibre 3.
+    Ok(layered(m, &|f| u32::from(f == 0)))
 }

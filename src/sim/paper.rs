@@ -13,15 +13,15 @@ use super::SimError;
 /// (ix·a, iy·a), ix, iy ∈ −14…14: horizontal fibres at the given iy, vertical at the given
 /// ix. Where two cross they share one bond mass of twice the fibre mass. Fibre ends are
 /// held by StICs that stretch every fibre by `stretch` (the damage zone's 1 %, ch. 4.3.3).
-pub(super) struct Lattice {
-    pub(super) nodes: Vec<NodeSpec>,
-    pub(super) springs: Vec<SpringSpec>,
-    pub(super) initial: Vec<InitialSpec>,
-    pub(super) index: std::collections::HashMap<(i32, i32), usize>,
-    pub(super) a: f64,
+struct Lattice {
+    nodes: Vec<NodeSpec>,
+    springs: Vec<SpringSpec>,
+    initial: Vec<InitialSpec>,
+    index: std::collections::HashMap<(i32, i32), usize>,
+    a: f64,
 }
 
-pub(super) fn lattice(rows: &[i32], cols: &[i32], stretch: &dyn Fn(u32) -> f64) -> Lattice {
+fn lattice(rows: &[i32], cols: &[i32], stretch: &dyn Fn(u32) -> f64) -> Lattice {
     lattice_fine(rows, cols, stretch, 1)
 }
 
@@ -101,56 +101,100 @@ fn lattice_fine(rows: &[i32], cols: &[i32], stretch: &dyn Fn(u32) -> f64, k: i32
 /// Bond (2), at (+0.5 mm, 0), fails at `t2` (20 µs; negative: never), lengthening the free
 /// fibre to 1.5 mm.
 pub(super) fn mesh3x3(p: &Params) -> ModelFile {
+    let mut m = mesh(p, "mesh3x3-bond-failure", Across::Plane, 20e-6);
+    m.grid = Some(paper_grid());
+    m.sensors = below_and_beside();
+    m
+}
+
+/// Which way a structure is bent before it is let go: across its fibre in the sheet's plane
+/// (y, the thesis's plane model) or through the sheet (z, the layered network of §6.2).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(super) enum Across {
+    Plane,
+    Sheet,
+}
+
+impl Across {
+    fn add(self, ic: &mut InitialSpec, d: f64) {
+        match self {
+            Across::Plane => ic.dy += d,
+            Across::Sheet => ic.dz += d,
+        }
+    }
+}
+
+/// [`mesh3x3`]'s fibres, kink and bond failures, bent `across`, bond (2) failing at `t2`
+/// unless given (negative: never); no grid and no sensors yet.
+pub(super) fn mesh(p: &Params, name: &str, across: Across, t2_default: f64) -> ModelFile {
     let stretch = p.get("stretch", 0.01);
-    let lat = lattice(&[-7, 0, 7], &[-7, 0, 7], &|_| stretch);
+    let mut lat = lattice(&[-7, 0, 7], &[-7, 0, 7], &|_| stretch);
     let kink = p.get("kink", 1e-5);
     let b1 = lat.index[&(0, 0)];
     let b2 = lat.index[&(7, 0)];
-    let mut initial = lat.initial;
     for ix in -6..=6 {
         let xi = (ix + 7) as f64 / 14.0;
         let pi = std::f64::consts::PI;
-        let dy = kink * (pi * xi).sin().powi(2);
+        let d = kink * (pi * xi).sin().powi(2);
         // The fibre is already stretched 1 %: its nodes sit at the stretched spacing.
-        initial.push(eq(lat.index[&(ix, 0)], stretch * ix as f64 * lat.a, dy));
+        let mut ic = eq(lat.index[&(ix, 0)], stretch * ix as f64 * lat.a, 0.0);
+        across.add(&mut ic, d);
+        lat.initial.push(ic);
     }
     // The vertical fibre through bond (1) carries the bond's displacement as a whole (its
     // held ends shifted alike), so it holds no extra longitudinal strain: when the bond
     // fails it stays put instead of recoiling along its length at its ~1.2 MHz
     // longitudinal resonance, which would drown the horizontal fibre's ring.
-    let shift = kink;
     for end in [lat.index[&(0, -14)], lat.index[&(0, 14)]] {
-        if let Some(ic) = initial.iter_mut().find(|ic| ic.node == end) {
-            ic.dy += shift;
+        if let Some(ic) = lat.initial.iter_mut().find(|ic| ic.node == end) {
+            across.add(ic, kink);
         }
     }
-    let (t1, t2) = (p.get("t1", 0.0), p.get("t2", 20e-6));
+    let (t1, t2) = (p.get("t1", 0.0), p.get("t2", t2_default));
     let mut damage = vec![DamageSpec::Bond { node: b1, time: t1 }];
     if t2 >= 0.0 {
         damage.push(DamageSpec::Bond { node: b2, time: t2 });
     }
+    lattice_model(
+        name.into(),
+        crate::model::Mechanism::BondFailure,
+        lat,
+        damage,
+        p.get("damping", 1.5e-6),
+        p,
+    )
+}
+
+/// The plane structures' two sensors: 1.8 mm below the damage zone's centre and 1.8 mm to
+/// its left, in the Appendix-A grid's cells.
+fn below_and_beside() -> Vec<SensorSpec> {
+    [(125, 100), (100, 125)]
+        .iter()
+        .map(|&(i, j)| SensorSpec { i, j, k: None })
+        .collect()
+}
+
+/// A lattice as a model with the paper scenarios' system (implicit Euler, 10 ns, the given
+/// damping, 4 000 steps), its own initial conditions, no grid and no sensors.
+fn lattice_model(
+    name: String,
+    label: crate::model::Mechanism,
+    lat: Lattice,
+    damage: Vec<DamageSpec>,
+    damping: f64,
+    p: &Params,
+) -> ModelFile {
     ModelFile {
-        name: "mesh3x3-bond-failure".into(),
-        label: Some(crate::model::Mechanism::BondFailure.as_str().into()),
-        system: system(p.get("dt", 1e-8), p.get("damping", 1.5e-6), 4_000),
+        name,
+        label: Some(label.as_str().into()),
+        system: system(p.get("dt", 1e-8), damping, 4_000),
         nodes: lat.nodes,
         springs: lat.springs,
-        initial,
+        initial: lat.initial,
         forces: vec![],
         damage,
-        grid: Some(paper_grid()),
-        sensors: vec![
-            SensorSpec {
-                i: 125,
-                j: 100,
-                k: None,
-            },
-            SensorSpec {
-                i: 100,
-                j: 125,
-                k: None,
-            },
-        ],
+        grid: None,
+        sensors: vec![],
     }
 }
 
@@ -161,19 +205,28 @@ pub(super) fn mesh3x3(p: &Params) -> ModelFile {
 /// at `t1` (1 µs), leaving p springs on fibre 1's side and 13 − p on fibre 2's: points p and
 /// 13 − p mirror each other, as (1) and (12) do in the thesis.
 pub(super) fn structure2x1(p: &Params) -> Result<ModelFile, SimError> {
+    let mut m = structure(p, "structure2x1-fibre-failure", true)?;
+    m.grid = Some(paper_grid());
+    m.sensors = below_and_beside();
+    Ok(m)
+}
+
+/// [`structure2x1`]'s fibres and failure, its name `prefix`-p`point`, no grid and no sensors
+/// yet; `split` (each spring cut in K) read only where `splittable`.
+pub(super) fn structure(p: &Params, prefix: &str, splittable: bool) -> Result<ModelFile, SimError> {
     let point = p.get("point", 7.0);
     if !(1.0..=12.0).contains(&point) || point.fract() != 0.0 {
         return Err(SimError::Model(format!(
-            "structure2x1-fibre-failure: point must be 1…12, got {point}"
+            "{prefix}: point must be 1…12, got {point}"
         )));
     }
     let point = point as i32;
     let s3 = p.get("stretch", 0.01);
     let s1 = p.get("stretch1", 0.002);
-    let k = p.get("split", 1.0);
+    let k = if splittable { p.get("split", 1.0) } else { 1.0 };
     if !(1.0..=8.0).contains(&k) || k.fract() != 0.0 {
         return Err(SimError::Model(format!(
-            "structure2x1-fibre-failure: split must be 1…8 springs per spring, got {k}"
+            "{prefix}: split must be 1…8 springs per spring, got {k}"
         )));
     }
     let k = k as i32;
@@ -198,34 +251,17 @@ pub(super) fn structure2x1(p: &Params) -> Result<ModelFile, SimError> {
         .iter()
         .position(|s| (s.a == lo && s.b == hi) || (s.a == hi && s.b == lo))
         .expect("fibre 3 has the spring");
-    Ok(ModelFile {
-        name: format!("structure2x1-fibre-failure-p{point}"),
-        label: Some(crate::model::Mechanism::FibreFailure.as_str().into()),
-        system: system(
-            p.get("dt", 1e-8),
-            p.get("damping", 1.5e-6 / k as f64),
-            4_000,
-        ),
-        nodes: lat.nodes,
-        springs: lat.springs,
-        initial: lat.initial,
-        forces: vec![],
-        damage: vec![DamageSpec::Fibre {
-            spring,
-            time: p.get("t1", 1e-6),
-        }],
-        grid: Some(paper_grid()),
-        sensors: vec![
-            SensorSpec {
-                i: 125,
-                j: 100,
-                k: None,
-            },
-            SensorSpec {
-                i: 100,
-                j: 125,
-                k: None,
-            },
-        ],
-    })
+    let damage = vec![DamageSpec::Fibre {
+        spring,
+        time: p.get("t1", 1e-6),
+    }];
+    let damping = p.get("damping", 1.5e-6 / k as f64);
+    Ok(lattice_model(
+        format!("{prefix}-p{point}"),
+        crate::model::Mechanism::FibreFailure,
+        lat,
+        damage,
+        damping,
+        p,
+    ))
 }
