@@ -46,7 +46,8 @@ pub fn sim_waveforms_table() -> Table<SimSignal> {
 /// The trajectory table of a 3-D model: the plane one's columns, then z and its velocity.
 pub fn trajectory_table_3d() -> Table<TrajectoryPoint> {
     let f = |name: &str, unit: &str, doc: &str| ColumnSpec::new(name, ColType::Float64, unit, doc);
-    trajectory_columns("sim_trajectories_3d")
+    trajectory_table()
+        .renamed("sim_trajectories_3d")
         .col(f("z_m", "m", "position, height"), |p: &TrajectoryPoint| {
             Value::F64(Some(p.r[2]))
         })
@@ -65,12 +66,8 @@ pub struct TrajectoryPoint {
 
 /// Node trajectory table.
 pub fn trajectory_table() -> Table<TrajectoryPoint> {
-    trajectory_columns("sim_trajectories")
-}
-
-fn trajectory_columns(name: &str) -> Table<TrajectoryPoint> {
     let f = |name: &str, unit: &str, doc: &str| ColumnSpec::new(name, ColType::Float64, unit, doc);
-    Table::new(name)
+    Table::new("sim_trajectories")
         .col(f("t_s", "s", "simulation time"), |p: &TrajectoryPoint| {
             Value::F64(Some(p.t_s))
         })
@@ -414,25 +411,25 @@ pub fn write_waveforms(path: &Path, runs: &[Run]) -> Result<u64, SimError> {
 
 /// Write node frames: the plane table, or with `dims` 3 the one with z (`sim_trajectories_3d`).
 pub fn write_trajectories(path: &Path, frames: &[Frame], dims: usize) -> Result<u64, SimError> {
-    let io = |e: store::StoreError| SimError::Io(e.to_string());
     let table = if dims == 3 {
         trajectory_table_3d()
     } else {
         trajectory_table()
     };
-    let mut w = TableWriter::create(path, table.schema(), &[], 65_536).map_err(io)?;
-    for f in frames {
-        for (node, (r, u)) in f.r.iter().zip(&f.u).enumerate() {
-            let p = TrajectoryPoint {
+    let rows = frames.iter().flat_map(|f| {
+        f.r.iter()
+            .zip(&f.u)
+            .enumerate()
+            .map(|(node, (r, u))| TrajectoryPoint {
                 t_s: f.t,
                 node,
                 r: *r,
                 u: *u,
-            };
-            w.push(table.row(p)).map_err(io)?;
-        }
-    }
-    w.finish().map_err(io)
+            })
+    });
+    table
+        .write_all(path, &[], 65_536, rows)
+        .map_err(|e| SimError::Io(e.to_string()))
 }
 
 /// The springs' tension in each kept frame (`sim_tension`).
@@ -488,28 +485,20 @@ pub fn energy_table() -> Table<(f64, [f64; 2])> {
 
 /// Write each frame's spring tensions (long format).
 pub fn write_tension(path: &Path, frames: &[Frame]) -> Result<u64, SimError> {
-    let io = |e: store::StoreError| SimError::Io(e.to_string());
-    let table = tension_table();
-    let mut w = TableWriter::create(path, table.schema(), &[], 65_536).map_err(io)?;
-    for f in frames {
-        for (k, t) in f.tension.iter().enumerate() {
-            w.push(table.row((f.t, k, *t))).map_err(io)?;
-        }
-    }
-    w.finish().map_err(io)
+    let rows = frames
+        .iter()
+        .flat_map(|f| f.tension.iter().enumerate().map(|(k, t)| (f.t, k, *t)));
+    tension_table()
+        .write_all(path, &[], 65_536, rows)
+        .map_err(|e| SimError::Io(e.to_string()))
 }
 
 /// Write each frame's energies.
 pub fn write_energy(path: &Path, frames: &[Frame]) -> Result<u64, SimError> {
-    let io = |e: store::StoreError| SimError::Io(e.to_string());
-    let table = energy_table();
-    let mut w = TableWriter::create(path, table.schema(), &[], 65_536).map_err(io)?;
-    for f in frames {
-        if let Some(e) = f.energy {
-            w.push(table.row((f.t, e))).map_err(io)?;
-        }
-    }
-    w.finish().map_err(io)
+    let rows = frames.iter().filter_map(|f| f.energy.map(|e| (f.t, e)));
+    energy_table()
+        .write_all(path, &[], 65_536, rows)
+        .map_err(|e| SimError::Io(e.to_string()))
 }
 
 /// A pressure snapshot as a PNG, one pixel block per cell, red positive, blue negative,

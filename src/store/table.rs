@@ -100,6 +100,22 @@ impl<T: 'static> Table<T> {
     pub fn row(&self, mut t: T) -> Row {
         Row::new(self.cols.iter().map(|(_, get)| get(&mut t)).collect())
     }
+
+    /// Write `rows` as this table to `path` (atomic, as every table: [`super::TableWriter`]),
+    /// `row_group_rows` to a row group; the rows written.
+    pub fn write_all(
+        &self,
+        path: &std::path::Path,
+        metadata: &[(String, String)],
+        row_group_rows: usize,
+        rows: impl IntoIterator<Item = T>,
+    ) -> Result<u64, super::StoreError> {
+        let mut w = super::TableWriter::create(path, self.schema(), metadata, row_group_rows)?;
+        for r in rows {
+            w.push(self.row(r))?;
+        }
+        w.finish()
+    }
 }
 
 /// A string cell.

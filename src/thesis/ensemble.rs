@@ -11,7 +11,6 @@ use crate::dsp::cwt::{Cwt, WaveletBank};
 use crate::dsp::settings::CwtConfig;
 use crate::sim::scenario::{build, Params};
 use crate::sim::{simulate, SimError, SimOptions};
-use crate::store::{ColType, ColumnSpec, Table, TableWriter, Value};
 use std::path::Path;
 
 /// The draws of Young's modulus averaged (Table 4.1's ±10 %).
@@ -65,23 +64,15 @@ pub fn fig_4_12(dir: &Path) -> Result<f64, ThesisError> {
         .chunks(x.len())
         .map(|row| row.iter().map(|v| *v as f64).sum())
         .collect();
-    let io = |e: crate::store::StoreError| SimError::Io(e.to_string());
-    let f = |name: &str, unit: &str, doc: &str| ColumnSpec::new(name, ColType::Float64, unit, doc);
-    let table: Table<(f64, f64)> = Table::new("thesis_fig_4_12")
-        .col(
-            f("frequency_hz", "Hz", "CWT frequency"),
-            |r: &(f64, f64)| Value::F64(Some(r.0)),
-        )
-        .col(
-            f("power", "Pa²", "the average AE's |W|² summed over time"),
-            |r| Value::F64(Some(r.1)),
-        );
-    let mut w = TableWriter::create(&dir.join("marginal.parquet"), table.schema(), &[], 1024)
-        .map_err(io)?;
-    for (fr, p) in freqs.iter().zip(&marginal) {
-        w.push(table.row((*fr, *p))).map_err(io)?;
-    }
-    w.finish().map_err(io)?;
+    super::write_floats(
+        &dir.join("marginal.parquet"),
+        "thesis_fig_4_12",
+        [
+            ("frequency_hz", "Hz", "CWT frequency"),
+            ("power", "Pa²", "the average AE's |W|² summed over time"),
+        ],
+        freqs.iter().zip(&marginal).map(|(f, p)| [*f, *p]),
+    )?;
     // Drawn as a sensor records it: the pressure × the default sensitivity, volts.
     let scale = crate::sim::output::Acquisition::default().scale_v_per_pa as f32;
     let rec = crate::model::AeRecord {

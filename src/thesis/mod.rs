@@ -253,6 +253,26 @@ pub const ENTRIES: &[Entry] = &[
     },
 ];
 
+/// Write an entry's data to `path`: float64 columns (name, unit, meaning), a row per item.
+fn write_floats<const N: usize>(
+    path: &Path,
+    table: &str,
+    columns: [(&str, &str, &str); N],
+    rows: impl IntoIterator<Item = [f64; N]>,
+) -> Result<(), ThesisError> {
+    use crate::store::{ColType, ColumnSpec, Table, Value};
+    let mut t: Table<[f64; N]> = Table::new(table);
+    for (k, (name, unit, doc)) in columns.into_iter().enumerate() {
+        t = t.col(
+            ColumnSpec::new(name, ColType::Float64, unit, doc),
+            move |r: &[f64; N]| Value::F64(Some(r[k])),
+        );
+    }
+    t.write_all(path, &[], 4096, rows)
+        .map_err(|e| crate::sim::SimError::Io(e.to_string()))?;
+    Ok(())
+}
+
 /// The first row of the table.
 fn first(t: &crate::sim::sweep::SweepTable) -> Option<&crate::sim::sweep::SweepRow> {
     t.rows.first()

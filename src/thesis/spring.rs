@@ -9,7 +9,6 @@ use super::ThesisError;
 use crate::sim::model::*;
 use crate::sim::scenario::{FIBRE_E, FIBRE_NU, FIBRE_RHO, FIBRE_T, FIBRE_W};
 use crate::sim::{simulate, zero_crossing_frequency, SimError, SimOptions};
-use crate::store::{ColType, ColumnSpec, Table, TableWriter, Value};
 use std::path::Path;
 
 /// Eq. 4.6.1 for the paper fibre's free length `l`, Hz.
@@ -87,26 +86,16 @@ pub fn fig_4_20(dir: &Path) -> Result<f64, ThesisError> {
     for &l in &lengths {
         rows.push((l, simulated(l)?, eq_4_6_1(l)));
     }
-    let io = |e: crate::store::StoreError| SimError::Io(e.to_string());
-    let f = |name: &str, unit: &str, doc: &str| ColumnSpec::new(name, ColType::Float64, unit, doc);
-    let table: Table<(f64, f64, f64)> = Table::new("thesis_fig_4_20")
-        .col(
-            f("length_m", "m", "free vibrating length L"),
-            |r: &(f64, f64, f64)| Value::F64(Some(r.0)),
-        )
-        .col(
-            f("simulated_hz", "Hz", "the mass/spring model's frequency"),
-            |r| Value::F64(Some(r.1)),
-        )
-        .col(f("eq_4_6_1_hz", "Hz", "Eq. 4.6.1"), |r| {
-            Value::F64(Some(r.2))
-        });
-    let mut w =
-        TableWriter::create(&dir.join("curve.parquet"), table.schema(), &[], 64).map_err(io)?;
-    for r in &rows {
-        w.push(table.row(*r)).map_err(io)?;
-    }
-    w.finish().map_err(io)?;
+    super::write_floats(
+        &dir.join("curve.parquet"),
+        "thesis_fig_4_20",
+        [
+            ("length_m", "m", "free vibrating length L"),
+            ("simulated_hz", "Hz", "the mass/spring model's frequency"),
+            ("eq_4_6_1_hz", "Hz", "Eq. 4.6.1"),
+        ],
+        rows.iter().map(|r| [r.0, r.1, r.2]),
+    )?;
     let khz = |v: &[(f64, f64, f64)], pick: fn(&(f64, f64, f64)) -> f64| -> Vec<(f64, f64)> {
         v.iter().map(|r| (r.0 * 1e3, pick(r) / 1e3)).collect()
     };
