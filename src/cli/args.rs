@@ -375,7 +375,8 @@ pub struct SimulateArgs {
     pub model: Option<PathBuf>,
     /// Built-in scenario instead of a file: sho, five-mass-fibre, fibre-single-constraint,
     /// fibre-multiple-constraints, two-fibres,
-    /// rubber-band, paper-fibre, mesh3x3-bond-failure, structure2x1-fibre-failure,
+    /// rubber-band, paper-fibre, mesh3x3-bond-failure, mesh3x3-damaged-bond-failure,
+    /// structure2x1-fibre-failure,
     /// fibre-stiff-string, and in 3-D network3d-bond-failure, network3d-fibre-failure
     #[arg(long)]
     pub scenario: Option<String>,

@@ -18,16 +18,25 @@ struct Lattice {
     springs: Vec<SpringSpec>,
     initial: Vec<InitialSpec>,
     index: std::collections::HashMap<(i32, i32), usize>,
+    /// Each fibre's nodes in order along it (rows first, then columns).
+    fibres: Vec<Vec<usize>>,
     a: f64,
 }
 
 fn lattice(rows: &[i32], cols: &[i32], stretch: &dyn Fn(u32) -> f64) -> Lattice {
-    lattice_fine(rows, cols, stretch, 1)
+    lattice_fine(rows, cols, stretch, 1, &|_, _| true)
 }
 
 /// [`lattice`] with each fibre's 28 springs cut into `k` (ix, iy ∈ −14k…14k, spacing
-/// 2 mm/28k; rows and columns given in those units).
-fn lattice_fine(rows: &[i32], cols: &[i32], stretch: &dyn Fn(u32) -> f64, k: i32) -> Lattice {
+/// 2 mm/28k; rows and columns given in those units). Where `bonded` says no, the two
+/// fibres cross without a bond: each keeps its own mass there (`index` names the row's).
+fn lattice_fine(
+    rows: &[i32],
+    cols: &[i32],
+    stretch: &dyn Fn(u32) -> f64,
+    k: i32,
+    bonded: &dyn Fn(i32, i32) -> bool,
+) -> Lattice {
     let len = 2e-3;
     let a = len / (28 * k) as f64;
     let m = FIBRE_RHO * FIBRE_T * FIBRE_W * a;
@@ -36,15 +45,18 @@ fn lattice_fine(rows: &[i32], cols: &[i32], stretch: &dyn Fn(u32) -> f64, k: i32
         springs: vec![],
         initial: vec![],
         index: Default::default(),
+        fibres: vec![],
         a,
     };
     let at = |lat: &mut Lattice, ix: i32, iy: i32| -> usize {
         if let Some(&k) = lat.index.get(&(ix, iy)) {
-            lat.nodes[k].mass += m;
-            return k;
+            if bonded(ix, iy) {
+                lat.nodes[k].mass += m;
+                return k;
+            }
         }
         lat.nodes.push(node(ix as f64 * a, iy as f64 * a, m, false));
-        lat.index.insert((ix, iy), lat.nodes.len() - 1);
+        lat.index.entry((ix, iy)).or_insert(lat.nodes.len() - 1);
         lat.nodes.len() - 1
     };
     let mut fibre = 0u32;
@@ -67,6 +79,7 @@ fn lattice_fine(rows: &[i32], cols: &[i32], stretch: &dyn Fn(u32) -> f64, k: i32
                 }
             })
             .collect();
+        lat.fibres.push(ids.clone());
         for w in ids.windows(2) {
             lat.springs.push(spring(
                 w[0], w[1], FIBRE_E, None, FIBRE_T, FIBRE_W, FIBRE_NU, f,
@@ -105,6 +118,119 @@ pub(super) fn mesh3x3(p: &Params) -> ModelFile {
     m.grid = Some(paper_grid());
     m.sensors = below_and_beside();
     m
+}
+
+/// The crossing of bond k (0…8) of Fig. 4.8's mesh, (ix, iy) in lattice steps: k = 3·row +
+/// column, rows and columns counted from −0.5 mm (so 4 is the centre, bond (1)).
+pub fn mesh_bond(k: u32) -> (i32, i32) {
+    ((k % 3) as i32 * 7 - 7, (k / 3) as i32 * 7 - 7)
+}
+
+/// A bond failure in Fig. 4.8's mesh after others have failed (§4.5.5: "as damage occurs
+/// … the number of fibre/fibre bonds in the damage zone decreases"). `broken` (a mask of
+/// bits k, default 0) names the bonds already failed: there the two fibres cross unbonded.
+/// Bond `bond` (default 4) fails at `t1` (0); the fibre `along` it (0 the row, default; 1
+/// the column) is bent between its nearest intact bonds, or its held ends, on either side —
+/// the free length the failure releases, 1 mm in the intact mesh, up to 2 mm. The shape is
+/// [`mesh3x3`]'s, peaked at the failing bond: kink·sin²(π/2·s/S) on each side, s from the
+/// span's end, S from that end to the bond (for a centred bond exactly mesh3x3's
+/// sin²(πξ)); the crossing fibre's held ends are shifted by the kink, as there.
+pub(super) fn damaged_mesh(p: &Params) -> Result<ModelFile, SimError> {
+    let name = "mesh3x3-damaged-bond-failure";
+    let whole = |key: &str, v: f64, hi: f64| -> Result<u32, SimError> {
+        if (0.0..=hi).contains(&v) && v.fract() == 0.0 {
+            Ok(v as u32)
+        } else {
+            Err(SimError::Model(format!(
+                "{name}: {key} must be a whole number 0…{hi}, got {v}"
+            )))
+        }
+    };
+    let broken = whole("broken", p.get("broken", 0.0), 511.0)?;
+    let bond = whole("bond", p.get("bond", 4.0), 8.0)?;
+    let along = whole("along", p.get("along", 0.0), 1.0)?;
+    if broken >> bond & 1 == 1 {
+        return Err(SimError::Model(format!(
+            "{name}: bond {bond} is among the broken ({broken:#b}); a bond fails once"
+        )));
+    }
+    let intact =
+        |ix: i32, iy: i32| (0..9).all(|k| broken >> k & 1 == 0 || mesh_bond(k) != (ix, iy));
+    let stretch = p.get("stretch", 0.01);
+    let kink = p.get("kink", 1e-5);
+    let mut lat = lattice_fine(&[-7, 0, 7], &[-7, 0, 7], &|_| stretch, 1, &intact);
+    let (bx, by) = mesh_bond(bond);
+    // Fibres: rows 0…2 (iy −7, 0, 7), then columns 3…5 (ix −7, 0, 7); position s along a
+    // fibre is its node's lattice coordinate, −14…14.
+    let (bent, cross) = if along == 0 {
+        ((by / 7 + 1) as usize, (bx / 7 + 4) as usize)
+    } else {
+        ((bx / 7 + 4) as usize, (by / 7 + 1) as usize)
+    };
+    let (at, lo, hi) = span(broken, bond, along);
+    let half_pi = std::f64::consts::FRAC_PI_2;
+    for s in lo + 1..hi {
+        let d = if s <= at {
+            kink * (half_pi * (s - lo) as f64 / (at - lo) as f64).sin().powi(2)
+        } else {
+            kink * (half_pi * (hi - s) as f64 / (hi - at) as f64).sin().powi(2)
+        };
+        let n = lat.fibres[bent][(s + 14) as usize];
+        let l = stretch * s as f64 * lat.a;
+        lat.initial
+            .push(if along == 0 { eq(n, l, d) } else { eq(n, d, l) });
+    }
+    let ends = [lat.fibres[cross][0], lat.fibres[cross][28]];
+    for ic in lat.initial.iter_mut().filter(|ic| ends.contains(&ic.node)) {
+        if along == 0 {
+            ic.dy += kink;
+        } else {
+            ic.dx += kink;
+        }
+    }
+    let node = lat.fibres[bent][(at + 14) as usize];
+    let damage = vec![DamageSpec::Bond {
+        node,
+        time: p.get("t1", 0.0),
+    }];
+    let mut m = lattice_model(
+        format!("{name}-b{bond}"),
+        crate::model::Mechanism::BondFailure,
+        lat,
+        damage,
+        p.get("damping", 1.5e-6),
+        p,
+    );
+    m.grid = Some(paper_grid());
+    m.sensors = below_and_beside();
+    Ok(m)
+}
+
+/// The free length (m) a [`damaged_mesh`] failure releases: between the nearest intact
+/// bonds or held ends on either side of `bond` along the bent fibre.
+pub fn damaged_span(broken: u32, bond: u32, along: u32) -> f64 {
+    let (_, lo, hi) = span(broken, bond, along);
+    (hi - lo) as f64 * 2e-3 / 28.0
+}
+
+/// The failing bond's position `at` along the bent fibre and the span (lo, hi) it is bent
+/// over, in lattice steps.
+fn span(broken: u32, bond: u32, along: u32) -> (i32, i32, i32) {
+    let (bx, by) = mesh_bond(bond);
+    let (at, line) = if along == 0 { (bx, by) } else { (by, bx) };
+    let bonded = |s: i32| {
+        let c = if along == 0 { (s, line) } else { (line, s) };
+        s != at && (0..9).all(|k| broken >> k & 1 == 0 || mesh_bond(k) != c)
+    };
+    let lo = [-7, 0, 7]
+        .into_iter()
+        .filter(|&s| s < at && bonded(s))
+        .max();
+    let hi = [-7, 0, 7]
+        .into_iter()
+        .filter(|&s| s > at && bonded(s))
+        .min();
+    (at, lo.unwrap_or(-14), hi.unwrap_or(14))
 }
 
 /// Which way a structure is bent before it is let go: across its fibre in the sheet's plane
@@ -240,6 +366,7 @@ pub(super) fn structure(p: &Params, prefix: &str, splittable: bool) -> Result<Mo
             _ => s3,
         },
         k,
+        &|_, _| true,
     );
     // The break: the first of the k springs that make up spring `point` + 1 of the 14. A
     // split fibre's masses are 1/k of the plain one's: the default damping b is divided by k

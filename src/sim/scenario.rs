@@ -2,7 +2,7 @@
 //! and its two damage structures (Fig. 4.8, Fig. 4.19), built with the material of Table 4.1.
 
 use super::model::*;
-use super::paper::{mesh3x3, structure2x1};
+use super::paper::{damaged_mesh, mesh3x3, structure2x1};
 use super::SimError;
 
 /// Scenario names, for the CLI and errors.
@@ -15,6 +15,7 @@ pub const NAMES: &[&str] = &[
     "rubber-band",
     "paper-fibre",
     "mesh3x3-bond-failure",
+    "mesh3x3-damaged-bond-failure",
     "structure2x1-fibre-failure",
 ];
 
@@ -272,6 +273,7 @@ fn build_asked(name: &str, p: &Params) -> Result<ModelFile, SimError> {
         "rubber-band" => rubber_band(p),
         "paper-fibre" => paper_fibre(p),
         "mesh3x3-bond-failure" => mesh3x3(p),
+        "mesh3x3-damaged-bond-failure" => damaged_mesh(p)?,
         "structure2x1-fibre-failure" => structure2x1(p)?,
         _ => match super::network3d::build(name, p) {
             Some(m) => m?,
