@@ -7,9 +7,10 @@
 //! simulated in the structure the earlier ones left (`mesh3x3-damaged-bond-failure`), so
 //! the free length each failure releases — the only cause the thesis names — grows as the
 //! model says it does. Nothing is drawn but the order of the failures and the fibre each
-//! one bends. Each AE is heard by the sensor facing its fibre's motion; by the mesh's
-//! diagonal symmetry a column bent and heard at sensor 2 is its mirror, a row bent and heard
-//! at sensor 1, which is what is simulated. Then Eq. 4.5.4's 25 power ratios, and per window
+//! one bends. Each AE is heard by the sensor facing its fibre's motion (the other sits on
+//! the fibre's silent axis, where a bond's coupling is ill-defined: docs/fidelity.md). By
+//! the mesh's diagonal symmetry a column bent and heard at sensor 2 is its mirror, a row
+//! bent and heard at sensor 1, which is what is simulated. Then Eq. 4.5.4's 25 power ratios, and per window
 //! Pearson's r (Eq. 4.5.5) and the regression of Table 4.3 against AE number.
 
 use super::ThesisError;

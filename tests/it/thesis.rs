@@ -144,8 +144,8 @@ fn max_abs_diff(a: &[f64], b: &[f64]) -> f64 {
 fn the_damaged_mesh_is_the_mesh_its_mirror_and_a_longer_string() {
     let (mesh, f_mesh) = heard("mesh3x3-bond-failure", &[("t2", -1.0)], 0);
     let (intact, f1) = heard("mesh3x3-damaged-bond-failure", &[], 0);
-    // Not to the bit: the same shape by another formula moves the relaxation's last
-    // digits, which the release rings (docs/fidelity.md).
+    // Not to the bit: the same shape by another formula differs in the last digits, and a
+    // bond's coupling direction flips on them (docs/fidelity.md, "A bond's own direction").
     let d = max_abs_diff(&mesh, &intact);
     assert!(
         d < 0.01,
