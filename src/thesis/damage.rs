@@ -203,28 +203,7 @@ pub fn eq_4_5_6(dir: &Path) -> Result<f64, ThesisError> {
             .enumerate()
             .filter_map(|(w, f)| f.map(|f| [w as f64 * 100.0, f.r, f.p, f.slope, f.intercept])),
     )?;
-    let share = |n: u32, lo: f64, hi: f64| {
-        let at_n: Vec<&Failure> = fails.iter().filter(|f| f.ae_number == n).collect();
-        let inside = at_n
-            .iter()
-            .filter(|f| (lo..hi).contains(&at(f).dominant_hz))
-            .count();
-        inside as f64 / at_n.len() as f64
-    };
-    super::write_floats(
-        &dir.join("probability.parquet"),
-        "thesis_eq_4_5_6_probability",
-        [
-            ("ae_number", "", "AE number, 1…9"),
-            (
-                "p_700_800",
-                "",
-                "share of the sequences' AEs at this number dominant in 700–800 kHz",
-            ),
-            ("p_200_300", "", "share dominant in 200–300 kHz"),
-        ],
-        (1..=9).map(|n| [n as f64, share(n, 700e3, 800e3), share(n, 200e3, 300e3)]),
-    )?;
+    write_probability(dir, &fails, &heard)?;
     let (Some(hi), Some(lo)) = (fits[7], fits[2]) else {
         return Err(ThesisError::Measure {
             id: "eq-4.5.6",
@@ -255,6 +234,39 @@ pub fn eq_4_5_6(dir: &Path) -> Result<f64, ThesisError> {
         ],
     )?;
     Ok(lo.r)
+}
+
+/// `probability.parquet`: per AE number, the share of the sequences' AEs whose dominant
+/// frequency lies in 700–800 and in 200–300 kHz.
+fn write_probability(
+    dir: &Path,
+    fails: &[Failure],
+    heard: &BTreeMap<(u32, u32), Heard>,
+) -> Result<(), ThesisError> {
+    let at = |f: &Failure| &heard[&f.simulated()];
+    let share = |n: u32, lo: f64, hi: f64| {
+        let at_n: Vec<&Failure> = fails.iter().filter(|f| f.ae_number == n).collect();
+        let inside = at_n
+            .iter()
+            .filter(|f| (lo..hi).contains(&at(f).dominant_hz))
+            .count();
+        inside as f64 / at_n.len() as f64
+    };
+    super::write_floats(
+        &dir.join("probability.parquet"),
+        "thesis_eq_4_5_6_probability",
+        [
+            ("ae_number", "", "AE number, 1…9"),
+            (
+                "p_700_800",
+                "",
+                "share of the sequences' AEs at this number dominant in 700–800 kHz",
+            ),
+            ("p_200_300", "", "share dominant in 200–300 kHz"),
+        ],
+        (1..=9).map(|n| [n as f64, share(n, 700e3, 800e3), share(n, 200e3, 300e3)]),
+    )?;
+    Ok(())
 }
 
 #[cfg(test)]
