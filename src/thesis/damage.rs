@@ -288,9 +288,24 @@ mod tests {
         }
         // The mirror swaps rows and columns: corner 2 (row 0, column 2) ↔ corner 6.
         assert_eq!((mirror(2), mirror(6), mirror(4), mirror(1)), (6, 2, 4, 3));
+        for k in 0..9 {
+            assert_eq!(mirror_mask(1 << k), 1 << mirror(k));
+            assert_eq!(mirror(mirror(k)), k);
+        }
         for m in 0..512 {
             assert_eq!(mirror_mask(mirror_mask(m)), m);
-            assert_eq!(mirror_mask(m).count_ones(), m.count_ones());
+            // A column bent is its mirror's row bent: the same free length released.
+            for k in (0..9).filter(|k| m >> k & 1 == 0) {
+                let f = Failure {
+                    sequence: 0,
+                    ae_number: 1,
+                    bond: k,
+                    along: 1,
+                    broken: m,
+                };
+                let (mm, mk) = f.simulated();
+                assert_eq!(damaged_span(m, k, 1), damaged_span(mm, mk, 0), "{m:#b} {k}");
+            }
         }
     }
 }

@@ -1,6 +1,6 @@
 //! `aepipe thesis` against its record: every entry `docs/thesis.md` names is declared and
-//! every declared entry is named there; each runs (all are cheap) and gives the verdict the
-//! record states; an unknown entry is refused before anything runs.
+//! every declared entry is named there; each runs (all together in ~30 s here) and gives the
+//! verdict the record states; an unknown entry is refused before anything runs.
 
 use crate::{aepipe, TempDir};
 
@@ -111,7 +111,7 @@ fn the_record_names_every_figure_and_table() {
     );
 }
 
-/// The sensor-1 pressure of a scenario (band-limited, Pa) and its dominant frequency.
+/// A sensor's pressure in a scenario (band-limited, Pa) and its dominant frequency.
 fn heard(name: &str, params: &[(&str, f64)], sensor: usize) -> (Vec<f64>, f64) {
     use aepipe::sim::scenario::{build, Params};
     let m = build(
@@ -148,7 +148,7 @@ fn the_damaged_mesh_is_the_mesh_its_mirror_and_a_longer_string() {
     // bond's coupling direction flips on them (docs/fidelity.md, "A bond's own direction").
     let d = max_abs_diff(&mesh, &intact);
     assert!(
-        d < 0.01,
+        d < 0.005,
         "intact centre failure differs from mesh3x3 by {d}"
     );
     assert!((f1 / f_mesh - 1.0).abs() < 0.002, "{f1} vs {f_mesh}");
@@ -160,8 +160,25 @@ fn the_damaged_mesh_is_the_mesh_its_mirror_and_a_longer_string() {
         1,
     );
     let (row, _) = heard("mesh3x3-damaged-bond-failure", &[("bond", 3.0)], 0);
+    // 2.8 % of the peak at the worst sample (3.9 % in the damaged case below): the bonds'
+    // coupling direction turns on the round-off, which differs between mirror images
+    // (docs/fidelity.md, "A bond's own direction").
     let d = max_abs_diff(&row, &col);
     assert!(d < 0.05, "mirror differs by {d}");
+    // And in a damaged mesh: bond 5 bent along its column after bonds 0 and 4, against bond
+    // 7 bent along its row after bonds 0 and 4 (the mirror of {0, 4} is {0, 4}).
+    let (col, _) = heard(
+        "mesh3x3-damaged-bond-failure",
+        &[("broken", 17.0), ("bond", 5.0), ("along", 1.0)],
+        1,
+    );
+    let (row, _) = heard(
+        "mesh3x3-damaged-bond-failure",
+        &[("broken", 17.0), ("bond", 7.0)],
+        0,
+    );
+    let d = max_abs_diff(&row, &col);
+    assert!(d < 0.05, "damaged mirror differs by {d}");
     // The centre with bond 5 gone (1.5 mm), with bonds 3 and 5 gone (2 mm).
     for (broken, l) in [(1 << 5, 1.5), ((1 << 3) | (1 << 5), 2.0)] {
         let span = aepipe::sim::paper::damaged_span(broken, 4, 0);
@@ -178,6 +195,37 @@ fn the_damaged_mesh_is_the_mesh_its_mirror_and_a_longer_string() {
             "{l} mm: {f} Hz, against {} from 1/L",
             f1 / l
         );
+    }
+    // The bent shape of an off-centre failure: bond 5 (the middle row's right) after bond 4
+    // (the centre) is bent from bond 3 (−0.5 mm) to the held end (+1 mm), peaked at the
+    // bond with the full kink, rising on one side and falling on the other.
+    {
+        use aepipe::sim::scenario::{build, Params};
+        let m = build(
+            "mesh3x3-damaged-bond-failure",
+            &Params(vec![("broken".into(), 16.0), ("bond".into(), 5.0)]),
+        )
+        .unwrap();
+        let a = 2e-3 / 28.0;
+        let mut bent: Vec<(f64, f64)> = m
+            .initial
+            .iter()
+            .filter(|ic| m.nodes[ic.node].y.abs() < 1e-12 && ic.dy != 0.0)
+            .map(|ic| (m.nodes[ic.node].x, ic.dy))
+            .collect();
+        bent.sort_by(|p, q| p.0.total_cmp(&q.0));
+        let xs: Vec<i64> = bent.iter().map(|p| (p.0 / a).round() as i64).collect();
+        assert_eq!(xs, (-6..=13).collect::<Vec<_>>(), "bent between −7 and 14");
+        let (at, peak) = bent
+            .iter()
+            .copied()
+            .max_by(|p, q| p.1.total_cmp(&q.1))
+            .unwrap();
+        assert_eq!(((at / a).round(), peak), (7.0, 1e-5), "peaked at the bond");
+        for w in bent.windows(2) {
+            let rising = w[1].0 <= at;
+            assert!((w[1].1 > w[0].1) == rising, "monotone on each side: {w:?}");
+        }
     }
     // Refused by name: a bond failing twice, a bond outside the mesh.
     use aepipe::sim::scenario::{build, Params};
