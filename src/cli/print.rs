@@ -331,7 +331,10 @@ pub fn thesis_line(o: &crate::thesis::Outcome) -> String {
         e.tolerance * 100.0,
         if o.pass { "agrees" } else { "DEPARTS" },
         e.compared
-    )
+    ) + &e
+        .caveat
+        .map(|c| format!("\n{:<10} but: {c}", ""))
+        .unwrap_or_default()
 }
 
 /// Tables 3.2/3.4 as measured.
