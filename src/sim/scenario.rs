@@ -437,7 +437,8 @@ pub(super) fn node(x: f64, y: f64, mass: f64, fixed: bool) -> NodeSpec {
     }
 }
 
-pub(super) fn eq(node: usize, dx: f64, dy: f64) -> InitialSpec {
+/// An equilibrium initial condition (Alg. 7's EqIC): node displaced in the plane, at rest.
+pub fn eq(node: usize, dx: f64, dy: f64) -> InitialSpec {
     InitialSpec {
         node,
         dx,
@@ -450,16 +451,11 @@ pub(super) fn eq(node: usize, dx: f64, dy: f64) -> InitialSpec {
     }
 }
 
+/// A static initial condition (StIC): [`eq`]'s, held for the whole run.
 pub(super) fn st(node: usize, dx: f64, dy: f64) -> InitialSpec {
     InitialSpec {
-        node,
-        dx,
-        dy,
-        du: 0.0,
-        dv: 0.0,
-        dz: 0.0,
-        dw: 0.0,
         kind: IcKind::St,
+        ..eq(node, dx, dy)
     }
 }
 

@@ -7,7 +7,7 @@
 
 use super::ThesisError;
 use crate::sim::model::*;
-use crate::sim::scenario::{FIBRE_E, FIBRE_NU, FIBRE_RHO, FIBRE_T, FIBRE_W};
+use crate::sim::scenario::{eq, FIBRE_E, FIBRE_NU, FIBRE_RHO, FIBRE_T, FIBRE_W};
 use crate::sim::{simulate, zero_crossing_frequency, SimError, SimOptions};
 use std::path::Path;
 
@@ -51,16 +51,7 @@ pub fn simulated(l: f64) -> Result<f64, SimError> {
             poisson: FIBRE_NU,
             fibre: 0,
         }],
-        initial: vec![InitialSpec {
-            node: 1,
-            dx: 0.01 * l,
-            dy: 0.0,
-            dz: 0.0,
-            du: 0.0,
-            dv: 0.0,
-            dw: 0.0,
-            kind: IcKind::Eq,
-        }],
+        initial: vec![eq(1, 0.01 * l, 0.0)],
         forces: vec![],
         damage: vec![],
         grid: None,
