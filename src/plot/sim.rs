@@ -4,6 +4,7 @@
 
 use super::{boxed_legend, ensure_font, err, PlotError};
 use crate::sim::sweep::{SweepRow, SweepTable};
+use plotters::coord::types::RangedCoordf64;
 use plotters::prelude::*;
 use std::path::Path;
 
@@ -43,6 +44,37 @@ fn curves(t: &SweepTable) -> Vec<(String, Vec<&SweepRow>)> {
     out
 }
 
+/// The simulator pictures' frame on `area`: caption at `font` px, a 10 px margin, label
+/// areas of 35 (x) and 70 (y) px, linear axes over `x` × `y`, the mesh drawn with its axis
+/// descriptions (an empty one is left out).
+#[allow(clippy::too_many_arguments)]
+fn framed<'a, DB: DrawingBackend + 'a>(
+    area: &'a DrawingArea<DB, plotters::coord::Shift>,
+    caption: &str,
+    font: u32,
+    x: std::ops::Range<f64>,
+    y: std::ops::Range<f64>,
+    x_desc: &str,
+    y_desc: &str,
+    path: &Path,
+) -> Result<ChartContext<'a, DB, Cartesian2d<RangedCoordf64, RangedCoordf64>>, PlotError> {
+    let e = err(path);
+    let mut c = ChartBuilder::on(area)
+        .caption(caption, ("sans-serif", font))
+        .margin(10)
+        .x_label_area_size(35)
+        .y_label_area_size(70)
+        .build_cartesian_2d(x, y)
+        .map_err(&e)?;
+    let mut mesh = c.configure_mesh();
+    mesh.x_desc(x_desc);
+    if !y_desc.is_empty() {
+        mesh.y_desc(y_desc);
+    }
+    mesh.draw().map_err(&e)?;
+    Ok(c)
+}
+
 /// Dominant frequency (kHz) and γ (1/s) against the first swept key, side by side.
 pub fn sweep_png(path: &Path, t: &SweepTable) -> Result<(), PlotError> {
     ensure_font()?;
@@ -73,21 +105,12 @@ pub fn sweep_png(path: &Path, t: &SweepTable) -> Result<(), PlotError> {
             })
             .collect();
         let (x, y) = bounds(pts.iter().flatten().copied());
-        let mut c = ChartBuilder::on(area)
-            .caption(
-                if left_out > 0 {
-                    format!("{title} ({left_out} curves not drawn)")
-                } else {
-                    title.to_string()
-                },
-                ("sans-serif", 14),
-            )
-            .margin(10)
-            .x_label_area_size(35)
-            .y_label_area_size(70)
-            .build_cartesian_2d(x.0..x.1, y.0..y.1)
-            .map_err(&e)?;
-        c.configure_mesh().x_desc(key).draw().map_err(&e)?;
+        let caption = if left_out > 0 {
+            format!("{title} ({left_out} curves not drawn)")
+        } else {
+            title.to_string()
+        };
+        let mut c = framed(area, &caption, 14, x.0..x.1, y.0..y.1, key, "", path)?;
         for (i, ((name, _), p)) in shown.iter().zip(&pts).enumerate() {
             let col = Palette99::pick(i).to_rgba();
             c.draw_series(LineSeries::new(p.iter().copied(), col.stroke_width(2)))
@@ -235,24 +258,20 @@ pub fn directivity_png(path: &Path, h: &crate::sim::sources::Heard) -> Result<()
         .iter()
         .fold(0.0f64, |a, &v| a.max(v))
         .max(1e-300);
-    let mut c = ChartBuilder::on(&areas[0])
-        .caption(
-            format!(
-                "{:?} ({:?}) on the ring: measured (points), analytic (line)",
-                h.pole, h.drive
-            ),
-            ("sans-serif", 14),
-        )
-        .margin(10)
-        .x_label_area_size(35)
-        .y_label_area_size(70)
-        .build_cartesian_2d(0.0..360.0, 0.0..1.1 * top)
-        .map_err(&e)?;
-    c.configure_mesh()
-        .x_desc("direction θ from the x axis, degrees")
-        .y_desc("amplitude, Pa")
-        .draw()
-        .map_err(&e)?;
+    let caption = format!(
+        "{:?} ({:?}) on the ring: measured (points), analytic (line)",
+        h.pole, h.drive
+    );
+    let mut c = framed(
+        &areas[0],
+        &caption,
+        14,
+        0.0..360.0,
+        0.0..1.1 * top,
+        "direction θ from the x axis, degrees",
+        "amplitude, Pa",
+        path,
+    )?;
     c.draw_series(LineSeries::new(
         deg.iter().copied().zip(h.analytic.iter().copied()),
         BLUE.stroke_width(2),
@@ -268,18 +287,16 @@ pub fn directivity_png(path: &Path, h: &crate::sim::sources::Heard) -> Result<()
         .map(|k| (k + 1) as f64 / h.sample_rate_hz)
         .collect();
     let (x, y) = bounds(t.iter().copied().zip(h.on_axis.iter().copied()));
-    let mut c = ChartBuilder::on(&areas[1])
-        .caption("pressure 6 m out on the strongest axis", ("sans-serif", 14))
-        .margin(10)
-        .x_label_area_size(35)
-        .y_label_area_size(70)
-        .build_cartesian_2d(x.0..x.1, y.0..y.1)
-        .map_err(&e)?;
-    c.configure_mesh()
-        .x_desc("time, s")
-        .y_desc("pressure, Pa")
-        .draw()
-        .map_err(&e)?;
+    let mut c = framed(
+        &areas[1],
+        "pressure 6 m out on the strongest axis",
+        14,
+        x.0..x.1,
+        y.0..y.1,
+        "time, s",
+        "pressure, Pa",
+        path,
+    )?;
     c.draw_series(LineSeries::new(
         t.iter().copied().zip(h.on_axis.iter().copied()),
         BLACK.stroke_width(1),
@@ -302,18 +319,7 @@ pub fn curves_png(
     let root = BitMapBackend::new(path, (800, 480)).into_drawing_area();
     root.fill(&WHITE).map_err(&e)?;
     let (x, y) = bounds(curves.iter().flat_map(|(_, p)| p.iter().copied()));
-    let mut c = ChartBuilder::on(&root)
-        .caption(title, ("sans-serif", 15))
-        .margin(10)
-        .x_label_area_size(35)
-        .y_label_area_size(70)
-        .build_cartesian_2d(x.0..x.1, y.0..y.1)
-        .map_err(&e)?;
-    c.configure_mesh()
-        .x_desc(x_desc)
-        .y_desc(y_desc)
-        .draw()
-        .map_err(&e)?;
+    let mut c = framed(&root, title, 15, x.0..x.1, y.0..y.1, x_desc, y_desc, path)?;
     for (i, (name, p)) in curves.iter().enumerate() {
         let col = Palette99::pick(i).to_rgba();
         if i == 0 {
