@@ -154,11 +154,10 @@ pub(super) fn damaged_mesh(p: &Params) -> Result<ModelFile, SimError> {
             "{name}: bond {bond} is among the broken ({broken:#b}); a bond fails once"
         )));
     }
-    let intact =
-        |ix: i32, iy: i32| (0..9).all(|k| broken >> k & 1 == 0 || mesh_bond(k) != (ix, iy));
+    let bonded = |ix: i32, iy: i32| intact(broken, (ix, iy));
     let stretch = p.get("stretch", 0.01);
     let kink = p.get("kink", 1e-5);
-    let mut lat = lattice_fine(&[-7, 0, 7], &[-7, 0, 7], &|_| stretch, 1, &intact);
+    let mut lat = lattice_fine(&[-7, 0, 7], &[-7, 0, 7], &|_| stretch, 1, &bonded);
     let (bx, by) = mesh_bond(bond);
     // Fibres: rows 0…2 (iy −7, 0, 7), then columns 3…5 (ix −7, 0, 7); position s along a
     // fibre is its node's lattice coordinate, −14…14.
@@ -213,6 +212,11 @@ pub fn damaged_span(broken: u32, bond: u32, along: u32) -> f64 {
     (hi - lo) as f64 * 2e-3 / 28.0
 }
 
+/// Whether the crossing (ix, iy) still holds its bond: not one of the `broken` mask's.
+fn intact(broken: u32, crossing: (i32, i32)) -> bool {
+    (0..9).all(|k| broken >> k & 1 == 0 || mesh_bond(k) != crossing)
+}
+
 /// The failing bond's position `at` along the bent fibre and the span (lo, hi) it is bent
 /// over, in lattice steps.
 fn span(broken: u32, bond: u32, along: u32) -> (i32, i32, i32) {
@@ -220,7 +224,7 @@ fn span(broken: u32, bond: u32, along: u32) -> (i32, i32, i32) {
     let (at, line) = if along == 0 { (bx, by) } else { (by, bx) };
     let bonded = |s: i32| {
         let c = if along == 0 { (s, line) } else { (line, s) };
-        s != at && (0..9).all(|k| broken >> k & 1 == 0 || mesh_bond(k) != c)
+        s != at && intact(broken, c)
     };
     let lo = [-7, 0, 7]
         .into_iter()
