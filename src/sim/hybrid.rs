@@ -6,6 +6,7 @@
 
 use super::acoustic::Field;
 use super::acoustic3d::Field3;
+use super::geometry::strands;
 use super::mech::Mech;
 use super::model::{GridSpec, ModelFile, SensorSpec};
 use super::{Frame, SimError, SimOptions, SimOutput};
@@ -139,29 +140,29 @@ impl Medium<2> for Plane<'_> {
     /// monopole of Fig. 4.21.
     fn couple(&mut self, mech: &Mech<2>, u_prev: &[[f64; 2]]) {
         let (g, f) = (self.g, &mut self.f);
-        let geo = mech.geometry();
         let h = g.dx();
         let inv_area = 1.0 / (h * h);
         let arm = g.dipole_m.map_or(1.0, |d| d / h);
-        for i in 0..mech.len() {
-            if mech.held[i] || geo[i].count == 0 {
+        for st in strands(mech) {
+            let i = st.node;
+            if mech.held[i] {
                 continue;
             }
             let a = [
                 (mech.u[i][0] - u_prev[i][0]) / g.dt,
                 (mech.u[i][1] - u_prev[i][1]) / g.dt,
             ];
-            let tg = geo[i].tangent;
+            let tg = st.tangent;
             let nrm = [-tg[1], tg[0]];
             let an = a[0] * nrm[0] + a[1] * nrm[1];
-            let s = g.rho * geo[i].length * an * inv_area * arm;
+            let s = g.rho * st.length * an * inv_area * arm;
             let r = mech.r[i];
             splat(f, g, [r[0] + 0.5 * h * nrm[0], r[1] + 0.5 * h * nrm[1]], s);
             splat(f, g, [r[0] - 0.5 * h * nrm[0], r[1] - 0.5 * h * nrm[1]], -s);
-            if geo[i].count == 1 {
+            if st.count == 1 {
                 let o = [-tg[0], -tg[1]];
                 let ao = a[0] * o[0] + a[1] * o[1];
-                let se = g.rho * geo[i].width * ao * inv_area;
+                let se = g.rho * st.width * ao * inv_area;
                 splat(f, g, [r[0] + 0.5 * h * o[0], r[1] + 0.5 * h * o[1]], se);
             }
         }
@@ -261,17 +262,17 @@ impl Medium<3> for Space<'_> {
     /// fluid with its end face w·t (a monopole ρ·w·t·aₒ/Δh³ ahead of it, Fig. 4.21's).
     fn couple(&mut self, mech: &Mech<3>, u_prev: &[[f64; 3]]) {
         let g = self.g;
-        let geo = mech.geometry();
         let h = g.dx();
         let inv_vol = 1.0 / (h * h * h);
         let arm = g.dipole_m.map_or(1.0, |d| d / h);
         let dot = |a: [f64; 3], b: [f64; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
-        for i in 0..mech.len() {
-            if mech.held[i] || geo[i].count == 0 {
+        for st in strands(mech) {
+            let i = st.node;
+            if mech.held[i] {
                 continue;
             }
             let a: [f64; 3] = std::array::from_fn(|c| (mech.u[i][c] - u_prev[i][c]) / g.dt);
-            let tg = geo[i].tangent;
+            let tg = st.tangent;
             let r = mech.r[i];
             // The ribbon's width lies in the sheet's plane across the fibre; a fibre standing
             // upright has its width along x.
@@ -287,16 +288,16 @@ impl Medium<3> for Space<'_> {
                 tg[2] * ew[0] - tg[0] * ew[2],
                 tg[0] * ew[1] - tg[1] * ew[0],
             ];
-            for (dir, face) in [(et, geo[i].width), (ew, geo[i].thickness)] {
-                let s = g.rho * geo[i].length * face * dot(a, dir) * inv_vol * arm;
+            for (dir, face) in [(et, st.width), (ew, st.thickness)] {
+                let s = g.rho * st.length * face * dot(a, dir) * inv_vol * arm;
                 if s != 0.0 {
                     self.splat(std::array::from_fn(|c| r[c] + 0.5 * h * dir[c]), s);
                     self.splat(std::array::from_fn(|c| r[c] - 0.5 * h * dir[c]), -s);
                 }
             }
-            if geo[i].count == 1 {
+            if st.count == 1 {
                 let o = tg.map(|v| -v);
-                let se = g.rho * geo[i].width * geo[i].thickness * dot(a, o) * inv_vol;
+                let se = g.rho * st.width * st.thickness * dot(a, o) * inv_vol;
                 self.splat(std::array::from_fn(|c| r[c] + 0.5 * h * o[c]), se);
             }
         }

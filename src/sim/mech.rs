@@ -592,66 +592,6 @@ impl<const D: usize> Mech<D> {
         self.acc_valid = false;
         Ok(())
     }
-
-    /// Per node: the fibre length it stands for (half its intact springs' rest lengths), its
-    /// unit normal (perpendicular to the mean direction of its springs) and, for a free fibre
-    /// end (one spring), its outward tangent and the fibre width.
-    pub fn geometry(&self) -> Vec<NodeGeom<D>> {
-        let mut g = vec![
-            NodeGeom {
-                length: 0.0,
-                tangent: [0.0; D],
-                count: 0,
-                width: 0.0,
-                thickness: 0.0,
-            };
-            self.len()
-        ];
-        for s in self.springs.iter().filter(|s| !s.broken) {
-            let d = sub(self.r[s.b], self.r[s.a]);
-            let l = norm(d).max(1e-300);
-            let tv: [f64; D] = std::array::from_fn(|c| d[c] / l);
-            for (node, sign) in [(s.a, 1.0), (s.b, -1.0)] {
-                let e = &mut g[node];
-                e.length += 0.5 * s.l0;
-                // Orient the tangents alike (a fibre passing through has one direction).
-                let dot = dotv(e.tangent, tv);
-                let sg = if e.count == 0 {
-                    sign
-                } else if dot < 0.0 {
-                    -1.0
-                } else {
-                    1.0
-                };
-                for c in 0..D {
-                    e.tangent[c] += sg * tv[c];
-                }
-                e.count += 1;
-                e.width = s.w;
-                e.thickness = s.t;
-            }
-        }
-        for e in &mut g {
-            let l = norm(e.tangent);
-            if l > 0.0 {
-                e.tangent = std::array::from_fn(|c| e.tangent[c] / l);
-            }
-        }
-        g
-    }
-}
-
-/// Geometry of a node for the acoustic coupling.
-#[derive(Debug, Clone, Copy)]
-pub struct NodeGeom<const D: usize> {
-    pub length: f64,
-    /// Unit tangent of the fibre at the node; for a free end (count 1) it points from the
-    /// end into the fibre.
-    pub tangent: [f64; D],
-    pub count: usize,
-    /// The fibre's cross-section: width (in the sheet's plane) and thickness, m.
-    pub width: f64,
-    pub thickness: f64,
 }
 
 pub fn dist<const D: usize>(a: [f64; D], b: [f64; D]) -> f64 {

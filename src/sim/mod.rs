@@ -7,6 +7,7 @@
 pub mod acoustic;
 pub mod acoustic3d;
 pub mod decay;
+pub mod geometry;
 pub mod hybrid;
 pub mod input;
 pub mod material;

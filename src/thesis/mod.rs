@@ -246,7 +246,7 @@ pub const ENTRIES: &[Entry] = &[
             trajectories: false,
             measure:     |t| at_sensor(t, 1, 1.0).map(|f| f / 1e3),
         },
-        caveat: Some("this value rests on a known defect, a bond coupled to the air as one diagonal dipole: coupled per fibre (the fix, not yet landed) the 2×1 structure rings at 0.87–1.16 MHz whatever the break point (docs/fidelity.md, \"A bond's own direction\")"),
+        caveat: None,
     },
     Entry {
         id: "fig-4.27",
@@ -261,7 +261,7 @@ pub const ENTRIES: &[Entry] = &[
             trajectories: false,
             measure:     |t| at_sensor(t, 1, 12.0).map(|f| f / 1e3),
         },
-        caveat: Some("this value rests on a known defect, a bond coupled to the air as one diagonal dipole: coupled per fibre (the fix, not yet landed) the 2×1 structure rings at 0.87–1.16 MHz whatever the break point (docs/fidelity.md, \"A bond's own direction\")"),
+        caveat: None,
     },
     Entry {
         id: "fig-4.28",
@@ -276,7 +276,7 @@ pub const ENTRIES: &[Entry] = &[
             trajectories: false,
             measure:     |t| at_sensor(t, 1, 7.0).map(|f| f / 1e3),
         },
-        caveat: Some("this value rests on a known defect, a bond coupled to the air as one diagonal dipole: coupled per fibre (the fix, not yet landed) the 2×1 structure rings at 0.87–1.16 MHz whatever the break point (docs/fidelity.md, \"A bond's own direction\")"),
+        caveat: None,
     },
 ];
 

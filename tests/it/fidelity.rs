@@ -67,7 +67,10 @@ fn the_criteria_give_the_simulated_library_its_mechanisms() {
     eprintln!(
         "library (seed 4242): bond {bond_ok}/{bond}, fibre {fibre_ok}/{fibre} ({both_for_fibre} as both)"
     );
-    assert_eq!((bond, fibre), (32, 96));
+    // Per material draw and sensor: the mesh's 2 kinks × 2 stretches, the structure's 12
+    // break points.
+    let per = f.reference.variants * f.reference.sensors.len();
+    assert_eq!((bond, fibre), (4 * per, 12 * per));
     assert!(
         (bond_ok + fibre_ok) as f64 >= 0.90 * (bond + fibre) as f64,
         "bond {bond_ok}/{bond}, fibre {fibre_ok}/{fibre}"
@@ -81,22 +84,23 @@ fn the_criteria_give_the_simulated_library_its_mechanisms() {
         let all = count(&|r| r.2 == fault);
         let seen = count(&|r| r.2 == fault && r.1 == "erroneous");
         eprintln!("{fault}: {seen}/{all} erroneous by the criteria");
-        assert_eq!(all, 16, "{fault}");
+        // 6 erroneous records from each of the mesh's 4 simulations per draw, 3 faults.
+        assert_eq!(all, 8 * f.reference.variants, "{fault}");
         let need = if fault == "two_signals" { 0.75 } else { 1.0 };
         assert!(seen as f64 >= need * all as f64, "{fault}: {seen}/{all}");
     }
 }
 
-/// Fig. 4.23: the frequency of a fibre failure rises with 1/L of the piece left on fibre 2's
-/// side (13 − p springs of 71.4 µm), as far as the grid carries it. Past point 8 the fit
-/// asks for ≥ 1.45 MHz, at the edge of what the 72 µm grid carries (group velocity 20 % low
-/// at 1.50 MHz, see `acoustic::band_limit`), and the order breaks: docs/fidelity.md gives the
-/// numbers.
+/// Fig. 4.23 says a fibre failure's frequency rises with 1/L of the piece left on fibre 2's
+/// side (13 − p springs of 71.4 µm). The model with bonds coupled per fibre (issue 51) does
+/// not: at sensor 1 every break point rings in the thesis's 800–1 700 kHz, but the frequency
+/// is not linear in 1/L over points 1–8 (where, before the fix, it rose with r > 0.9 — a
+/// rise the bonds' misdirected diagonal dipoles carried; docs/fidelity.md gives both tables).
+/// What rings is the structure, not the released length.
 #[test]
-fn fibre_failure_frequency_rises_with_one_over_the_released_length() {
+fn fibre_failure_frequency_does_not_follow_the_released_length() {
     use aepipe::sim::scenario::{self, Params};
     let g = scenario::paper_grid();
-    let pass = aepipe::sim::acoustic::band_limit(&g).pass_hz;
     let mut f = Vec::new();
     for p in 1..=12 {
         let m = scenario::build(
@@ -116,22 +120,20 @@ fn fibre_failure_frequency_rises_with_one_over_the_released_length() {
         f.iter().map(|x| (x / 1e3).round()).collect::<Vec<_>>()
     );
     let inv_l: Vec<f64> = (1..=12).map(|p| 1.0 / (13 - p) as f64).collect();
-    // Points 1–8: strictly rising, in the thesis's 800–1700 kHz, and linear in 1/L.
-    assert!(f[..8].windows(2).all(|w| w[1] > w[0]), "{f:?}");
     assert!(f.iter().all(|&x| (800e3..1700e3).contains(&x)), "{f:?}");
     let fit = aepipe::analysis::stats::linear_trend(&inv_l[..8], &f[..8]).unwrap();
-    assert!(fit.r > 0.9, "r = {}", fit.r);
-    // Points 9–12: the fit asks for what the grid barely or no longer carries.
-    for p in 9..=12 {
-        let want = fit.intercept + fit.slope * inv_l[p - 1];
-        assert!(want > 0.95 * pass, "point {p}: {want} vs pass {pass}");
-        assert!(f[p - 1] < want, "point {p}: {} vs {want}", f[p - 1]);
-    }
+    assert!(
+        fit.r < 0.9,
+        "r = {}: the frequency follows 1/L again",
+        fit.r
+    );
+    // Not strictly rising with the point either.
+    assert!(!f[..8].windows(2).all(|w| w[1] > w[0]), "{f:?}");
 }
 
 /// Fig. 4.24, at the source: from 1.0 % to 2.0 % extension of fibre 3 (point 7) the released
 /// piece's free end rings at the same frequency (within ±5 %) with more energy. At the sensor
-/// the band-limited spectrum's peak does move (1254 → 1047 kHz): there the piece's ring is
+/// the band-limited spectrum's peak does move (928 → 1161 → 1139 kHz): there the piece's ring is
 /// mixed with the tension-dependent motion of the structure (see docs/fidelity.md).
 #[test]
 fn a_failing_fibre_rings_at_one_frequency_whatever_its_extension() {

@@ -5,6 +5,7 @@
 
 mod architecture;
 mod bad_input;
+mod bonds;
 mod cli;
 mod corpus;
 mod cycles;

@@ -573,9 +573,12 @@ fn bond_failure_rings_at_250_and_750_khz_with_the_low_tone_lasting_longer() {
     assert!(third > r[5] && third > r[8] && r[6] + r[7] > 0.15, "{r:?}");
 }
 
+/// A fibre failure is a short pulse above 800 kHz wherever the fibre breaks (ch. 4.6): at
+/// points 2, 7 and 12 — near fibre 1, in the middle, near fibre 2 — and the ch. 4.7 criteria
+/// call it one. (Whether its frequency follows the break point is
+/// `fidelity::fibre_failure_frequency_does_not_follow_the_released_length`.)
 #[test]
-fn fibre_failure_is_a_short_pulse_above_800_khz_that_moves_with_the_break_point() {
-    let mut freqs = Vec::new();
+fn fibre_failure_is_a_short_pulse_above_800_khz_at_every_break_point() {
     for point in [2.0, 7.0, 12.0] {
         let a = analyse("structure2x1-fibre-failure", &[("point", point)]);
         let dom = a.components.dominant.unwrap();
@@ -587,12 +590,7 @@ fn fibre_failure_is_a_short_pulse_above_800_khz_that_moves_with_the_break_point(
             "point {point}: {}",
             a.reason
         );
-        freqs.push(dom.freq_hz);
     }
-    assert!(
-        (freqs[1] - freqs[0]).abs() > 100e3 && (freqs[2] - freqs[1]).abs() > 50e3,
-        "{freqs:?}"
-    );
 }
 
 #[test]
