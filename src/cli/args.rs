@@ -450,6 +450,14 @@ pub struct SynthExperimentArgs {
     /// exponent (1.35–3), for `statistics.parquet` to recover
     #[arg(long)]
     pub energy_exponent: Option<f64>,
+    /// The sources' mechanism mix, by the truth's mechanism names (a name not given is 0;
+    /// the shares sum to 1), e.g. bond_failure=0.45,fibre_failure=0.35,both=0.1,erroneous=0.1
+    /// for a test that holds enough fibre failures to measure their recall
+    #[arg(
+        long,
+        default_value = "bond_failure=0.84,fibre_failure=0.02,both=0.1,erroneous=0.04"
+    )]
+    pub shares: crate::synth::Shares,
 }
 
 #[derive(clap::Args)]

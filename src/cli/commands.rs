@@ -337,6 +337,7 @@ fn synth_experiment(a: SynthExperimentArgs) -> Result<Outcome> {
         crate::synth::Shape {
             cycles: a.cycles,
             energy_exponent: a.energy_exponent,
+            shares: a.shares,
         },
         a.library.as_deref(),
         true,

@@ -22,6 +22,7 @@
 //! more than 2 % of the draws would fall beyond the ADC's range (the truncation then bends
 //! the law).
 
+use crate::model::Mechanism;
 use crate::util::Rng;
 
 /// The last cycle's peak load, N (the demo's).
@@ -42,6 +43,124 @@ pub struct Shape {
     /// 0 or 1: monotonic to failure; 2 to `MAX_CYCLES`: load–unload–reload.
     pub cycles: usize,
     pub energy_exponent: Option<f64>,
+    /// The sources' mechanism mix (`--shares`).
+    pub shares: Shares,
+}
+
+/// The sources' mechanism mix: `synth-experiment --shares
+/// bond_failure=…,fibre_failure=…,both=…,erroneous=…`, named by the truth's `mechanism`
+/// values. The default is the demo's mix (84 / 2 / 10 / 4 %), which holds about a dozen
+/// fibre failures in a test: a fibre failure's recall needs a mix that holds more.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Shares {
+    pub bond_failure: f64,
+    pub fibre_failure: f64,
+    pub both: f64,
+    pub erroneous: f64,
+}
+
+impl Default for Shares {
+    fn default() -> Shares {
+        Shares {
+            bond_failure: 0.84,
+            fibre_failure: 0.02,
+            both: 0.10,
+            erroneous: 0.04,
+        }
+    }
+}
+
+impl Shares {
+    /// The mechanism of a source from a uniform draw `u` in [0, 1): fibre failure, both,
+    /// erroneous, then bond failure, in that order along [0, 1).
+    pub fn draw(&self, u: f64) -> Mechanism {
+        if u < self.fibre_failure {
+            Mechanism::FibreFailure
+        } else if u < self.fibre_failure + self.both {
+            Mechanism::Both
+        } else if u < self.fibre_failure + self.both + self.erroneous {
+            Mechanism::Erroneous
+        } else {
+            Mechanism::BondFailure
+        }
+    }
+
+    /// Checked once: each share in [0, 1], the four summing to 1 (a name not given is 0).
+    fn check(self) -> Result<Shares, super::SynthError> {
+        let all = [
+            self.bond_failure,
+            self.fibre_failure,
+            self.both,
+            self.erroneous,
+        ];
+        if all.iter().any(|v| !(0.0..=1.0).contains(v)) {
+            return Err(super::SynthError::Shape(format!(
+                "--shares {self}: each share must lie in 0–1"
+            )));
+        }
+        let sum: f64 = all.iter().sum();
+        if (sum - 1.0).abs() > 1e-6 {
+            return Err(super::SynthError::Shape(format!(
+                "--shares {self}: the shares sum to {sum}, not 1"
+            )));
+        }
+        Ok(self)
+    }
+}
+
+impl std::fmt::Display for Shares {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "bond_failure={},fibre_failure={},both={},erroneous={}",
+            self.bond_failure, self.fibre_failure, self.both, self.erroneous
+        )
+    }
+}
+
+impl std::str::FromStr for Shares {
+    type Err = String;
+    /// `name=share,…` with the truth's mechanism names; a name not given is 0, a name
+    /// given twice or not a mechanism is refused by name. The sum is checked with the
+    /// test's shape ([`Shape::check`]).
+    fn from_str(s: &str) -> Result<Shares, String> {
+        let mut out = Shares {
+            bond_failure: 0.0,
+            fibre_failure: 0.0,
+            both: 0.0,
+            erroneous: 0.0,
+        };
+        let mut seen = Vec::new();
+        for part in s.split(',').map(str::trim).filter(|p| !p.is_empty()) {
+            let (k, v) = part
+                .split_once('=')
+                .ok_or_else(|| format!("{part:?}: expected name=share"))?;
+            let (k, v) = (k.trim(), v.trim());
+            let v: f64 = v
+                .parse()
+                .map_err(|_| format!("{k}={v}: the share is not a number"))?;
+            if seen.contains(&k) {
+                return Err(format!("{k} given twice"));
+            }
+            seen.push(k);
+            let slot = match Mechanism::parse(k) {
+                Some(Mechanism::BondFailure) => &mut out.bond_failure,
+                Some(Mechanism::FibreFailure) => &mut out.fibre_failure,
+                Some(Mechanism::Both) => &mut out.both,
+                Some(Mechanism::Erroneous) => &mut out.erroneous,
+                _ => {
+                    return Err(format!(
+                        "{k:?} is not a mechanism; the names are bond_failure, fibre_failure, both, erroneous"
+                    ))
+                }
+            };
+            *slot = v;
+        }
+        if seen.is_empty() {
+            return Err("no shares given".into());
+        }
+        Ok(out)
+    }
 }
 
 /// The most cycles a 60 s test holds (each non-final cycle ≥ 6 s).
@@ -65,6 +184,7 @@ impl Shape {
                 )));
             }
         }
+        self.shares.check()?;
         Ok(self)
     }
 }

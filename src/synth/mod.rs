@@ -12,7 +12,7 @@ use crate::model::{AeRecord, Mechanism};
 pub mod loading;
 pub mod strip;
 pub use crate::util::Rng;
-pub use loading::Shape;
+pub use loading::{Shape, Shares};
 pub use strip::{SourceKind, Strip, SynthHit};
 
 /// Why a synthetic experiment could not be made.
@@ -274,6 +274,8 @@ pub struct Experiment {
     /// The exponent the hits' energies follow ([`loading::power_law_amplitude`]); None:
     /// the demo's amplitude spread.
     pub energy_exponent: Option<f64>,
+    /// The sources' mechanism mix.
+    pub shares: loading::Shares,
 }
 
 /// Reference-library signals by mechanism, each cut to start a little before its trigger.
@@ -387,6 +389,7 @@ impl Experiment {
             strip: None,
             cycles: 0,
             energy_exponent: None,
+            shares: loading::Shares::default(),
         }
     }
 
@@ -444,19 +447,10 @@ impl Experiment {
         }
     }
 
-    /// Mechanism of hit `i` (deterministic given the seed): ~84 % bond, 2 % fibre, 10 % both,
-    /// 4 % erroneous.
-    fn mechanism(rng: &mut Rng) -> Mechanism {
-        let u = rng.uniform();
-        if u < 0.02 {
-            Mechanism::FibreFailure
-        } else if u < 0.12 {
-            Mechanism::Both
-        } else if u < 0.16 {
-            Mechanism::Erroneous
-        } else {
-            Mechanism::BondFailure
-        }
+    /// Mechanism of the next source (deterministic given the seed), drawn from the test's
+    /// mix (by default ~84 % bond, 2 % fibre, 10 % both, 4 % erroneous).
+    pub(super) fn mechanism(&self, rng: &mut Rng) -> Mechanism {
+        self.shares.draw(rng.uniform())
     }
 
     /// The hits, lazily (one waveform in memory at a time), labelled with their mechanism.
@@ -490,7 +484,7 @@ impl Experiment {
         let design = self.cycle_design();
         let times = self.source_times(&design, &mut rng);
         times.into_iter().enumerate().map(move |(i, t)| {
-            let mech = Self::mechanism(&mut rng);
+            let mech = self.mechanism(&mut rng);
             let progress = i as f64 / self.n_hits.max(1) as f64;
             let mut spec = HitSpec::new(mech);
             spec.n_samples = self.n_samples;
@@ -617,6 +611,7 @@ pub fn synth_test(
     e.strip = Some(Strip::demo());
     e.cycles = shape.cycles;
     e.energy_exponent = shape.energy_exponent;
+    e.shares = shape.shares;
     let data = dir.join("data");
     let truth = dir.join("truth.parquet");
     let n_hits = e.write_with_truth(&data, &truth)?;
@@ -630,6 +625,9 @@ pub fn synth_test(
     }
     if let Some(a) = e.energy_exponent {
         stated += &format!("; energies ∝ E^-{a}");
+    }
+    if e.shares != loading::Shares::default() {
+        stated += &format!("; mechanisms drawn as {}", e.shares);
     }
     Ok(format!(
         "{hits} sources, {n_hits} hits (seed {seed}) from {} → {} (.pridb/.tradb) and {} in {:.1} s{stated}",

@@ -95,7 +95,7 @@ pub(super) fn strip_hits(e: &Experiment, strip: &Strip) -> Vec<SynthHit> {
     let times = e.source_times(&design, &mut rng);
     let mut out = Vec::new();
     for (i, t0) in times.into_iter().enumerate() {
-        let mech = Experiment::mechanism(&mut rng);
+        let mech = e.mechanism(&mut rng);
         let progress = i as f64 / e.n_hits.max(1) as f64;
         let kind = if rng.uniform() < strip.grip_share {
             SourceKind::Grip

@@ -157,6 +157,14 @@ pub fn headline(s: &RunSummary) -> Vec<String> {
                 100.0 * a
             ));
         }
+        l.push(format!(
+            "recall by true class (→ the same SOM class): {}{}",
+            t.recall_line(),
+            t.balanced_accuracy().map_or(String::new(), |b| format!(
+                "; balanced accuracy (mean of bond and fibre recalls) {:.1} %",
+                100.0 * b
+            ))
+        ));
         let (ek, en) = t.erroneous_recall();
         let (ok, all) = t.thesis_overall();
         let called = t.erroneous_called();
@@ -264,6 +272,11 @@ pub fn summary_json(s: &RunSummary) -> serde_json::Value {
             "bond_vs_fibre": {"correct": t.bond_fibre_correct, "total": t.bond_fibre_total},
             "erroneous_recognised": {"correct": ek, "total": en, "called_erroneous": t.erroneous_called(), "novel": ek - t.erroneous_called()},
             "thesis_overall": {"correct": ok, "total": all},
+            "recall": Mechanism::ALL.iter().filter_map(|&m| {
+                let (k, n) = t.recall(m);
+                (n > 0).then(|| (m.as_str().to_string(), json!({"correct": k, "total": n})))
+            }).collect::<serde_json::Map<_, _>>(),
+            "balanced_accuracy": t.balanced_accuracy(),
         })
     });
     let report = existing(dir.report_html());

@@ -25,6 +25,7 @@ fn felicity_ratios_and_the_energy_exponent_of_a_synthetic_cyclic_test() {
     let shape = aepipe::synth::Shape {
         cycles: 4,
         energy_exponent: Some(1.6),
+        ..Default::default()
     };
     aepipe::synth::synth_test(d.path(), "cyc", 700, 31, shape, Some(&lib), false).unwrap();
     let mut cfg = aepipe::demo::demo_config().into_inner();
