@@ -452,4 +452,49 @@ mod tests {
         assert!((mle - 2.0).abs() < 0.02, "{mle}");
         assert!(a.iter().all(|x| (A_MIN_V..=A_MAX_V).contains(x)));
     }
+
+    #[test]
+    fn shares_are_named_as_the_truth_names_mechanisms_and_checked_once() {
+        let s: Shares = "fibre_failure=0.35, bond_failure=0.45,both=0.1,erroneous=0.1"
+            .parse()
+            .unwrap();
+        assert_eq!((s.bond_failure, s.fibre_failure), (0.45, 0.35));
+        let shape = |sh: Shares| {
+            Shape {
+                shares: sh,
+                ..Default::default()
+            }
+            .check()
+        };
+        assert!(shape(s).is_ok());
+        // The CLI's default string is the default mix.
+        let d: Shares = "bond_failure=0.84,fibre_failure=0.02,both=0.1,erroneous=0.04"
+            .parse()
+            .unwrap();
+        assert_eq!(d, Shares::default());
+        // A name not given is 0; the sum must be 1.
+        let only: Shares = "bond_failure=1".parse().unwrap();
+        assert!(shape(only).is_ok());
+        let e = shape("bond_failure=0.5,fibre_failure=0.2".parse().unwrap()).unwrap_err();
+        assert!(e.to_string().contains("sum to 0.7"), "{e}");
+        let e = shape("bond_failure=1.5,fibre_failure=-0.5".parse().unwrap()).unwrap_err();
+        assert!(e.to_string().contains("0–1"), "{e}");
+        for (bad, says) in [
+            ("fibre=0.5,bond_failure=0.5", "\"fibre\" is not a mechanism"),
+            ("bond_failure=0.5,bond_failure=0.5", "given twice"),
+            ("bond_failure", "expected name=share"),
+            ("bond_failure=x", "not a number"),
+            ("", "no shares"),
+        ] {
+            let e = bad.parse::<Shares>().unwrap_err();
+            assert!(e.contains(says), "{bad}: {e}");
+        }
+        // Drawn in order along [0, 1): fibre, both, erroneous, then bond.
+        let m = |u| s.draw(u);
+        assert_eq!(m(0.0), Mechanism::FibreFailure);
+        assert_eq!(m(0.34), Mechanism::FibreFailure);
+        assert_eq!(m(0.36), Mechanism::Both);
+        assert_eq!(m(0.5), Mechanism::Erroneous);
+        assert_eq!(m(0.56), Mechanism::BondFailure);
+    }
 }
