@@ -625,6 +625,15 @@ pub struct BenchSimArgs {
     /// sizes, µm, comma-separated (e.g. 72,36): wall time and peak memory
     #[arg(long, value_delimiter = ',')]
     pub network3d: Vec<f64>,
+    /// Instead: whether the embedded reference library's signals have converged — each
+    /// reference at three grid spacings, three time steps and fibre splits 1/2/3, its dominant
+    /// frequency and 25 power ratios per resolution (DIR/convergence.parquet), and the
+    /// coarsest resolution per axis within 5 % / 0.02 of the next finer
+    #[arg(long)]
+    pub convergence: bool,
+    /// Where --convergence writes its table
+    #[arg(long, default_value = "convergence")]
+    pub out: PathBuf,
 }
 
 #[derive(clap::Args)]

@@ -608,7 +608,23 @@ fn bench(which: BenchCmd) -> Result<Outcome> {
             field3d_steps,
             solvers,
             network3d,
+            convergence,
+            out,
         }) => {
+            if convergence {
+                use crate::sim::convergence as cv;
+                let c = cv::convergence(&crate::sim::reference::ReferenceFile::default_library())?;
+                std::fs::create_dir_all(&out).map_err(|e| {
+                    crate::bench::BenchError::Run(format!("{}: {e}", out.display()))
+                })?;
+                let path = out.join("convergence.parquet");
+                let n = cv::write(&path, &c)?;
+                for l in cv::lines(&c) {
+                    println!("{l}");
+                }
+                println!("{n} rows → {}", path.display());
+                return Ok(Outcome::Success);
+            }
             let rows = crate::bench::sim_scale(&masses, steps)?;
             print::sim_scale(&rows, steps);
             let t = crate::bench::sim_mesh(repeats)?;

@@ -6,6 +6,7 @@
 
 pub mod acoustic;
 pub mod acoustic3d;
+pub mod convergence;
 pub mod decay;
 pub mod geometry;
 pub mod hybrid;
