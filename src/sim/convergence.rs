@@ -136,6 +136,9 @@ pub struct Step {
     pub worst_at: String,
 }
 
+/// Per axis: the resolution chosen (None: not converged) and each resolution's run time, s.
+pub type Chosen = (Axis, Option<Resolution>, [f64; 3]);
+
 /// The whole measurement.
 #[derive(Debug, Clone)]
 pub struct Convergence {
@@ -143,7 +146,7 @@ pub struct Convergence {
     pub steps: Vec<Step>,
     /// Each axis: the coarsest resolution that holds (None: not converged) and, per
     /// resolution, the wall time of all its runs.
-    pub chosen: Vec<(Axis, Option<Resolution>, [f64; 3])>,
+    pub chosen: Vec<Chosen>,
     /// Scenarios an axis could not refine (the mesh has no split), by axis.
     pub skipped: Vec<(Axis, String)>,
 }
@@ -284,10 +287,7 @@ pub fn convergence(f: &ReferenceFile) -> Result<Convergence, SimError> {
 /// Each axis step per scenario, and per axis the coarsest resolution at which every
 /// reference of every scenario refined along it is within both tolerances of the next finer
 /// (None: no step holds), with each resolution's total run time.
-pub fn compare(
-    rows: &[Measured],
-    axes: &[(Axis, [Resolution; 3])],
-) -> (Vec<Step>, Vec<(Axis, Option<Resolution>, [f64; 3])>) {
+pub fn compare(rows: &[Measured], axes: &[(Axis, [Resolution; 3])]) -> (Vec<Step>, Vec<Chosen>) {
     let key = |m: &Measured| (m.scenario.clone(), m.params.clone(), m.sensor);
     let mut scenarios: Vec<String> = rows.iter().map(|m| m.scenario.clone()).collect();
     scenarios.dedup();

@@ -58,8 +58,8 @@ pub fn strands<const D: usize>(mech: &Mech<D>) -> Vec<Strand<D>> {
             } else {
                 1.0
             };
-            for c in 0..D {
-                e.tangent[c] += sg * tv[c];
+            for (t, v) in e.tangent.iter_mut().zip(tv) {
+                *t += sg * v;
             }
             e.count += 1;
             e.width = s.w;
@@ -192,8 +192,8 @@ mod tests {
                 } else {
                     1.0
                 };
-                for c in 0..2 {
-                    e.1[c] += sg * tv[c];
+                for (t, v) in e.1.iter_mut().zip(tv) {
+                    *t += sg * v;
                 }
                 e.2 += 1;
             }
