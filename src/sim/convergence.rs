@@ -10,7 +10,6 @@
 //! step of the axis holds, the axis has not converged within this machine's means, and the
 //! table says so instead of choosing.
 
-use super::model::SensorSpec;
 use super::reference::ReferenceFile;
 use super::scenario::{self, Params};
 use super::SimError;
@@ -62,43 +61,23 @@ const BASE: Resolution = Resolution {
 
 /// Each axis's three resolutions, coarsest first (the first is the library's).
 pub fn axes() -> Vec<(Axis, [Resolution; 3])> {
-    let at = |axis, grid_um, dt_s, split| Resolution {
-        axis,
-        grid_um,
-        dt_s,
-        split,
+    // (grid µm, step s, split) of each axis's three.
+    let axis = |axis, points: [(f64, f64, u32); 3]| {
+        (
+            axis,
+            points.map(|(grid_um, dt_s, split)| Resolution {
+                axis,
+                grid_um,
+                dt_s,
+                split,
+            }),
+        )
     };
+    let (g, dt, k) = (BASE.grid_um, BASE.dt_s, BASE.split);
     vec![
-        (
-            Axis::Grid,
-            [
-                BASE,
-                at(Axis::Grid, 48.0, 1e-8, 1),
-                at(Axis::Grid, 36.0, 1e-8, 1),
-            ],
-        ),
-        (
-            Axis::Step,
-            [
-                Resolution {
-                    axis: Axis::Step,
-                    ..BASE
-                },
-                at(Axis::Step, 72.0, 5e-9, 1),
-                at(Axis::Step, 72.0, 2.5e-9, 1),
-            ],
-        ),
-        (
-            Axis::Split,
-            [
-                Resolution {
-                    axis: Axis::Split,
-                    ..BASE
-                },
-                at(Axis::Split, 72.0, 1e-8, 2),
-                at(Axis::Split, 72.0, 1e-8, 3),
-            ],
-        ),
+        axis(Axis::Grid, [(g, dt, k), (48.0, dt, k), (36.0, dt, k)]),
+        axis(Axis::Step, [(g, dt, k), (g, 5e-9, k), (g, 2.5e-9, k)]),
+        axis(Axis::Split, [(g, dt, k), (g, dt, 2), (g, dt, 3)]),
     ]
 }
 
@@ -205,15 +184,7 @@ fn measure(
         .grid
         .clone()
         .ok_or_else(|| SimError::Model(format!("{name}: a reference without a grid")))?;
-    m.sensors = f
-        .reference
-        .sensors
-        .iter()
-        .map(|&[i, j]| {
-            let (i, j) = g.original_cell(i, j).unwrap_or((usize::MAX, usize::MAX));
-            SensorSpec { i, j, k: None }
-        })
-        .collect();
+    m.sensors = super::reference::library_sensors(&f.reference.sensors, &g);
     m.check()?;
     let t0 = std::time::Instant::now();
     let out = super::simulate(&m, &Default::default())?;

@@ -221,6 +221,18 @@ fn audible_in_time(
     Ok(())
 }
 
+/// The library's sensor cells on a scenario's grid: its own cells, or on a grid refined by
+/// `grid_um` the cells holding the same points (outside: cells the model's check refuses).
+pub fn library_sensors(cells: &[[usize; 2]], g: &super::model::GridSpec) -> Vec<SensorSpec> {
+    cells
+        .iter()
+        .map(|&[i, j]| {
+            let (i, j) = g.original_cell(i, j).unwrap_or((usize::MAX, usize::MAX));
+            SensorSpec { i, j, k: None }
+        })
+        .collect()
+}
+
 /// Run the library into `out/waveforms.parquet`. Returns (runs, signals, seconds).
 pub fn build_library(
     cfg: &ReferenceConfig,
@@ -326,14 +338,7 @@ pub fn build_library_controlled(
             if let (false, Some(g)) = (cfg.sensors.is_empty(), m.grid.as_ref()) {
                 // The library's cells are the scenario's own grid's: on a grid refined by
                 // `grid_um`, the cells holding the same points (outside: refused by check).
-                m.sensors = cfg
-                    .sensors
-                    .iter()
-                    .map(|&[i, j]| {
-                        let (i, j) = g.original_cell(i, j).unwrap_or((usize::MAX, usize::MAX));
-                        SensorSpec { i, j, k: None }
-                    })
-                    .collect();
+                m.sensors = library_sensors(&cfg.sensors, g);
                 m.check()?;
             }
             m.name = LIBRARY_EXPERIMENT.into();

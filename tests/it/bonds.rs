@@ -26,37 +26,31 @@ fn sensors(m: &ModelFile) -> Vec<Vec<f64>> {
     simulate(m, &SimOptions::default()).unwrap().sensors
 }
 
-/// A bond that is free to move: a mass whose intact springs belong to two fibres and that
-/// no initial condition holds. Its position moved by 10⁻⁶ of a spring's length.
+/// How many fibres mass `i`'s springs belong to.
+fn fibres_at(m: &ModelFile, i: usize) -> usize {
+    let mut f: Vec<u32> = m
+        .springs
+        .iter()
+        .filter(|s| s.a == i || s.b == i)
+        .map(|s| s.fibre)
+        .collect();
+    f.sort();
+    f.dedup();
+    f.len()
+}
+
+/// A bond that is free to move: a mass whose springs belong to two fibres and that no
+/// initial condition holds (else, every bond being placed by one, the first bond). Its
+/// position moved by 10⁻⁶ of a spring's length.
 fn nudge_a_bond(m: &mut ModelFile) -> usize {
     let held: Vec<usize> = m.initial.iter().map(|ic| ic.node).collect();
-    let node = (0..m.nodes.len())
-        .find(|&i| {
-            let mut f: Vec<u32> = m
-                .springs
-                .iter()
-                .filter(|s| s.a == i || s.b == i)
-                .map(|s| s.fibre)
-                .collect();
-            f.sort();
-            f.dedup();
-            f.len() == 2 && !m.nodes[i].fixed && !held.contains(&i)
-        })
-        .or_else(|| {
-            // Every bond of the scenario is placed by an initial condition: take one of
-            // those, its displacement moved instead.
-            (0..m.nodes.len()).find(|&i| {
-                let mut f: Vec<u32> = m
-                    .springs
-                    .iter()
-                    .filter(|s| s.a == i || s.b == i)
-                    .map(|s| s.fibre)
-                    .collect();
-                f.sort();
-                f.dedup();
-                f.len() == 2 && !m.nodes[i].fixed
-            })
-        })
+    let bonds: Vec<usize> = (0..m.nodes.len())
+        .filter(|&i| fibres_at(m, i) == 2 && !m.nodes[i].fixed)
+        .collect();
+    let node = *bonds
+        .iter()
+        .find(|i| !held.contains(i))
+        .or(bonds.first())
         .expect("the scenario has a bond");
     let s = m
         .springs
