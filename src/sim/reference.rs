@@ -126,12 +126,15 @@ impl ReferenceFile {
             message: e.message().to_string(),
         })?;
         for g in &f.reference.scenario {
-            if !scenario::NAMES.contains(&g.name.as_str()) {
+            let known =
+                |n: &str| scenario::NAMES.contains(&n) || super::network3d::NAMES.contains(&n);
+            if !known(&g.name) {
                 return Err(SimError::Model(format!(
-                    "{}: unknown scenario {:?}; known: {}",
+                    "{}: unknown scenario {:?}; known: {}, {}",
                     path.display(),
                     g.name,
-                    scenario::NAMES.join(", ")
+                    scenario::NAMES.join(", "),
+                    super::network3d::NAMES.join(", ")
                 )));
             }
         }

@@ -304,3 +304,44 @@ End Sensor
     }
     refused(&huge, "exceed the limit");
 }
+
+/// A reference library can hold the 3-D scenarios (issue 51: references from another model):
+/// a definition naming `network3d-bond-failure` builds, its signals labelled with the
+/// mechanism and heard at the given cell on the sheet's surface (the 3-D grid's own cells:
+/// (62, 37) is 1.8 mm from the zone's centre, as the plane library's first sensor); an
+/// unknown name is refused listing the plane and the 3-D scenarios.
+#[test]
+fn a_reference_library_holds_the_3d_scenarios() {
+    use aepipe::sim::reference::{build_library, ReferenceFile};
+    let d = crate::TempDir::new("sim3d-ref");
+    let cfg = d.path().join("lib3d.toml");
+    std::fs::write(
+        &cfg,
+        "[reference]\nsensors = [[62, 37]]\nscale_v_per_pa = 3e-3\n\
+         [[reference.scenario]]\nname = \"network3d-bond-failure\"\nparams = { iterations = [3000] }\n",
+    )
+    .unwrap();
+    let f = ReferenceFile::read(&cfg).unwrap();
+    let (runs, signals, _) = build_library(&f.reference, &d.path().join("lib"), false).unwrap();
+    assert_eq!((runs, signals), (1, 1));
+    let wf = d.path().join("lib/waveforms.parquet");
+    let (names, rows) = crate::table_rows(&wf);
+    let col = |n: &str| names.iter().position(|x| x == n).unwrap();
+    assert_eq!(rows[0][col("label")], "bond_failure");
+    // On the sheet's surface (the first cell layer above it; the six layers of fibre are
+    // 17 µm thick), 1.8 mm (25 cells of 72 µm) from the centre along −y.
+    let y: f64 = rows[0][col("sensor_y_m")].parse().unwrap();
+    let z: f64 = rows[0][col("sensor_z_m")].parse().unwrap();
+    assert!((y + 1.8e-3).abs() < 0.5 * 72e-6, "y {y}");
+    assert!(z > 17e-6 && z < 2.0 * 72e-6, "z {z}");
+    std::fs::write(
+        &cfg,
+        "[reference]\n[[reference.scenario]]\nname = \"network3d-mesh\"\n",
+    )
+    .unwrap();
+    let e = ReferenceFile::read(&cfg).unwrap_err().to_string();
+    assert!(
+        e.contains("unknown scenario") && e.contains("network3d-fibre-failure"),
+        "{e}"
+    );
+}
