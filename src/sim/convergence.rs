@@ -14,15 +14,13 @@ use super::reference::ReferenceFile;
 use super::scenario::{self, Params};
 use super::SimError;
 use rayon::prelude::*;
-use rustfft::num_complex::Complex32;
 
 /// Tolerances of "converged": relative, on the dominant frequency.
 pub const FREQ_TOL: f64 = 0.05;
 /// Absolute, on each power ratio.
 pub const RATIO_TOL: f64 = 0.02;
 /// Power-ratio bands (Eq. 4.5.4): 25 of 100 kHz.
-const BANDS: usize = 25;
-const BAND_HZ: f64 = 100e3;
+const BANDS: usize = super::output::POWER_BANDS;
 
 /// What is refined.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -42,22 +40,44 @@ impl Axis {
     }
 }
 
-/// One resolution: the library's (72 µm, 10 ns, split 1) with one axis refined.
+/// One resolution: the library's (72 µm, 10 ns, split 1) or it with one axis refined.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Resolution {
-    pub axis: Axis,
     pub grid_um: f64,
     pub dt_s: f64,
     pub split: u32,
 }
 
 /// The library's resolution: Appendix A's grid and step, its fibre as drawn.
-const BASE: Resolution = Resolution {
-    axis: Axis::Grid,
+pub const BASE: Resolution = Resolution {
     grid_um: 72.0,
     dt_s: 1e-8,
     split: 1,
 };
+
+impl Resolution {
+    /// The axis this resolution refines (None: the library's own, where every axis starts).
+    pub fn axis(&self) -> Option<Axis> {
+        if self.grid_um != BASE.grid_um {
+            Some(Axis::Grid)
+        } else if self.dt_s != BASE.dt_s {
+            Some(Axis::Step)
+        } else if self.split != BASE.split {
+            Some(Axis::Split)
+        } else {
+            None
+        }
+    }
+
+    /// "72 µm", "5 ns", "split 2": the value `axis` reads.
+    fn label(&self, axis: Axis) -> String {
+        match axis {
+            Axis::Grid => format!("{} µm", self.grid_um),
+            Axis::Step => format!("{} ns", self.dt_s * 1e9),
+            Axis::Split => format!("split {}", self.split),
+        }
+    }
+}
 
 /// Each axis's three resolutions, coarsest first (the first is the library's).
 pub fn axes() -> Vec<(Axis, [Resolution; 3])> {
@@ -66,7 +86,6 @@ pub fn axes() -> Vec<(Axis, [Resolution; 3])> {
         (
             axis,
             points.map(|(grid_um, dt_s, split)| Resolution {
-                axis,
                 grid_um,
                 dt_s,
                 split,
@@ -163,21 +182,21 @@ fn measure(
         .cloned()
         .collect();
     let shown = Params(kv.clone()).to_json();
-    // The run lasts as long at every step: the library's steps at 10 ns, scaled.
+    // The run lasts as long at every step: the library's steps at its step, scaled.
     let iterations = kv
         .iter()
         .find(|(k, _)| k == "iterations")
         .map_or(4000.0, |(_, v)| *v);
     kv.retain(|(k, _)| k != "iterations");
-    kv.push(("iterations".into(), (iterations * 1e-8 / res.dt_s).round()));
-    if res.dt_s != 1e-8 {
-        kv.push(("dt".into(), res.dt_s));
-    }
-    if res.grid_um != 72.0 {
-        kv.push(("grid_um".into(), res.grid_um));
-    }
-    if res.split != 1 {
-        kv.push(("split".into(), res.split as f64));
+    kv.push((
+        "iterations".into(),
+        (iterations * BASE.dt_s / res.dt_s).round(),
+    ));
+    match res.axis() {
+        Some(Axis::Step) => kv.push(("dt".into(), res.dt_s)),
+        Some(Axis::Grid) => kv.push(("grid_um".into(), res.grid_um)),
+        Some(Axis::Split) => kv.push(("split".into(), res.split as f64)),
+        None => {}
     }
     let mut m = scenario::build(name, &Params(kv))?;
     let g = m
@@ -202,33 +221,22 @@ fn measure(
                 sensor: k as u32 + 1,
                 res,
                 dominant_hz: super::dominant_frequency(&p, fs),
-                ratios: ratios(&p, fs),
+                // A silent signal has no ratios: zeros, as Eq. 4.5.4's reader leaves them.
+                ratios: super::output::power_ratios(&p, fs).unwrap_or([0.0; BANDS]),
                 run_s,
             }
         })
         .collect())
 }
 
-/// Eq. 4.5.4's 25 power ratios of a whole signal.
-fn ratios(x: &[f64], fs: f64) -> [f64; BANDS] {
-    let n = x.len().max(2);
-    let mut buf: Vec<Complex32> = x.iter().map(|&v| Complex32::new(v as f32, 0.0)).collect();
-    buf.resize(n, Complex32::new(0.0, 0.0));
-    rustfft::FftPlanner::<f32>::new()
-        .plan_fft_forward(n)
-        .process(&mut buf);
-    let mut r = [0.0; BANDS];
-    crate::dsp::spectrum::power_ratios(&buf, n, fs, BAND_HZ, &mut r);
-    r
-}
-
 /// Measure every reference of `f` at every resolution (in parallel on the current pool).
 pub fn convergence(f: &ReferenceFile) -> Result<Convergence, SimError> {
     let refs = references(f);
     let axes = axes();
-    let mut jobs: Vec<(usize, usize, Resolution)> = Vec::new();
+    // Each (reference, resolution) once: the library's resolution starts every axis.
+    let mut jobs: Vec<(usize, Resolution)> = Vec::new();
     let mut skipped = Vec::new();
-    for (a, (axis, res)) in axes.iter().enumerate() {
+    for (axis, res) in &axes {
         for (r, (name, _)) in refs.iter().enumerate() {
             if !refinable(name, *axis) {
                 if !skipped.contains(&(*axis, name.clone())) {
@@ -237,13 +245,15 @@ pub fn convergence(f: &ReferenceFile) -> Result<Convergence, SimError> {
                 continue;
             }
             for res in res {
-                jobs.push((a, r, *res));
+                if !jobs.contains(&(r, *res)) {
+                    jobs.push((r, *res));
+                }
             }
         }
     }
     let done: Vec<Vec<Measured>> = jobs
         .par_iter()
-        .map(|&(_, r, res)| measure(f, &refs[r].0, &refs[r].1, res))
+        .map(|&(r, res)| measure(f, &refs[r].0, &refs[r].1, res))
         .collect::<Result<_, _>>()?;
     let rows: Vec<Measured> = done.into_iter().flatten().collect();
     let (steps, chosen) = compare(&rows, &axes);
@@ -257,7 +267,7 @@ pub fn convergence(f: &ReferenceFile) -> Result<Convergence, SimError> {
 
 /// Each axis step per scenario, and per axis the coarsest resolution at which every
 /// reference of every scenario refined along it is within both tolerances of the next finer
-/// (None: no step holds), with each resolution's total run time.
+/// (None: no step holds), with each resolution's total run time over those scenarios.
 pub fn compare(rows: &[Measured], axes: &[(Axis, [Resolution; 3])]) -> (Vec<Step>, Vec<Chosen>) {
     let key = |m: &Measured| (m.scenario.clone(), m.params.clone(), m.sensor);
     let mut scenarios: Vec<String> = rows.iter().map(|m| m.scenario.clone()).collect();
@@ -269,7 +279,11 @@ pub fn compare(rows: &[Measured], axes: &[(Axis, [Resolution; 3])]) -> (Vec<Step
     for (axis, res) in axes {
         let at = |k: usize, sc: Option<&str>| {
             rows.iter()
-                .filter(|m| m.res == res[k] && sc.is_none_or(|s| m.scenario == s))
+                .filter(|m| {
+                    m.res == res[k]
+                        && refinable(&m.scenario, *axis)
+                        && sc.is_none_or(|s| m.scenario == s)
+                })
                 .collect::<Vec<&Measured>>()
         };
         let cost: [f64; 3] = std::array::from_fn(|k| {
@@ -368,9 +382,9 @@ pub fn table() -> crate::store::Table<Measured> {
         .col(
             s(
                 "axis",
-                "what this resolution refines: grid, time step or fibre split",
+                "what this resolution refines: grid, time step or fibre split; library: the library's own, where every axis starts",
             ),
-            |m: &Measured| Value::Str(Some(m.res.axis.name().into())),
+            |m: &Measured| Value::Str(Some(m.res.axis().map_or("library", Axis::name).into())),
         )
         .col(f("grid_um", "µm", "acoustic cell size"), |m: &Measured| {
             Value::F64(Some(m.res.grid_um))
@@ -416,11 +430,6 @@ pub fn table() -> crate::store::Table<Measured> {
 
 /// The table for the terminal and docs/fidelity.md.
 pub fn lines(c: &Convergence) -> Vec<String> {
-    let label = |r: &Resolution| match r.axis {
-        Axis::Grid => format!("{} µm", r.grid_um),
-        Axis::Step => format!("{} ns", r.dt_s * 1e9),
-        Axis::Split => format!("split {}", r.split),
-    };
     let mut l = vec![format!(
         "convergence of the reference library's features (dominant frequency within {:.0} %, each of 25 power ratios within {RATIO_TOL}), one axis at a time from 72 µm, 10 ns, split 1:",
         FREQ_TOL * 100.0
@@ -429,8 +438,8 @@ pub fn lines(c: &Convergence) -> Vec<String> {
         l.push(format!(
             "  {:<11} {:>9} → {:<9} {:<29} {:>2}/{:<2} within (frequency {:>2}, ratios {:>2}); worst frequency change {:>5.1} % ({}), worst ratio change {:.3}",
             s.axis.name(),
-            label(&s.coarse),
-            label(&s.fine),
+            s.coarse.label(s.axis),
+            s.fine.label(s.axis),
             s.scenario,
             s.within,
             s.compared,
@@ -449,11 +458,11 @@ pub fn lines(c: &Convergence) -> Vec<String> {
         let costs = res
             .iter()
             .zip(cost)
-            .map(|(r, s)| format!("{} {s:.1} s", label(r)))
+            .map(|(r, s)| format!("{} {s:.1} s", r.label(*axis)))
             .collect::<Vec<_>>()
             .join(", ");
         l.push(match pick {
-            Some(r) => format!("  {}: converged at {} (run time {costs})", axis.name(), label(r)),
+            Some(r) => format!("  {}: converged at {} (run time {costs})", axis.name(), r.label(*axis)),
             None => format!(
                 "  {}: NOT converged within 3 resolutions (run time {costs}); no resolution is chosen for it",
                 axis.name()
@@ -491,6 +500,12 @@ mod tests {
     #[test]
     fn the_coarsest_resolution_within_both_tolerances_of_the_next_is_chosen_or_none() {
         let axes = axes();
+        // Every axis starts from the library's resolution, which refines none.
+        assert!(axes.iter().all(|(_, r)| r[0] == BASE));
+        assert_eq!(BASE.axis(), None);
+        for (axis, r) in &axes {
+            assert!(r[1..].iter().all(|x| x.axis() == Some(*axis)), "{axis:?}");
+        }
         let grid = axes[0].1;
         // Scenario a: 72 → 48 moves the frequency 6 % (out), 48 → 36 by 1 % (in).
         // Scenario b: both steps within, but its ratio moves 0.03 at 72 → 48.

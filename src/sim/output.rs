@@ -287,6 +287,22 @@ pub fn band_limited(sig: &[f64], g: &super::model::GridSpec) -> Vec<f64> {
     super::acoustic::low_pass(sig, 1.0 / g.dt, b.pass_hz, b.stop_hz)
 }
 
+/// Eq. 4.5.4's bands as the thesis's tables (4.2–4.3) take them: 25 of 100 kHz.
+pub const POWER_BANDS: usize = 25;
+pub const POWER_BAND_HZ: f64 = 100e3;
+
+/// Eq. 4.5.4's power ratios of a whole simulated signal (band-limited to its grid, at `fs`):
+/// the share of its power below 2.5 MHz in each 100 kHz band. None: a silent signal.
+pub fn power_ratios(x: &[f64], fs: f64) -> Option<[f64; POWER_BANDS]> {
+    let spec: Vec<rustfft::num_complex::Complex32> = crate::dsp::filter::spectrum(x, x.len())
+        .into_iter()
+        .map(|c| rustfft::num_complex::Complex32::new(c.re as f32, c.im as f32))
+        .collect();
+    let mut ratios = [0.0; POWER_BANDS];
+    crate::dsp::spectrum::power_ratios(&spec, x.len(), fs, POWER_BAND_HZ, &mut ratios)?;
+    Some(ratios)
+}
+
 /// The simulated signals of a run, one per sensor that triggered, then the run's erroneous
 /// records (`run.faults`, channels 101, 102, …).
 pub fn rows(run: &Run) -> Vec<SimSignal> {

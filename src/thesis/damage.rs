@@ -25,8 +25,7 @@ use std::path::Path;
 /// Damage sequences: random orders of the mesh's nine bonds (seeds 1…SEQUENCES).
 pub const SEQUENCES: u64 = 8;
 /// Eq. 4.5.4's windows.
-const BANDS: usize = 25;
-const BAND_HZ: f64 = 100e3;
+const BANDS: usize = crate::sim::output::POWER_BANDS;
 
 /// One failure of a sequence.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -106,12 +105,7 @@ pub fn hear(broken: u32, bond: u32) -> Result<Heard, SimError> {
     let g = m.grid.as_ref().expect("the mesh has a grid");
     let x = crate::sim::output::band_limited(&out.sensors[0], g);
     let fs = out.sample_rate_hz;
-    let spec: Vec<rustfft::num_complex::Complex32> = crate::dsp::filter::spectrum(&x, x.len())
-        .into_iter()
-        .map(|c| rustfft::num_complex::Complex32::new(c.re as f32, c.im as f32))
-        .collect();
-    let mut ratios = [0.0; BANDS];
-    crate::dsp::spectrum::power_ratios(&spec, x.len(), fs, BAND_HZ, &mut ratios)
+    let ratios = crate::sim::output::power_ratios(&x, fs)
         .ok_or_else(|| SimError::Model(format!("bond {bond} after {broken:#b}: a silent AE")))?;
     Ok(Heard {
         dominant_hz: crate::sim::dominant_frequency(&x, fs),
