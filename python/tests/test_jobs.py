@@ -87,7 +87,7 @@ def test_a_long_call_returns_on_ctrl_c_within_a_second_and_cleans_up(tmp_path: P
             then()
 
     leftovers = lambda: glob.glob(os.path.join(tempfile.gettempdir(), f"aepipe-py-{os.getpid()}-*"))  # noqa: E731
-    # The embedded library with 32 times its material draws: 4 096 simulations of 6 000
+    # The embedded library with 32 times its material draws: 2 048 simulations of 6 000
     # steps cannot be done in half a second by any build.
     lib = (ROOT / "pipelines" / "reference-library.toml").read_text()
     assert "variants = 4\n" in lib

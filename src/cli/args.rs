@@ -453,10 +453,7 @@ pub struct SynthExperimentArgs {
     /// The sources' mechanism mix, by the truth's mechanism names (a name not given is 0;
     /// the shares sum to 1), e.g. bond_failure=0.45,fibre_failure=0.35,both=0.1,erroneous=0.1
     /// for a test that holds enough fibre failures to measure their recall
-    #[arg(
-        long,
-        default_value = "bond_failure=0.84,fibre_failure=0.02,both=0.1,erroneous=0.04"
-    )]
+    #[arg(long, default_value_t = crate::synth::Shares::default())]
     pub shares: crate::synth::Shares,
 }
 

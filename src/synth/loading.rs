@@ -467,11 +467,14 @@ mod tests {
             .check()
         };
         assert!(shape(s).is_ok());
-        // The CLI's default string is the default mix.
-        let d: Shares = "bond_failure=0.84,fibre_failure=0.02,both=0.1,erroneous=0.04"
-            .parse()
-            .unwrap();
+        // The default mix as the CLI shows and reads it (`default_value_t`: Display, then
+        // FromStr) is the default mix.
+        let d: Shares = Shares::default().to_string().parse().unwrap();
         assert_eq!(d, Shares::default());
+        assert_eq!(
+            Shares::default().to_string(),
+            "bond_failure=0.84,fibre_failure=0.02,both=0.1,erroneous=0.04"
+        );
         // A name not given is 0; the sum must be 1.
         let only: Shares = "bond_failure=1".parse().unwrap();
         assert!(shape(only).is_ok());
