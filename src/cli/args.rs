@@ -529,6 +529,9 @@ pub struct DemoArgs {
     pub seed: u64,
     #[arg(long, default_value_t = 0)]
     pub threads: usize,
+    /// Skip asking the classes about another model's signals (a 3-D library, ~35 s)
+    #[arg(long)]
+    pub no_cross_model: bool,
 }
 
 #[derive(clap::Args)]

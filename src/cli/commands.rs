@@ -347,7 +347,7 @@ fn synth_experiment(a: SynthExperimentArgs) -> Result<Outcome> {
 }
 
 fn demo(a: DemoArgs) -> Result<Outcome> {
-    let d = crate::demo::run_demo(&a.out, a.hits, a.seed, a.threads)?;
+    let d = crate::demo::run_demo(&a.out, a.hits, a.seed, a.threads, !a.no_cross_model)?;
     print::demo(&d, &a.out);
     Ok(Outcome::Success)
 }

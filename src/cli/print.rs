@@ -2,6 +2,7 @@
 
 use crate::bench::{CwtBench, SimScale};
 use crate::pipeline::RunReport;
+use crate::model::Mechanism;
 use crate::som::tables::Model;
 use std::path::Path;
 
@@ -99,7 +100,42 @@ pub fn demo(d: &crate::demo::DemoResult, out: &Path) {
         println!("{l}");
     }
     println!("report: {}", out.join("run/report.html").display());
+    if let Some(c) = &d.cross {
+        cross_model(c, &d.run, out);
+    }
     println!("\ndemo finished in {:.1} s", d.seconds);
+}
+
+/// The demo's classes on another model, beside the held-out figure of the same model.
+fn cross_model(c: &crate::demo::CrossModel, run: &crate::workflow::RunSummary, out: &Path) {
+    let balanced = |t: Option<&crate::report::TruthScore>| {
+        t.and_then(|t| t.balanced_accuracy())
+            .map_or("n/a (a mechanism is missing)".to_string(), |b| {
+                format!("{:.1} %", 100.0 * b)
+            })
+    };
+    let (runs, signals, secs) = c.library;
+    println!(
+        "\nanother model: a 3-D layered-network library ({runs} simulations, {signals} signals, \
+         {secs:.1} s, one material draw; {})",
+        out.join("cross").display()
+    );
+    println!(
+        "  held out, same model (plane map, plane test): balanced accuracy {}",
+        balanced(run.truth.as_ref())
+    );
+    for (what, t) in [
+        ("plane map on a 3-D test", &c.plane_map_on_3d),
+        ("3-D map on the plane test", &c.map_3d_on_plane),
+    ] {
+        let (novel, all) = t.unlike(&[Mechanism::BondFailure, Mechanism::FibreFailure]);
+        println!(
+            "  {what}: balanced accuracy {}; recall {}; mechanisms unlike the references {novel}/{all}",
+            balanced(Some(t)),
+            t.recall_line()
+        );
+    }
+    println!("  cross-model checks {:.1} s", c.seconds);
 }
 
 pub fn som_trained(m: &Model) {

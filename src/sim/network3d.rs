@@ -16,18 +16,29 @@ use super::SimError;
 /// The 3-D scenarios (names are contracts).
 pub const NAMES: &[&str] = &["network3d-bond-failure", "network3d-fibre-failure"];
 
+/// Cells across the default 3-D grid, in x and in y.
+pub const CELLS: usize = 125;
+
 /// The 3-D grid: ±4.5 mm × ±4.5 mm around the damage zone, ±2.232 mm about the sheet, in
 /// the Appendix-A cell (72 µm: 125 × 125 × 62 cells), Δt 0.1 µs, air, 4th order (Courant
 /// number 0.486, under 3-D's 1/2).
 pub fn grid3() -> GridSpec {
+    grid3_across(CELLS)
+}
+
+/// [`grid3`] with `cells` cells across in x and y (the damage zone at the centre): a wider
+/// sheet holds sensors as far as the plane library's 4.7 mm one (161 cells: ±5.8 mm), at
+/// (cells/125)² the cost.
+pub fn grid3_across(cells: usize) -> GridSpec {
     let h = 72e-6;
+    let half = cells as f64 / 2.0;
     GridSpec {
-        x1: -62.5 * h,
-        x2: 62.5 * h,
-        y1: -62.5 * h,
-        y2: 62.5 * h,
-        nx: 125,
-        ny: 125,
+        x1: -half * h,
+        x2: half * h,
+        y1: -half * h,
+        y2: half * h,
+        nx: cells,
+        ny: cells,
         dt: 1e-7,
         rho: 1.25,
         c: 350.0,
@@ -70,14 +81,26 @@ fn heights(m: &ModelFile, layer: &dyn Fn(u32) -> u32) -> Vec<f64> {
         .collect()
 }
 
-/// Lay a plane structure in layers (`layer` of each fibre id), in the 3-D grid, with the
-/// two 3-D sensors.
-fn layered(mut m: ModelFile, layer: &dyn Fn(u32) -> u32) -> ModelFile {
+/// Lay a plane structure in layers (`layer` of each fibre id), in the 3-D grid `cells`
+/// across, with the two 3-D sensors.
+fn layered(mut m: ModelFile, layer: &dyn Fn(u32) -> u32, cells: usize) -> ModelFile {
     let z = heights(&m, layer);
-    let g = grid3();
+    let g = grid3_across(cells);
     m.sensors = sensors(&g);
     lift(&mut m, &z, Some(g));
     m
+}
+
+/// The `cells` parameter: cells across the 3-D grid (default [`CELLS`]); a whole number
+/// from 60 (the sensors' 1.8 mm fit) to 401 (a grid 7× the default's memory).
+fn cells(p: &Params) -> Result<usize, SimError> {
+    let c = p.get("cells", CELLS as f64);
+    if c.fract() != 0.0 || !(60.0..=401.0).contains(&c) {
+        return Err(SimError::Model(format!(
+            "cells must be a whole number from 60 to 401, got {c}"
+        )));
+    }
+    Ok(c as usize)
 }
 
 /// The two sensors of a 3-D scenario: on the sheet's surface 1.8 mm from the zone's centre
@@ -106,7 +129,7 @@ fn sensors(g: &GridSpec) -> Vec<SensorSpec> {
 /// Build a 3-D scenario by name (`None`: not one of [`NAMES`]).
 pub fn build(name: &str, p: &Params) -> Option<Result<ModelFile, SimError>> {
     match name {
-        "network3d-bond-failure" => Some(Ok(bond_failure(p))),
+        "network3d-bond-failure" => Some(bond_failure(p)),
         "network3d-fibre-failure" => Some(fibre_failure(p)),
         _ => None,
     }
@@ -119,10 +142,11 @@ pub fn build(name: &str, p: &Params) -> Option<Result<ModelFile, SimError>> {
 /// another one is — and bond (1) at the centre fails at `t1`: the freed 1 mm length rings
 /// through the sheet at its fundamental (~250 kHz). Bond (2), at (+0.5 mm, 0), fails at `t2`
 /// (negative, the default: never).
-fn bond_failure(p: &Params) -> ModelFile {
+fn bond_failure(p: &Params) -> Result<ModelFile, SimError> {
     let m = mesh(p, "network3d-bond-failure", Across::Sheet, -1.0);
     // Fibre ids: the three horizontal fibres 0–2, then the three vertical ones 3–5.
-    layered(m, &|f| if f < 3 { 2 * f } else { 2 * (f - 3) + 1 })
+    let layer = |f| if f < 3 { 2 * f } else { 2 * (f - 3) + 1 };
+    Ok(layered(m, &layer, cells(p)?))
 }
 
 /// Fig. 4.19's structure as layers: fibres 1 and 2 (vertical, x = ∓0.5 mm) at the bottom,
@@ -132,5 +156,5 @@ fn bond_failure(p: &Params) -> ModelFile {
 fn fibre_failure(p: &Params) -> Result<ModelFile, SimError> {
     let m = structure(p, "network3d-fibre-failure", false)?;
     // Fibre id 0 is fibre 3.
-    Ok(layered(m, &|f| u32::from(f == 0)))
+    Ok(layered(m, &|f| u32::from(f == 0), cells(p)?))
 }

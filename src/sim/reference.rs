@@ -104,7 +104,20 @@ pub struct ScenarioGrid {
 /// no file beside the binary.
 pub const DEFAULT_TOML: &str = include_str!("../../pipelines/reference-library.toml");
 
+/// `pipelines/reference-library-3d.toml`: the same mechanisms from the 3-D layered network,
+/// embedded so that the demo can ask its map about another model's signals.
+pub const LIBRARY_3D_TOML: &str = include_str!("../../pipelines/reference-library-3d.toml");
+
 impl ReferenceFile {
+    /// The 3-D library definition ([`LIBRARY_3D_TOML`]).
+    pub fn library_3d() -> ReferenceFile {
+        ReferenceFile::parse(
+            LIBRARY_3D_TOML,
+            Path::new("pipelines/reference-library-3d.toml"),
+        )
+        .expect("pipelines/reference-library-3d.toml is valid")
+    }
+
     pub fn default_library() -> ReferenceFile {
         ReferenceFile::parse(DEFAULT_TOML, Path::new("pipelines/reference-library.toml"))
             .expect("pipelines/reference-library.toml is valid")

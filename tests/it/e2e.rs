@@ -375,6 +375,28 @@ fn the_readme_states_the_numbers_the_demo_prints() {
         );
     }
     assert!(readme.contains(&format!("**{acc}**")), "intro: {acc}");
+    // Issue 51 item 5, at the demo's scale (a 3-D library of one material draw): the classes
+    // asked about another model, both ways. "  plane map on a 3-D test: balanced accuracy
+    // 69.7 %; …". The README states both; the bound is 60 %, below what was measured (69.7
+    // and 65.0 %) and far below the issue's 90 % goal, which the corrected physics does not
+    // reach (docs/fidelity.md "Classes on another model"): a fall under it is a regression.
+    for what in ["plane map on a 3-D test", "3-D map on the plane test"] {
+        let l = so
+            .lines()
+            .find(|l| l.trim_start().starts_with(what))
+            .unwrap_or_else(|| panic!("no '{what}' line in:\n{so}"));
+        let b = l
+            .split("balanced accuracy ")
+            .nth(1)
+            .and_then(|r| r.split(" %").next())
+            .unwrap_or_else(|| panic!("no balanced accuracy in '{l}'"));
+        assert!(
+            readme.contains(&format!("{what}: balanced accuracy {b} %")),
+            "the README does not state '{what}: balanced accuracy {b} %'"
+        );
+        let b: f64 = b.parse().unwrap();
+        assert!(b >= 60.0, "{what}: balanced accuracy {b} % < the stated 60 %");
+    }
     // The Table 5.4 matrix the demo prints is the README's, line for line.
     let table: Vec<&str> = so
         .lines()
@@ -628,7 +650,7 @@ fn erroneous_records_are_recognised_on_held_out_seeds() {
     let (mut bf, mut er, mut all) = ((0, 0), (0, 0), (0, 0));
     for seed in ["31", "32", "33", "34", "35", "36", "37", "38"] {
         let out = t.path().join(seed);
-        let so = demo(&out, &["--seed", seed]);
+        let so = demo(&out, &["--seed", seed, "--no-cross-model"]);
         let line = |start: &str| -> String {
             so.lines()
                 .find(|l| l.starts_with(start))
@@ -693,7 +715,7 @@ fn reference_like_hits_of_unseen_seeds_are_seldom_novel() {
     let (mut novel_bf, mut all_bf) = (0usize, 0usize);
     for seed in ["41", "42"] {
         let out = t.path().join(seed);
-        let so = demo(&out, &["--seed", seed]);
+        let so = demo(&out, &["--seed", seed, "--no-cross-model"]);
         let threshold: f64 = so
             .lines()
             .find_map(|l| l.split_once("beyond quantisation error "))

@@ -512,7 +512,16 @@ fn the_library_synthesis_run_report_and_bench_commands_exit_0() {
     let demo = f.p("demo");
     expect(
         0,
-        &["demo", "--out", &demo, "--hits", "60", "--threads", "2"],
+        &[
+            "demo",
+            "--out",
+            &demo,
+            "--hits",
+            "60",
+            "--threads",
+            "2",
+            "--no-cross-model",
+        ],
     );
     assert!(Path::new(&demo).join("run/report.html").is_file());
 }

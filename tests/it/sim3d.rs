@@ -345,3 +345,44 @@ fn a_reference_library_holds_the_3d_scenarios() {
         "{e}"
     );
 }
+
+/// Issue 51 item 5: `pipelines/reference-library-3d.toml` hears its 3-D signals where the
+/// plane library hears its own — the same distances and directions from the damage zone, to
+/// within a cell — or the cross-model table compares models *and* sensor places. Its grid
+/// (`cells`) must hold every sensor, and `cells` outside 60–401 is refused by name.
+#[test]
+fn the_3d_library_hears_where_the_plane_library_does() {
+    use aepipe::sim::network3d::grid3_across;
+    use aepipe::sim::reference::{library_sensors, ReferenceFile};
+    use aepipe::sim::scenario::paper_grid;
+    let plane = ReferenceFile::default_library().reference;
+    let lib3 = ReferenceFile::library_3d().reference;
+    let cells: Vec<f64> = lib3
+        .scenario
+        .iter()
+        .map(|s| {
+            let v = s.params.get("cells");
+            let v = v.unwrap_or_else(|| panic!("{} names no cells", s.name));
+            assert_eq!(v.len(), 1, "{}", s.name);
+            v[0]
+        })
+        .collect();
+    assert!(cells.iter().all(|&c| c == cells[0]), "{cells:?}");
+    let (g2, g3) = (paper_grid(), grid3_across(cells[0] as usize));
+    assert_eq!(plane.sensors.len(), lib3.sensors.len());
+    let s2 = library_sensors(&plane.sensors, &g2);
+    let s3 = library_sensors(&lib3.sensors, &g3);
+    for (a, b) in s2.iter().zip(&s3) {
+        assert!(b.i < g3.nx && b.j < g3.ny, "sensor ({}, {}) outside", b.i, b.j);
+        let (pa, pb) = (g2.centre(a.i, a.j), g3.centre(b.i, b.j));
+        let d = ((pa.0 - pb.0).powi(2) + (pa.1 - pb.1).powi(2)).sqrt();
+        assert!(d <= 72e-6, "plane {pa:?} vs 3-D {pb:?}: {d} m apart");
+    }
+    for bad in ["59", "125.5", "402"] {
+        let p = aepipe::sim::scenario::Params(vec![("cells".into(), bad.parse().unwrap())]);
+        let e = aepipe::sim::scenario::build("network3d-fibre-failure", &p)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("cells"), "{bad}: {e}");
+    }
+}
