@@ -43,13 +43,20 @@ pub use crate::synth::demo_config;
 /// then `aepipe run` with `pipelines/demo.toml`: features, trend, a SOM trained on the
 /// embedded reference library (other material draws), classification scored against the
 /// truth, and `root/run/report.html`.
-pub fn run_demo(
-    root: &Path,
-    hits: usize,
-    seed: u64,
-    threads: usize,
-    cross_model: bool,
-) -> Result<DemoResult, WorkflowError> {
+/// What `aepipe demo` is asked.
+pub struct DemoJob<'a> {
+    pub root: &'a Path,
+    pub hits: usize,
+    pub seed: u64,
+    pub threads: usize,
+    /// Ask the classes about another model ([`CrossModel`]).
+    pub cross_model: bool,
+    /// The reference maps' cache root (`None`: made anew).
+    pub cache: Option<PathBuf>,
+}
+
+pub fn run_demo(job: &DemoJob) -> Result<DemoResult, WorkflowError> {
+    let (root, hits, seed, threads) = (job.root, job.hits, job.seed, job.threads);
     let t0 = std::time::Instant::now();
     let id = "synthetic_notched_paper";
     let synth = crate::synth::synth_experiment(root, id, hits, seed, None, true)?;
@@ -65,6 +72,7 @@ pub fn run_demo(
     let run = crate::workflow::run(&crate::workflow::RunJob {
         truth: Some(&truth),
         progress: true,
+        cache: job.cache.clone(),
         ..crate::workflow::RunJob::new(
             &cfg,
             std::slice::from_ref(&data_dir),
@@ -72,8 +80,8 @@ pub fn run_demo(
             threads,
         )
     })?;
-    let cross = match cross_model {
-        true => Some(cross_model_check(root, &run, hits, seed, threads)?),
+    let cross = match job.cross_model {
+        true => Some(cross_model_check(job, &run)?),
         false => None,
     };
     Ok(DemoResult {
@@ -91,12 +99,10 @@ pub fn run_demo(
 /// (`plane-map-on-3d/`), and a map trained on the 3-D library on the demo's test
 /// (`3d-map-on-plane/`). Neither map is asked about the signals it was trained on.
 fn cross_model_check(
-    root: &Path,
+    job: &DemoJob,
     demo: &crate::workflow::RunSummary,
-    hits: usize,
-    seed: u64,
-    threads: usize,
 ) -> Result<CrossModel, WorkflowError> {
+    let (root, hits, seed, threads) = (job.root, job.hits, job.seed, job.threads);
     let t0 = std::time::Instant::now();
     let dir = root.join("cross");
     let mut lib = crate::sim::reference::ReferenceFile::library_3d().reference;
@@ -120,6 +126,7 @@ fn cross_model_check(
         let run = crate::workflow::run(&crate::workflow::RunJob {
             truth: Some(truth),
             progress: false,
+            cache: job.cache.clone(),
             ..crate::workflow::RunJob::new(
                 &cfg,
                 std::slice::from_ref(&data.to_path_buf()),

@@ -469,6 +469,10 @@ pub struct RunArgs {
     /// label, experiment, channel (overrides `[som] label`)
     #[arg(long)]
     pub label: Option<String>,
+    /// Make the reference map anew instead of reusing the one cached under the same settings
+    /// ($XDG_CACHE_HOME/aepipe, else ~/.cache/aepipe)
+    #[arg(long)]
+    pub no_cache: bool,
 }
 
 #[derive(clap::Args)]
@@ -532,6 +536,9 @@ pub struct DemoArgs {
     /// Skip asking the classes about another model's signals (a 3-D library, ~35 s)
     #[arg(long)]
     pub no_cross_model: bool,
+    /// Make the reference maps anew instead of reusing the cached ones
+    #[arg(long)]
+    pub no_cache: bool,
 }
 
 #[derive(clap::Args)]

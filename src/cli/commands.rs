@@ -171,6 +171,14 @@ fn reference(a: ReferenceArgs) -> Result<Outcome> {
     Ok(Outcome::Success)
 }
 
+/// The user's cache root, unless `--no-cache` (or no cache directory is known).
+fn user_cache(no_cache: bool) -> Option<std::path::PathBuf> {
+    match no_cache {
+        true => None,
+        false => crate::store::cache::Cache::user().map(|c| c.root().to_path_buf()),
+    }
+}
+
 fn run(a: RunArgs) -> Result<Outcome> {
     let JobArgs {
         inputs,
@@ -181,6 +189,7 @@ fn run(a: RunArgs) -> Result<Outcome> {
         shard,
     } = a.job;
     let (out, truth, label) = (out.as_path(), a.truth.as_deref(), a.label);
+    let cache = user_cache(a.no_cache);
     // `--config P IN…`, or the positional form `P IN…`.
     let (pipeline, inputs) = match config {
         Some(p) => (p, inputs),
@@ -203,6 +212,7 @@ fn run(a: RunArgs) -> Result<Outcome> {
         progress: true,
         resume,
         shard,
+        cache,
         ..crate::workflow::RunJob::new(&cfg, &inputs, out, threads)
     })?;
     match outcome {
@@ -347,7 +357,14 @@ fn synth_experiment(a: SynthExperimentArgs) -> Result<Outcome> {
 }
 
 fn demo(a: DemoArgs) -> Result<Outcome> {
-    let d = crate::demo::run_demo(&a.out, a.hits, a.seed, a.threads, !a.no_cross_model)?;
+    let d = crate::demo::run_demo(&crate::demo::DemoJob {
+        root: &a.out,
+        hits: a.hits,
+        seed: a.seed,
+        threads: a.threads,
+        cross_model: !a.no_cross_model,
+        cache: user_cache(a.no_cache),
+    })?;
     print::demo(&d, &a.out);
     Ok(Outcome::Success)
 }

@@ -1,8 +1,8 @@
 //! What the commands print on the terminal.
 
 use crate::bench::{CwtBench, SimScale};
-use crate::pipeline::RunReport;
 use crate::model::Mechanism;
+use crate::pipeline::RunReport;
 use crate::som::tables::Model;
 use std::path::Path;
 

@@ -101,6 +101,8 @@ pub struct ClusterStage {
 pub struct SomStage {
     pub model_dir: PathBuf,
     pub trained_on: String,
+    /// The map's cache entry (issue 52): its key and whether this run reused it.
+    pub map_cache: Option<crate::som::layout::MapCache>,
     pub training_rows: usize,
     /// Against the criteria labels of the run's hits (Table 5.4 orientation).
     pub confusion: Confusion,
@@ -837,9 +839,15 @@ fn truth_section(h: &mut String, s: &RunSummary) {
 pub fn stage_line(s: &RunSummary) -> String {
     s.stages()
         .into_iter()
-        .map(|(k, v, rss)| match rss {
-            Some(b) => format!("{k} {v:.1} s ({:.0} MB)", b as f64 / 1e6),
-            None => format!("{k} {v:.1} s"),
+        .map(|(k, v, rss)| {
+            let cached = match (k, s.som.as_ref().and_then(|m| m.map_cache.as_ref())) {
+                ("som training", Some(c)) => format!(", {c}"),
+                _ => String::new(),
+            };
+            match rss {
+                Some(b) => format!("{k} {v:.1} s ({:.0} MB){cached}", b as f64 / 1e6),
+                None => format!("{k} {v:.1} s{cached}"),
+            }
         })
         .collect::<Vec<_>>()
         .join(", ")

@@ -83,3 +83,19 @@ impl ClassifyDir {
         ))
     }
 }
+
+/// The cache entry of a run's map: its key, and whether the run reused it.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct MapCache {
+    pub key: String,
+    pub reused: bool,
+}
+
+impl std::fmt::Display for MapCache {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self.reused {
+            true => write!(f, "cached map {}", self.key),
+            false => write!(f, "map {} made and cached", self.key),
+        }
+    }
+}

@@ -411,6 +411,7 @@ pub struct TableWriter {
 
 pub use crate::util::tmp_path_for;
 
+pub mod cache;
 pub mod read;
 pub mod rewrite;
 pub mod shard;

@@ -94,6 +94,10 @@ pub struct RunJob<'a> {
     /// A caller's stop request and progress count (see [`crate::util::JobControl`]): the
     /// feature stream checks it per record, the run between its stages.
     pub control: Option<std::sync::Arc<crate::util::JobControl>>,
+    /// The cache root for the reference map (`[som] train_on = "reference"`): reused when
+    /// its key matches, kept when made ([`mapcache`]). `None`: made every run (`--no-cache`,
+    /// and every caller that does not ask).
+    pub cache: Option<PathBuf>,
 }
 
 impl<'a> RunJob<'a> {
@@ -116,6 +120,7 @@ impl<'a> RunJob<'a> {
             resume: false,
             shard: None,
             control: None,
+            cache: None,
         }
     }
 }
@@ -230,7 +235,7 @@ pub fn train_reference_map(
     if job.config.som.train_on != crate::config::TrainOn::Reference {
         return Err(WorkflowError::NotReferenceTraining);
     }
-    stages::train_stage(job, &[])
+    stages::train_stage(job, &[]).map(|(m, on, _)| (m, on))
 }
 
 /// The whole-batch stages on feature tables already written (a run's, a merge's, or a
@@ -335,6 +340,7 @@ mod cluster_views;
 pub mod explore;
 mod headline;
 pub mod layout;
+pub mod mapcache;
 mod pictures;
 mod runfile;
 mod schema;
@@ -343,6 +349,7 @@ mod stages;
 mod truth;
 pub use headline::{headline, summary_json};
 pub use layout::RunDir;
+pub use mapcache::MapCache;
 use pictures::gather;
 pub use pictures::{burst_picture, cwt_of_hit};
 pub use runfile::rebuild_report;

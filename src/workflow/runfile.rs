@@ -17,6 +17,9 @@ struct RunFile {
     peak_rss: Vec<(String, u64)>,
     som_trained_on: Option<String>,
     som_training_rows: Option<usize>,
+    /// The map's cache key and whether the run reused it (absent in older run folders).
+    #[serde(default)]
+    som_map_cache: Option<crate::som::layout::MapCache>,
 }
 
 pub(super) fn write_run_json(s: &RunSummary) -> Result<(), WorkflowError> {
@@ -29,6 +32,7 @@ pub(super) fn write_run_json(s: &RunSummary) -> Result<(), WorkflowError> {
         peak_rss: s.peak_rss.clone(),
         som_trained_on: s.som.as_ref().map(|m| m.trained_on.clone()),
         som_training_rows: s.som.as_ref().map(|m| m.training_rows),
+        som_map_cache: s.som.as_ref().and_then(|m| m.map_cache.clone()),
     };
     let p = RunDir::new(&s.out).run_json();
     crate::util::write_atomic(
@@ -76,6 +80,7 @@ pub fn rebuild_report(dir: &Path) -> Result<PathBuf, WorkflowError> {
         let trained = Trained {
             model_dir: run.som_model().path().to_path_buf(),
             trained_on: f.som_trained_on.clone().unwrap_or_default(),
+            map_cache: f.som_map_cache.clone(),
             training_rows: f.som_training_rows.unwrap_or(0),
             u_matrix: existing(sdir.u_matrix()),
             hit_maps: existing(sdir.hit_maps()),

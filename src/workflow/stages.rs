@@ -55,6 +55,7 @@ pub(super) fn som_stage(
     let run = job.dir();
     let som_dir = run.som();
     let model_dir = run.som_model();
+    let mut map_cache = None;
     let (model, trained_on) = match cfg.som.map_source() {
         // A given map: copied into the run (its model folder), so the run stays whole.
         MapSource::Given(given) => log.time("som model", || -> Result<_, WorkflowError> {
@@ -63,7 +64,9 @@ pub(super) fn som_stage(
             Ok((m, format!("the given map {}", given.display())))
         })?,
         MapSource::Reference(_) | MapSource::Criteria => {
-            log.time("som training", || train_stage(job, feats))?
+            let (m, on, cached) = log.time("som training", || train_stage(job, feats))?;
+            map_cache = cached;
+            (m, on)
         }
     };
     let confusion = log.time("classification", || -> Result<_, WorkflowError> {
@@ -82,6 +85,7 @@ pub(super) fn som_stage(
     let trained = Trained {
         model_dir: model_dir.path().to_path_buf(),
         trained_on,
+        map_cache,
         training_rows: model.composition.values().map(|(_, r)| r).sum(),
         u_matrix: Some(som_dir.u_matrix()),
         hit_maps: Some(som_dir.hit_maps()),
@@ -91,9 +95,49 @@ pub(super) fn som_stage(
     })
 }
 
+/// The run's map as `[som] train_on` says, and its cache entry: a reference map from the
+/// cache when the job has one and the key matches ([`super::mapcache`]), else trained and
+/// kept there; a map of the run's own hits is never cached.
+pub(super) fn train_stage(
+    job: &RunJob,
+    feats: &[PathBuf],
+) -> Result<(crate::som::tables::Model, String, Option<super::MapCache>), WorkflowError> {
+    use super::mapcache;
+    let cache = match (&job.cache, job.config.som.train_on) {
+        (Some(c), TrainOn::Reference) => Some((c, mapcache::map_key(job)?)),
+        _ => None,
+    };
+    let model_dir = job.dir().som_model();
+    if let Some((root, key)) = &cache {
+        if mapcache::reuse(root, key, model_dir.path())? {
+            let m = crate::som::tables::load_model(model_dir.path())?;
+            let on = match &job.config.som.reference_library {
+                Some(l) => format!("reference library {} (simulated labels)", l.display()),
+                None => "the embedded reference library (pipelines/reference-library.toml, \
+                         simulated labels)"
+                    .to_string(),
+            };
+            let c = super::MapCache {
+                key: key.clone(),
+                reused: true,
+            };
+            return Ok((m, format!("{on}; {c}"), Some(c)));
+        }
+    }
+    let (m, on) = train_new(job, feats)?;
+    match cache {
+        Some((root, key)) => {
+            mapcache::keep(root, &key, model_dir.path())?;
+            let c = super::MapCache { key, reused: false };
+            Ok((m, format!("{on}; {c}"), Some(c)))
+        }
+        None => Ok((m, on, None)),
+    }
+}
+
 /// Train the run's map as `[som] train_on` says: on a reference library (built from the
 /// embedded definition unless one is named) or on the run's own labelled hits.
-pub(super) fn train_stage(
+fn train_new(
     job: &RunJob,
     feats: &[PathBuf],
 ) -> Result<(crate::som::tables::Model, String), WorkflowError> {
@@ -203,6 +247,7 @@ impl StageLog {
 pub(super) struct Trained {
     pub model_dir: PathBuf,
     pub trained_on: String,
+    pub map_cache: Option<MapCache>,
     pub training_rows: usize,
     pub u_matrix: Option<PathBuf>,
     pub hit_maps: Option<PathBuf>,
@@ -241,6 +286,7 @@ pub(super) fn classified_stage(
         location_plots: pr.location_plots,
         model_dir: t.model_dir,
         trained_on: t.trained_on,
+        map_cache: t.map_cache,
         training_rows: t.training_rows,
         confusion,
         classification: som_dir.classification(),

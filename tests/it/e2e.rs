@@ -323,6 +323,10 @@ fn demo(out: &Path, args: &[&str]) -> String {
         .args(args)
         .arg("--out")
         .arg(out)
+        .env(
+            "XDG_CACHE_HOME",
+            Path::new(env!("CARGO_TARGET_TMPDIR")).join("xdg-cache"),
+        )
         .output()
         .unwrap();
     let so = String::from_utf8_lossy(&o.stdout).to_string();
@@ -395,7 +399,10 @@ fn the_readme_states_the_numbers_the_demo_prints() {
             "the README does not state '{what}: balanced accuracy {b} %'"
         );
         let b: f64 = b.parse().unwrap();
-        assert!(b >= 60.0, "{what}: balanced accuracy {b} % < the stated 60 %");
+        assert!(
+            b >= 60.0,
+            "{what}: balanced accuracy {b} % < the stated 60 %"
+        );
     }
     // The Table 5.4 matrix the demo prints is the README's, line for line.
     let table: Vec<&str> = so

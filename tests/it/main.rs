@@ -6,6 +6,7 @@
 mod architecture;
 mod bad_input;
 mod bonds;
+mod cache;
 mod cli;
 mod corpus;
 mod cycles;
@@ -37,10 +38,20 @@ mod vendor;
 
 use std::path::{Path, PathBuf};
 
-/// Run the aepipe binary: exit code, stdout, stderr.
+/// Run the aepipe binary: exit code, stdout, stderr. Its cache (`XDG_CACHE_HOME`) is the
+/// test build's own, never the user's.
 pub fn aepipe(args: &[&str]) -> (i32, String, String) {
+    aepipe_with_cache(
+        args,
+        &Path::new(env!("CARGO_TARGET_TMPDIR")).join("xdg-cache"),
+    )
+}
+
+/// [`aepipe`] with `XDG_CACHE_HOME` = `cache`.
+pub fn aepipe_with_cache(args: &[&str], cache: &Path) -> (i32, String, String) {
     let o = std::process::Command::new(env!("CARGO_BIN_EXE_aepipe"))
         .args(args)
+        .env("XDG_CACHE_HOME", cache)
         .output()
         .unwrap();
     (

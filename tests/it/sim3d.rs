@@ -373,7 +373,12 @@ fn the_3d_library_hears_where_the_plane_library_does() {
     let s2 = library_sensors(&plane.sensors, &g2);
     let s3 = library_sensors(&lib3.sensors, &g3);
     for (a, b) in s2.iter().zip(&s3) {
-        assert!(b.i < g3.nx && b.j < g3.ny, "sensor ({}, {}) outside", b.i, b.j);
+        assert!(
+            b.i < g3.nx && b.j < g3.ny,
+            "sensor ({}, {}) outside",
+            b.i,
+            b.j
+        );
         let (pa, pb) = (g2.centre(a.i, a.j), g3.centre(b.i, b.j));
         let d = ((pa.0 - pb.0).powi(2) + (pa.1 - pb.1).powi(2)).sqrt();
         assert!(d <= 72e-6, "plane {pa:?} vs 3-D {pb:?}: {d} m apart");

@@ -289,7 +289,14 @@ fn a_mistras_chain_gets_a_csv_keyed_by_its_hit_numbers() {
 fn the_demo_run_is_written_back_for_visualae() {
     let t = TempDir::new("trfdb-demo");
     let root = t.path().join("demo");
-    let (code, said, err) = aepipe(&["demo", "--out", root.to_str().unwrap(), "--hits", "150", "--no-cross-model"]);
+    let (code, said, err) = aepipe(&[
+        "demo",
+        "--out",
+        root.to_str().unwrap(),
+        "--hits",
+        "150",
+        "--no-cross-model",
+    ]);
     assert_eq!(code, 0, "{said}\n{err}");
     let run = root.join("run");
     let (code, said, err) = aepipe(&["export", "trfdb", run.to_str().unwrap()]);
