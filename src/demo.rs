@@ -139,9 +139,17 @@ fn cross_model_check(
             message: "the run scored no hit against the truth".into(),
         })
     };
-    let plane_library = crate::workflow::RunDir::new(&demo.out)
+    // The plane library the demo's map was trained on; a map from the cache left none in
+    // the run: then it is simulated here (the same embedded definition and seed).
+    let mut plane_library = crate::workflow::RunDir::new(&demo.out)
         .reference()
         .waveforms();
+    if !plane_library.is_file() {
+        let f = crate::sim::reference::ReferenceFile::default_library();
+        let d = crate::sim::reference::LibraryDir::new(dir.join("library-plane"));
+        crate::sim::reference::build_library(&f.reference, d.path(), true)?;
+        plane_library = d.waveforms();
+    }
     let plane_map_on_3d = score(
         &test.join("data"),
         &test.join("truth.parquet"),
