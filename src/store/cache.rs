@@ -146,7 +146,7 @@ fn check(dir: &Path, kind: &str, key: &str) -> Result<(), String> {
 /// older one made.
 pub fn build_id() -> String {
     let exe = std::env::current_exe()
-        .and_then(|p| std::fs::metadata(p))
+        .and_then(std::fs::metadata)
         .map(|m| {
             let t = m
                 .modified()
