@@ -49,6 +49,8 @@ pub struct TrendOptions {
     pub sources: SourceRows,
     /// A load channel spanning less, or within its noise, is no load (`trend.min_load_span_n`).
     pub min_load_span_n: f64,
+    /// Fewest hits a trend is stated on (`trend.min_hits`).
+    pub min_hits: usize,
 }
 
 impl Default for TrendOptions {
@@ -57,6 +59,7 @@ impl Default for TrendOptions {
             cutoff: Cutoff::PeakLoad,
             alpha: 0.01,
             min_load_span_n: 1.0,
+            min_hits: super::settings::MIN_TREND_HITS,
             columns: Vec::new(),
             sources: SourceRows::default(),
         }
@@ -107,7 +110,7 @@ pub fn trend_table() -> Table<TrendRow> {
         .col(f("intercept", "1", "c of that line: y at x = 0"), |t| Value::F64(t.fit.map(|f| f.intercept)))
         .col(f("slope_stderr", "1/AE", "standard error of the slope"), |t| Value::F64(t.fit.map(|f| f.slope_stderr)))
         .col(ColumnSpec::new("significant", ColType::Bool, "", "p < alpha (default 0.01, as Table 4.2)"), |t| Value::Bool(Some(t.significant)))
-        .col(ColumnSpec::new("note", ColType::Utf8, "", "why r and p are null (n < 3, constant series), or how the cut-off fell back").nullable(), |t| Value::Str(t.note.clone()))
+        .col(ColumnSpec::new("note", ColType::Utf8, "", "why r and p are null (n below trend.min_hits: `n = 3: too few hits for a trend`; a constant series), or how the cut-off fell back").nullable(), |t| Value::Str(t.note.clone()))
 }
 
 /// What a trend folder holds (`aepipe trend --out`, a run's `trend/`).
@@ -329,7 +332,13 @@ pub fn select_from(
 }
 
 /// Statistics of every tested column of one series.
-pub fn trends(s: &TrendSeries, columns: &[String], sel: &Selection, alpha: f64) -> Vec<TrendRow> {
+pub fn trends(
+    s: &TrendSeries,
+    columns: &[String],
+    sel: &Selection,
+    alpha: f64,
+    min_hits: usize,
+) -> Vec<TrendRow> {
     let k = sel.hits_used;
     columns
         .iter()
@@ -342,12 +351,11 @@ pub fn trends(s: &TrendSeries, columns: &[String], sel: &Selection, alpha: f64) 
                 .enumerate()
                 .filter_map(|(i, v)| v.map(|v| ((i + 1) as f64, v)))
                 .unzip();
-            let fit = linear_trend(&x, &y);
-            let note = match &fit {
-                Err(why) => Some(why.to_string()),
-                Ok(_) => sel.note.clone(),
+            let (fit, note) = match linear_trend(&x, &y) {
+                _ if x.len() < min_hits => (None, Some(too_few(x.len(), min_hits))),
+                Err(why) => (None, Some(why.to_string())),
+                Ok(f) => (Some(f), sel.note.clone()),
             };
-            let fit = fit.ok();
             TrendRow {
                 experiment: s.experiment.clone(),
                 channel: s.channel,
@@ -371,6 +379,15 @@ pub struct TrendReport {
     pub selections: Vec<Selection>,
     pub columns: Vec<String>,
     pub table_path: PathBuf,
+    /// `trend.min_hits`: a series with fewer hits used states no trend.
+    pub min_hits: usize,
+}
+
+impl TrendReport {
+    /// `n = 3: too few hits for a trend …` for a series below `min_hits`.
+    pub fn too_few(&self, sel: &Selection) -> Option<String> {
+        (sel.hits_used < self.min_hits).then(|| too_few(sel.hits_used, self.min_hits))
+    }
 }
 
 /// One row of a trend series as it is sorted: the group, the hit, its position in the input
@@ -554,6 +571,7 @@ fn trends_sorted(
     columns: &[String],
     sel: &Selection,
     alpha: f64,
+    min_hits: usize,
 ) -> Result<Vec<TrendRow>, StoreError> {
     let k = sel.hits_used;
     let mut fits = vec![TrendFit::default(); columns.len()];
@@ -595,6 +613,9 @@ fn trends_sorted(
         .enumerate()
         .map(|(ci, name)| {
             let (fit, note) = match &failed[ci] {
+                _ if fits[ci].points() < min_hits => {
+                    (None, Some(too_few(fits[ci].points(), min_hits)))
+                }
                 Some(why) => (None, Some(why.to_string())),
                 None => (Some(fits[ci].finish()), sel.note.clone()),
             };
@@ -747,7 +768,7 @@ pub fn run_trend_with<E: From<TrendError> + From<StoreError>>(
             // A record that did not read back (map_while stopped): say which file.
             sorted.span_iter(span).collect::<Result<Vec<_>, _>>()?;
         }
-        let group = trends_sorted(&sorted, span, &columns, &sel, opts.alpha)?;
+        let group = trends_sorted(&sorted, span, &columns, &sel, opts.alpha, opts.min_hits)?;
         if max_lines > 0 && drawn < pictures {
             if let Some(p) = picture(&sorted, span, &columns, &sel, &group, max_lines)? {
                 picture_of(&p)?;
@@ -767,6 +788,7 @@ pub fn run_trend_with<E: From<TrendError> + From<StoreError>>(
         "finished_utc": crate::util::utc_now(),
         "inputs": inputs.iter().map(|p| p.display().to_string()).collect::<Vec<_>>(),
         "alpha": opts.alpha,
+        "min_hits": opts.min_hits,
         "columns": columns,
         "selections": selections,
     });
@@ -782,6 +804,7 @@ pub fn run_trend_with<E: From<TrendError> + From<StoreError>>(
         selections,
         columns,
         table_path,
+        min_hits: opts.min_hits,
     })
 }
 
@@ -811,6 +834,10 @@ pub fn format_table(rep: &TrendReport) -> String {
             sig.push(r);
             next += 1;
         }
+        if let Some(few) = rep.too_few(sel) {
+            s.push_str(&format!("  {few}\n\n"));
+            continue;
+        }
         if sig.is_empty() {
             s.push_str("  no significant trend\n\n");
             continue;
@@ -833,6 +860,11 @@ pub fn format_table(rep: &TrendReport) -> String {
         s.push('\n');
     }
     s
+}
+
+/// Why a series holds no trend though its statistics could be computed: too few hits.
+pub fn too_few(n: usize, min_hits: usize) -> String {
+    format!("n = {n}: too few hits for a trend (trend.min_hits = {min_hits})")
 }
 
 /// `pr_200_300khz` → `200 - 300 kHz`; other names unchanged.
@@ -882,9 +914,18 @@ mod tests {
     fn too_few_hits_is_a_null_with_a_reason() {
         let s = series(&[Some(1.0), Some(3.0), Some(5.0), Some(4.0)]);
         let sel = select(&s, Cutoff::Hits(2), 1.0);
-        let t = &trends(&s, &["pr_x".into()], &sel, 0.01)[0];
+        let t = &trends(&s, &["pr_x".into()], &sel, 0.01, 3)[0];
         assert!(t.fit.is_none() && !t.significant);
         assert!(t.note.as_ref().unwrap().contains("n = 2 < 3"));
+        // Below trend.min_hits: computable, but not stated.
+        let sel = select(&s, Cutoff::Hits(4), 1.0);
+        assert!(trends(&s, &["pr_x".into()], &sel, 0.01, 4)[0].fit.is_some());
+        let t = &trends(&s, &["pr_x".into()], &sel, 0.01, 5)[0];
+        assert!(t.fit.is_none() && !t.significant);
+        assert_eq!(
+            t.note.as_deref(),
+            Some("n = 4: too few hits for a trend (trend.min_hits = 5)")
+        );
     }
 
     #[test]

@@ -345,6 +345,10 @@ pub struct TrendArgs {
     /// peak-load cut (`[trend] min_load_span_n`)
     #[arg(long, default_value_t = 1.0)]
     pub min_load_span_n: f64,
+    /// Fewest hits a trend is stated on; fewer: `n = 3: too few hits for a trend`, r and p
+    /// null (`[trend] min_hits`)
+    #[arg(long, default_value_t = crate::analysis::settings::MIN_TREND_HITS, value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(3..))]
+    pub min_hits: usize,
     /// Columns to test (default: every pr_* power ratio), e.g. peak_freq_hz,centroid_freq_hz
     #[arg(long, value_delimiter = ',')]
     pub columns: Vec<String>,

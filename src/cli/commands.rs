@@ -499,6 +499,7 @@ fn trend(a: TrendArgs) -> Result<Outcome> {
         cutoff: a.cutoff,
         alpha: a.alpha,
         min_load_span_n: a.min_load_span_n,
+        min_hits: a.min_hits,
         columns: a.columns,
         sources: crate::store::SourceRows::default(),
     };

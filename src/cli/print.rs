@@ -6,6 +6,9 @@ use crate::pipeline::RunReport;
 use crate::som::tables::Model;
 use std::path::Path;
 
+/// At most this many of the experiments' own lines (a rate implied, hits without load).
+const SAID_LINES: usize = 20;
+
 /// The summary of a streaming run (`aepipe features`, `aepipe waveforms`).
 pub fn stream_run(report: &RunReport, what: &str) {
     let s = &report.stats;
@@ -41,11 +44,27 @@ pub fn stream_run(report: &RunReport, what: &str) {
             c.rejects
         );
     }
-    if !s.notes.is_empty() {
+    // What a reader of an experiment's numbers must know, one line each.
+    let said: Vec<&str> = s
+        .notes
+        .iter()
+        .filter(|n| n.said)
+        .map(|n| n.message.as_str())
+        .collect();
+    for m in said.iter().take(SAID_LINES) {
+        println!("  {m}");
+    }
+    if said.len() > SAID_LINES {
+        println!(
+            "  … {} more such lines in the manifest",
+            said.len() - SAID_LINES
+        );
+    }
+    if let Some(n) = s.notes.iter().find(|n| !n.said) {
         println!(
             "  {} note(s) on what readers had to assume or could not decode (in the manifest), e.g.: {}",
             s.notes.len(),
-            s.notes[0].message
+            n.message
         );
     }
     if !report.skipped.is_empty() {

@@ -323,6 +323,8 @@ struct WithLoad {
     /// Hits / records outside the file's time span, or without a time.
     outside: (u64, u64),
     untimed: (u64, u64),
+    /// The hits the file's span covers, said on the terminal when it misses some.
+    coverage: super::Coverage,
     ended: bool,
 }
 
@@ -341,6 +343,7 @@ impl Iterator for WithLoad {
         }
         match self.inner.next() {
             Some(Item::Hit(mut h)) => {
+                self.coverage.count(h.time_s);
                 if let Some((l, e)) = self.at(h.time_s) {
                     match h.time_s {
                         None => self.untimed.0 += 1,
@@ -368,6 +371,7 @@ impl Iterator for WithLoad {
                 let note = |what: &str, (h, r): (u64, u64)| {
                     (h + r > 0).then(|| {
                         Item::Note(Note {
+        said: false,
                             experiment: self.experiment.clone(),
                             source_file: self.file.clone(),
                             message: format!(
@@ -376,7 +380,16 @@ impl Iterator for WithLoad {
                         })
                     })
                 };
+                let said = self.coverage.note(&self.experiment, "load file").map(|m| {
+                    Item::Note(Note {
+                        experiment: self.experiment.clone(),
+                        source_file: self.file.clone(),
+                        message: m,
+                        said: true,
+                    })
+                });
                 let mut v: VecDeque<Item> = [
+                    said,
                     note("outside its time span", self.outside),
                     note("without a time", self.untimed),
                 ]
@@ -404,6 +417,7 @@ pub fn attach(
     let file = path.display().to_string();
     let note = |message: String| {
         Item::Note(Note {
+            said: false,
             experiment: src.id.clone(),
             source_file: file.clone(),
             message,
@@ -445,8 +459,13 @@ pub fn attach(
             None
         }
     };
+    let coverage = series
+        .as_ref()
+        .map(|(l, _)| super::Coverage::new(l, 0.0))
+        .unwrap_or_default();
     Box::new(WithLoad {
         inner: items,
+        coverage,
         series,
         front,
         experiment: src.id.clone(),

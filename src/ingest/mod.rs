@@ -232,6 +232,8 @@ impl Source {
         match self.format {
             Format::Vallen => self.companion(Role::HitIndex).is_some(),
             Format::Mistras | Format::Stream => true,
+            // The AEwin reader makes the hit rows itself when a list lies beside the test.
+            Format::Aewin => self.companion(Role::HitList).is_some(),
             _ => false,
         }
     }
@@ -443,6 +445,62 @@ impl TimeSeries {
     }
 }
 
+/// Which hits a load series covers: those before its first time and after its last get no
+/// load, and a reader of the test's numbers must know how many (a machine log that stopped
+/// early leaves most of a test without load, and a trend against load then rests on the few
+/// hits before it stopped).
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct Coverage {
+    pub hits: u64,
+    pub before: u64,
+    pub after: u64,
+    /// The series' span on the AE clock.
+    pub span: Option<(f64, f64)>,
+}
+
+impl Coverage {
+    /// `span`: the series' first and last time on the AE clock (`None`: an empty series).
+    pub fn new(series: &TimeSeries, offset_s: f64) -> Coverage {
+        Coverage {
+            span: series
+                .t
+                .first()
+                .zip(series.t.last())
+                .map(|(a, b)| (a + offset_s, b + offset_s)),
+            ..Default::default()
+        }
+    }
+
+    /// Count a hit at `t` (AE clock; a hit without a time is not counted as outside).
+    pub fn count(&mut self, t: Option<f64>) {
+        self.hits += 1;
+        if let (Some(t), Some((a, b))) = (t, self.span) {
+            self.before += u64::from(t < a);
+            self.after += u64::from(t > b);
+        }
+    }
+
+    /// `EXP3005: 69 of 72 hits after the machine log ends at 19.5 s: no load`, when any
+    /// hit lies outside.
+    pub fn note(&self, experiment: &str, what: &str) -> Option<String> {
+        let (a, b) = self.span?;
+        let mut parts = Vec::new();
+        if self.after > 0 {
+            parts.push(format!(
+                "{} of {} hits after the {what} ends at {b:.1} s",
+                self.after, self.hits
+            ));
+        }
+        if self.before > 0 {
+            parts.push(format!(
+                "{} of {} hits before the {what} starts at {a:.1} s",
+                self.before, self.hits
+            ));
+        }
+        (!parts.is_empty()).then(|| format!("{experiment}: {}: no load", parts.join(", ")))
+    }
+}
+
 /// Volts divided by a preamplifier gain in dB.
 pub(crate) fn gain_factor(gain_db: f64) -> f64 {
     10f64.powf(-gain_db / 20.0)
@@ -483,6 +541,7 @@ mod tests {
                 experiment: "e".into(),
                 source_file: "f".into(),
                 message: format!("item {n}"),
+                said: false,
             }))
         });
         let g = Guarded {

@@ -210,7 +210,11 @@ pub struct VallenConfig {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct AewinConfig {
-    pub sample_rate_hz: f64,
+    /// The rate of header-less waveform files. Unset: the rate the test's hit list implies
+    /// (its rise times against the waveforms), else [`AEWIN_DEFAULT_RATE_HZ`]. Set: this
+    /// rate, even where the hit list implies another (which is said).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub sample_rate_hz: Option<f64>,
     pub pretrigger_samples: u32,
     /// The exported volts include the preamplifier (typically 40 dB); divided out on read.
     pub preamp_gain_db: f64,
@@ -253,12 +257,23 @@ impl Default for VallenConfig {
     }
 }
 
+/// The rate of a header-less AEwin export when neither the pipeline file nor a hit list
+/// says otherwise: that of the only AEwin export we have (aewin_cfrp_tensile, `Start.m`).
+pub const AEWIN_DEFAULT_RATE_HZ: f64 = 5e6;
+
+impl AewinConfig {
+    /// The rate to read header-less files at before a hit list is consulted.
+    pub fn configured_rate_hz(&self) -> f64 {
+        self.sample_rate_hz.unwrap_or(AEWIN_DEFAULT_RATE_HZ)
+    }
+}
+
 impl Default for AewinConfig {
     fn default() -> Self {
         // Values of the only AEwin export we have (aewin_cfrp_tensile: Start.m says
         // Fs = 5 MHz, PT = 20 µs, 40 dB preamplifier).
         AewinConfig {
-            sample_rate_hz: 5e6,
+            sample_rate_hz: None,
             pretrigger_samples: 100,
             preamp_gain_db: 40.0,
             log_time_offset_s: 0.0,
@@ -281,7 +296,9 @@ impl IngestConfig {
             return Err(IngestSettingsError::NoSamples);
         }
         positive(self.sample_rate_hz, "ingest.sample_rate_hz")?;
-        positive(self.aewin.sample_rate_hz, "ingest.aewin.sample_rate_hz")?;
+        if let Some(r) = self.aewin.sample_rate_hz {
+            positive(r, "ingest.aewin.sample_rate_hz")?;
+        }
         let m = &self.mistras;
         if let Some((c, s)) = m.chid_sizes.iter().find(|(_, s)| **s > 4096) {
             return Err(IngestSettingsError::ChidSize {

@@ -275,6 +275,9 @@ pub struct HitRow {
     pub source_file: String,
     /// The system's hit flags as stored (Vallen `Status`).
     pub status: Option<i64>,
+    /// An AEwin test with a hit list: `matched` (a list row and its waveform),
+    /// `no_list_row` (a waveform the list lacks), `no_waveform` (a row without a waveform).
+    pub list_status: Option<&'static str>,
 }
 
 impl HitRow {
@@ -298,11 +301,16 @@ impl HitRow {
 }
 
 /// Something a reader wants the manifest to say about a file (a default it had to assume).
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, Default, serde::Serialize, serde::Deserialize)]
 pub struct Note {
     pub experiment: String,
     pub source_file: String,
     pub message: String,
+    /// Said on the terminal too: a fact about the whole experiment a reader of its numbers
+    /// must know (the rate an export implies, hits the machine log does not cover), one
+    /// line that names the experiment.
+    #[serde(default)]
+    pub said: bool,
 }
 
 /// Where a parametric row came from.

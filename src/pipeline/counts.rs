@@ -214,7 +214,7 @@ pub(crate) struct PartStats {
     by_experiment: BTreeMap<String, Counts>,
     by_stage: BTreeMap<String, u64>,
     first_rejects: Vec<String>,
-    notes: Vec<(String, String, String)>,
+    notes: Vec<Note>,
     #[serde(default)]
     setups: Vec<AcquisitionSetup>,
     #[serde(default)]
@@ -235,17 +235,7 @@ impl PartStats {
             by_experiment: s.by_experiment.clone(),
             by_stage: s.by_stage.clone(),
             first_rejects: s.first_rejects.clone(),
-            notes: s
-                .notes
-                .iter()
-                .map(|n| {
-                    (
-                        n.experiment.clone(),
-                        n.source_file.clone(),
-                        n.message.clone(),
-                    )
-                })
-                .collect(),
+            notes: s.notes.clone(),
             setups: s.setups.clone(),
             events: None,
             streams: s.streams.clone(),
@@ -271,12 +261,8 @@ impl PartStats {
                 st.first_rejects.push(r.clone());
             }
         }
-        for (e, f, m) in &self.notes {
-            st.add_note(Note {
-                experiment: e.clone(),
-                source_file: f.clone(),
-                message: m.clone(),
-            });
+        for n in &self.notes {
+            st.add_note(n.clone());
         }
         st.setups.extend(self.setups.iter().cloned());
         st.events.extend(self.events.iter().cloned());

@@ -94,6 +94,9 @@ pub struct NoteEntry {
     pub experiment: String,
     pub file: String,
     pub note: String,
+    /// Said on the terminal too (a fact about the whole experiment).
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub said: bool,
 }
 
 /// One record type of one experiment whose `read` is not `rows + rejects`.
@@ -383,6 +386,7 @@ fn note_entries(stats: &StreamStats) -> Vec<NoteEntry> {
             experiment: n.experiment.clone(),
             file: n.source_file.clone(),
             note: n.message.clone(),
+            said: n.said,
         })
         .collect()
 }

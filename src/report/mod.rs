@@ -9,6 +9,7 @@
 
 pub mod explore;
 mod gallery;
+mod series;
 mod sources;
 
 use gallery::{appendix_b_section, disagree_section, gallery_section};
@@ -61,6 +62,8 @@ pub struct RunSummary {
     pub seconds: Vec<(String, f64)>,
     /// Each stage's peak resident memory, bytes (see `workflow::StageLog`).
     pub peak_rss: Vec<(String, u64)>,
+    /// The tests side by side (`series.parquet`).
+    pub series: Option<crate::workflow::series::Series>,
 }
 
 impl RunSummary {
@@ -429,6 +432,7 @@ pre{{background:#f6f6f6;padding:8px;overflow-x:auto}}.missing{{color:#b00}}</sty
         esc(&title)
     );
     first_lines(&mut h, s);
+    series::series_section(&mut h, s);
     inputs_section(&mut h, s);
     classes_section(&mut h, g);
     // The explorer goes here once the rest is written: its points fit what is left of the
@@ -576,6 +580,9 @@ fn trend_section(h: &mut String, s: &RunSummary) {
                     .map(|l| format!(", peak load {l:.1} N"))
                     .unwrap_or_default()
             );
+            if let Some(few) = t.too_few(sel) {
+                let _ = write!(h, "<p>No trend stated for it: {}.</p>", esc(&few));
+            }
         }
         h.push_str("<table><tr><th class=l>experiment</th><th class=l>frequency window</th><th>m</th><th>c</th><th>r</th><th>p</th><th>n</th></tr>");
         for r in &t.significant {
@@ -765,6 +772,9 @@ fn profile_section(h: &mut String, s: &RunSummary) {
             no_load.len(),
             esc(&no_load.join("; "))
         );
+    }
+    for l in series::load_coverage(s) {
+        let _ = write!(h, "<p>{}.</p>", esc(l));
     }
     figures(h, &m.profile_plots, "damage profile", "");
 }

@@ -278,6 +278,7 @@ pub fn hits_table(crack: CrackModeConfig) -> Table<HitRow> {
         .col(ColumnSpec::new("source", ColType::Utf8, "", "who recorded the features: vallen, mistras, aewin, record (a format without a hit list), or detect (cut from a continuous recording by [detect]: the detector's time, duration and features)"), |h| s(h.source.as_str()))
         .col(ColumnSpec::new("source_file", ColType::Utf8, "", "the file the hit came from"), |h| s(&h.source_file))
         .col(ColumnSpec::of(cols::STATUS, "", "the system's hit flags as stored (Vallen `Status`: bit 8 = started after a hit timeout, which never opens an event; bit 4 = saturation); null: not recorded").nullable(), |h| Value::I64(h.status))
+        .col(ColumnSpec::new("list_status", ColType::Utf8, "", "an AEwin test with a hit list <test>.TXT: matched (a list row and its waveform, the row's values above), no_list_row (a waveform the list lacks: no hardware features), no_waveform (a list row without a waveform file: transient null); null: no hit list. `status` holds the system's flags, so the match has its own column").nullable(), |h| Value::Str(h.list_status.map(str::to_string)))
         .pipe(with_event_columns)
 }
 

@@ -82,6 +82,9 @@ fn indices_lines(s: &RunSummary) -> Vec<String> {
 }
 
 /// Terminal lines: the headline numbers.
+/// The terminal prints the series table for up to this many tests.
+const SERIES_TABLE_TESTS: usize = 20;
+
 pub fn headline(s: &RunSummary) -> Vec<String> {
     let mut l = Vec::new();
     let st = &s.features.stats;
@@ -89,12 +92,37 @@ pub fn headline(s: &RunSummary) -> Vec<String> {
         "hits: {} read, {} feature rows, {} rejects",
         st.records_read, st.rows, st.rejects
     ));
+    // What a test's numbers rest on (a rate implied, hits outside the machine log).
+    let said: Vec<&str> = st
+        .notes
+        .iter()
+        .filter(|n| n.said)
+        .map(|n| n.message.as_str())
+        .collect();
+    l.extend(
+        said.iter()
+            .take(SERIES_TABLE_TESTS)
+            .map(|m| format!("  {m}")),
+    );
+    if said.len() > SERIES_TABLE_TESTS {
+        l.push(format!(
+            "  … {} more such lines in the manifest",
+            said.len() - SERIES_TABLE_TESTS
+        ));
+    }
+    // A series of tests side by side (one test is the rest of this summary).
+    if let Some(se) = s.series.as_ref().filter(|se| se.rows.len() > 1) {
+        l.extend(super::series::series_lines(se, SERIES_TABLE_TESTS));
+    }
     if let Some(t) = &s.trend {
         for sel in t.selections.iter().take(SERIES_LINES) {
             l.push(format!(
                 "trend {} ch{}: {} of {} hits used ({})",
                 sel.experiment, sel.channel, sel.hits_used, sel.hits_total, sel.cutoff
             ));
+            if let Some(few) = t.too_few(sel) {
+                l.push(format!("  {few}"));
+            }
         }
         more(&mut l, t.selections.len(), &t.table_path);
         let shown: std::collections::BTreeSet<(&str, i32)> = t

@@ -41,6 +41,11 @@ impl RunDir {
         self.0.join("statistics.parquet")
     }
 
+    /// The tests side by side, one row per experiment (`series.parquet`).
+    pub fn series(&self) -> PathBuf {
+        self.0.join("series.parquet")
+    }
+
     /// The clustering stage's tables and pictures.
     pub fn cluster(&self) -> PathBuf {
         self.0.join("cluster")

@@ -310,7 +310,9 @@ pub fn analyse(
         config: cfg.clone(),
         seconds: Vec::new(),
         peak_rss: Vec::new(),
+        series: None,
     };
+    summary.series = Some(log.time("series", || series::series_stage(&summary, &dir.series()))?);
     if cfg.report.enabled {
         job.go_on()?;
         // The report shows the stages before it; its own time goes into run.json.
@@ -344,6 +346,7 @@ pub mod mapcache;
 mod pictures;
 mod runfile;
 mod schema;
+pub mod series;
 mod sources;
 mod stages;
 mod truth;

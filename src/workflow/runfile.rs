@@ -109,7 +109,7 @@ pub fn rebuild_report(dir: &Path) -> Result<PathBuf, WorkflowError> {
     )?;
     let (truth, sources) =
         super::truth::scores(f.truth.as_deref(), som.as_ref(), &features, &config)?;
-    let summary = RunSummary {
+    let mut summary = RunSummary {
         out: dir.to_path_buf(),
         inputs: f.inputs,
         features,
@@ -124,7 +124,9 @@ pub fn rebuild_report(dir: &Path) -> Result<PathBuf, WorkflowError> {
         config,
         seconds: f.seconds,
         peak_rss: f.peak_rss,
+        series: None,
     };
+    summary.series = Some(super::series::series_stage(&summary, &run.series())?);
     let out = run.report_html();
     let g = gather(&summary)?;
     crate::report::write(&summary, &g, &out)?;

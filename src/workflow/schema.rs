@@ -28,6 +28,7 @@ pub const TABLES: &[&str] = &[
     "clusters",
     "validity",
     "statistics",
+    "series",
 ];
 
 /// The schema of a written table by name (one of [`TABLES`]).
@@ -58,6 +59,8 @@ pub fn table_schema(name: &str, cfg: &PipelineConfig) -> Option<crate::store::Ta
         "clusters" => crate::cluster::stage::clusters_table().schema(),
         "validity" => crate::cluster::stage::validity_table().schema(),
         "statistics" => crate::analysis::powerlaw::statistics_table().schema(),
+        // The classes of the default reference map; a run has one column per class of its map.
+        "series" => super::series::series_table(&super::series::default_classes(), true).schema(),
         _ => return None,
     })
 }

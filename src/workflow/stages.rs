@@ -18,6 +18,7 @@ pub(super) fn trend_stage(
         cutoff: cfg.trend.cutoff,
         alpha: cfg.trend.alpha,
         min_load_span_n: cfg.trend.min_load_span_n,
+        min_hits: cfg.trend.min_hits,
         columns: vec![],
         sources: cfg.source_rows(),
     };

@@ -11,12 +11,14 @@
 //! experiment, so `[events]` groups its channels.
 
 pub mod header;
+pub mod list;
 mod log;
+mod plan;
 
 use super::sniff::{self, Head, Kind, Recogniser, Strength, Verdict};
 use super::{gain_factor, text, Role, Source};
 use crate::ingest::settings::{FormatChoice, IngestConfig};
-use crate::model::{AeRecord, Item, Note, Reject, Stage};
+use crate::model::{AeRecord, HitRow, Item, Note, Reject, Stage};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
@@ -197,12 +199,23 @@ pub(crate) fn adopt_companions(
 
 /// One waveform file: its channel, hit and time as its name or header say.
 #[derive(Debug, Clone)]
-struct WaveFile {
+pub(super) struct WaveFile {
     channel: u32,
     hit: u64,
     /// Microseconds from the name (a header-less file), for the order and the time.
     name_time_us: Option<u64>,
     path: PathBuf,
+}
+
+impl WaveFile {
+    /// Whether the file has no AEwin header (its rate is not its own).
+    fn header_less(&self) -> bool {
+        Head::read(&self.path)
+            .ok()
+            .and_then(|h| header::parse(&h.text))
+            .filter(header::Header::is_aewin)
+            .is_none()
+    }
 }
 
 /// What a header-less file's name says, or a header's keys where the file has them. A
@@ -234,6 +247,8 @@ fn identify(p: &Path, place: usize) -> WaveFile {
 struct Read {
     samples: Vec<f64>,
     rate: f64,
+    /// The rate is the header's `SAMPLE INTERVAL`.
+    from_header: bool,
     time_s: Option<f64>,
     notes: Vec<String>,
     unknown: Vec<String>,
@@ -248,6 +263,7 @@ fn read_wave(f: &WaveFile, default_rate: f64) -> Result<Read, String> {
         return Ok(Read {
             samples,
             rate: default_rate,
+            from_header: false,
             time_s: f.name_time_us.map(|t| t as f64 * 1e-6),
             notes: vec![],
             unknown: vec![],
@@ -297,6 +313,7 @@ fn read_wave(f: &WaveFile, default_rate: f64) -> Result<Read, String> {
             ));
         }
     }
+    let from_header = hd.sample_interval_s.is_some();
     let rate = match hd.sample_interval_s {
         Some(dt) => 1.0 / dt,
         None => {
@@ -310,6 +327,7 @@ fn read_wave(f: &WaveFile, default_rate: f64) -> Result<Read, String> {
     Ok(Read {
         samples,
         rate,
+        from_header,
         time_s,
         notes,
         unknown: hd.unknown,
@@ -318,15 +336,26 @@ fn read_wave(f: &WaveFile, default_rate: f64) -> Result<Read, String> {
 
 struct Reader {
     experiment: String,
-    files: std::vec::IntoIter<WaveFile>,
+    steps: std::vec::IntoIter<plan::Step>,
+    /// The hit list whose values land (its match holds).
+    list: Option<list::HitList>,
+    /// Whether this reader makes the test's hit rows (a hit list lies beside it).
+    hit_rows: bool,
+    /// Hit rows made from waveforms alone (the list lacks them, or no list matched).
+    added_hits: u64,
+    last_channel: u32,
     rate: f64,
     pretrigger: u32,
     gain: f64,
     log: MachineLog,
+    log_file: String,
     offset_s: f64,
     /// Notes waiting to be handed out, and header keys aepipe does not know, by file count.
     notes: std::collections::VecDeque<Item>,
     unknown: BTreeMap<String, u64>,
+    /// The hits the machine log covers (a log that stopped early covers few).
+    coverage: super::Coverage,
+    done: bool,
 }
 
 impl Reader {
@@ -335,62 +364,165 @@ impl Reader {
             experiment: self.experiment.clone(),
             source_file: String::new(),
             message,
+            said: false,
         })
+    }
+
+    /// The load and extension at a hit's time on the AE clock.
+    fn load_at(&self, time_s: Option<f64>) -> (Option<f64>, Option<f64>) {
+        let tm = time_s.map(|t| t - self.offset_s);
+        (
+            tm.and_then(|t| self.log.load_n.at(t)),
+            tm.and_then(|t| self.log.extension_m.at(t)),
+        )
+    }
+
+    /// The hit row of a list row: its values, its place in the test, its load.
+    fn list_hit(&self, row: usize, order: u64, status: &'static str) -> HitRow {
+        let list = self.list.as_ref().expect("a matched list");
+        let r = &list.rows[row];
+        let mut h = HitRow {
+            experiment: self.experiment.clone(),
+            acquisition: 1,
+            channel: list.channel(r).unwrap_or(self.last_channel),
+            hit: order,
+            source: crate::model::HitSource::AewinList,
+            source_file: list.path.display().to_string(),
+            list_status: Some(status),
+            ..Default::default()
+        };
+        list.fill(r, &mut h);
+        (h.load_n, h.extension_m) = self.load_at(h.time_s);
+        h
+    }
+
+    /// A waveform step: its hit row (when this reader makes them) and its record, or its
+    /// reject.
+    fn wave(&mut self, f: WaveFile, row: Option<usize>, order: u64) -> Vec<Item> {
+        self.last_channel = f.channel;
+        let r = match read_wave(&f, self.rate) {
+            Ok(r) => r,
+            Err(reason) => {
+                let mut out = Vec::new();
+                if let Some(row) = row {
+                    // The list's row stays; its waveform is the reject below.
+                    let mut h = self.list_hit(row, order, "matched");
+                    h.channel = f.channel;
+                    out.push(Item::Hit(Box::new(h)));
+                }
+                out.push(Item::Reject(Reject {
+                    record_type: crate::model::RecordType::Transient,
+                    experiment: self.experiment.clone(),
+                    source_file: f.path.display().to_string(),
+                    record_id: format!("ch{} hit {}", f.channel, f.hit),
+                    stage: Stage::Read,
+                    reason,
+                }));
+                return out;
+            }
+        };
+        for k in r.unknown {
+            *self.unknown.entry(k).or_insert(0) += 1;
+        }
+        for n in r.notes {
+            let note = self.note(n);
+            self.notes.push_back(note);
+        }
+        let (load_n, extension_m) = self.load_at(r.time_s);
+        self.coverage.count(r.time_s);
+        let rec = AeRecord {
+            kind: crate::model::RecordKind::Hit,
+            experiment: self.experiment.clone(),
+            channel: f.channel,
+            hit: f.hit,
+            time_s: r.time_s,
+            sample_rate_hz: r.rate,
+            pretrigger: self.pretrigger,
+            samples: r
+                .samples
+                .into_iter()
+                .map(|v| (v * self.gain) as f32)
+                .collect(),
+            load_n,
+            extension_m,
+            label: None,
+            threshold_v: None,
+            source_file: f.path.display().to_string(),
+        };
+        let mut out = Vec::with_capacity(2);
+        if self.hit_rows {
+            let h = match (row, &self.list) {
+                (Some(row), Some(_)) => {
+                    let mut h = self.list_hit(row, order, "matched");
+                    h.channel = rec.channel;
+                    h.time_s = h.time_s.or(rec.time_s);
+                    (h.load_n, h.extension_m) = self.load_at(h.time_s);
+                    h.transient = Some(rec.hit);
+                    h
+                }
+                _ => {
+                    self.added_hits += 1;
+                    let mut h = HitRow::of_record(&rec);
+                    if self.list.is_some() {
+                        h.hit = order;
+                        h.list_status = Some("no_list_row");
+                    }
+                    h
+                }
+            };
+            out.push(Item::Hit(Box::new(h)));
+        }
+        out.push(Item::Record(rec));
+        out
     }
 }
 
 impl Iterator for Reader {
     type Item = Item;
     fn next(&mut self) -> Option<Item> {
-        if let Some(n) = self.notes.pop_front() {
-            return Some(n);
-        }
-        let Some(f) = self.files.next() else {
-            // After the last file: the header keys no reader knows, once each.
-            let (key, n) = self.unknown.pop_first()?;
-            return Some(self.note(format!(
-                "AEwin header key '{key}' is not one aepipe knows: kept, not used ({n} file(s))"
-            )));
-        };
-        Some(match read_wave(&f, self.rate) {
-            Ok(r) => {
-                for k in r.unknown {
-                    *self.unknown.entry(k).or_insert(0) += 1;
-                }
-                for n in r.notes {
-                    let note = self.note(n);
-                    self.notes.push_back(note);
-                }
-                let tm = r.time_s.map(|t| t - self.offset_s);
-                Item::Record(AeRecord {
-                    kind: crate::model::RecordKind::Hit,
-                    experiment: self.experiment.clone(),
-                    channel: f.channel,
-                    hit: f.hit,
-                    time_s: r.time_s,
-                    sample_rate_hz: r.rate,
-                    pretrigger: self.pretrigger,
-                    samples: r
-                        .samples
-                        .into_iter()
-                        .map(|v| (v * self.gain) as f32)
-                        .collect(),
-                    load_n: tm.and_then(|t| self.log.load_n.at(t)),
-                    extension_m: tm.and_then(|t| self.log.extension_m.at(t)),
-                    label: None,
-                    threshold_v: None,
-                    source_file: f.path.display().to_string(),
-                })
+        loop {
+            if let Some(n) = self.notes.pop_front() {
+                return Some(n);
             }
-            Err(reason) => Item::Reject(Reject {
-                record_type: crate::model::RecordType::Transient,
-                experiment: self.experiment.clone(),
-                source_file: f.path.display().to_string(),
-                record_id: format!("ch{} hit {}", f.channel, f.hit),
-                stage: Stage::Read,
-                reason,
-            }),
-        })
+            let Some(step) = self.steps.next() else {
+                // After the last file: the header keys no reader knows, once each, and the
+                // hit rows the waveforms added to the list's.
+                if let Some((key, n)) = self.unknown.pop_first() {
+                    return Some(self.note(format!(
+                        "AEwin header key '{key}' is not one aepipe knows: kept, not used ({n} file(s))"
+                    )));
+                }
+                if self.done {
+                    return None;
+                }
+                self.done = true;
+                if let Some(m) = self.coverage.note(&self.experiment, "machine log") {
+                    self.notes.push_back(Item::Note(Note {
+                        experiment: self.experiment.clone(),
+                        source_file: self.log_file.clone(),
+                        message: m,
+                        said: true,
+                    }));
+                }
+                if self.hit_rows {
+                    self.notes.push_back(Item::Tally(crate::model::Tally {
+                        experiment: self.experiment.clone(),
+                        added: [(crate::model::RecordType::Hit, self.added_hits)].into(),
+                        ..Default::default()
+                    }));
+                }
+                continue;
+            };
+            let items = match step {
+                plan::Step::Wave { file, row, order } => self.wave(file, row, order),
+                plan::Step::RowOnly { row, order } => {
+                    let h = self.list_hit(row, order, "no_waveform");
+                    self.coverage.count(h.time_s);
+                    vec![Item::Hit(Box::new(h))]
+                }
+            };
+            self.notes.extend(items);
+        }
     }
 }
 
@@ -413,56 +545,68 @@ pub fn open(src: &Source, cfg: &IngestConfig) -> Box<dyn Iterator<Item = Item> +
         .collect();
     files.sort_by_key(|f| (f.channel, f.hit, f.name_time_us));
     let mut log = MachineLog::default();
+    let mut log_file = String::new();
     for c in src.companions_of(Role::MachineLog) {
-        {
-            match MachineLog::read(c) {
-                Ok(mut l) => {
-                    // The log's rows, on the AE clock (AE time = log time + offset).
-                    let off = cfg.aewin.log_time_offset_s;
-                    let n = l.rows.len() as u64;
-                    for (k, (t, load, ext, inputs)) in
-                        std::mem::take(&mut l.rows).into_iter().enumerate()
-                    {
-                        first.push(Item::Parametric(Box::new(crate::model::ParametricRow {
-                            experiment: src.id.clone(),
-                            row: k as u64 + 1,
-                            time_s: Some(t + off),
-                            load_n: load,
-                            extension_m: ext,
-                            inputs: Some(inputs),
-                            extra: None,
-                            source: crate::model::ParametricSource::MachineLog,
-                            source_file: c.display().to_string(),
-                        })));
-                    }
-                    first.push(Item::Tally(crate::model::Tally {
+        match MachineLog::read(c) {
+            Ok(mut l) => {
+                // The log's rows, on the AE clock (AE time = log time + offset).
+                let off = cfg.aewin.log_time_offset_s;
+                let n = l.rows.len() as u64;
+                for (k, (t, load, ext, inputs)) in
+                    std::mem::take(&mut l.rows).into_iter().enumerate()
+                {
+                    first.push(Item::Parametric(Box::new(crate::model::ParametricRow {
                         experiment: src.id.clone(),
-                        read: [(crate::model::RecordType::Parametric, n)].into(),
-                        ..Default::default()
-                    }));
-                    log = l;
+                        row: k as u64 + 1,
+                        time_s: Some(t + off),
+                        load_n: load,
+                        extension_m: ext,
+                        inputs: Some(inputs),
+                        extra: None,
+                        source: crate::model::ParametricSource::MachineLog,
+                        source_file: c.display().to_string(),
+                    })));
                 }
-                Err(e) => first.push(Item::Reject(Reject {
-                    record_type: crate::model::RecordType::File,
+                first.push(Item::Tally(crate::model::Tally {
                     experiment: src.id.clone(),
-                    source_file: c.display().to_string(),
-                    record_id: String::new(),
-                    stage: Stage::Read,
-                    reason: format!("load and extension ignored: {e}"),
-                })),
+                    read: [(crate::model::RecordType::Parametric, n)].into(),
+                    ..Default::default()
+                }));
+                log = l;
+                log_file = c.display().to_string();
             }
+            Err(e) => first.push(Item::Reject(Reject {
+                record_type: crate::model::RecordType::File,
+                experiment: src.id.clone(),
+                source_file: c.display().to_string(),
+                record_id: String::new(),
+                stage: Stage::Read,
+                reason: format!("load and extension ignored: {e}"),
+            })),
         }
     }
+    let gain = gain_factor(cfg.aewin.preamp_gain_db);
+    let hit_list = src.companion(Role::HitList);
+    let p = plan::plan(&src.id, files, hit_list, &cfg.aewin, gain);
+    first.extend(p.first);
+    let coverage = super::Coverage::new(&log.load_n, cfg.aewin.log_time_offset_s);
     Box::new(first.into_iter().chain(Reader {
+        coverage,
+        log_file,
         experiment: src.id.clone(),
-        files: files.into_iter(),
-        rate: cfg.aewin.sample_rate_hz,
+        steps: p.steps.into_iter(),
+        list: p.list,
+        hit_rows: hit_list.is_some(),
+        added_hits: 0,
+        last_channel: 1,
+        rate: p.rate_hz,
         pretrigger: cfg.aewin.pretrigger_samples,
-        gain: gain_factor(cfg.aewin.preamp_gain_db),
+        gain,
         log,
         offset_s: cfg.aewin.log_time_offset_s,
         notes: Default::default(),
         unknown: Default::default(),
+        done: false,
     }))
 }
 

@@ -127,6 +127,7 @@ impl DtaSource {
     fn note_once(&mut self, file: &str, message: String) {
         if self.said.insert(message.clone()) {
             self.out.push_back(Item::Note(Note {
+                said: false,
                 experiment: self.experiment.clone(),
                 source_file: file.to_string(),
                 message,
@@ -635,6 +636,7 @@ impl DtaSource {
         }
         for ((file, text), n) in std::mem::take(&mut self.counted) {
             self.out.push_back(Item::Note(Note {
+                said: false,
                 experiment: self.experiment.clone(),
                 source_file: file,
                 message: format!("{text} {n} message(s)"),

@@ -171,6 +171,7 @@ fn cut_record(r: AeRecord, detect: &ValidDetect) -> Vec<Item> {
     }
     if dropped > 0 {
         out.push(Item::Note(crate::model::Note {
+        said: false,
             experiment: r.experiment.clone(),
             source_file: r.source_file.clone(),
             message: format!(

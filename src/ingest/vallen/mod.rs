@@ -613,6 +613,7 @@ fn open_features(
             Ok(m) => m,
             Err(e) => {
                 first.push(Item::Note(crate::model::Note {
+                    said: false,
                     experiment: experiment.to_string(),
                     source_file: t.display().to_string(),
                     message: format!("features not joined: {e}"),

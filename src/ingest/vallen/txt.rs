@@ -248,6 +248,7 @@ impl Iterator for Reader {
         let Some((trai, chan, p)) = self.files.next() else {
             let (k, n) = self.unknown.pop_first()?;
             return Some(Item::Note(Note {
+        said: false,
                 experiment: self.experiment.clone(),
                 source_file: String::new(),
                 message: format!(

@@ -1,0 +1,345 @@
+//! The order in which an AEwin test is read when a hit list lies beside it: each waveform
+//! with the list row it was matched to ([`super::list::align`]), the rows no waveform has,
+//! and the rate the files are read at ([`super::list::implied_rate`]), with what was decided
+//! said as notes.
+
+use super::list::{align, implied_rate, Alignment, HitList, Peek};
+use super::{read_wave, WaveFile};
+use crate::ingest::settings::AewinConfig;
+use crate::model::{Item, Note, RecordType, Reject, Stage};
+use rayon::prelude::*;
+
+/// One step of the reading: a waveform (with its list row, when the match holds) or a list
+/// row without a waveform. `order` is the hit's 1-based place in the test.
+#[derive(Debug, Clone)]
+pub(super) enum Step {
+    Wave {
+        file: WaveFile,
+        row: Option<usize>,
+        order: u64,
+    },
+    RowOnly {
+        row: usize,
+        order: u64,
+    },
+}
+
+/// How an AEwin test is read.
+pub(super) struct Plan {
+    pub steps: Vec<Step>,
+    /// The list whose values land, when its match holds.
+    pub list: Option<HitList>,
+    pub rate_hz: f64,
+    /// Notes, rejects and the list's count, to hand out before the first record.
+    pub first: Vec<Item>,
+}
+
+fn note(experiment: &str, file: &str, message: String, said: bool) -> Item {
+    Item::Note(Note {
+        experiment: experiment.to_string(),
+        source_file: file.to_string(),
+        message,
+        said,
+    })
+}
+
+fn mhz(hz: f64) -> String {
+    format!("{} MHz", hz / 1e6)
+}
+
+/// The plan of a test: without a hit list, its files in their order at the configured rate
+/// (with the doubt said for header-less files); with one, the checked match and the rate.
+pub(super) fn plan(
+    experiment: &str,
+    files: Vec<WaveFile>,
+    hit_list: Option<&std::path::Path>,
+    cfg: &AewinConfig,
+    gain: f64,
+) -> Plan {
+    let configured = cfg.configured_rate_hz();
+    let mut first = Vec::new();
+    let Some(path) = hit_list else {
+        if files.iter().any(|f| f.header_less()) {
+            first.push(note(
+                experiment,
+                "",
+                format!(
+                    "{experiment}: header-less waveform files and no hit list: read at {} ({}), which nothing in the files confirms",
+                    mhz(configured),
+                    if cfg.sample_rate_hz.is_some() {
+                        "[ingest.aewin] sample_rate_hz"
+                    } else {
+                        "aepipe's default; set [ingest.aewin] sample_rate_hz"
+                    }
+                ),
+                true,
+            ));
+        }
+        return Plan {
+            steps: in_order(files),
+            list: None,
+            rate_hz: configured,
+            first,
+        };
+    };
+    let file = path.display().to_string();
+    let list = match HitList::read(path) {
+        Ok(l) => l,
+        Err(e) => {
+            first.push(Item::Reject(Reject {
+                record_type: RecordType::File,
+                experiment: experiment.to_string(),
+                source_file: file,
+                record_id: String::new(),
+                stage: Stage::Read,
+                reason: format!("hit list not read: {e}"),
+            }));
+            return Plan {
+                steps: in_order(files),
+                list: None,
+                rate_hz: configured,
+                first,
+            };
+        }
+    };
+    for (line, why) in &list.bad {
+        first.push(hit_reject(experiment, &file, *line, why.clone()));
+    }
+    for (col, n) in &list.unreadable {
+        first.push(note(
+            experiment,
+            &file,
+            format!("hit list column {col}: {n} cell(s) are not numbers: null"),
+            false,
+        ));
+    }
+    first.push(Item::Tally(crate::model::Tally {
+        experiment: experiment.to_string(),
+        read: [(RecordType::Hit, (list.rows.len() + list.bad.len()) as u64)].into(),
+        ..Default::default()
+    }));
+    let mut files = files;
+    // The list is in the order the system stored the hits: by time where the names say it.
+    if files.iter().all(|f| f.name_time_us.is_some()) {
+        files.sort_by_key(|f| (f.name_time_us, f.hit, f.channel));
+    } else {
+        files.sort_by_key(|f| (f.hit, f.channel));
+    }
+    let peeks: Vec<(Peek, bool)> = files
+        .par_iter()
+        .map(|f| match read_wave(f, configured) {
+            Ok(r) => {
+                let v: Vec<f32> = r.samples.iter().map(|v| (v * gain) as f32).collect();
+                (Peek::of(&v, f.channel, r.time_s), r.from_header)
+            }
+            Err(_) => (Peek::unread(f.channel), false),
+        })
+        .collect();
+    let header_less = peeks.iter().all(|(p, h)| !h || p.amp_db.is_none());
+    let peeks: Vec<Peek> = peeks.into_iter().map(|p| p.0).collect();
+    let al = align(&list, &peeks);
+    let name = path
+        .file_name()
+        .map_or(file.clone(), |n| n.to_string_lossy().to_string());
+    let holds = al.holds() || (al.checked == 0 && list.has_time());
+    first.push(match_note(experiment, &file, &name, &list, &al, holds));
+    let rate_hz = if header_less && holds {
+        let (rate, message, said) = rate_decision(experiment, &list, &peeks, &al, cfg);
+        first.push(note(experiment, &file, message, said));
+        rate
+    } else {
+        configured
+    };
+    if !holds {
+        for r in &list.rows {
+            first.push(hit_reject(
+                experiment,
+                &file,
+                r.line,
+                format!(
+                    "the hit list {name} does not match the waveforms: its values are not used"
+                ),
+            ));
+        }
+        return Plan {
+            steps: in_order(files),
+            list: None,
+            rate_hz,
+            first,
+        };
+    }
+    let mut files: Vec<Option<WaveFile>> = files.into_iter().map(Some).collect();
+    let steps = al
+        .pairs
+        .iter()
+        .enumerate()
+        .map(|(k, (w, r))| {
+            let order = k as u64 + 1;
+            match w {
+                Some(w) => Step::Wave {
+                    file: files[*w].take().expect("each waveform once"),
+                    row: *r,
+                    order,
+                },
+                None => Step::RowOnly {
+                    row: r.expect("a place holds a waveform or a row"),
+                    order,
+                },
+            }
+        })
+        .collect();
+    Plan {
+        steps,
+        list: Some(list),
+        rate_hz,
+        first,
+    }
+}
+
+fn in_order(files: Vec<WaveFile>) -> Vec<Step> {
+    files
+        .into_iter()
+        .map(|file| Step::Wave {
+            order: file.hit,
+            file,
+            row: None,
+        })
+        .collect()
+}
+
+fn hit_reject(experiment: &str, file: &str, line: usize, reason: String) -> Item {
+    Item::Reject(Reject {
+        record_type: RecordType::Hit,
+        experiment: experiment.to_string(),
+        source_file: file.to_string(),
+        record_id: format!("line {line}"),
+        stage: Stage::Read,
+        reason,
+    })
+}
+
+/// What the match found: how many pairs, how many agree on AMP, and each row or waveform
+/// left alone (the first few by name).
+fn match_note(
+    experiment: &str,
+    file: &str,
+    name: &str,
+    list: &HitList,
+    al: &Alignment,
+    holds: bool,
+) -> Item {
+    let alone_waves = al.pairs.iter().filter(|p| p.1.is_none()).count();
+    let alone_rows = al.pairs.iter().filter(|p| p.0.is_none()).count();
+    let how = if list.has_time() {
+        "by time"
+    } else {
+        "in hit order"
+    };
+    let check = if al.checked > 0 {
+        format!(
+            "AMP within {} dB of the waveform's peak (less the preamplifier gain) for {} of {}",
+            super::list::AMP_TOLERANCE_DB,
+            al.agree,
+            al.checked
+        )
+    } else {
+        "not checked by AMP (the list has no AMP column, or no waveform could be read)".into()
+    };
+    let mut m = if holds {
+        format!(
+            "{experiment}: hit list {name} matched {how}: {} of {} row(s) paired with waveforms, {check}",
+            al.paired(),
+            list.rows.len()
+        )
+    } else {
+        format!(
+            "{experiment}: hit list {name} does not match the waveforms in any order: at best {check}; its values are not used"
+        )
+    };
+    if holds && alone_waves + alone_rows > 0 {
+        let places: Vec<String> = al
+            .pairs
+            .iter()
+            .enumerate()
+            .filter(|(_, p)| p.0.is_none() || p.1.is_none())
+            .take(5)
+            .map(|(k, p)| match p {
+                (None, Some(r)) => format!(
+                    "hit {} (line {}) has no waveform",
+                    k + 1,
+                    list.rows[*r].line
+                ),
+                _ => format!("hit {} has no list row", k + 1),
+            })
+            .collect();
+        m += &format!(
+            "; {alone_waves} waveform(s) without a row, {alone_rows} row(s) without a waveform: {}{}",
+            places.join(", "),
+            if alone_waves + alone_rows > 5 { ", …" } else { "" }
+        );
+    }
+    let said = !holds || alone_waves + alone_rows > 0;
+    note(experiment, file, m, said)
+}
+
+/// The rate to read a header-less test at, the note saying why, and whether the terminal
+/// says it too (whenever the rate is not the one the list confirms).
+fn rate_decision(
+    experiment: &str,
+    list: &HitList,
+    peeks: &[Peek],
+    al: &Alignment,
+    cfg: &AewinConfig,
+) -> (f64, String, bool) {
+    let configured = cfg.configured_rate_hz();
+    let Some(imp) = implied_rate(list, peeks, al, configured) else {
+        return (
+            configured,
+            format!(
+                "{experiment}: {} as configured; the hit list holds too few rise times (≥ 3 µs) to check it",
+                mhz(configured)
+            ),
+            true,
+        );
+    };
+    let by = format!(
+        "{:.1} samples per list-µs over {} hits",
+        imp.samples_per_us, imp.used
+    );
+    match (imp.rate_hz, cfg.sample_rate_hz) {
+        (None, _) => (
+            configured,
+            format!(
+                "{experiment}: {} as configured; the hit list's rise times imply no usual rate clearly ({by})",
+                mhz(configured)
+            ),
+            true,
+        ),
+        (Some(r), _) if r == configured => (
+            r,
+            format!(
+                "{experiment}: {}, as the hit list's rise times imply ({by})",
+                mhz(r)
+            ),
+            false,
+        ),
+        (Some(r), Some(set)) => (
+            set,
+            format!(
+                "{experiment}: {} as set in the pipeline file, though the hit list's rise times imply {} ({by})",
+                mhz(set),
+                mhz(r)
+            ),
+            true,
+        ),
+        (Some(r), None) => (
+            r,
+            format!(
+                "{experiment}: {}, implied by the hit list's rise times (configured {}; {by})",
+                mhz(r),
+                mhz(configured)
+            ),
+            true,
+        ),
+    }
+}
