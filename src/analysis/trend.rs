@@ -914,7 +914,7 @@ mod tests {
     fn too_few_hits_is_a_null_with_a_reason() {
         let s = series(&[Some(1.0), Some(3.0), Some(5.0), Some(4.0)]);
         let sel = select(&s, Cutoff::Hits(2), 1.0);
-        let t = &trends(&s, &["pr_x".into()], &sel, 0.01, 3)[0];
+        let t = &trends(&s, &["pr_x".into()], &sel, 0.01, 0)[0];
         assert!(t.fit.is_none() && !t.significant);
         assert!(t.note.as_ref().unwrap().contains("n = 2 < 3"));
         // Below trend.min_hits: computable, but not stated.

@@ -20,6 +20,7 @@ mod explore;
 mod exports;
 mod fidelity;
 mod formats;
+mod hitlist;
 mod hits;
 mod live;
 mod pipeline;

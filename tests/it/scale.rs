@@ -112,7 +112,7 @@ fn a_300k_row_study_runs_in_bounded_memory_and_equals_the_small_computations() {
     let mut compared = 0;
     for s in &series {
         let sel = select(s, cfg.trend.cutoff, cfg.trend.min_load_span_n);
-        for want in trends(s, &columns, &sel, cfg.trend.alpha) {
+        for want in trends(s, &columns, &sel, cfg.trend.alpha, cfg.trend.min_hits) {
             let got = rows
                 .iter()
                 .find(|r| {

@@ -37,15 +37,22 @@ pub fn parse_wave_name(p: &Path) -> Option<(String, u32, u64, u64)> {
     Some((parts[3].to_string(), ch, hit, time_us))
 }
 
-/// An AEwin hit list starts with a header row like ` ID  PARA1  RISE  COUN  DURATION AMP …`.
+/// An AEwin hit list starts with a header row like ` ID  PARA1  RISE  COUN  DURATION AMP …`,
+/// its columns in any order: names only (no number), among them AMP, RISE or DURATION and
+/// at least one more of AEwin's hit-feature names.
 pub fn looks_like_hit_list(head: &str) -> bool {
+    const NAMES: [&str; 13] = [
+        "ID", "CH", "TIME", "PARA1", "RISE", "COUN", "DURATION", "AMP", "PCNTS", "ABS-ENERGY",
+        "ENER", "THR", "A-FRQ",
+    ];
     head.lines()
         .find(|l| !l.trim().is_empty())
         .is_some_and(|l| {
             let w: Vec<&str> = l.split_whitespace().collect();
-            w.first() == Some(&"ID")
+            w.iter().all(|x| sniff::parse_number(x).is_none())
                 && w.iter()
                     .any(|x| *x == "AMP" || *x == "RISE" || *x == "DURATION")
+                && w.iter().filter(|x| NAMES.contains(x)).count() >= 2
         })
 }
 
