@@ -24,8 +24,8 @@ pub struct DemoResult {
 /// (`pipelines/reference-library-3d.toml`), at one material draw per grid point to keep the
 /// demo short (docs/fidelity.md's cross table uses the full library).
 pub struct CrossModel {
-    /// The 3-D library: runs, signals, seconds.
-    pub library: (usize, u64, f64),
+    /// The 3-D library: how it was simulated, and whether it came from the cache.
+    pub library: crate::workflow::mapcache::Library,
     /// The demo's map (plane references) on a test made from the 3-D library.
     pub plane_map_on_3d: TruthScore,
     /// A map trained on the 3-D library on the demo's own (plane) test.
@@ -108,7 +108,7 @@ fn cross_model_check(
     let mut lib = crate::sim::reference::ReferenceFile::library_3d().reference;
     lib.variants = CROSS_MODEL_VARIANTS;
     let lib_dir = crate::sim::reference::LibraryDir::new(dir.join("library-3d"));
-    let library = crate::sim::reference::build_library(&lib, lib_dir.path(), true)?;
+    let library = crate::workflow::mapcache::library(job.cache.as_deref(), &lib, &lib_dir, true)?;
     let test = dir.join("test-3d");
     crate::synth::synth_test(
         &test,
@@ -147,7 +147,7 @@ fn cross_model_check(
     if !plane_library.is_file() {
         let f = crate::sim::reference::ReferenceFile::default_library();
         let d = crate::sim::reference::LibraryDir::new(dir.join("library-plane"));
-        crate::sim::reference::build_library(&f.reference, d.path(), true)?;
+        crate::workflow::mapcache::library(job.cache.as_deref(), &f.reference, &d, true)?;
         plane_library = d.waveforms();
     }
     let plane_map_on_3d = score(

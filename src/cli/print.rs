@@ -133,10 +133,18 @@ fn cross_model(c: &crate::demo::CrossModel, run: &crate::workflow::RunSummary, o
                 format!("{:.1} %", 100.0 * b)
             })
     };
-    let (runs, signals, secs) = c.library;
+    let l = &c.library;
     println!(
-        "\nanother model: a 3-D layered-network library ({runs} simulations, {signals} signals, \
-         {secs:.1} s, one material draw; {})",
+        "\nanother model: a 3-D layered-network library ({} simulations, {} signals, \
+         {:.1} s{}, one material draw; {})",
+        l.runs,
+        l.signals,
+        l.seconds,
+        if l.reused {
+            " when simulated, reused from the cache"
+        } else {
+            ""
+        },
         out.join("cross").display()
     );
     println!(

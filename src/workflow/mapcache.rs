@@ -1,7 +1,9 @@
-//! The trained reference map, made once (issue 52): `[som] train_on = "reference"` simulates
-//! a library and trains a map on it, ~25 s that are the same for every test of a series. The
-//! map is kept in the user's cache ([`crate::store::cache`]) under a key of everything that
-//! decides it; a run with the same key copies it into its own `som/model/` instead.
+//! The trained reference map and the simulated library, made once (issue 52): `[som]
+//! train_on = "reference"` simulates a library and trains a map on it, ~25 s that are the
+//! same for every test of a series. Both are kept in the user's cache
+//! ([`crate::store::cache`]) under a key of everything that decides them; a run with the
+//! same key copies them into its own folder instead. The library has its own entry, so a
+//! change of `[som]` trains a new map on the library already simulated.
 
 use super::{RunJob, WorkflowError};
 pub use crate::som::layout::MapCache;
@@ -9,6 +11,110 @@ use crate::store::cache::{key, Cache, Lookup};
 use std::path::{Path, PathBuf};
 
 const KIND: &str = "som-map";
+const LIBRARY: &str = "reference-library";
+/// What a simulated library's entry says of its making: runs, signals, seconds.
+const LIBRARY_SUMMARY: &str = "library.json";
+
+/// A reference library in a folder: how it was simulated (runs, signals, seconds), and
+/// whether this call copied it from the cache instead.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Library {
+    pub runs: usize,
+    pub signals: u64,
+    pub seconds: f64,
+    pub reused: bool,
+}
+
+/// The library `def` in `dir` (`waveforms.parquet`): copied from `cache` when it holds the
+/// same definition made by the same build, else simulated (and kept there when `cache` is
+/// given).
+pub fn library(
+    cache: Option<&Path>,
+    def: &crate::sim::reference::ReferenceConfig,
+    dir: &crate::sim::reference::LibraryDir,
+    progress: bool,
+) -> Result<Library, WorkflowError> {
+    let text = serde_json::to_string(def).expect("a library definition is JSON");
+    let k = key(&[b"aepipe reference library v1", text.as_bytes()]);
+    if let Some(root) = cache {
+        if let Some(mut lib) = copy_entry(
+            root,
+            LIBRARY,
+            &k,
+            dir.path(),
+            "the library is simulated again",
+        )? {
+            lib.reused = true;
+            return Ok(lib);
+        }
+    }
+    let (runs, signals, seconds) = crate::sim::reference::build_library(def, dir.path(), progress)?;
+    let lib = Library {
+        runs,
+        signals,
+        seconds,
+        reused: false,
+    };
+    if let Some(root) = cache {
+        let summary = dir.path().join(LIBRARY_SUMMARY);
+        let json = serde_json::json!({"runs": runs, "signals": signals, "seconds": seconds});
+        crate::util::write_atomic(&summary, json.to_string().as_bytes())?;
+        let files = [dir.waveforms(), summary];
+        let refs: Vec<&Path> = files.iter().map(PathBuf::as_path).collect();
+        if let Err(e) = Cache::at(root).put(LIBRARY, &k, &refs) {
+            eprintln!(
+                "aepipe: cache: {}: {e}; the library is not kept",
+                root.display()
+            );
+        }
+    }
+    Ok(lib)
+}
+
+/// Copy entry `kind`/`key`'s files into `to`; the library summary it holds, if any
+/// (`Some(default)` without one). `None`: no entry, or a broken one (removed, said on
+/// stderr with `then`).
+fn copy_entry(
+    root: &Path,
+    kind: &str,
+    key: &str,
+    to: &Path,
+    then: &str,
+) -> Result<Option<Library>, WorkflowError> {
+    let dir = match Cache::at(root).get(kind, key) {
+        Lookup::Hit(d) => d,
+        Lookup::Miss => return Ok(None),
+        Lookup::Broken(why) => {
+            eprintln!("aepipe: cache: {why}; {then}");
+            return Ok(None);
+        }
+    };
+    std::fs::create_dir_all(to).map_err(|e| crate::util::IoAt::new(to, e))?;
+    let mut lib = Library {
+        runs: 0,
+        signals: 0,
+        seconds: 0.0,
+        reused: true,
+    };
+    for f in files(&dir)? {
+        let name = f.file_name().expect("a file");
+        if name == "entry.json" {
+            continue;
+        }
+        if name == LIBRARY_SUMMARY {
+            let v: serde_json::Value = std::fs::read_to_string(&f)
+                .ok()
+                .and_then(|t| serde_json::from_str(&t).ok())
+                .unwrap_or_default();
+            lib.runs = v["runs"].as_u64().unwrap_or(0) as usize;
+            lib.signals = v["signals"].as_u64().unwrap_or(0);
+            lib.seconds = v["seconds"].as_f64().unwrap_or(0.0);
+        }
+        let to = to.join(name);
+        std::fs::copy(&f, &to).map_err(|e| crate::util::IoAt::new(&to, e))?;
+    }
+    Ok(Some(lib))
+}
 
 /// The key of the map a reference-trained run would make: aepipe's build, the `[som]`
 /// settings, every setting that shapes the library's features (the pipeline definition less
@@ -48,23 +154,7 @@ pub fn map_key(job: &RunJob) -> Result<String, WorkflowError> {
 /// The cached map for this run, copied into `model_dir` (`None`: no entry; a broken entry is
 /// removed, said on stderr, and not used).
 pub fn reuse(cache: &Path, key: &str, model_dir: &Path) -> Result<bool, WorkflowError> {
-    let dir = match Cache::at(cache).get(KIND, key) {
-        Lookup::Hit(d) => d,
-        Lookup::Miss => return Ok(false),
-        Lookup::Broken(why) => {
-            eprintln!("aepipe: cache: {why}; the map is made again");
-            return Ok(false);
-        }
-    };
-    std::fs::create_dir_all(model_dir).map_err(|e| crate::util::IoAt::new(model_dir, e))?;
-    for f in files(&dir)? {
-        if f.file_name().is_some_and(|n| n == "entry.json") {
-            continue;
-        }
-        let to = model_dir.join(f.file_name().expect("a file"));
-        std::fs::copy(&f, &to).map_err(|e| crate::util::IoAt::new(&to, e))?;
-    }
-    Ok(true)
+    Ok(copy_entry(cache, KIND, key, model_dir, "the map is made again")?.is_some())
 }
 
 /// Keep the map in `model_dir` under `key`. A cache that cannot be written costs the next

@@ -160,14 +160,24 @@ pub(super) fn series_stage(s: &RunSummary, path: &Path) -> Result<Series, Workfl
         None => Vec::new(),
     };
     // Distinct clusters per experiment.
-    let mut clusters: BTreeMap<String, std::collections::BTreeSet<String>> = BTreeMap::new();
+    let mut clusters: BTreeMap<String, std::collections::BTreeSet<i64>> = BTreeMap::new();
     if let Some(c) = &s.cluster {
-        TableScan::open(&c.report.clusters)
-            .map_err(scan_err)?
-            .for_each_keyed_string("cluster", |k, l| {
-                clusters.entry(k.0).or_default().insert(l);
-                Ok::<(), WorkflowError>(())
-            })?;
+        let scan = TableScan::open(&c.report.clusters).map_err(scan_err)?;
+        let sel = [cols::EXPERIMENT.name, "cluster"];
+        scan.require(&sel, "").map_err(scan_err)?;
+        for b in scan.batches(&sel) {
+            let (_, df) = b.map_err(scan_err)?;
+            let e = scan.strings(&df, cols::EXPERIMENT.name).map_err(scan_err)?;
+            let k = scan.f64s(&df, "cluster").map_err(scan_err)?;
+            for (e, k) in e.into_iter().zip(k) {
+                if let Some(k) = k {
+                    clusters
+                        .entry(e.unwrap_or_default())
+                        .or_default()
+                        .insert(k as i64);
+                }
+            }
+        }
     }
     let mut rows = Vec::new();
     // Rejects of files no experiment could be told for have an empty id: not a test.

@@ -155,7 +155,7 @@ fn train_new(
             None => {
                 let f = crate::sim::reference::ReferenceFile::default_library();
                 let dir = run.reference();
-                crate::sim::reference::build_library(&f.reference, dir.path(), job.progress)?;
+                super::mapcache::library(job.cache.as_deref(), &f.reference, &dir, job.progress)?;
                 dir.waveforms()
             }
         };

@@ -42,8 +42,19 @@ pub fn parse_wave_name(p: &Path) -> Option<(String, u32, u64, u64)> {
 /// at least one more of AEwin's hit-feature names.
 pub fn looks_like_hit_list(head: &str) -> bool {
     const NAMES: [&str; 13] = [
-        "ID", "CH", "TIME", "PARA1", "RISE", "COUN", "DURATION", "AMP", "PCNTS", "ABS-ENERGY",
-        "ENER", "THR", "A-FRQ",
+        "ID",
+        "CH",
+        "TIME",
+        "PARA1",
+        "RISE",
+        "COUN",
+        "DURATION",
+        "AMP",
+        "PCNTS",
+        "ABS-ENERGY",
+        "ENER",
+        "THR",
+        "A-FRQ",
     ];
     head.lines()
         .find(|l| !l.trim().is_empty())
