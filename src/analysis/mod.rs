@@ -9,6 +9,7 @@ pub mod cycles;
 pub mod evolution;
 pub mod load;
 pub mod powerlaw;
+pub mod series;
 pub mod settings;
 pub mod stats;
 pub mod trend;

@@ -12,6 +12,7 @@ mod discover;
 pub mod dta;
 pub mod loadfile;
 mod parquetfmt;
+pub mod salvage;
 pub mod settings;
 pub(crate) mod sniff;
 pub mod stream;

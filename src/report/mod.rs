@@ -63,7 +63,7 @@ pub struct RunSummary {
     /// Each stage's peak resident memory, bytes (see `workflow::StageLog`).
     pub peak_rss: Vec<(String, u64)>,
     /// The tests side by side (`series.parquet`).
-    pub series: Option<crate::workflow::series::Series>,
+    pub series: Option<crate::analysis::series::Series>,
 }
 
 impl RunSummary {

@@ -82,16 +82,10 @@ fn indices_lines(s: &RunSummary) -> Vec<String> {
 }
 
 /// Terminal lines: the headline numbers.
-/// The terminal prints the series table for up to this many tests.
-const SERIES_TABLE_TESTS: usize = 20;
-
-pub fn headline(s: &RunSummary) -> Vec<String> {
-    let mut l = Vec::new();
+/// What the tests' numbers rest on (one line each), and the tests side by side.
+fn series_part(s: &RunSummary) -> Vec<String> {
     let st = &s.features.stats;
-    l.push(format!(
-        "hits: {} read, {} feature rows, {} rejects",
-        st.records_read, st.rows, st.rejects
-    ));
+    let mut l = Vec::new();
     // What a test's numbers rest on (a rate implied, hits outside the machine log).
     let said: Vec<&str> = st
         .notes
@@ -112,8 +106,25 @@ pub fn headline(s: &RunSummary) -> Vec<String> {
     }
     // A series of tests side by side (one test is the rest of this summary).
     if let Some(se) = s.series.as_ref().filter(|se| se.rows.len() > 1) {
-        l.extend(super::series::series_lines(se, SERIES_TABLE_TESTS));
+        l.extend(crate::analysis::series::series_lines(
+            se,
+            SERIES_TABLE_TESTS,
+        ));
     }
+    l
+}
+
+/// The terminal prints the series table for up to this many tests.
+const SERIES_TABLE_TESTS: usize = 20;
+
+pub fn headline(s: &RunSummary) -> Vec<String> {
+    let mut l = Vec::new();
+    let st = &s.features.stats;
+    l.push(format!(
+        "hits: {} read, {} feature rows, {} rejects",
+        st.records_read, st.rows, st.rejects
+    ));
+    l.extend(series_part(s));
     if let Some(t) = &s.trend {
         for sel in t.selections.iter().take(SERIES_LINES) {
             l.push(format!(

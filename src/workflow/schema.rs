@@ -60,7 +60,10 @@ pub fn table_schema(name: &str, cfg: &PipelineConfig) -> Option<crate::store::Ta
         "validity" => crate::cluster::stage::validity_table().schema(),
         "statistics" => crate::analysis::powerlaw::statistics_table().schema(),
         // The classes of the default reference map; a run has one column per class of its map.
-        "series" => super::series::series_table(&super::series::default_classes(), true).schema(),
+        "series" => {
+            crate::analysis::series::series_table(&crate::analysis::series::default_classes(), true)
+                .schema()
+        }
         _ => return None,
     })
 }

@@ -112,12 +112,7 @@ pub(super) fn train_stage(
     if let Some((root, key)) = &cache {
         if mapcache::reuse(root, key, model_dir.path())? {
             let m = crate::som::tables::load_model(model_dir.path())?;
-            let on = match &job.config.som.reference_library {
-                Some(l) => format!("reference library {} (simulated labels)", l.display()),
-                None => "the embedded reference library (pipelines/reference-library.toml, \
-                         simulated labels)"
-                    .to_string(),
-            };
+            let on = library_name(job.config.som.reference_library.as_deref());
             let c = super::MapCache {
                 key: key.clone(),
                 reused: true,
@@ -133,6 +128,17 @@ pub(super) fn train_stage(
             Ok((m, format!("{on}; {c}"), Some(c)))
         }
         None => Ok((m, on, None)),
+    }
+}
+
+/// What a reference map was trained on, the same whether it was trained now or reused.
+fn library_name(named: Option<&Path>) -> String {
+    match named {
+        Some(l) => format!("reference library {} (simulated labels)", l.display()),
+        None => {
+            "the embedded reference library (pipelines/reference-library.toml, simulated labels)"
+                .to_string()
+        }
     }
 }
 
@@ -180,7 +186,7 @@ fn train_new(
             vec![rep.table_path],
             cols::LABEL.name.to_string(),
             1.0,
-            format!("reference library {} (simulated labels)", lib.display()),
+            library_name(named),
         )
     } else {
         (

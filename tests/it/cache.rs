@@ -8,14 +8,13 @@ use crate::{aepipe_with_cache, real_data, TempDir};
 /// The map's cache key the run's `stages:` line names, and whether it was reused.
 fn stage_cache(so: &str) -> Option<(String, bool)> {
     let l = so.lines().find(|l| l.starts_with("stages: "))?;
-    if let Some(r) = l.split("cached map ").nth(1) {
+    if let Some((_, r)) = l.split_once("cached map ") {
         return Some((r.split([',', ' ']).next()?.to_string(), true));
     }
-    let r = l.split(", map ").nth(1)?;
-    r.ends_with("made and cached")
-        .then_some(())
-        .or(r.contains(" made and cached,").then_some(()))?;
-    Some((r.split(' ').next()?.to_string(), false))
+    let (_, r) = l.split_once(", map ")?;
+    let (key, rest) = r.split_once(' ')?;
+    rest.starts_with("made and cached")
+        .then(|| (key.to_string(), false))
 }
 
 #[test]

@@ -521,3 +521,97 @@ fn a_log_that_ends_early_is_said_and_three_hits_state_no_trend() {
     let r = names.iter().position(|x| x == "r").unwrap();
     assert!(rows.iter().any(|row| !row[r].is_empty()));
 }
+
+/// `series.parquet` on the real sets: one row per experiment of the manifest, each count
+/// equal to an independent count over the run's own tables (hits with load over
+/// hits.parquet, the peak over parametric.parquet, classes over classification.parquet, α
+/// from statistics.parquet), and the terminal's table for these 2–20 tests.
+#[test]
+fn the_series_table_of_the_real_sets_agrees_with_the_runs_tables() {
+    let Some(real) = real_data("the_series_table_of_the_real_sets_agrees_with_the_runs_tables")
+    else {
+        return;
+    };
+    let t = TempDir::new("series-real");
+    let out = t.path().join("run");
+    let cfg = Path::new(env!("CARGO_MANIFEST_DIR")).join("pipelines/aewin-cfrp.toml");
+    let sets = ["aewin_cfrp_tensile", "plb_cfrp_vallen", "mistras_dta"].map(|s| real.join(s));
+    let mut args = vec![
+        "run",
+        "--config",
+        cfg.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ];
+    args.extend(sets.iter().map(|p| p.to_str().unwrap()));
+    let (c, so, se) = aepipe(&args);
+    assert_eq!(c, 0, "{so}\n{se}");
+    let table = |p: &str| -> Vec<BTreeMap<String, String>> {
+        let (names, rows) = table_rows(&out.join(p));
+        rows.into_iter()
+            .map(|r| names.iter().cloned().zip(r).collect())
+            .collect()
+    };
+    let series = table("series.parquet");
+    let hits = table("features/hits.parquet");
+    let params = table("features/parametric.parquet");
+    let classes = table("som/classification.parquet");
+    let stats = table("statistics.parquet");
+    let m: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("features/manifest.json")).unwrap())
+            .unwrap();
+    let by = m["counts"]["by_experiment"].as_object().unwrap();
+    let experiments: Vec<&String> = by.keys().filter(|e| !e.is_empty()).collect();
+    assert_eq!(series.len(), experiments.len());
+    assert!(series.len() >= 4, "{series:?}");
+    // The terminal's table: a header and one line per test.
+    assert!(
+        so.lines()
+            .any(|l| l.starts_with("series ") && l.contains("alpha")),
+        "{so}"
+    );
+    for r in &series {
+        let e = &r["experiment"];
+        assert_eq!(r["hits"], by[e]["hits"].to_string());
+        let mine = |t: &[BTreeMap<String, String>]| -> Vec<BTreeMap<String, String>> {
+            t.iter()
+                .filter(|x| &x["experiment"] == e)
+                .cloned()
+                .collect()
+        };
+        let with_load = mine(&hits)
+            .iter()
+            .filter(|h| !h["load_n"].is_empty())
+            .count();
+        assert_eq!(r["hits_with_load"], with_load.to_string(), "{e}");
+        let peak = mine(&params)
+            .iter()
+            .filter_map(|p| p["load_n"].parse::<f64>().ok())
+            .fold(f64::NEG_INFINITY, f64::max);
+        match peak.is_finite() {
+            true => assert_eq!(r["peak_load_n"].parse::<f64>().unwrap(), peak, "{e}"),
+            false => assert_eq!(r["peak_load_n"], "", "{e}"),
+        }
+        let mut by_class: BTreeMap<String, usize> = BTreeMap::new();
+        for c in mine(&classes) {
+            *by_class.entry(c["som_label"].clone()).or_default() += 1;
+        }
+        let classified: usize = by_class.values().sum();
+        assert_eq!(r["classified"], classified.to_string(), "{e}");
+        for (class, n) in &by_class {
+            if class == "unlike_references" {
+                let share: f64 = r["unlike_references_share"].parse().unwrap();
+                assert!((share - *n as f64 / classified as f64).abs() < 1e-12, "{e}");
+            } else {
+                assert_eq!(r[&format!("{class}_hits")], n.to_string(), "{e} {class}");
+            }
+        }
+        let alpha = mine(&stats)[0]["energy_alpha"].clone();
+        assert_eq!(r["alpha"], alpha, "{e}");
+    }
+    let exp = series
+        .iter()
+        .find(|r| r["experiment"] == "EXP2009")
+        .unwrap();
+    assert_eq!(exp["hits_with_load"], "6");
+}

@@ -26,6 +26,7 @@ mod live;
 mod pipeline;
 mod real_data;
 mod resume;
+mod salvage;
 mod scale;
 mod shard;
 mod sim;

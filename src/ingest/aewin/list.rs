@@ -118,8 +118,8 @@ fn cell(s: &str) -> Option<f64> {
 }
 
 impl HitList {
-    pub fn read(path: &Path) -> Result<HitList, String> {
-        let bytes = std::fs::read(path).map_err(|e| format!("cannot read: {e}"))?;
+    pub fn read(path: &Path) -> std::io::Result<HitList> {
+        let bytes = std::fs::read(path)?;
         Ok(Self::parse(path, &String::from_utf8_lossy(&bytes)))
     }
 

@@ -57,32 +57,11 @@ pub(super) fn plan(
     gain: f64,
 ) -> Plan {
     let configured = cfg.configured_rate_hz();
-    let mut first = Vec::new();
     let Some(path) = hit_list else {
-        if files.iter().any(|f| f.header_less()) {
-            first.push(note(
-                experiment,
-                "",
-                format!(
-                    "{experiment}: header-less waveform files and no hit list: read at {} ({}), which nothing in the files confirms",
-                    mhz(configured),
-                    if cfg.sample_rate_hz.is_some() {
-                        "[ingest.aewin] sample_rate_hz"
-                    } else {
-                        "aepipe's default; set [ingest.aewin] sample_rate_hz"
-                    }
-                ),
-                true,
-            ));
-        }
-        return Plan {
-            steps: in_order(files),
-            list: None,
-            rate_hz: configured,
-            first,
-        };
+        return without_list(experiment, files, cfg);
     };
     let file = path.display().to_string();
+    let mut first = Vec::new();
     let list = match HitList::read(path) {
         Ok(l) => l,
         Err(e) => {
@@ -102,22 +81,7 @@ pub(super) fn plan(
             };
         }
     };
-    for (line, why) in &list.bad {
-        first.push(hit_reject(experiment, &file, *line, why.clone()));
-    }
-    for (col, n) in &list.unreadable {
-        first.push(note(
-            experiment,
-            &file,
-            format!("hit list column {col}: {n} cell(s) are not numbers: null"),
-            false,
-        ));
-    }
-    first.push(Item::Tally(crate::model::Tally {
-        experiment: experiment.to_string(),
-        read: [(RecordType::Hit, (list.rows.len() + list.bad.len()) as u64)].into(),
-        ..Default::default()
-    }));
+    first.extend(list_items(experiment, &file, &list));
     let mut files = files;
     // The list is in the order the system stored the hits: by time where the names say it.
     if files.iter().all(|f| f.name_time_us.is_some()) {
@@ -125,18 +89,7 @@ pub(super) fn plan(
     } else {
         files.sort_by_key(|f| (f.hit, f.channel));
     }
-    let peeks: Vec<(Peek, bool)> = files
-        .par_iter()
-        .map(|f| match read_wave(f, configured) {
-            Ok(r) => {
-                let v: Vec<f32> = r.samples.iter().map(|v| (v * gain) as f32).collect();
-                (Peek::of(&v, f.channel, r.time_s), r.from_header)
-            }
-            Err(_) => (Peek::unread(f.channel), false),
-        })
-        .collect();
-    let header_less = peeks.iter().all(|(p, h)| !h || p.amp_db.is_none());
-    let peeks: Vec<Peek> = peeks.into_iter().map(|p| p.0).collect();
+    let (peeks, header_less) = peek_all(&files, configured, gain);
     let al = align(&list, &peeks);
     let name = path
         .file_name()
@@ -151,16 +104,13 @@ pub(super) fn plan(
         configured
     };
     if !holds {
-        for r in &list.rows {
-            first.push(hit_reject(
-                experiment,
-                &file,
-                r.line,
-                format!(
-                    "the hit list {name} does not match the waveforms: its values are not used"
-                ),
-            ));
-        }
+        let why =
+            format!("the hit list {name} does not match the waveforms: its values are not used");
+        first.extend(
+            list.rows
+                .iter()
+                .map(|r| hit_reject(experiment, &file, r.line, why.clone())),
+        );
         return Plan {
             steps: in_order(files),
             list: None,
@@ -168,9 +118,87 @@ pub(super) fn plan(
             first,
         };
     }
+    Plan {
+        steps: aligned(&al, files),
+        list: Some(list),
+        rate_hz,
+        first,
+    }
+}
+
+/// A test without a hit list: its files in order at the configured rate, the doubt said
+/// for header-less files.
+fn without_list(experiment: &str, files: Vec<WaveFile>, cfg: &AewinConfig) -> Plan {
+    let configured = cfg.configured_rate_hz();
+    let mut first = Vec::new();
+    if files.iter().any(|f| f.header_less()) {
+        first.push(note(
+            experiment,
+            "",
+            format!(
+                "{experiment}: header-less waveform files and no hit list: read at {} ({}), which nothing in the files confirms",
+                mhz(configured),
+                if cfg.sample_rate_hz.is_some() {
+                    "[ingest.aewin] sample_rate_hz"
+                } else {
+                    "aepipe's default; set [ingest.aewin] sample_rate_hz"
+                }
+            ),
+            true,
+        ));
+    }
+    Plan {
+        steps: in_order(files),
+        list: None,
+        rate_hz: configured,
+        first,
+    }
+}
+
+/// The list's bad lines (rejects), its unreadable cells (notes) and its count of rows.
+fn list_items(experiment: &str, file: &str, list: &HitList) -> Vec<Item> {
+    let mut out: Vec<Item> = list
+        .bad
+        .iter()
+        .map(|(line, why)| hit_reject(experiment, file, *line, why.clone()))
+        .collect();
+    for (col, n) in &list.unreadable {
+        out.push(note(
+            experiment,
+            file,
+            format!("hit list column {col}: {n} cell(s) are not numbers: null"),
+            false,
+        ));
+    }
+    out.push(Item::Tally(crate::model::Tally {
+        experiment: experiment.to_string(),
+        read: [(RecordType::Hit, (list.rows.len() + list.bad.len()) as u64)].into(),
+        ..Default::default()
+    }));
+    out
+}
+
+/// What the match needs of every waveform (read in parallel), and whether the test is
+/// header-less (no readable file carries its own rate).
+fn peek_all(files: &[WaveFile], rate: f64, gain: f64) -> (Vec<Peek>, bool) {
+    let peeks: Vec<(Peek, bool)> = files
+        .par_iter()
+        .map(|f| match read_wave(f, rate) {
+            Ok(r) => {
+                let v: Vec<f32> = r.samples.iter().map(|v| (v * gain) as f32).collect();
+                (Peek::of(&v, f.channel, r.time_s), r.from_header)
+            }
+            Err(_) => (Peek::unread(f.channel), false),
+        })
+        .collect();
+    let header_less = peeks.iter().all(|(p, h)| !h || p.amp_db.is_none());
+    (peeks.into_iter().map(|p| p.0).collect(), header_less)
+}
+
+/// The steps of a match that holds: each place of the alignment in order.
+fn aligned(al: &Alignment, files: Vec<WaveFile>) -> Vec<Step> {
     let mut files: Vec<Option<WaveFile>> = files.into_iter().map(Some).collect();
-    let steps = al
-        .pairs
+    al.pairs
         .iter()
         .enumerate()
         .map(|(k, (w, r))| {
@@ -187,13 +215,7 @@ pub(super) fn plan(
                 },
             }
         })
-        .collect();
-    Plan {
-        steps,
-        list: Some(list),
-        rate_hz,
-        first,
-    }
+        .collect()
 }
 
 fn in_order(files: Vec<WaveFile>) -> Vec<Step> {

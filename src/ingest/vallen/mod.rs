@@ -172,8 +172,23 @@ pub fn read_trfdb(path: &Path) -> Result<HashMap<i64, String>, IngestError> {
     Ok(rows.flatten().collect())
 }
 
+/// A transient's columns: Time, Pretrigger, SampleRate, Samples, DataFormat, Data, TR_mV,
+/// threshold µV.
+type Fetched = (
+    Option<i64>,
+    Option<i64>,
+    Option<f64>,
+    Option<i64>,
+    Option<i64>,
+    Option<Vec<u8>>,
+    Option<f64>,
+    Option<f64>,
+);
+
 struct Reader {
     experiment: String,
+    /// The rows of a `.tradb` SQLite refused, salvaged from its whole pages.
+    salvaged: Option<salvaged::SalvagedTr>,
     hits: Option<HitRows>,
     pending_hits: VecDeque<Item>,
     tradb: PathBuf,
@@ -274,9 +289,28 @@ impl Reader {
         }
     }
 
-    fn fetch(&mut self, chan: i64, number: u64, setid: i64, trai: i64) -> Item {
+    /// The columns of transient `setid`: from SQLite, or from the salvaged rows.
+    fn query(&self, setid: i64) -> Result<Fetched, String> {
+        if let Some(sv) = &self.salvaged {
+            let r = sv.rows.get(&setid).ok_or("not among the salvaged rows")?;
+            let (tr_mv, adc_uv) = r
+                .param
+                .and_then(|p| sv.params.get(&p))
+                .copied()
+                .unwrap_or((None, None));
+            return Ok((
+                r.time,
+                r.pretrigger,
+                r.sample_rate,
+                r.samples,
+                r.format,
+                r.data.clone(),
+                tr_mv,
+                r.thr.zip(adc_uv).map(|(t, a)| t as f64 * a),
+            ));
+        }
         let conn = self.conn.as_ref().expect("open while keys remain");
-        let row = conn.query_row(
+        conn.query_row(
             "SELECT d.Time, d.Pretrigger, d.SampleRate, d.Samples, d.DataFormat, d.Data, p.TR_mV, d.Thr * p.\"ADC_µV\" \
              FROM tr_data d LEFT JOIN tr_params p ON p.ID = d.ParamID WHERE d.SetID = ?1",
             [setid],
@@ -292,7 +326,12 @@ impl Reader {
                     r.get::<_, Option<f64>>(7)?,
                 ))
             },
-        );
+        )
+        .map_err(|e| e.to_string())
+    }
+
+    fn fetch(&mut self, chan: i64, number: u64, setid: i64, trai: i64) -> Item {
+        let row = self.query(setid);
         let reject = |reason: String| {
             Item::Reject(Reject {
                 record_type: crate::model::RecordType::Transient,
@@ -552,6 +591,7 @@ fn open_with(
         pending_hits: VecDeque::new(),
         tradb: t.tradb,
         conn: t.conn,
+        salvaged: t.salvaged,
         time_base: t.time_base,
         keys: t.keys,
         have: t.have,
@@ -666,6 +706,8 @@ struct Transients {
     tail: VecDeque<Reject>,
     /// How many records the `.tradb` holds (0 when it is missing or unreadable).
     in_tradb: u64,
+    /// The rows salvaged from a `.tradb` SQLite refused (then `conn` is `None`).
+    salvaged: Option<salvaged::SalvagedTr>,
 }
 
 /// List the `.tradb`'s transients (each fetched by its key later) and reject the hits it lacks.
@@ -691,6 +733,7 @@ fn open_transients(
         have: HashSet::new(),
         tail: missing(&HashSet::new(), why),
         in_tradb: 0,
+        salvaged: None,
     };
     match tradb {
         None => no_transients(PathBuf::new(), "no .tradb beside the .pridb"),
@@ -712,14 +755,88 @@ fn open_transients(
                     have,
                     tail,
                     in_tradb,
+                    salvaged: None,
                 }
             }
-            Err(e) => {
-                first.push(Item::Reject(file_reject(experiment, &tradb, e.to_string())));
-                no_transients(tradb, "the .tradb cannot be read")
-            }
+            Err(e) => match salvaged::salvage_tradb(&tradb) {
+                // SQLite refused the file: what its whole pages hold.
+                Ok(sv) => {
+                    let raw: Vec<(i64, i64, i64, i64)> = sv
+                        .rows
+                        .iter()
+                        .map(|(id, r)| {
+                            (
+                                *id,
+                                r.time.unwrap_or(0),
+                                r.chan.unwrap_or(0),
+                                r.trai.unwrap_or(0),
+                            )
+                        })
+                        .collect();
+                    let mut raw = raw;
+                    raw.sort_unstable();
+                    let have: HashSet<(i64, i64, i64)> =
+                        raw.iter().map(|k| (k.3, k.2, k.1)).collect();
+                    let name = tradb
+                        .file_name()
+                        .map_or(String::new(), |n| n.to_string_lossy().to_string());
+                    let of = info.link.len().max(raw.len());
+                    let pages = match sv.declared_pages {
+                        0 => format!("{} whole page(s)", sv.pages),
+                        d => format!("{} of {d} pages", sv.pages.min(d)),
+                    };
+                    let said = format!(
+                        "{experiment}: salvaged {} of ≥ {of} transients from a damaged {name} ({pages}; SQLite: {})",
+                        raw.len(),
+                        sqlite_cause(&e.to_string())
+                    );
+                    first.push(Item::Note(crate::model::Note {
+                        experiment: experiment.to_string(),
+                        source_file: tradb.display().to_string(),
+                        message: said,
+                        said: true,
+                    }));
+                    first.push(Item::Note(crate::model::Note {
+                        experiment: experiment.to_string(),
+                        source_file: tradb.display().to_string(),
+                        message: format!(
+                            "salvage of {name}: {} record(s) of its table-leaf pages not whole (a cell, an overflow page or a value lost), {} blob(s) that do not decode to their Samples: not taken",
+                            sv.partial, sv.undecodable
+                        ),
+                        said: false,
+                    }));
+                    let why = format!(
+                        "the damaged {name} lost it (SQLite: {}; its whole pages do not hold it)",
+                        sqlite_cause(&e.to_string())
+                    );
+                    let mut keys = transient_keys(&raw, info, offsets);
+                    if !decode {
+                        keys.clear();
+                    }
+                    Transients {
+                        tail: missing(&have, &why),
+                        in_tradb: raw.len() as u64,
+                        time_base: sv.time_base,
+                        conn: None,
+                        keys: keys.into(),
+                        have,
+                        tradb,
+                        salvaged: Some(sv),
+                    }
+                }
+                Err(_) => {
+                    first.push(Item::Reject(file_reject(experiment, &tradb, e.to_string())));
+                    no_transients(tradb, "the .tradb cannot be read")
+                }
+            },
         },
     }
+}
+
+/// SQLite's own words from an error that carries the file's name before them.
+fn sqlite_cause(e: &str) -> String {
+    let tail = e.rsplit(": ").next().unwrap_or(e);
+    tail.to_string()
 }
 
 /// The setup (records by type) and the tally: the items emitted once everything else is out.
@@ -834,6 +951,7 @@ fn transient_keys(
 }
 
 mod pridb;
+mod salvaged;
 mod sets;
 pub mod tail;
 pub mod txt;

@@ -698,6 +698,7 @@ pub fn read(w: &Window, cfg: &IngestConfig) -> Box<dyn Iterator<Item = Item> + S
         pending_hits: VecDeque::new(),
         tradb: w.tradb.clone(),
         conn,
+        salvaged: None,
         time_base: w.tradb_time_base,
         keys,
         have: w.link.keys().copied().collect::<HashSet<Key>>(),

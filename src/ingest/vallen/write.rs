@@ -89,10 +89,7 @@ impl PairWriter {
         INSERT INTO ae_params VALUES (1, 1, 0, 0.0, 0.0, 0.0, 0.001, 0.001), (2, 1, 1, {adc_uv}, 1.0, 1.0, 0.0, 0.0);"
     ))?;
         tra.execute_batch(&format!(
-        "CREATE TABLE tr_data (\"SetID\" INTEGER PRIMARY KEY,\"Time\" INT,\"TRAI\" INT,\"Status\" INT,\"ParamID\" INT,\"Chan\" INT,\"Pretrigger\" INT,\"Thr\" INT,\"SampleRate\" INT,\"Samples\" INT,\"DataFormat\" INT,\"Data\" BLOB);
-        CREATE TABLE tr_globalinfo(Key UNIQUE, Value);
-        CREATE TABLE tr_fieldinfo (field,Unit,Parameter);
-        CREATE TABLE tr_params (\"ID\" INTEGER PRIMARY KEY,\"SetupID\" INT,\"Chan\" INT,\"ADC_µV\" REAL,\"TR_mV\" REAL);
+        "{TR_TABLES}
         CREATE INDEX idx_TRAI on tr_data (TRAI);
         CREATE VIEW view_tr_data as select (d.SetID) as SetID,(d.Time*1E-7) as Time,(d.TRAI) as TRAI,(d.Status) as Status,(d.Chan) as Chan,(d.Pretrigger) as Pretrigger,(d.Thr*p.ADC_µV) as Thr,(d.SampleRate) as SampleRate,(d.Samples) as Samples,(d.DataFormat) as DataFormat,p.TR_mV as TR_mV,(d.Data) as Data from tr_data d  left join tr_params p on p.ID=d.ParamID;
         INSERT INTO tr_globalinfo VALUES ('Version', 1), ('FileStatus', 0), ('TimeBase', 10000000), ('WriterName', 'aepipe');
@@ -230,6 +227,13 @@ const INSERT_SET: &str = "INSERT INTO ae_data (SetType, Time, Chan, Status, Para
 fn to_ticks(t: f64) -> i64 {
     (t * 1e7).round() as i64
 }
+
+/// The tables of a `.tradb`, as VisualAE's files declare them (the real sets' schema): what
+/// the writer creates, and the shapes salvage tells a damaged file's pages by.
+pub(super) const TR_TABLES: &str = "CREATE TABLE tr_data (\"SetID\" INTEGER PRIMARY KEY,\"Time\" INT,\"TRAI\" INT,\"Status\" INT,\"ParamID\" INT,\"Chan\" INT,\"Pretrigger\" INT,\"Thr\" INT,\"SampleRate\" INT,\"Samples\" INT,\"DataFormat\" INT,\"Data\" BLOB);
+CREATE TABLE tr_globalinfo(Key UNIQUE, Value);
+CREATE TABLE tr_fieldinfo (field,Unit,Parameter);
+CREATE TABLE tr_params (\"ID\" INTEGER PRIMARY KEY,\"SetupID\" INT,\"Chan\" INT,\"ADC_µV\" REAL,\"TR_mV\" REAL);";
 
 /// Write a Vallen `.pridb`/`.tradb` pair (raw int16 waveforms, `DataFormat` 0) with the
 /// tables and views of the real AMSY-6 files, so that aepipe's own reader and vallenae read
