@@ -82,8 +82,9 @@ impl Affinity {
     fn fits(self, v: &Value) -> bool {
         match (self, v) {
             (_, Value::Null) | (Affinity::Any, _) => true,
-            (Affinity::Integer, Value::Int(_)) => true,
-            (Affinity::Real, Value::Real(_) | Value::Int(_)) => true,
+            // A numeric column keeps a value that does not convert losslessly as it is: an
+            // INT column holds a REAL (Vallen's parametric PA0), a REAL column an integer.
+            (Affinity::Integer | Affinity::Real, Value::Int(_) | Value::Real(_)) => true,
             (Affinity::Text, Value::Text(_)) => true,
             (Affinity::Blob, Value::Blob(_)) => true,
             _ => false,
@@ -207,6 +208,9 @@ pub struct Salvage {
     pub partial_records: u64,
     /// Table-leaf pages no table could be told for.
     pub unowned_leaves: u64,
+    /// The schema's `CREATE TABLE` and `CREATE VIEW` statements, as read (none when the
+    /// schema page is lost).
+    pub statements: Vec<String>,
 }
 
 impl Salvage {
@@ -227,6 +231,65 @@ impl Salvage {
             .iter()
             .position(|(c, _)| c.eq_ignore_ascii_case(name))
     }
+}
+
+/// Write what was salvaged into a fresh SQLite file `to`: the schema's tables and views
+/// (the file's own statements when its schema was whole, else `fallback`), and every
+/// salvaged row under its rowid — a file any reader built for SQLite reads. Returns the rows
+/// written.
+pub fn rebuild(s: &Salvage, fallback: &[&str], to: &std::path::Path) -> rusqlite::Result<u64> {
+    let _ = std::fs::remove_file(to);
+    let mut c = rusqlite::Connection::open(to)?;
+    let own: Vec<&str> = s.statements.iter().map(String::as_str).collect();
+    let statements = if s.schema_whole && !own.is_empty() {
+        own
+    } else {
+        fallback.to_vec()
+    };
+    for st in statements {
+        c.execute_batch(st)?;
+    }
+    let tx = c.transaction()?;
+    let mut n = 0;
+    for (name, t) in &s.tables {
+        let Some(shape) = &t.shape else { continue };
+        let mut cols: Vec<String> = shape
+            .columns
+            .iter()
+            .map(|c| format!("\"{}\"", c.0))
+            .collect();
+        if shape.rowid_column.is_none() {
+            cols.insert(0, "rowid".into());
+        }
+        let sql = format!(
+            "INSERT INTO \"{name}\" ({}) VALUES ({})",
+            cols.join(","),
+            vec!["?"; cols.len()].join(",")
+        );
+        let Ok(mut st) = tx.prepare(&sql) else {
+            continue;
+        };
+        for r in t.rows.values() {
+            let mut vals: Vec<rusqlite::types::Value> = r
+                .values
+                .iter()
+                .map(|v| match v {
+                    Value::Null => rusqlite::types::Value::Null,
+                    Value::Int(i) => rusqlite::types::Value::Integer(*i),
+                    Value::Real(f) => rusqlite::types::Value::Real(*f),
+                    Value::Text(t) => rusqlite::types::Value::Text(t.clone()),
+                    Value::Blob(b) => rusqlite::types::Value::Blob(b.clone()),
+                })
+                .collect();
+            if shape.rowid_column.is_none() {
+                vals.insert(0, rusqlite::types::Value::Integer(r.rowid));
+            }
+            st.execute(rusqlite::params_from_iter(vals))?;
+            n += 1;
+        }
+    }
+    tx.commit()?;
+    Ok(n)
 }
 
 /// Why nothing could be salvaged.
@@ -525,12 +588,13 @@ fn salvage_pages(
         free = freelist(&pages, be(bytes, 32, 4).unwrap_or(0));
     }
     let mut seen = BTreeSet::new();
-    let (roots, schema_whole) = if header_whole {
+    let (roots, schema_whole, statements) = if header_whole {
         schema(&pages, &mut seen)
     } else {
-        (Vec::new(), false)
+        (Vec::new(), false, Vec::new())
     };
     out.schema_whole = schema_whole;
+    out.statements = statements;
     let mut by_page: HashMap<u64, String> = HashMap::new();
     for (shape, root) in &roots {
         let leaves = leaves_of(&pages, *root, &mut seen);
@@ -610,8 +674,9 @@ fn salvage_pages(
 
 /// The tables of the schema (`sqlite_master`, rooted on page 1) with their root pages, and
 /// whether every schema record was whole.
-fn schema(pages: &Pages, seen: &mut BTreeSet<u64>) -> (Vec<(Shape, u64)>, bool) {
+fn schema(pages: &Pages, seen: &mut BTreeSet<u64>) -> (Vec<(Shape, u64)>, bool, Vec<String>) {
     let mut roots = Vec::new();
+    let mut statements = Vec::new();
     let leaves = leaves_of(pages, 1, seen);
     let mut whole = !leaves.is_empty();
     for n in &leaves {
@@ -621,6 +686,9 @@ fn schema(pages: &Pages, seen: &mut BTreeSet<u64>) -> (Vec<(Shape, u64)>, bool) 
                     if let (Value::Text(kind), Some(root), Value::Text(sql)) =
                         (&v[0], v[3].int(), &v[4])
                     {
+                        if kind == "table" || kind == "view" {
+                            statements.push(sql.clone());
+                        }
                         if kind == "table" {
                             if let Some(s) = Shape::from_sql(sql) {
                                 roots.push((s, root.max(0) as u64));
@@ -632,7 +700,7 @@ fn schema(pages: &Pages, seen: &mut BTreeSet<u64>) -> (Vec<(Shape, u64)>, bool) 
             }
         }
     }
-    (roots, whole)
+    (roots, whole, statements)
 }
 
 /// The one shape all whole records of an orphan leaf fit (and at least one does).

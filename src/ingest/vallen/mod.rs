@@ -544,7 +544,16 @@ fn open_with(
     let pridb = src.companion(super::Role::HitIndex).map(Path::to_path_buf);
     let tradb = src.files.first().cloned();
     let mut first: Vec<Item> = Vec::new();
-    let (info, hits) = open_hit_index(pridb.as_deref(), cfg, &experiment, &mut first);
+    // A .pridb SQLite refuses is read from a copy rebuilt from its whole pages (removed once
+    // the readers hold it open).
+    let rebuilt = pridb
+        .as_deref()
+        .and_then(|p| salvage_pridb(p, cfg, &experiment, &mut first));
+    let read_pridb_at = rebuilt.as_ref().map(|r| r.path.clone()).or(pridb.clone());
+    let (info, mut hits) = open_hit_index(read_pridb_at.as_deref(), cfg, &experiment, &mut first);
+    if let (Some(h), Some(p)) = (hits.as_mut(), pridb.as_ref()) {
+        h.path = p.display().to_string();
+    }
     let pridb_name = pridb
         .as_ref()
         .map(|p| p.display().to_string())
@@ -554,13 +563,20 @@ fn open_with(
     let trf = open_features(pridb.as_deref(), &experiment, &mut first);
     // Markers, parametric and status rows, and what the .pridb holds by set type.
     let (sets, mut read) = open_set_rows(
-        pridb.as_deref(),
+        read_pridb_at.as_deref(),
         hits.is_some(),
         &experiment,
         info.time_base,
         cfg,
         &mut first,
     );
+    let sets = match (sets, pridb.as_deref()) {
+        (Some(s), Some(p)) => Some(s.named(p)),
+        (s, _) => s,
+    };
+    if let Some(r) = &rebuilt {
+        let _ = std::fs::remove_file(&r.path);
+    }
     let has_pridb = hits.is_some();
     let t = open_transients(
         tradb,
@@ -831,6 +847,62 @@ fn open_transients(
             },
         },
     }
+}
+
+/// A copy of a `.pridb` SQLite refuses, rebuilt from its whole pages (`None`: the file is
+/// sound, or nothing in it is whole — then the ordinary reader says why). What was salvaged
+/// is said in `first`.
+fn salvage_pridb(
+    p: &Path,
+    cfg: &IngestConfig,
+    experiment: &str,
+    first: &mut Vec<Item>,
+) -> Option<salvaged::RebuiltPri> {
+    let why = match read_pridb(p, cfg) {
+        Ok(_) => return None,
+        Err(e) => e.to_string(),
+    };
+    static N: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
+    let to = std::env::temp_dir().join(format!(
+        "aepipe-salvage-{}-{}.pridb",
+        std::process::id(),
+        N.fetch_add(1, std::sync::atomic::Ordering::Relaxed)
+    ));
+    let name = p
+        .file_name()
+        .map_or(String::new(), |n| n.to_string_lossy().to_string());
+    let r = match salvaged::rebuild_pridb(p, &to) {
+        Ok(r) => r,
+        Err(e) => {
+            first.push(Item::Note(crate::model::Note {
+                experiment: experiment.to_string(),
+                source_file: p.display().to_string(),
+                message: format!(
+                    "{experiment}: nothing salvaged from a damaged {name} (SQLite: {}; {})",
+                    sqlite_cause(&why),
+                    sqlite_cause(&e.to_string())
+                ),
+                said: true,
+            }));
+            return None;
+        }
+    };
+    let pages = match r.declared_pages {
+        0 => format!("{} whole page(s)", r.pages),
+        d => format!("{} of {d} pages", r.pages.min(d)),
+    };
+    first.push(Item::Note(crate::model::Note {
+        experiment: experiment.to_string(),
+        source_file: p.display().to_string(),
+        message: format!(
+            "{experiment}: salvaged {} hits ({} sets) from a damaged {name} ({pages}; SQLite: {})",
+            r.hits,
+            r.sets,
+            sqlite_cause(&why)
+        ),
+        said: true,
+    }));
+    Some(r)
 }
 
 /// SQLite's own words from an error that carries the file's name before them.

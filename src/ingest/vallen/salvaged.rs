@@ -3,7 +3,7 @@
 //! taken only when its blob decodes to its `Samples`. Called only after SQLite failed on the
 //! file: a sound file never reaches it.
 
-use super::write::TR_TABLES;
+use super::write::{AE_SCHEMA, TR_TABLES};
 use crate::ingest::salvage::{salvage, Row, Salvage, Shape, Value};
 use crate::ingest::{file_err, IngestError};
 use std::collections::HashMap;
@@ -125,4 +125,49 @@ pub(super) fn salvage_tradb(path: &Path) -> Result<SalvagedTr, IngestError> {
         ));
     }
     Ok(out)
+}
+
+/// What a damaged `.pridb` gave back, rebuilt into a fresh file its reader opens.
+#[derive(Debug, Clone)]
+pub(super) struct RebuiltPri {
+    pub path: std::path::PathBuf,
+    /// Hits (`ae_data` rows of SetType 2) and all `ae_data` rows salvaged.
+    pub hits: u64,
+    pub sets: u64,
+    pub pages: u64,
+    pub declared_pages: u64,
+}
+
+/// Salvage a `.pridb` SQLite refuses and rebuild its rows (with its own schema, else the
+/// writer's) into `to`, which the ordinary reader then reads.
+pub(super) fn rebuild_pridb(path: &Path, to: &Path) -> Result<RebuiltPri, IngestError> {
+    let bytes = std::fs::read(path).map_err(|e| file_err(path, format!("cannot read: {e}")))?;
+    let shapes: Vec<Shape> = AE_SCHEMA.split(';').filter_map(Shape::from_sql).collect();
+    let s =
+        salvage(&bytes, &shapes).map_err(|e| file_err(path, format!("nothing salvaged: {e}")))?;
+    let set_type = s.column("ae_data", "SetType");
+    let sets = s.rows("ae_data").count() as u64;
+    let hits = s
+        .rows("ae_data")
+        .filter(|r| set_type.and_then(|i| r.values.get(i)) == Some(&Value::Int(2)))
+        .count() as u64;
+    if sets == 0 {
+        return Err(file_err(
+            path,
+            format!("no set is whole in its {} page(s)", s.pages),
+        ));
+    }
+    let fallback: Vec<&str> = AE_SCHEMA
+        .split(';')
+        .filter(|x| !x.trim().is_empty())
+        .collect();
+    super::super::salvage::rebuild(&s, &fallback, to)
+        .map_err(|e| file_err(to, format!("cannot write the salvaged rows: {e}")))?;
+    Ok(RebuiltPri {
+        path: to.to_path_buf(),
+        hits,
+        sets,
+        pages: s.pages,
+        declared_pages: s.declared_pages,
+    })
 }

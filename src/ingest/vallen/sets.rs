@@ -89,6 +89,12 @@ pub struct SetRows {
 }
 
 impl SetRows {
+    /// The rows name `file` as their source (a salvaged file is read from its rebuilt copy).
+    pub(super) fn named(mut self, file: &Path) -> SetRows {
+        self.path = file.display().to_string();
+        self
+    }
+
     pub fn open(
         path: &Path,
         experiment: &str,

@@ -75,15 +75,7 @@ impl PairWriter {
         }
         let adc_uv = tr_mv * 1e3 / 2.0f64.powi(11); // arbitrary but consistent hit-feature ADC step
         pri.execute_batch(&format!(
-        "CREATE TABLE ae_data (\"SetID\" INTEGER PRIMARY KEY,\"SetType\" INT,\"Time\" INT,\"Chan\" INT,\"Status\" INT,\"ParamID\" INT,\"Thr\" INT,\"Amp\" INT,\"RiseT\" INT,\"Dur\" INT,\"Eny\" INT,\"SS\" INT,\"RMS\" INT,\"Counts\" INT,\"TRAI\" INT,\"PCTD\" INT,\"PCTA\" INT,\"PA0\" INT,\"PA1\" INT);
-        CREATE TABLE acq_setup(ID INTEGER PRIMARY KEY, Data TEXT);
-        CREATE TABLE ae_markers (\"SetID\" INT UNIQUE,\"Number\" INT,\"Data\" TEXT);
-        CREATE TABLE ae_globalinfo(Key UNIQUE, Value);
-        CREATE TABLE ae_fieldinfo (field,Unit,SetTypes,Parameter,Factor);
-        CREATE TABLE ae_params (\"ID\" INTEGER PRIMARY KEY,\"SetupID\" INT,\"Chan\" INT,\"ADC_µV\" REAL,\"ADC_TE\" REAL,\"ADC_SS\" REAL,\"PA0_mV\" REAL,\"PA1_mV\" REAL);
-        CREATE TABLE data_integrity(TableName TEXT PRIMARY KEY UNIQUE, HashV1 INT, LastRow INT);
-        CREATE VIEW view_ae_data as select (d.SetID) as SetID,(d.SetType) as SetType,(d.Time*1E-7) as Time,(d.Chan) as Chan,(d.Status) as Status,(d.Thr*p.ADC_µV) as Thr,(d.Amp*p.ADC_µV) as Amp,(d.RiseT*0.1) as RiseT,(d.Dur*0.1) as Dur,(d.Eny*p.ADC_TE) as Eny,(d.SS*p.ADC_SS) as SS,(d.RMS*0.0065536*p.ADC_µV) as RMS,(d.Counts) as Counts,(d.TRAI) as TRAI,(d.PCTD) as PCTD,(d.PCTA) as PCTA,(d.PA0*p.PA0_mV) as PA0,(d.PA1*p.PA1_mV) as PA1 from ae_data d  left join ae_params p on p.ID=d.ParamID;
-        CREATE VIEW view_ae_markers as select m.*, l.SetType, l.Time*1E-7 as Time from ae_markers m cross join ae_data l on l.SetID = m.SetID;
+        "{AE_SCHEMA}
         INSERT INTO ae_globalinfo VALUES ('Version', 1), ('FileStatus', 0), ('TimeBase', 10000000), ('WriterName', 'aepipe');
         INSERT INTO ae_fieldinfo VALUES ('Time','[s]',NULL,NULL,1e-07),('Thr','[µV]',12,'ADC_µV',NULL),('Amp','[µV]',4,'ADC_µV',NULL),('RiseT','[µs]',4,NULL,0.1),('Dur','[µs]',4,NULL,0.1),('Eny','[eu]',12,'ADC_TE',NULL),('SS','[nVs]',12,'ADC_SS',NULL),('RMS','[µV]',12,'ADC_µV',0.0065536),('PA0','[mV]',2,'PA0_mV',NULL),('PA1','[mV]',2,'PA1_mV',NULL);
         INSERT INTO ae_params VALUES (1, 1, 0, 0.0, 0.0, 0.0, 0.001, 0.001), (2, 1, 1, {adc_uv}, 1.0, 1.0, 0.0, 0.0);"
@@ -227,6 +219,19 @@ const INSERT_SET: &str = "INSERT INTO ae_data (SetType, Time, Chan, Status, Para
 fn to_ticks(t: f64) -> i64 {
     (t * 1e7).round() as i64
 }
+
+/// The tables and views of a `.pridb`, as the AMSY-6 files declare them: what the writer
+/// creates, and what a damaged file's salvaged rows are rebuilt into when its own schema page
+/// is lost.
+pub(super) const AE_SCHEMA: &str = "CREATE TABLE ae_data (\"SetID\" INTEGER PRIMARY KEY,\"SetType\" INT,\"Time\" INT,\"Chan\" INT,\"Status\" INT,\"ParamID\" INT,\"Thr\" INT,\"Amp\" INT,\"RiseT\" INT,\"Dur\" INT,\"Eny\" INT,\"SS\" INT,\"RMS\" INT,\"Counts\" INT,\"TRAI\" INT,\"PCTD\" INT,\"PCTA\" INT,\"PA0\" INT,\"PA1\" INT);
+CREATE TABLE acq_setup(ID INTEGER PRIMARY KEY, Data TEXT);
+CREATE TABLE ae_markers (\"SetID\" INT UNIQUE,\"Number\" INT,\"Data\" TEXT);
+CREATE TABLE ae_globalinfo(Key UNIQUE, Value);
+CREATE TABLE ae_fieldinfo (field,Unit,SetTypes,Parameter,Factor);
+CREATE TABLE ae_params (\"ID\" INTEGER PRIMARY KEY,\"SetupID\" INT,\"Chan\" INT,\"ADC_µV\" REAL,\"ADC_TE\" REAL,\"ADC_SS\" REAL,\"PA0_mV\" REAL,\"PA1_mV\" REAL);
+CREATE TABLE data_integrity(TableName TEXT PRIMARY KEY UNIQUE, HashV1 INT, LastRow INT);
+CREATE VIEW view_ae_data as select (d.SetID) as SetID,(d.SetType) as SetType,(d.Time*1E-7) as Time,(d.Chan) as Chan,(d.Status) as Status,(d.Thr*p.ADC_µV) as Thr,(d.Amp*p.ADC_µV) as Amp,(d.RiseT*0.1) as RiseT,(d.Dur*0.1) as Dur,(d.Eny*p.ADC_TE) as Eny,(d.SS*p.ADC_SS) as SS,(d.RMS*0.0065536*p.ADC_µV) as RMS,(d.Counts) as Counts,(d.TRAI) as TRAI,(d.PCTD) as PCTD,(d.PCTA) as PCTA,(d.PA0*p.PA0_mV) as PA0,(d.PA1*p.PA1_mV) as PA1 from ae_data d  left join ae_params p on p.ID=d.ParamID;
+CREATE VIEW view_ae_markers as select m.*, l.SetType, l.Time*1E-7 as Time from ae_markers m cross join ae_data l on l.SetID = m.SetID;";
 
 /// The tables of a `.tradb`, as VisualAE's files declare them (the real sets' schema): what
 /// the writer creates, and the shapes salvage tells a damaged file's pages by.
