@@ -221,6 +221,22 @@ impl Salvage {
             .flat_map(|t| t.rows.values())
     }
 
+    /// The tables found: `tr_data 277 (20 leaf pages from its root, 3 by record shape)`, ….
+    pub fn describe_tables(&self) -> String {
+        self.tables
+            .iter()
+            .map(|(name, t)| {
+                format!(
+                    "{name} {} ({} leaf page(s) from its root, {} by record shape)",
+                    t.rows.len(),
+                    t.reached_leaves,
+                    t.shaped_leaves
+                )
+            })
+            .collect::<Vec<_>>()
+            .join(", ")
+    }
+
     /// A value of a row by column name.
     pub fn column(&self, table: &str, name: &str) -> Option<usize> {
         self.tables

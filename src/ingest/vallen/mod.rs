@@ -816,8 +816,8 @@ fn open_transients(
                         experiment: experiment.to_string(),
                         source_file: tradb.display().to_string(),
                         message: format!(
-                            "salvage of {name}: {} record(s) of its table-leaf pages not whole (a cell, an overflow page or a value lost), {} blob(s) that do not decode to their Samples: not taken",
-                            sv.partial, sv.undecodable
+                            "salvage of {name}: tables found: {}; {} record(s) of its table-leaf pages not whole (a cell, an overflow page or a value lost), {} blob(s) that do not decode to their Samples: not taken",
+                            sv.tables, sv.partial, sv.undecodable
                         ),
                         said: false,
                     }));
@@ -901,6 +901,15 @@ fn salvage_pridb(
             sqlite_cause(&why)
         ),
         said: true,
+    }));
+    first.push(Item::Note(crate::model::Note {
+        experiment: experiment.to_string(),
+        source_file: p.display().to_string(),
+        message: format!(
+            "salvage of {name}: tables found: {}; {} record(s) of its table-leaf pages not whole: not taken",
+            r.tables, r.partial
+        ),
+        said: false,
     }));
     Some(r)
 }

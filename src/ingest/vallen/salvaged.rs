@@ -39,6 +39,8 @@ pub(super) struct SalvagedTr {
     pub undecodable: u64,
     /// Cells whose record was not whole.
     pub partial: u64,
+    /// What was found, table by table ([`Salvage::describe_tables`]).
+    pub tables: String,
 }
 
 /// The shapes of the `.tradb` tables (the writer's own declarations).
@@ -62,6 +64,7 @@ pub(super) fn salvage_tradb(path: &Path) -> Result<SalvagedTr, IngestError> {
         pages: s.pages,
         declared_pages: s.declared_pages,
         partial: s.partial_records,
+        tables: s.describe_tables(),
         time_base: 1e7,
         ..Default::default()
     };
@@ -136,6 +139,8 @@ pub(super) struct RebuiltPri {
     pub sets: u64,
     pub pages: u64,
     pub declared_pages: u64,
+    pub tables: String,
+    pub partial: u64,
 }
 
 /// Salvage a `.pridb` SQLite refuses and rebuild its rows (with its own schema, else the
@@ -169,5 +174,7 @@ pub(super) fn rebuild_pridb(path: &Path, to: &Path) -> Result<RebuiltPri, Ingest
         sets,
         pages: s.pages,
         declared_pages: s.declared_pages,
+        tables: s.describe_tables(),
+        partial: s.partial_records,
     })
 }
