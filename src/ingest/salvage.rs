@@ -111,7 +111,7 @@ impl Shape {
         }
         let open = sql.find('(')?;
         let close = sql.rfind(')')?;
-        let name = unquote(sql[12..open].trim().split_whitespace().last()?);
+        let name = unquote(sql[12..open].split_whitespace().last()?);
         let body = sql.get(open + 1..close)?;
         let mut parts = Vec::new();
         let (mut depth, mut start) = (0i32, 0usize);

@@ -13,9 +13,12 @@ fn scan_err(e: crate::store::StoreError) -> WorkflowError {
     e.into()
 }
 
+/// Hits with a load, and the largest load with its time (s, N).
+type WithLoad = (u64, Option<(f64, f64)>);
+
 /// Per experiment: hits with a load, and the largest load with its time (of the hits).
-fn hits_load(path: &Path) -> Result<BTreeMap<String, (u64, Option<(f64, f64)>)>, WorkflowError> {
-    let mut out: BTreeMap<String, (u64, Option<(f64, f64)>)> = BTreeMap::new();
+fn hits_load(path: &Path) -> Result<BTreeMap<String, WithLoad>, WorkflowError> {
+    let mut out: BTreeMap<String, WithLoad> = BTreeMap::new();
     peak_loads(path, |e, t, l| {
         let v = out.entry(e).or_default();
         if let Some(l) = l {

@@ -43,7 +43,7 @@ fn hits(n: usize, rate_hz: f64, seed: u64) -> Vec<Hit> {
             let rise = 4e-6 + 26e-6 * rng.uniform();
             let tau = 40e-6 + 60e-6 * rng.uniform();
             let f = 150e3 + 250e3 * rng.uniform();
-            let phase = rng.uniform() * 6.28;
+            let phase = rng.uniform() * std::f64::consts::TAU;
             // At the sensor: noise well below the threshold, then the burst.
             let sensor: Vec<f64> = (0..len)
                 .map(|i| {

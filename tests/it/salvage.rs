@@ -202,7 +202,7 @@ fn a_damaged_tradb_gives_back_exactly_the_records_whose_pages_survived() {
     drop(w);
     let walk = walk(&tradb);
     assert!(
-        walk.interior.len() >= 1 && walk.overflow_mid.len() >= 5,
+        !walk.interior.is_empty() && walk.overflow_mid.len() >= 5,
         "the fixture has an interior page and overflow chains"
     );
     let (recs, rejs) = read_all(

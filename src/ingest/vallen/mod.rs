@@ -117,61 +117,6 @@ pub fn decode_blob(format: i64, data: &[u8], samples: usize) -> Result<Vec<i32>,
     Ok(adc)
 }
 
-/// The features of a VisualAE `.trfdb` beside the `.pridb`, per TRAI, as JSON objects keyed
-/// `name [unit]` (the file's own `trf_fieldinfo`). Empty when there is none.
-pub fn read_trfdb(path: &Path) -> Result<HashMap<i64, String>, IngestError> {
-    let conn = open_ro(path)?;
-    let cols = columns(&conn, "trf_data");
-    if !cols.iter().any(|c| c == "TRAI") {
-        return Err(file_err(
-            path,
-            "no trf_data table with a TRAI: not a .trfdb",
-        ));
-    }
-    let units: HashMap<String, String> = conn
-        .prepare("SELECT * FROM trf_fieldinfo")
-        .and_then(|mut st| {
-            st.query_map([], |r| {
-                Ok((r.get::<_, String>(0)?, r.get::<_, Option<String>>(2)?))
-            })
-            .map(|it| {
-                it.flatten()
-                    .filter_map(|(n, u)| u.map(|u| (n, u.trim_matches(['[', ']']).to_string())))
-                    .collect()
-            })
-        })
-        .unwrap_or_default();
-    let names: Vec<&String> = cols.iter().filter(|c| *c != "TRAI").collect();
-    let sql = format!(
-        "SELECT TRAI, {} FROM trf_data",
-        names
-            .iter()
-            .map(|c| format!("\"{c}\""))
-            .collect::<Vec<_>>()
-            .join(", ")
-    );
-    let mut st = conn
-        .prepare(&sql)
-        .map_err(|e| file_err(path, format!("cannot read trf_data: {e}")))?;
-    let rows = st
-        .query_map([], |r| {
-            let trai: i64 = r.get(0)?;
-            let mut m = serde_json::Map::new();
-            for (k, name) in names.iter().enumerate() {
-                if let Some(v) = r.get::<_, Option<f64>>(k + 1)? {
-                    let key = match units.get(*name) {
-                        Some(u) if !u.is_empty() => format!("{name} [{u}]"),
-                        _ => name.to_string(),
-                    };
-                    m.insert(key, serde_json::json!(v));
-                }
-            }
-            Ok((trai, serde_json::Value::Object(m).to_string()))
-        })
-        .map_err(|e| file_err(path, format!("cannot read trf_data: {e}")))?;
-    Ok(rows.flatten().collect())
-}
-
 /// A transient's columns: Time, Pretrigger, SampleRate, Samples, DataFormat, Data, TR_mV,
 /// threshold µV.
 type Fetched = (
@@ -548,7 +493,7 @@ fn open_with(
     // the readers hold it open).
     let rebuilt = pridb
         .as_deref()
-        .and_then(|p| salvage_pridb(p, cfg, &experiment, &mut first));
+        .and_then(|p| salvaged::salvage_pridb(p, cfg, &experiment, &mut first));
     let read_pridb_at = rebuilt.as_ref().map(|r| r.path.clone()).or(pridb.clone());
     let (info, mut hits) = open_hit_index(read_pridb_at.as_deref(), cfg, &experiment, &mut first);
     if let (Some(h), Some(p)) = (hits.as_mut(), pridb.as_ref()) {
@@ -774,150 +719,17 @@ fn open_transients(
                     salvaged: None,
                 }
             }
-            Err(e) => match salvaged::salvage_tradb(&tradb) {
-                // SQLite refused the file: what its whole pages hold.
-                Ok(sv) => {
-                    let raw: Vec<(i64, i64, i64, i64)> = sv
-                        .rows
-                        .iter()
-                        .map(|(id, r)| {
-                            (
-                                *id,
-                                r.time.unwrap_or(0),
-                                r.chan.unwrap_or(0),
-                                r.trai.unwrap_or(0),
-                            )
-                        })
-                        .collect();
-                    let mut raw = raw;
-                    raw.sort_unstable();
-                    let have: HashSet<(i64, i64, i64)> =
-                        raw.iter().map(|k| (k.3, k.2, k.1)).collect();
-                    let name = tradb
-                        .file_name()
-                        .map_or(String::new(), |n| n.to_string_lossy().to_string());
-                    let of = info.link.len().max(raw.len());
-                    let pages = match sv.declared_pages {
-                        0 => format!("{} whole page(s)", sv.pages),
-                        d => format!("{} of {d} pages", sv.pages.min(d)),
-                    };
-                    let said = format!(
-                        "{experiment}: salvaged {} of ≥ {of} transients from a damaged {name} ({pages}; SQLite: {})",
-                        raw.len(),
-                        sqlite_cause(&e.to_string())
-                    );
-                    first.push(Item::Note(crate::model::Note {
-                        experiment: experiment.to_string(),
-                        source_file: tradb.display().to_string(),
-                        message: said,
-                        said: true,
-                    }));
-                    first.push(Item::Note(crate::model::Note {
-                        experiment: experiment.to_string(),
-                        source_file: tradb.display().to_string(),
-                        message: format!(
-                            "salvage of {name}: tables found: {}; {} record(s) of its table-leaf pages not whole (a cell, an overflow page or a value lost), {} blob(s) that do not decode to their Samples: not taken",
-                            sv.tables, sv.partial, sv.undecodable
-                        ),
-                        said: false,
-                    }));
-                    let why = format!(
-                        "the damaged {name} lost it (SQLite: {}; its whole pages do not hold it)",
-                        sqlite_cause(&e.to_string())
-                    );
-                    let mut keys = transient_keys(&raw, info, offsets);
-                    if !decode {
-                        keys.clear();
-                    }
-                    Transients {
-                        tail: missing(&have, &why),
-                        in_tradb: raw.len() as u64,
-                        time_base: sv.time_base,
-                        conn: None,
-                        keys: keys.into(),
-                        have,
-                        tradb,
-                        salvaged: Some(sv),
-                    }
-                }
-                Err(_) => {
+            Err(e) => match salvaged::transients(
+                &tradb, &e, decode, info, offsets, experiment, pridb_name, first,
+            ) {
+                Some(t) => t,
+                None => {
                     first.push(Item::Reject(file_reject(experiment, &tradb, e.to_string())));
                     no_transients(tradb, "the .tradb cannot be read")
                 }
             },
         },
     }
-}
-
-/// A copy of a `.pridb` SQLite refuses, rebuilt from its whole pages (`None`: the file is
-/// sound, or nothing in it is whole — then the ordinary reader says why). What was salvaged
-/// is said in `first`.
-fn salvage_pridb(
-    p: &Path,
-    cfg: &IngestConfig,
-    experiment: &str,
-    first: &mut Vec<Item>,
-) -> Option<salvaged::RebuiltPri> {
-    let why = match read_pridb(p, cfg) {
-        Ok(_) => return None,
-        Err(e) => e.to_string(),
-    };
-    static N: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
-    let to = std::env::temp_dir().join(format!(
-        "aepipe-salvage-{}-{}.pridb",
-        std::process::id(),
-        N.fetch_add(1, std::sync::atomic::Ordering::Relaxed)
-    ));
-    let name = p
-        .file_name()
-        .map_or(String::new(), |n| n.to_string_lossy().to_string());
-    let r = match salvaged::rebuild_pridb(p, &to) {
-        Ok(r) => r,
-        Err(e) => {
-            first.push(Item::Note(crate::model::Note {
-                experiment: experiment.to_string(),
-                source_file: p.display().to_string(),
-                message: format!(
-                    "{experiment}: nothing salvaged from a damaged {name} (SQLite: {}; {})",
-                    sqlite_cause(&why),
-                    sqlite_cause(&e.to_string())
-                ),
-                said: true,
-            }));
-            return None;
-        }
-    };
-    let pages = match r.declared_pages {
-        0 => format!("{} whole page(s)", r.pages),
-        d => format!("{} of {d} pages", r.pages.min(d)),
-    };
-    first.push(Item::Note(crate::model::Note {
-        experiment: experiment.to_string(),
-        source_file: p.display().to_string(),
-        message: format!(
-            "{experiment}: salvaged {} hits ({} sets) from a damaged {name} ({pages}; SQLite: {})",
-            r.hits,
-            r.sets,
-            sqlite_cause(&why)
-        ),
-        said: true,
-    }));
-    first.push(Item::Note(crate::model::Note {
-        experiment: experiment.to_string(),
-        source_file: p.display().to_string(),
-        message: format!(
-            "salvage of {name}: tables found: {}; {} record(s) of its table-leaf pages not whole: not taken",
-            r.tables, r.partial
-        ),
-        said: false,
-    }));
-    Some(r)
-}
-
-/// SQLite's own words from an error that carries the file's name before them.
-fn sqlite_cause(e: &str) -> String {
-    let tail = e.rsplit(": ").next().unwrap_or(e);
-    tail.to_string()
 }
 
 /// The setup (records by type) and the tally: the items emitted once everything else is out.
@@ -1033,6 +845,8 @@ fn transient_keys(
 
 mod pridb;
 mod salvaged;
+mod trfdb;
+pub use trfdb::read_trfdb;
 mod sets;
 pub mod tail;
 pub mod txt;

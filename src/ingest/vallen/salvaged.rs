@@ -5,8 +5,10 @@
 
 use super::write::{AE_SCHEMA, TR_TABLES};
 use crate::ingest::salvage::{salvage, Row, Salvage, Shape, Value};
+use crate::ingest::settings::IngestConfig;
 use crate::ingest::{file_err, IngestError};
-use std::collections::HashMap;
+use crate::model::Item;
+use std::collections::{HashMap, HashSet};
 use std::path::Path;
 
 /// One `tr_data` row as salvaged, with the columns the reader uses.
@@ -177,4 +179,153 @@ pub(super) fn rebuild_pridb(path: &Path, to: &Path) -> Result<RebuiltPri, Ingest
         tables: s.describe_tables(),
         partial: s.partial_records,
     })
+}
+
+/// The `.tradb`'s transients from its whole pages after SQLite failed with `e` (`None`:
+/// nothing whole), said in `first`; each hit whose transient is lost a reject naming the
+/// file and the cause.
+#[allow(clippy::too_many_arguments)]
+pub(super) fn transients(
+    tradb: &Path,
+    e: &IngestError,
+    decode: bool,
+    info: &super::PriInfo,
+    offsets: &super::TraiOffsets,
+    experiment: &str,
+    pridb_name: &str,
+    first: &mut Vec<Item>,
+) -> Option<super::Transients> {
+    let sv = salvage_tradb(tradb).ok()?;
+    let mut raw: Vec<(i64, i64, i64, i64)> = sv
+        .rows
+        .iter()
+        .map(|(id, r)| {
+            (
+                *id,
+                r.time.unwrap_or(0),
+                r.chan.unwrap_or(0),
+                r.trai.unwrap_or(0),
+            )
+        })
+        .collect();
+    raw.sort_unstable();
+    let have: HashSet<(i64, i64, i64)> = raw.iter().map(|k| (k.3, k.2, k.1)).collect();
+    let name = tradb
+        .file_name()
+        .map_or(String::new(), |n| n.to_string_lossy().to_string());
+    let of = info.link.len().max(raw.len());
+    let pages = match sv.declared_pages {
+        0 => format!("{} whole page(s)", sv.pages),
+        d => format!("{} of {d} pages", sv.pages.min(d)),
+    };
+    let cause = sqlite_cause(&e.to_string());
+    let note = |message: String, said: bool| {
+        Item::Note(crate::model::Note {
+            experiment: experiment.to_string(),
+            source_file: tradb.display().to_string(),
+            message,
+            said,
+        })
+    };
+    first.push(note(
+        format!(
+            "{experiment}: salvaged {} of ≥ {of} transients from a damaged {name} ({pages}; SQLite: {cause})",
+            raw.len()
+        ),
+        true,
+    ));
+    first.push(note(
+        format!(
+            "salvage of {name}: tables found: {}; {} record(s) of its table-leaf pages not whole (a cell, an overflow page or a value lost), {} blob(s) that do not decode to their Samples: not taken",
+            sv.tables, sv.partial, sv.undecodable
+        ),
+        false,
+    ));
+    let why =
+        format!("the damaged {name} lost it (SQLite: {cause}; its whole pages do not hold it)");
+    let mut keys = super::transient_keys(&raw, info, offsets);
+    if !decode {
+        keys.clear();
+    }
+    Some(super::Transients {
+        tail: super::missing_rejects(experiment, pridb_name, &info.link, &have, &why),
+        in_tradb: raw.len() as u64,
+        time_base: sv.time_base,
+        conn: None,
+        keys: keys.into(),
+        have,
+        tradb: tradb.to_path_buf(),
+        salvaged: Some(sv),
+    })
+}
+
+/// A copy of a `.pridb` SQLite refuses, rebuilt from its whole pages (`None`: the file is
+/// sound, or nothing in it is whole — then the ordinary reader says why). What was salvaged
+/// is said in `first`.
+pub(super) fn salvage_pridb(
+    p: &Path,
+    cfg: &IngestConfig,
+    experiment: &str,
+    first: &mut Vec<Item>,
+) -> Option<RebuiltPri> {
+    let why = match super::read_pridb(p, cfg) {
+        Ok(_) => return None,
+        Err(e) => e.to_string(),
+    };
+    static N: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
+    let to = std::env::temp_dir().join(format!(
+        "aepipe-salvage-{}-{}.pridb",
+        std::process::id(),
+        N.fetch_add(1, std::sync::atomic::Ordering::Relaxed)
+    ));
+    let name = p
+        .file_name()
+        .map_or(String::new(), |n| n.to_string_lossy().to_string());
+    let r = match rebuild_pridb(p, &to) {
+        Ok(r) => r,
+        Err(e) => {
+            first.push(Item::Note(crate::model::Note {
+                experiment: experiment.to_string(),
+                source_file: p.display().to_string(),
+                message: format!(
+                    "{experiment}: nothing salvaged from a damaged {name} (SQLite: {}; {})",
+                    sqlite_cause(&why),
+                    sqlite_cause(&e.to_string())
+                ),
+                said: true,
+            }));
+            return None;
+        }
+    };
+    let pages = match r.declared_pages {
+        0 => format!("{} whole page(s)", r.pages),
+        d => format!("{} of {d} pages", r.pages.min(d)),
+    };
+    first.push(Item::Note(crate::model::Note {
+        experiment: experiment.to_string(),
+        source_file: p.display().to_string(),
+        message: format!(
+            "{experiment}: salvaged {} hits ({} sets) from a damaged {name} ({pages}; SQLite: {})",
+            r.hits,
+            r.sets,
+            sqlite_cause(&why)
+        ),
+        said: true,
+    }));
+    first.push(Item::Note(crate::model::Note {
+        experiment: experiment.to_string(),
+        source_file: p.display().to_string(),
+        message: format!(
+            "salvage of {name}: tables found: {}; {} record(s) of its table-leaf pages not whole: not taken",
+            r.tables, r.partial
+        ),
+        said: false,
+    }));
+    Some(r)
+}
+
+/// SQLite's own words from an error that carries the file's name before them.
+pub(super) fn sqlite_cause(e: &str) -> String {
+    let tail = e.rsplit(": ").next().unwrap_or(e);
+    tail.to_string()
 }
