@@ -115,7 +115,7 @@ def pick_energy_ratio(
 ) -> tuple[npt.NDArray[np.float32], int]: ...
 def trend(
     paths: list[str], cutoff: str = "peak-load", columns: list[str] | None = None, alpha: float = 0.01,
-    exclude_outside: bool = False, min_load_span_n: float = 1.0,
+    exclude_outside: bool = False, min_load_span_n: float = 1.0, min_hits: int = 10,
 ) -> ArrowStream: ...
 def detect(
     channels: list[npt.NDArray[np.float32]], sample_rate_hz: float, config_toml: str

@@ -23,6 +23,7 @@ def trend(
     alpha: float = 0.01,
     exclude_outside: bool = False,
     min_load_span_n: float = 1.0,
+    min_hits: int = 10,
 ) -> pl.DataFrame:
     """The trend statistics of each experiment and channel (``trend.parquet``'s rows):
     Pearson's r of each power ratio (or ``columns``) against the AE number, its p value,
@@ -34,7 +35,8 @@ def trend(
     events were built, each event counts once (channel 0); ``exclude_outside`` also leaves
     out events outside the configured zone. A load channel spanning less than
     ``min_load_span_n`` newtons, or within its own noise, is no load: no peak-load cut (the
-    ``cutoff`` column says why).
+    ``cutoff`` column says why). A series of fewer than ``min_hits`` hits states no trend:
+    r and p are null and ``note`` says ``n = 3: too few hits for a trend``.
 
     >>> t = aepipe.trend(aepipe.features("test.pridb"), cutoff="none")   # doctest: +SKIP
     >>> t.filter(pl.col("significant")).select("column", "r", "p")        # doctest: +SKIP
@@ -44,12 +46,14 @@ def trend(
         with tempfile.TemporaryDirectory(prefix="aepipe-trend-") as d:
             p = os.path.join(d, "features.parquet")
             features_df.write_parquet(p)
-            stream = _aepipe.trend([p], cutoff, cols, float(alpha), exclude_outside, float(min_load_span_n))
+            stream = _aepipe.trend(
+                [p], cutoff, cols, float(alpha), exclude_outside, float(min_load_span_n), int(min_hits)
+            )
             return pl.DataFrame(stream)
     if not is_paths(features_df):
         raise TypeError("features_df must be a polars.DataFrame or paths to feature tables")
     stream = _aepipe.trend(
-        paths_arg(features_df), cutoff, cols, float(alpha), exclude_outside, float(min_load_span_n)
+        paths_arg(features_df), cutoff, cols, float(alpha), exclude_outside, float(min_load_span_n), int(min_hits)
     )
     return pl.DataFrame(stream)
 

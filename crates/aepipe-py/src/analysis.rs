@@ -18,7 +18,7 @@ use std::path::PathBuf;
 /// `trend.parquet`'s rows for feature tables (files written by aepipe, or by the Python
 /// layer from a frame).
 #[pyfunction]
-#[pyo3(signature = (paths, cutoff="peak-load".to_string(), columns=None, alpha=0.01, exclude_outside=false, min_load_span_n=1.0))]
+#[pyo3(signature = (paths, cutoff="peak-load".to_string(), columns=None, alpha=0.01, exclude_outside=false, min_load_span_n=1.0, min_hits=10))]
 pub fn trend(
     py: Python<'_>,
     paths: Vec<PathBuf>,
@@ -27,7 +27,13 @@ pub fn trend(
     alpha: f64,
     exclude_outside: bool,
     min_load_span_n: f64,
+    min_hits: usize,
 ) -> PyResult<ArrowStream> {
+    if min_hits < 3 {
+        return Err(errors::config(
+            aepipe::config::AnalysisSettingsError::MinHits(min_hits).into(),
+        ));
+    }
     let cutoff: Cutoff = cutoff
         .parse()
         .map_err(|e: aepipe::config::AnalysisSettingsError| errors::config(e.into()))?;
@@ -37,6 +43,7 @@ pub fn trend(
         columns: columns.unwrap_or_default(),
         sources: SourceRows { exclude_outside },
         min_load_span_n,
+        min_hits,
     };
     let dir = TempDir::new()?;
     let out = dir.path().to_path_buf();
