@@ -975,6 +975,12 @@ fn seeds_out(cases: &[Case]) {
             continue;
         };
         let fname = c.file.file_name().unwrap().to_string_lossy().to_lowercase();
+        if fname.ends_with(".tradb") || fname.ends_with(".pridb") {
+            // The salvage reader's seeds: the database file as it is.
+            let d = dir.join("sqlite_salvage");
+            std::fs::create_dir_all(&d).unwrap();
+            std::fs::write(d.join(&c.name), &bytes).unwrap();
+        }
         if fname.ends_with(".tradb") {
             // The blob decoder's seeds: DataFormat byte, Samples (u32 LE), blob.
             let Ok(db) = rusqlite::Connection::open(&c.file) else {
