@@ -157,6 +157,23 @@ pub struct Manifest {
     pub streams: Vec<crate::model::StreamTally>,
     pub counts: ManifestCounts,
     pub timings_s: Timings,
+    /// The reference map `aepipe run` classified with, by its cache key (added after the SOM
+    /// stage; absent for a map not from the cache).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub som_map: Option<SomMapEntry>,
+}
+
+/// `manifest.json`'s `som_map`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct SomMapEntry {
+    pub cache_key: String,
+    pub reused: bool,
+}
+
+/// Write a `manifest.json` (whole, by rename).
+pub fn write_manifest(path: &std::path::Path, m: &Manifest) -> Result<(), crate::util::IoAt> {
+    let text = serde_json::to_string_pretty(m).expect("manifest serialises");
+    write_atomic(path, text.as_bytes())
 }
 
 impl Manifest {
@@ -253,9 +270,9 @@ pub(crate) fn assemble(
             stream: stats.seconds,
             total: t0.elapsed().as_secs_f64(),
         },
+        som_map: None,
     };
-    let text = serde_json::to_string_pretty(&manifest).expect("manifest serialises");
-    write_atomic(&manifest_path, text.as_bytes())?;
+    write_manifest(&manifest_path, &manifest)?;
     Ok(RunReport {
         manifest_path,
         sources: p.sources,

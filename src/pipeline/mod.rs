@@ -208,7 +208,7 @@ pub(crate) use counts::PartStats;
 pub use counts::{Counts, RecordCounts, StreamStats, MAX_NOTES};
 pub use layout::{PartDir, PartTable, StreamDir};
 pub(crate) use manifest::assemble;
-pub use manifest::{InputFile, Manifest};
+pub use manifest::{write_manifest, InputFile, Manifest, SomMapEntry};
 pub use part::{run_part, Continuation, PartRun};
 use parts::produce;
 pub(crate) use parts::{Part, Produced};

@@ -181,3 +181,18 @@ fn files(dir: &Path) -> Result<Vec<PathBuf>, WorkflowError> {
     v.sort();
     Ok(v)
 }
+
+/// Name the run's map in the features stage's `manifest.json` (`som_map`: its cache key and
+/// whether the run reused it), written before the map existed.
+pub fn name_in_manifest(manifest: &Path, c: &MapCache) -> Result<(), WorkflowError> {
+    let bad = |e: String| WorkflowError::Input {
+        path: manifest.display().to_string(),
+        message: e,
+    };
+    let mut m = crate::pipeline::Manifest::read(manifest).map_err(|e| bad(e.0))?;
+    m.som_map = Some(crate::pipeline::SomMapEntry {
+        cache_key: c.key.clone(),
+        reused: c.reused,
+    });
+    crate::pipeline::write_manifest(manifest, &m).map_err(|e| bad(e.to_string()))
+}

@@ -271,6 +271,9 @@ pub fn analyse(
     if cfg.som.enabled {
         job.go_on()?;
         som = Some(som_stage(job, &feats, &features, &mut log)?);
+        if let Some(c) = som.as_ref().and_then(|m| m.map_cache.as_ref()) {
+            mapcache::name_in_manifest(&features.manifest_path, c)?;
+        }
     }
     let cluster = if cfg.cluster.enabled {
         job.go_on()?;
