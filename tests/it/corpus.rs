@@ -979,7 +979,7 @@ fn seeds_out(cases: &[Case]) {
             // The salvage reader's seeds: the database file as it is.
             let d = dir.join("sqlite_salvage");
             std::fs::create_dir_all(&d).unwrap();
-            std::fs::write(d.join(&c.name), &bytes).unwrap();
+            std::fs::write(d.join(c.name), &bytes).unwrap();
         }
         if fname.ends_with(".tradb") {
             // The blob decoder's seeds: DataFormat byte, Samples (u32 LE), blob.
