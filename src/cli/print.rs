@@ -45,20 +45,8 @@ pub fn stream_run(report: &RunReport, what: &str) {
         );
     }
     // What a reader of an experiment's numbers must know, one line each.
-    let said: Vec<&str> = s
-        .notes
-        .iter()
-        .filter(|n| n.said)
-        .map(|n| n.message.as_str())
-        .collect();
-    for m in said.iter().take(SAID_LINES) {
-        println!("  {m}");
-    }
-    if said.len() > SAID_LINES {
-        println!(
-            "  … {} more such lines in the manifest",
-            said.len() - SAID_LINES
-        );
+    for l in s.said_lines(SAID_LINES) {
+        println!("{l}");
     }
     if let Some(n) = s.notes.iter().find(|n| !n.said) {
         println!(

@@ -185,6 +185,28 @@ impl StreamStats {
         }
     }
 
+    /// The notes said on the terminal too (a fact about a whole experiment), in order.
+    pub fn said(&self) -> Vec<&str> {
+        self.notes
+            .iter()
+            .filter(|n| n.said)
+            .map(|n| n.message.as_str())
+            .collect()
+    }
+
+    /// [`StreamStats::said`] as terminal lines, at most `max`, then how many more there are.
+    pub fn said_lines(&self, max: usize) -> Vec<String> {
+        let said = self.said();
+        let mut l: Vec<String> = said.iter().take(max).map(|m| format!("  {m}")).collect();
+        if said.len() > max {
+            l.push(format!(
+                "  … {} more such lines in the manifest",
+                said.len() - max
+            ));
+        }
+        l
+    }
+
     pub(crate) fn add_note(&mut self, n: Note) {
         if self.notes.len() < MAX_NOTES {
             self.notes.push(n);

@@ -11,13 +11,7 @@ const SORT_JS: &str = "<script>document.querySelectorAll('table.sortable th').fo
 
 /// The experiments' own lines (the terminal says them too).
 pub(super) fn said(s: &RunSummary) -> Vec<&str> {
-    s.features
-        .stats
-        .notes
-        .iter()
-        .filter(|n| n.said)
-        .map(|n| n.message.as_str())
-        .collect()
+    s.features.stats.said()
 }
 
 /// The lines about hits a load series does not cover (beside the load's pictures).

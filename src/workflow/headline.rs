@@ -87,23 +87,7 @@ fn series_part(s: &RunSummary) -> Vec<String> {
     let st = &s.features.stats;
     let mut l = Vec::new();
     // What a test's numbers rest on (a rate implied, hits outside the machine log).
-    let said: Vec<&str> = st
-        .notes
-        .iter()
-        .filter(|n| n.said)
-        .map(|n| n.message.as_str())
-        .collect();
-    l.extend(
-        said.iter()
-            .take(SERIES_TABLE_TESTS)
-            .map(|m| format!("  {m}")),
-    );
-    if said.len() > SERIES_TABLE_TESTS {
-        l.push(format!(
-            "  … {} more such lines in the manifest",
-            said.len() - SERIES_TABLE_TESTS
-        ));
-    }
+    l.extend(st.said_lines(SERIES_TABLE_TESTS));
     // A series of tests side by side (one test is the rest of this summary).
     if let Some(se) = s.series.as_ref().filter(|se| se.rows.len() > 1) {
         l.extend(crate::analysis::series::series_lines(

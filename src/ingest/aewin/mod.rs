@@ -222,18 +222,9 @@ pub(super) struct WaveFile {
     hit: u64,
     /// Microseconds from the name (a header-less file), for the order and the time.
     name_time_us: Option<u64>,
+    /// The file has no AEwin header (its rate is not its own), as [`identify`] read it.
+    header_less: bool,
     path: PathBuf,
-}
-
-impl WaveFile {
-    /// Whether the file has no AEwin header (its rate is not its own).
-    fn header_less(&self) -> bool {
-        Head::read(&self.path)
-            .ok()
-            .and_then(|h| header::parse(&h.text))
-            .filter(header::Header::is_aewin)
-            .is_none()
-    }
 }
 
 /// What a header-less file's name says, or a header's keys where the file has them. A
@@ -257,6 +248,7 @@ fn identify(p: &Path, place: usize) -> WaveFile {
         channel,
         hit,
         name_time_us: named.map(|n| n.3),
+        header_less: hd.is_none(),
         path: p.to_path_buf(),
     }
 }

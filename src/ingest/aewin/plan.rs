@@ -131,7 +131,7 @@ pub(super) fn plan(
 fn without_list(experiment: &str, files: Vec<WaveFile>, cfg: &AewinConfig) -> Plan {
     let configured = cfg.configured_rate_hz();
     let mut first = Vec::new();
-    if files.iter().any(|f| f.header_less()) {
+    if files.iter().any(|f| f.header_less) {
         first.push(note(
             experiment,
             "",

@@ -56,6 +56,14 @@ fn column(s: &Salvage, table: &str, row: &Row, name: &str) -> Option<Value> {
         .cloned()
 }
 
+/// `28 of 42 pages` (the header's count known), else `28 whole page(s)`.
+fn pages_of(whole: u64, declared: u64) -> String {
+    match declared {
+        0 => format!("{whole} whole page(s)"),
+        d => format!("{} of {d} pages", whole.min(d)),
+    }
+}
+
 /// Salvage a damaged `.tradb`; an error when not one transient is whole.
 pub(super) fn salvage_tradb(path: &Path) -> Result<SalvagedTr, IngestError> {
     let bytes = std::fs::read(path).map_err(|e| file_err(path, format!("cannot read: {e}")))?;
@@ -214,10 +222,7 @@ pub(super) fn transients(
         .file_name()
         .map_or(String::new(), |n| n.to_string_lossy().to_string());
     let of = info.link.len().max(raw.len());
-    let pages = match sv.declared_pages {
-        0 => format!("{} whole page(s)", sv.pages),
-        d => format!("{} of {d} pages", sv.pages.min(d)),
-    };
+    let pages = pages_of(sv.pages, sv.declared_pages);
     let cause = sqlite_cause(&e.to_string());
     let note = |message: String, said: bool| {
         Item::Note(crate::model::Note {
@@ -297,10 +302,7 @@ pub(super) fn salvage_pridb(
             return None;
         }
     };
-    let pages = match r.declared_pages {
-        0 => format!("{} whole page(s)", r.pages),
-        d => format!("{} of {d} pages", r.pages.min(d)),
-    };
+    let pages = pages_of(r.pages, r.declared_pages);
     first.push(Item::Note(crate::model::Note {
         experiment: experiment.to_string(),
         source_file: p.display().to_string(),
