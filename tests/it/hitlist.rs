@@ -5,7 +5,7 @@
 //! way an AEwin system would write it: waveforms at a known rate, and a hit list whose
 //! AMP / RISE / DURATION / COUN are measured on those waveforms at the system's threshold.
 
-use crate::{aepipe, read_all, real_data, table_rows, TempDir};
+use crate::{aepipe, read_all, real_data, table_maps, table_rows, TempDir};
 use std::collections::BTreeMap;
 use std::path::Path;
 
@@ -134,10 +134,21 @@ const COLS: [&str; 6] = ["ID", "PARA1", "RISE", "COUN", "DURATION", "AMP"];
 
 /// hits.parquet's rows by hit: column → value as text.
 fn hit_rows(out: &Path) -> Vec<BTreeMap<String, String>> {
-    let (names, rows) = table_rows(&out.join("hits.parquet"));
-    rows.into_iter()
-        .map(|r| names.iter().cloned().zip(r).collect())
-        .collect()
+    table_maps(&out.join("hits.parquet"))
+}
+
+/// `aepipe run --config CFG DATA --out OUT`, which must succeed: its terminal output.
+fn run(cfg: &Path, data: &Path, out: &Path) -> String {
+    let (c, so, se) = aepipe(&[
+        "run",
+        "--config",
+        cfg.to_str().unwrap(),
+        data.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert_eq!(c, 0, "{so}\n{se}");
+    so
 }
 
 fn num(r: &BTreeMap<String, String>, c: &str) -> Option<f64> {
@@ -465,15 +476,7 @@ fn a_log_that_ends_early_is_said_and_three_hits_state_no_trend() {
     let cfg = t.path().join("p.toml");
     std::fs::write(&cfg, "[som]\nenabled = false\n[report]\nenabled = false\n").unwrap();
     let out = t.path().join("run");
-    let (c, so, se) = aepipe(&[
-        "run",
-        "--config",
-        cfg.to_str().unwrap(),
-        data.to_str().unwrap(),
-        "--out",
-        out.to_str().unwrap(),
-    ]);
-    assert_eq!(c, 0, "{so}\n{se}");
+    let so = run(&cfg, &data, &out);
     assert!(
         so.contains("EXP3005: 9 of 12 hits after the machine log ends at 19.5 s: no load"),
         "{so}"
@@ -507,15 +510,7 @@ fn a_log_that_ends_early_is_said_and_three_hits_state_no_trend() {
         "[som]\nenabled = false\n[report]\nenabled = false\n[trend]\nmin_hits = 3\n",
     )
     .unwrap();
-    let (c, so, se) = aepipe(&[
-        "run",
-        "--config",
-        cfg.to_str().unwrap(),
-        data.to_str().unwrap(),
-        "--out",
-        out.to_str().unwrap(),
-    ]);
-    assert_eq!(c, 0, "{so}\n{se}");
+    let so = run(&cfg, &data, &out);
     assert!(!so.contains("too few hits"), "{so}");
     let (names, rows) = table_rows(&out.join("trend/trend.parquet"));
     let r = names.iter().position(|x| x == "r").unwrap();
@@ -546,12 +541,7 @@ fn the_series_table_of_the_real_sets_agrees_with_the_runs_tables() {
     args.extend(sets.iter().map(|p| p.to_str().unwrap()));
     let (c, so, se) = aepipe(&args);
     assert_eq!(c, 0, "{so}\n{se}");
-    let table = |p: &str| -> Vec<BTreeMap<String, String>> {
-        let (names, rows) = table_rows(&out.join(p));
-        rows.into_iter()
-            .map(|r| names.iter().cloned().zip(r).collect())
-            .collect()
-    };
+    let table = |p: &str| table_maps(&out.join(p));
     let series = table("series.parquet");
     let hits = table("features/hits.parquet");
     let params = table("features/parametric.parquet");

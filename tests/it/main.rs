@@ -173,6 +173,14 @@ pub fn table_rows(path: &Path) -> (Vec<String>, Vec<Vec<String>>) {
     (names, rows)
 }
 
+/// A Parquet table's rows as column → value text ([`table_rows`]).
+pub fn table_maps(path: &Path) -> Vec<std::collections::BTreeMap<String, String>> {
+    let (names, rows) = table_rows(path);
+    rows.into_iter()
+        .map(|r| names.iter().cloned().zip(r).collect())
+        .collect()
+}
+
 /// Every file below `dir`, sorted.
 pub fn files(dir: &Path) -> Vec<PathBuf> {
     let mut out = Vec::new();

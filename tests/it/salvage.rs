@@ -181,6 +181,17 @@ fn assert_salvaged(
     }
 }
 
+/// Page `p` (1-based, `page` bytes) overwritten with `fill`: "zeros" or "noise".
+fn overwrite(b: &mut [u8], p: u64, page: usize, fill: &str, rng: &mut aepipe::util::Rng) {
+    for x in &mut b[(p as usize - 1) * page..p as usize * page] {
+        *x = if fill == "zeros" {
+            0
+        } else {
+            (rng.uniform() * 256.0) as u8
+        };
+    }
+}
+
 /// Copy the pair into `to` with the `.tradb` passed through `damage`.
 fn damaged(from: &Path, to: &Path, id: &str, damage: impl FnOnce(&mut Vec<u8>)) -> PathBuf {
     std::fs::create_dir_all(to).unwrap();
@@ -258,14 +269,7 @@ fn a_damaged_tradb_gives_back_exactly_the_records_whose_pages_survived() {
         assert!(expect.len() < 60 || name == "interior" || name == "schema");
         for fill in ["zeros", "noise"] {
             let d = damaged(&src, &t.path().join(format!("{name}-{fill}")), "S", |b| {
-                let r = (p as usize - 1) * page..p as usize * page;
-                for x in &mut b[r] {
-                    *x = if fill == "zeros" {
-                        0
-                    } else {
-                        (rng.uniform() * 256.0) as u8
-                    };
-                }
+                overwrite(b, p, page, fill, &mut rng)
             });
             assert_salvaged(&d, &intact, &expect, &format!("{name} page {p} {fill}"));
         }
@@ -289,14 +293,7 @@ fn a_damaged_tradb_gives_back_exactly_the_records_whose_pages_survived() {
         .collect();
     for fill in ["zeros", "noise"] {
         let d = damaged(&src, &t.path().join(format!("last-{fill}")), "S", |b| {
-            let r = (last as usize - 1) * page..last as usize * page;
-            for x in &mut b[r] {
-                *x = if fill == "zeros" {
-                    0
-                } else {
-                    (rng.uniform() * 256.0) as u8
-                };
-            }
+            overwrite(b, last, page, fill, &mut rng);
             b.truncate(cut);
         });
         assert_salvaged(
@@ -587,19 +584,11 @@ fn a_pridb_cut_short_gives_back_the_hits_its_pages_hold() {
         ));
     }
     let table = |dir: &Path, name: &str| -> Vec<BTreeMap<String, String>> {
-        let (names, rows) = crate::table_rows(&dir.join(format!("{name}.parquet")));
-        rows.into_iter()
-            .map(|r| {
-                names
-                    .iter()
-                    .cloned()
-                    .zip(r)
-                    .filter(|(k, _)| {
-                        !["source_file", "hit", "row", "transient"].contains(&k.as_str())
-                    })
-                    .collect()
-            })
-            .collect()
+        let mut rows = crate::table_maps(&dir.join(format!("{name}.parquet")));
+        for r in &mut rows {
+            r.retain(|k, _| !["source_file", "hit", "row", "transient"].contains(&k.as_str()));
+        }
+        rows
     };
     let mut report = Vec::new();
     for (dir, id, cuts) in cases {
