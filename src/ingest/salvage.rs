@@ -313,7 +313,11 @@ pub fn rebuild(s: &Salvage, fallback: &[&str], to: &std::path::Path) -> rusqlite
 pub enum SalvageError {
     #[error("shorter than one SQLite page")]
     TooShort,
-    #[error("no page of the file reads as a SQLite b-tree page")]
+    /// The header is lost and no page size makes a whole record of a table whose shape is
+    /// known (the schema page, the file's header page, is lost with it).
+    #[error(
+        "its header and schema page are lost, and no page holds a whole record of a known table"
+    )]
     NoPages,
 }
 

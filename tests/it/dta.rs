@@ -35,30 +35,16 @@ fn the_real_dta_gives_the_hits_and_samples_mistrasdta_gives() {
     };
     let file = real.join("mistras_dta/210527-CH1-15.DTA");
     let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/python/mistras_read.py");
-    let out = std::process::Command::new("python3")
-        .arg(&script)
-        .arg(&file)
-        .output();
-    let out = match out {
-        Ok(o) if o.status.success() => o,
-        Ok(o) => {
-            let e = String::from_utf8_lossy(&o.stderr)
-                .lines()
-                .last()
-                .unwrap_or("")
-                .to_string();
-            crate::skip(
-                "MistrasDTA comparison",
-                &format!("{e} (pip install MistrasDTA)"),
-            );
-            return;
-        }
-        Err(e) => {
-            crate::skip("MistrasDTA comparison", &format!("python3: {e}"));
-            return;
-        }
+    let Some(out) = crate::reference(
+        "MistrasDTA comparison",
+        "pip install MistrasDTA",
+        std::process::Command::new("python3")
+            .arg(&script)
+            .arg(&file),
+    ) else {
+        return;
     };
-    let theirs: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let theirs: serde_json::Value = serde_json::from_slice(&out).unwrap();
     let (hits, recs, rejects, _) = items(std::slice::from_ref(&file));
     assert!(rejects.is_empty(), "{rejects:?}");
     let th = theirs["hits"].as_array().unwrap();

@@ -104,28 +104,16 @@ fn synthetic_experiment_from_the_library_is_a_readable_vallen_pair_with_truth() 
 
     // vallenae (if installed) sees the same hits and samples.
     let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/python/vallenae_read.py");
-    let out = std::process::Command::new("python3")
-        .arg(&script)
-        .arg(d.path().join("data/exp"))
-        .output();
-    let out = match out {
-        Ok(o) if o.status.success() => o,
-        Ok(o) => {
-            crate::skip(
-                "vallenae part",
-                String::from_utf8_lossy(&o.stderr)
-                    .lines()
-                    .last()
-                    .unwrap_or(""),
-            );
-            return;
-        }
-        Err(e) => {
-            crate::skip("vallenae part", &format!("python3: {e}"));
-            return;
-        }
+    let Some(out) = crate::reference(
+        "vallenae part",
+        "pip install vallenae",
+        std::process::Command::new("python3")
+            .arg(&script)
+            .arg(d.path().join("data/exp")),
+    ) else {
+        return;
     };
-    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let v: serde_json::Value = serde_json::from_slice(&out).unwrap();
     assert_eq!(v["hits"].as_u64(), Some(n_hits as u64));
     let tr = v["transients"].as_array().unwrap();
     assert_eq!(tr.len(), n_hits);

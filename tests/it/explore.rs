@@ -11,21 +11,14 @@ use std::path::Path;
 /// What `tests/python/browser_report.py` saw of `report`, or None after [`crate::skip`].
 pub fn browser(report: &Path) -> Option<serde_json::Value> {
     let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/python/browser_report.py");
-    let o = std::process::Command::new("python3")
-        .arg(&script)
-        .arg(report)
-        .output();
-    let why = match o {
-        Ok(o) if o.status.success() => return Some(serde_json::from_slice(&o.stdout).unwrap()),
-        Ok(o) if o.status.code() == Some(3) => String::from_utf8_lossy(&o.stderr).into_owned(),
-        Ok(o) => panic!(
-            "the browser check failed: {}",
-            String::from_utf8_lossy(&o.stderr)
-        ),
-        Err(e) => format!("python3: {e}"),
-    };
-    crate::skip("the report in a browser", &why);
-    None
+    let o = crate::reference(
+        "the report in a browser",
+        "pip install playwright and a chromium; .ci/run does",
+        std::process::Command::new("python3")
+            .arg(&script)
+            .arg(report),
+    )?;
+    Some(serde_json::from_slice(&o).unwrap())
 }
 
 #[test]

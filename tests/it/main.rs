@@ -82,6 +82,47 @@ pub fn skip(test: &str, why: &str) {
     eprintln!("SKIP {test}: {why}");
 }
 
+/// Run an independent reference (a Python script): its stdout. It skips (through [`skip`],
+/// so it fails under `AEPIPE_REQUIRE_ALL=1`) only when what it needs is absent — `python3`
+/// itself, or a module: the script's own exit 3 after an `ImportError`, or a
+/// `ModuleNotFoundError`. Any other failure (an assertion in the script, a reader that
+/// fails on a file aepipe wrote) fails the test, with the script's output: a check that
+/// fails is never a skip. `install` says what to install when it skips.
+pub fn reference(test: &str, install: &str, cmd: &mut std::process::Command) -> Option<Vec<u8>> {
+    let o = match cmd.output() {
+        Ok(o) => o,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
+            skip(
+                test,
+                &format!("{}: {e} ({install})", cmd.get_program().to_string_lossy()),
+            );
+            return None;
+        }
+        Err(e) => panic!(
+            "{test}: {} could not be started: {e}",
+            cmd.get_program().to_string_lossy()
+        ),
+    };
+    if o.status.success() {
+        return Some(o.stdout);
+    }
+    let err = String::from_utf8_lossy(&o.stderr);
+    if o.status.code() == Some(3) || err.contains("ModuleNotFoundError") {
+        let last = err
+            .lines()
+            .rev()
+            .find(|l| !l.trim().is_empty())
+            .unwrap_or("");
+        skip(test, &format!("{last} ({install})"));
+        return None;
+    }
+    panic!(
+        "{test}: the reference failed ({}):\n{err}\n{}",
+        o.status,
+        String::from_utf8_lossy(&o.stdout)
+    );
+}
+
 /// `../shared/data/real` beside the repository, or `None` after [`skip`].
 pub fn real_data(test: &str) -> Option<PathBuf> {
     let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data/real");
@@ -220,4 +261,76 @@ pub fn read_all(
         }
     }
     (recs, rejs)
+}
+
+/// A reference that fails is a failing test, and only an absent module is a skip: a
+/// planted failing assertion must fail, a planted missing module must skip.
+#[test]
+fn a_failing_reference_fails_and_only_an_absent_module_skips() {
+    let python = |code: &str| {
+        let mut c = std::process::Command::new("python3");
+        c.args(["-c", code]);
+        c
+    };
+    if python("pass").output().is_err() {
+        skip(
+            "a_failing_reference_fails_and_only_an_absent_module_skips",
+            "no python3",
+        );
+        return;
+    }
+    let said = |r: std::thread::Result<Option<Vec<u8>>>| match r {
+        Ok(out) => format!("returned {out:?}"),
+        Err(p) => p
+            .downcast_ref::<String>()
+            .cloned()
+            .unwrap_or_else(|| "a panic".into()),
+    };
+    let planted = std::panic::catch_unwind(|| {
+        reference(
+            "planted",
+            "-",
+            &mut python("assert 1 + 1 == 3, 'planted defect'"),
+        )
+    });
+    let s = said(planted);
+    assert!(
+        s.contains("the reference failed") && s.contains("planted defect"),
+        "{s}"
+    );
+    let absent = std::panic::catch_unwind(|| {
+        reference(
+            "absent",
+            "-",
+            &mut python("import aepipe_no_such_module_xyz"),
+        )
+    });
+    let strict = std::env::var("AEPIPE_REQUIRE_ALL").is_ok_and(|v| v == "1");
+    let s = said(absent);
+    if strict {
+        assert!(
+            s.contains("cannot run") && s.contains("No module named"),
+            "{s}"
+        );
+    } else {
+        assert_eq!(s, "returned None");
+    }
+    let exit3 = std::panic::catch_unwind(|| {
+        reference(
+            "exit3",
+            "-",
+            &mut python("import sys; print('missing: x', file=sys.stderr); sys.exit(3)"),
+        )
+    });
+    let s = said(exit3);
+    assert!(
+        if strict {
+            s.contains("cannot run")
+        } else {
+            s == "returned None"
+        },
+        "{s}"
+    );
+    let ok = reference("ok", "-", &mut python("print(6 * 7)"));
+    assert_eq!(ok.as_deref(), Some(&b"42\n"[..]));
 }

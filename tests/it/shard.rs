@@ -176,34 +176,19 @@ fn one_three_and_four_shards_merge_to_the_unsharded_run() {
 
     // The dataset opens in Polars, DuckDB and pyarrow, with `experiment` a column.
     let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/python/read_dataset.py");
-    let o = Command::new("python3")
-        .arg(&script)
-        .arg(t.path().join("s3/features"))
-        .output();
-    match o {
-        Ok(o) if o.status.success() => {
-            let so = String::from_utf8_lossy(&o.stdout);
-            let (_, rows) = crate::table_rows(&whole.join("features/features.parquet"));
-            for reader in ["polars", "duckdb", "pyarrow"] {
-                let want = format!("{reader} {} rows, 10 experiments", rows.len());
-                assert!(so.contains(&want), "{want} not in:\n{so}");
-            }
+    if let Some(o) = crate::reference(
+        "sharded dataset readers",
+        "pip install polars duckdb pyarrow",
+        Command::new("python3")
+            .arg(&script)
+            .arg(t.path().join("s3/features")),
+    ) {
+        let so = String::from_utf8_lossy(&o);
+        let (_, rows) = crate::table_rows(&whole.join("features/features.parquet"));
+        for reader in ["polars", "duckdb", "pyarrow"] {
+            let want = format!("{reader} {} rows, 10 experiments", rows.len());
+            assert!(so.contains(&want), "{want} not in:\n{so}");
         }
-        Ok(o) => {
-            let e = String::from_utf8_lossy(&o.stderr).to_string();
-            if e.contains("ModuleNotFoundError") {
-                crate::skip(
-                    "sharded dataset readers",
-                    &format!(
-                        "{} (pip install polars duckdb pyarrow)",
-                        e.lines().last().unwrap_or("")
-                    ),
-                );
-            } else {
-                panic!("{e}");
-            }
-        }
-        Err(e) => crate::skip("sharded dataset readers", &format!("python3: {e}")),
     }
 }
 

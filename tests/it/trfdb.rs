@@ -79,26 +79,16 @@ print(json.dumps({
     "writer": str(glob.get("WriterID", "")), "valid_sets": glob.get("ValidSets"),
 }))
 "#;
-    let o = std::process::Command::new("python3")
-        .args(["-c", script])
-        .arg(trfdb)
-        .arg(run)
-        .arg(experiment)
-        .output();
-    let why = match o {
-        Ok(o) if o.status.success() => return Some(serde_json::from_slice(&o.stdout).unwrap()),
-        Ok(o) if o.status.code() == Some(3) => String::from_utf8_lossy(&o.stderr).into_owned(),
-        Ok(o) => panic!(
-            "the comparison failed: {}",
-            String::from_utf8_lossy(&o.stderr)
-        ),
-        Err(e) => format!("python3: {e}"),
-    };
-    crate::skip(
+    let o = crate::reference(
         "trfdb read back by vallenae",
-        &format!("{why} (pip install vallenae pyarrow)"),
-    );
-    None
+        "pip install vallenae pyarrow",
+        std::process::Command::new("python3")
+            .args(["-c", script])
+            .arg(trfdb)
+            .arg(run)
+            .arg(experiment),
+    )?;
+    Some(serde_json::from_slice(&o).unwrap())
 }
 
 /// The `.pridb`'s FileID, read with SQLite directly.

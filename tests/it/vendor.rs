@@ -356,33 +356,14 @@ print(json.dumps({
     "mk_data": [str(v) for v in mk["data"].tolist()] if "data" in mk.columns else [],
 }))
 "#;
-    let out = std::process::Command::new("python3")
-        .args(["-c", script])
-        .arg(pridb)
-        .output();
-    match out {
-        Ok(o) if o.status.success() => Some(serde_json::from_slice(&o.stdout).unwrap()),
-        Ok(o) => {
-            crate::skip(
-                "vallenae parametric/status/markers",
-                &format!(
-                    "{} (pip install vallenae)",
-                    String::from_utf8_lossy(&o.stderr)
-                        .lines()
-                        .last()
-                        .unwrap_or("")
-                ),
-            );
-            None
-        }
-        Err(e) => {
-            crate::skip(
-                "vallenae parametric/status/markers",
-                &format!("python3: {e}"),
-            );
-            None
-        }
-    }
+    let out = crate::reference(
+        "vallenae parametric/status/markers",
+        "pip install vallenae",
+        std::process::Command::new("python3")
+            .args(["-c", script])
+            .arg(pridb),
+    )?;
+    Some(serde_json::from_slice(&out).unwrap())
 }
 
 fn close(a: f64, b: f64, tol: f64) -> bool {
@@ -820,28 +801,18 @@ fn the_som_takes_any_column_as_its_label() {
     }
 }
 
-/// Run a script of `tests/python/` (skipping, or failing under AEPIPE_REQUIRE_ALL, when
-/// python3 or its packages are absent); its stdout.
+/// Run a script of `tests/python/` through [`crate::reference`]: its stdout; `None` after a
+/// skip when python3 or a module it imports is absent. A script that fails fails the test.
 pub(crate) fn python(test: &str, script: &str, args: &[&Path]) -> Option<String> {
     let p = Path::new(env!("CARGO_MANIFEST_DIR"))
         .join("tests/python")
         .join(script);
-    match std::process::Command::new("python3")
-        .arg(&p)
-        .args(args)
-        .output()
-    {
-        Ok(o) if o.status.success() => Some(String::from_utf8_lossy(&o.stdout).into_owned()),
-        Ok(o) => {
-            let e = String::from_utf8_lossy(&o.stderr);
-            crate::skip(test, e.lines().last().unwrap_or("python failed"));
-            None
-        }
-        Err(e) => {
-            crate::skip(test, &format!("python3: {e}"));
-            None
-        }
-    }
+    let out = crate::reference(
+        test,
+        "pip install the packages tests/python/ imports; .ci/run does",
+        std::process::Command::new("python3").arg(&p).args(args),
+    )?;
+    Some(String::from_utf8_lossy(&out).into_owned())
 }
 
 /// The PLB-angle set's features split by hit parity into `t`: (even, odd); `None` after a

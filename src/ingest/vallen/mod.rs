@@ -505,7 +505,7 @@ fn open_with(
         .unwrap_or_default();
     let offsets = TraiOffsets::new(&info.acq_max_trai);
     // VisualAE features beside the .pridb (X.trfdb), joined to the hits by TRAI.
-    let trf = open_features(pridb.as_deref(), &experiment, &mut first);
+    let trf = open_features(pridb.as_deref(), info.hits, &experiment, &mut first);
     // Markers, parametric and status rows, and what the .pridb holds by set type.
     let (sets, mut read) = open_set_rows(
         read_pridb_at.as_deref(),
@@ -603,18 +603,23 @@ fn open_hit_index(
     }
 }
 
-/// The `.trfdb` features by TRAI, or none and a note in `first` (the hits stand without them).
+/// The `.trfdb` features by TRAI — from its whole pages when SQLite refuses it — or none
+/// and a note in `first` (the hits stand without them). `hits`: the `.pridb`'s hit count.
 fn open_features(
     pridb: Option<&Path>,
+    hits: u64,
     experiment: &str,
     first: &mut Vec<Item>,
 ) -> HashMap<i64, String> {
     match pridb.map(|p| p.with_extension("trfdb")) {
-        Some(t) if t.is_file() => match read_trfdb(&t) {
+        Some(t) if t.is_file() => match read_trfdb(&t).or_else(|e| {
+            salvaged::salvage_trfdb(&t, &e, hits, experiment, first).map_err(|s| (e, s))
+        }) {
             Ok(m) => m,
-            Err(e) => {
+            Err((e, s)) => {
+                let e = format!("{e}; salvage: {}", salvaged::sqlite_cause(&s.to_string()));
                 first.push(Item::Note(crate::model::Note {
-                    said: false,
+                    said: true,
                     experiment: experiment.to_string(),
                     source_file: t.display().to_string(),
                     message: format!("features not joined: {e}"),

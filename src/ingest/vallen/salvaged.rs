@@ -277,12 +277,7 @@ pub(super) fn salvage_pridb(
         Ok(_) => return None,
         Err(e) => e.to_string(),
     };
-    static N: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
-    let to = std::env::temp_dir().join(format!(
-        "aepipe-salvage-{}-{}.pridb",
-        std::process::id(),
-        N.fetch_add(1, std::sync::atomic::Ordering::Relaxed)
-    ));
+    let to = temp_copy("pridb");
     let name = p
         .file_name()
         .map_or(String::new(), |n| n.to_string_lossy().to_string());
@@ -324,6 +319,78 @@ pub(super) fn salvage_pridb(
         said: false,
     }));
     Some(r)
+}
+
+/// A fresh temporary path for a rebuilt copy (`aepipe-salvage-<pid>-<n>.<ext>`).
+fn temp_copy(ext: &str) -> std::path::PathBuf {
+    static N: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
+    std::env::temp_dir().join(format!(
+        "aepipe-salvage-{}-{}.{ext}",
+        std::process::id(),
+        N.fetch_add(1, std::sync::atomic::Ordering::Relaxed)
+    ))
+}
+
+/// The features of a `.trfdb` SQLite refuses, from its whole pages: the rows are rebuilt
+/// into a temporary file under the file's own schema and read there by
+/// [`super::read_trfdb`], so a salvaged row is read exactly as a sound one. The schema page
+/// must be whole: `trf_data`'s columns are the features the writer chose, and no known shape
+/// names them otherwise. `hits` is the `.pridb`'s hit count (the "of"); what was salvaged is
+/// said in `first`.
+pub(super) fn salvage_trfdb(
+    path: &Path,
+    sqlite: &IngestError,
+    hits: u64,
+    experiment: &str,
+    first: &mut Vec<Item>,
+) -> Result<HashMap<i64, String>, IngestError> {
+    let bytes = std::fs::read(path).map_err(|e| file_err(path, format!("cannot read: {e}")))?;
+    let s = salvage(&bytes, &[]).map_err(|e| file_err(path, format!("nothing salvaged: {e}")))?;
+    if !s.schema_whole || !s.tables.contains_key("trf_data") {
+        return Err(file_err(
+            path,
+            format!(
+                "nothing salvaged: its schema page is lost, so trf_data's feature columns cannot be named ({} whole page(s))",
+                s.pages
+            ),
+        ));
+    }
+    let to = temp_copy("trfdb");
+    let rebuilt = super::super::salvage::rebuild(&s, &[], &to)
+        .map_err(|e| file_err(&to, format!("cannot write the salvaged rows: {e}")))
+        .and_then(|_| super::read_trfdb(&to));
+    let _ = std::fs::remove_file(&to);
+    let features = rebuilt?;
+    let name = path
+        .file_name()
+        .map_or(String::new(), |n| n.to_string_lossy().to_string());
+    let of = hits.max(features.len() as u64);
+    let note = |message: String, said: bool| {
+        Item::Note(crate::model::Note {
+            experiment: experiment.to_string(),
+            source_file: path.display().to_string(),
+            message,
+            said,
+        })
+    };
+    first.push(note(
+        format!(
+            "{experiment}: salvaged the features of {} of ≥ {of} transients from a damaged {name} ({}; SQLite: {}); a hit without its row stands without vendor_features",
+            features.len(),
+            pages_of(s.pages, s.declared_pages),
+            sqlite_cause(&sqlite.to_string())
+        ),
+        true,
+    ));
+    first.push(note(
+        format!(
+            "salvage of {name}: tables found: {}; {} record(s) of its table-leaf pages not whole: not taken",
+            s.describe_tables(),
+            s.partial_records
+        ),
+        false,
+    ));
+    Ok(features)
 }
 
 /// SQLite's own words from an error that carries the file's name before them.

@@ -230,6 +230,11 @@ impl Tail {
         gap_s: f64,
         cfg: &IngestConfig,
     ) -> Result<Vec<Window>, IngestError> {
+        // A file that ends inside a page is being written by something that does not take
+        // SQLite's locks (a copy, a sync of a share): SQLite would read the missing part of
+        // that page as zeros. Nothing is read until its pages are whole again.
+        whole_pages(&self.pridb_path)?;
+        whole_pages(&self.tradb_path)?;
         let now = Instant::now();
         // Each file to its end, the .pridb first: a transient is judged (linked or
         // standalone) only against the hits of every set before it.
@@ -578,6 +583,39 @@ impl Tail {
         }
         Ok(n)
     }
+}
+
+/// An error when `path` (if there) ends inside a page: its header's page size does not
+/// divide its length.
+fn whole_pages(path: &Path) -> Result<(), IngestError> {
+    use std::io::Read;
+    let Ok(mut f) = std::fs::File::open(path) else {
+        return Ok(());
+    };
+    let mut head = [0u8; 18];
+    let len = f.metadata().map(|m| m.len()).unwrap_or(0);
+    if len == 0 {
+        return Ok(()); // created, not written yet: SQLite reads it as empty
+    }
+    if f.read_exact(&mut head).is_err() {
+        return Err(file_err(
+            path,
+            "shorter than a SQLite header: being written",
+        ));
+    }
+    let page = match u16::from_be_bytes([head[16], head[17]]) {
+        1 => 65536,
+        p => u64::from(p),
+    };
+    if page < 512 || len % page != 0 {
+        return Err(file_err(
+            path,
+            format!(
+                "ends inside a page ({len} bytes, pages of {page}): its last page is being written"
+            ),
+        ));
+    }
+    Ok(())
 }
 
 /// A read-only connection to a database another process writes: a lock it meets waits up

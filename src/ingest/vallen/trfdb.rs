@@ -17,19 +17,21 @@ pub fn read_trfdb(path: &Path) -> Result<HashMap<i64, String>, IngestError> {
             "no trf_data table with a TRAI: not a .trfdb",
         ));
     }
-    let units: HashMap<String, String> = conn
-        .prepare("SELECT * FROM trf_fieldinfo")
-        .and_then(|mut st| {
-            st.query_map([], |r| {
+    // Units are optional (a file without trf_fieldinfo names its features bare), but a
+    // table that fails part-way is a damaged file: an error, so salvage can take over,
+    // never a silently shorter read.
+    let units: HashMap<String, String> = match conn.prepare("SELECT * FROM trf_fieldinfo") {
+        Err(_) => HashMap::new(),
+        Ok(mut st) => st
+            .query_map([], |r| {
                 Ok((r.get::<_, String>(0)?, r.get::<_, Option<String>>(2)?))
             })
-            .map(|it| {
-                it.flatten()
-                    .filter_map(|(n, u)| u.map(|u| (n, u.trim_matches(['[', ']']).to_string())))
-                    .collect()
-            })
-        })
-        .unwrap_or_default();
+            .and_then(|it| it.collect::<Result<Vec<_>, _>>())
+            .map_err(|e| file_err(path, format!("cannot read trf_fieldinfo: {e}")))?
+            .into_iter()
+            .filter_map(|(n, u)| u.map(|u| (n, u.trim_matches(['[', ']']).to_string())))
+            .collect(),
+    };
     let names: Vec<&String> = cols.iter().filter(|c| *c != "TRAI").collect();
     let sql = format!(
         "SELECT TRAI, {} FROM trf_data",
@@ -58,5 +60,6 @@ pub fn read_trfdb(path: &Path) -> Result<HashMap<i64, String>, IngestError> {
             Ok((trai, serde_json::Value::Object(m).to_string()))
         })
         .map_err(|e| file_err(path, format!("cannot read trf_data: {e}")))?;
-    Ok(rows.flatten().collect())
+    rows.collect::<Result<_, _>>()
+        .map_err(|e| file_err(path, format!("cannot read trf_data: {e}")))
 }
