@@ -3,7 +3,7 @@
 The Rust core does the work — the same code as the ``aepipe`` command line — and this layer
 only turns arguments into what it takes and its Arrow tables into ``polars.DataFrame``
 (through the Arrow C stream interface: no pyarrow needed). Long calls release the GIL,
-return on Ctrl-C (``KeyboardInterrupt``) within a second, and draw a progress line on
+return on Ctrl-C (``KeyboardInterrupt``) at their next record or simulation, and draw a progress line on
 stderr with ``progress=True``. Errors are :class:`AepipeError` subclasses, one per part of
 the library, carrying the message the command line prints.
 

