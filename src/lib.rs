@@ -17,6 +17,7 @@
 //! - [`analysis`]: trend statistics of the features (ch. 4.5.5).
 //! - [`som`]: the self-organising map, its tables, novelty and the damage profile (ch. 5).
 //! - [`cluster`]: clustering hits by their own features, validity indices, the choice of k.
+//! - [`export`]: results written back for the lab's tools (a VisualAE `.trfdb`, a CSV).
 //! - [`config`]: the pipeline file: every room's settings gathered and checked into a
 //!   `ValidConfig`.
 //! - [`inspect`]: human summaries of what the inputs hold.
@@ -24,7 +25,6 @@
 //! - [`synth`]: synthetic experiments for the demo, fixtures and benchmarks.
 //! - [`plot`]: the pictures (PNG).
 //! - [`report`]: the self-contained HTML report.
-//! - [`export`]: results written back for the lab's tools (a VisualAE `.trfdb`, a CSV).
 //! - [`workflow`]: `aepipe run`: the stages in order, the run folder, report rebuilds.
 //! - [`demo`]: the demo on data it makes itself.
 //! - [`bench`]: benchmarks against the peers.

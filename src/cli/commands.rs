@@ -525,7 +525,8 @@ fn trend(a: TrendArgs) -> Result<Outcome> {
 }
 
 fn som(which: SomCmd) -> Result<Outcome> {
-    use crate::som::tables::{classify_tables, load_model, train, TrainOptions, TrainingSet};
+    use crate::som::classify::classify_tables;
+    use crate::som::tables::{load_model, train, TrainOptions, TrainingSet};
     match which {
         SomCmd::Train(SomTrainArgs {
             features,
@@ -581,7 +582,7 @@ fn som(which: SomCmd) -> Result<Outcome> {
                 Some(&reference),
                 &out,
                 crate::store::SourceRows::default(),
-                crate::som::tables::ClassifyRules {
+                crate::som::classify::ClassifyRules {
                     read: read_erroneous.into(),
                     novelty_quantile,
                 },

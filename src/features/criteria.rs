@@ -92,7 +92,7 @@ pub struct Decision {
 }
 
 /// The kind of an acquisition fault: `features.parquet`'s `quality_fault` column and what
-/// the SOM stage reads the map's erroneous area by (see `som::tables::Reading`).
+/// the SOM stage reads the map's erroneous area by (see `som::classify::Reading`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum FaultKind {
     /// The record never reaches the threshold.

@@ -2,53 +2,18 @@
 //! and modification time have stayed the same for `settle_s`; a Vallen pair followed
 //! while it grows, by `SetID` ([`crate::ingest::vallen::tail`]).
 
+use super::pending::{Part, Pending};
 use super::state::State;
 use crate::config::ValidConfig;
 use crate::ingest::dta::tail::{DtaTail, Position as DtaPosition};
 use crate::ingest::stream::tail::{Position as StreamPosition, StreamTail};
-use crate::ingest::vallen::tail::{Position, Tail, Window};
+use crate::ingest::vallen::tail::{Position, Tail};
 use crate::ingest::{Follow, Source};
 use crate::model::Item;
 use std::collections::{HashMap, HashSet};
 use std::path::{Path, PathBuf};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant, SystemTime};
-
-/// Sources to read at the next flush.
-#[derive(Debug, Clone)]
-pub struct Pending {
-    /// For a one-hit-per-file source only its new files, numbered on from `first_hit`.
-    pub source: Source,
-    /// The newest modification time of its files (for the lag).
-    pub written: Option<SystemTime>,
-    /// Part of a recording still being written (else all of the source, or its new files).
-    pub part: Option<Part>,
-}
-
-/// Part of a recording still being written.
-#[derive(Debug, Clone)]
-pub enum Part {
-    /// The sets of a Vallen pair to read.
-    Vallen(Box<Window>),
-    /// What a MISTRAS chain held past the last look: the reader's items (read at the look:
-    /// the reader's state goes on from message to message), and where it stands after them.
-    Dta {
-        items: Arc<Mutex<Vec<Item>>>,
-        records: usize,
-        /// Hit rows among the items (counted before the flush takes them).
-        hits: usize,
-        end: DtaPosition,
-        next_hit: Option<(f64, u32)>,
-    },
-    /// The hits a raw stream's cutter handed out at the look, and where it stands after
-    /// them.
-    Stream {
-        items: Arc<Mutex<Vec<Item>>>,
-        hits: usize,
-        end: Box<StreamPosition>,
-        next_hit: Option<(f64, u32)>,
-    },
-}
 
 impl Part {
     /// Hits in the part (a pair's window; a chain's hit rows).

@@ -18,6 +18,7 @@
 pub mod bench;
 mod follow;
 mod page;
+mod pending;
 mod state;
 
 use crate::config::ValidConfig;
@@ -270,7 +271,7 @@ pub fn watch(
         state.hits,
         dir.live_html().display()
     ));
-    let mut pending: Vec<follow::Pending> = Vec::new();
+    let mut pending: Vec<pending::Pending> = Vec::new();
     let mut last_flush = Instant::now();
     let mut last_new = Instant::now();
     let mut stopped_by_signal = false;
@@ -375,9 +376,9 @@ const FLUSH_FILES: usize = 2000;
 /// The first pending sources up to `limit` files (a one-hit-per-file source split, its hit
 /// numbers carried on), and the rest.
 fn take_files(
-    pending: Vec<follow::Pending>,
+    pending: Vec<pending::Pending>,
     limit: usize,
-) -> (Vec<follow::Pending>, Vec<follow::Pending>) {
+) -> (Vec<pending::Pending>, Vec<pending::Pending>) {
     let mut take = Vec::new();
     let mut rest = Vec::new();
     let mut n = 0;
@@ -408,7 +409,7 @@ fn flush(
     dir: &WatchDir,
     state: &mut State,
     model: &Option<Model>,
-    batch: Vec<follow::Pending>,
+    batch: Vec<pending::Pending>,
     threads: usize,
 ) -> Result<Flush, WatchError> {
     let t0 = Instant::now();
@@ -417,7 +418,7 @@ fn flush(
         ..Default::default()
     };
     // One part per experiment, in id order.
-    let mut by_exp: BTreeMap<String, Vec<follow::Pending>> = BTreeMap::new();
+    let mut by_exp: BTreeMap<String, Vec<pending::Pending>> = BTreeMap::new();
     for p in batch {
         by_exp.entry(p.source.id.clone()).or_default().push(p);
     }
@@ -474,14 +475,14 @@ fn flush(
 /// The records of one experiment's pending sources, each read as far as it is pending (a
 /// window of a growing Vallen pair, the items a MISTRAS chain held, or the whole source).
 fn part_items<'a>(
-    sources: &'a [follow::Pending],
+    sources: &'a [pending::Pending],
     cfg: &'a ValidConfig,
 ) -> impl Iterator<Item = crate::model::Item> + Send + 'a {
     sources.iter().flat_map(|p| match &p.part {
-        Some(follow::Part::Vallen(w)) => {
+        Some(pending::Part::Vallen(w)) => {
             crate::ingest::open_window(&p.source, w, &cfg.ingest, &cfg.load)
         }
-        Some(follow::Part::Dta { items, .. }) | Some(follow::Part::Stream { items, .. }) => {
+        Some(pending::Part::Dta { items, .. }) | Some(pending::Part::Stream { items, .. }) => {
             let items = std::mem::take(&mut *items.lock().expect("not poisoned"));
             crate::ingest::with_load_file(Box::new(items.into_iter()), &p.source, &cfg.load)
         }
@@ -494,7 +495,7 @@ fn part_items<'a>(
 fn continuation(
     state: &mut State,
     experiment: &str,
-    sources: &[follow::Pending],
+    sources: &[pending::Pending],
 ) -> crate::pipeline::Continuation {
     // Its sources are cut where no event spans the cut (growing pairs and chains), so
     // the part's events are the whole experiment's, numbered on.
@@ -524,13 +525,13 @@ fn classify_part(
     f: &mut Flush,
 ) -> Result<(), WatchError> {
     let cls_dir = dir.scratch().join("som");
-    match crate::som::tables::classify_tables(
+    match crate::som::classify::classify_tables(
         m,
         std::slice::from_ref(&features),
         Some(&cfg.som.label),
         &cls_dir,
         cfg.source_rows(),
-        crate::som::tables::ClassifyRules::of(&cfg.som),
+        crate::som::classify::ClassifyRules::of(&cfg.som),
     ) {
         Ok(conf) => {
             for ((class, _), n) in &conf.counts {

@@ -66,10 +66,10 @@ const CWTS: usize = 3;
 /// growing pair's latest transient read alone, or a chain's or a stream's last one taken from
 /// its items.
 pub fn latest_record(
-    p: &super::follow::Pending,
+    p: &super::pending::Pending,
     cfg: &ValidConfig,
 ) -> Option<crate::model::AeRecord> {
-    use super::follow::Part;
+    use super::pending::Part;
     use crate::model::Item;
     match &p.part {
         Some(Part::Vallen(w)) => crate::ingest::vallen::tail::last_record(w, &cfg.ingest),

@@ -1,7 +1,7 @@
 //! What a watcher has read and written, committed after each flush's parts: the one
 //! record that makes a restart exactly-once.
 
-use super::follow::{Part, Pending};
+use super::pending::{Part, Pending};
 use super::{WatchDir, WatchError};
 use crate::config::ValidConfig;
 use serde::{Deserialize, Serialize};

@@ -197,6 +197,7 @@ pub fn run(
     }
 }
 
+mod assemble;
 mod counts;
 pub mod layout;
 mod manifest;
@@ -204,10 +205,10 @@ mod part;
 mod parts;
 mod shard;
 mod stream;
+pub(crate) use assemble::assemble;
 pub(crate) use counts::PartStats;
 pub use counts::{Counts, RecordCounts, StreamStats, MAX_NOTES};
 pub use layout::{PartDir, PartTable, StreamDir};
-pub(crate) use manifest::assemble;
 pub use manifest::{write_manifest, InputFile, Manifest, SomMapEntry};
 pub use part::{run_part, Continuation, PartRun};
 use parts::produce;

@@ -20,7 +20,7 @@ pub use gallery::{
 use crate::analysis::trend::TrendReport;
 use crate::model::Mechanism;
 use crate::pipeline::RunReport;
-use crate::som::tables::Confusion;
+use crate::som::classify::Confusion;
 use crate::util::{base64, write_atomic, IoAt};
 use std::collections::{BTreeMap, BTreeSet};
 use std::fmt::Write as _;

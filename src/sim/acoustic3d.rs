@@ -12,7 +12,7 @@
 //! pressure falls as 1/r, its front travels at c); the 3-D masses and their coupling are not
 //! built yet.
 
-use super::model::Order;
+use super::order::Order;
 use super::SimError;
 use rayon::prelude::*;
 

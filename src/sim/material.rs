@@ -4,7 +4,7 @@
 //! `t_scale`, `w_scale`, `rho_scale` and `nu`). Presets with their sources are in
 //! `pipelines/materials/`.
 
-use super::scenario::{FIBRE_E, FIBRE_NU, FIBRE_RHO, FIBRE_T, FIBRE_W};
+use super::parts::{FIBRE_E, FIBRE_NU, FIBRE_RHO, FIBRE_T, FIBRE_W};
 use super::SimError;
 use serde::{Deserialize, Serialize};
 

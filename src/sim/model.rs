@@ -39,14 +39,7 @@ impl std::str::FromStr for Solver {
     }
 }
 
-/// Spatial order of the acoustic FDTD scheme.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
-pub enum Order {
-    /// Eq. 3.3.11, stable for α < 1/√2.
-    Second,
-    /// Eq. 3.3.13, stable for α < √(3/8).
-    Fourth,
-}
+pub use super::order::Order;
 
 /// Limits on the sizes a model file states (checked in [`ModelFile::check`]): 10⁸
 /// mass/spring steps, 10⁶ masses, 16.8 M acoustic cells (4 096², about 1 GiB of fields).

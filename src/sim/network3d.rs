@@ -10,7 +10,8 @@
 
 use super::model::*;
 use super::paper::{mesh, structure, Across};
-use super::scenario::{Params, FIBRE_T};
+use super::params::Params;
+use super::parts::FIBRE_T;
 use super::SimError;
 
 /// The 3-D scenarios (names are contracts).

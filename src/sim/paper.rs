@@ -3,9 +3,9 @@
 //! 3-D networks of [`super::network3d`] are made from the same lattice.
 
 use super::model::*;
-use super::scenario::{
-    eq, node, paper_grid, spring, st, system, Params, FIBRE_E, FIBRE_NU, FIBRE_RHO, FIBRE_T,
-    FIBRE_W,
+use super::params::Params;
+use super::parts::{
+    eq, node, paper_grid, spring, st, system, FIBRE_E, FIBRE_NU, FIBRE_RHO, FIBRE_T, FIBRE_W,
 };
 use super::SimError;
 

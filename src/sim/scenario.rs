@@ -3,6 +3,10 @@
 
 use super::model::*;
 use super::paper::{damaged_mesh, mesh3x3, structure2x1};
+use super::params::asked_only;
+pub use super::params::{check_sweeps, parse_sweep, sweep_grid, Params, Sweep, MAX_SWEEP_VALUES};
+pub use super::parts::{eq, paper_grid, FIBRE_E, FIBRE_NU, FIBRE_RHO, FIBRE_T, FIBRE_W};
+use super::parts::{node, spring, st, system};
 use super::SimError;
 
 /// Scenario names, for the CLI and errors.
@@ -19,175 +23,6 @@ pub const NAMES: &[&str] = &[
     "structure2x1-fibre-failure",
 ];
 
-/// Knobs a scenario takes (`--param key=value`); each scenario reads the ones it knows.
-#[derive(Debug, Clone, Default)]
-pub struct Params(pub Vec<(String, f64)>);
-
-thread_local! {
-    /// The keys [`Params::get`] and [`Params::has`] were asked for while [`build`] runs on
-    /// this thread: a key given but never asked for is a typo, reported by name.
-    static ASKED: std::cell::RefCell<Option<std::collections::BTreeSet<String>>> =
-        const { std::cell::RefCell::new(None) };
-}
-
-fn asked(key: &str) {
-    ASKED.with(|a| {
-        if let Some(s) = a.borrow_mut().as_mut() {
-            s.insert(key.to_string());
-        }
-    });
-}
-
-impl Params {
-    pub fn get(&self, key: &str, default: f64) -> f64 {
-        asked(key);
-        self.0
-            .iter()
-            .rev()
-            .find(|(k, _)| k == key)
-            .map(|(_, v)| *v)
-            .unwrap_or(default)
-    }
-
-    /// Whether `key` was given.
-    pub fn has(&self, key: &str) -> bool {
-        asked(key);
-        self.0.iter().any(|(k, _)| k == key)
-    }
-
-    /// The parameters as a JSON object (sorted keys; a repeated key keeps its last value),
-    /// for the `sim_params` column.
-    pub fn to_json(&self) -> String {
-        let map: std::collections::BTreeMap<&str, f64> =
-            self.0.iter().map(|(k, v)| (k.as_str(), *v)).collect();
-        serde_json::to_string(&map).unwrap_or_else(|_| "{}".into())
-    }
-
-    /// Parse `key=value`.
-    pub fn parse_one(s: &str) -> Result<(String, f64), SimError> {
-        let (k, v) = s
-            .split_once('=')
-            .ok_or_else(|| SimError::Model(format!("--param {s}: expected key=value")))?;
-        let v: f64 = v
-            .trim()
-            .parse()
-            .map_err(|_| SimError::Model(format!("--param {s}: {v} is not a number")))?;
-        Ok((k.trim().to_string(), v))
-    }
-}
-
-/// The most runs one `--sweep` may ask for.
-pub const MAX_SWEEP_VALUES: usize = 10_000;
-
-/// One swept parameter: `--sweep key=LO..HI` (integers, step 1: `point=1..12`) or
-/// `--sweep key=LO..HI:STEP` (real values: `stretch=0.010..0.020:0.002`).
-#[derive(Debug, Clone, PartialEq)]
-pub struct Sweep {
-    pub key: String,
-    /// LO, LO + STEP, …, HI: each the decimal its 12 significant digits give, so that
-    /// `0.010..0.020:0.002` runs 0.016, not 0.016000000000000004.
-    pub values: Vec<f64>,
-}
-
-/// Parse `key=LO..HI[:STEP]`. HI must be LO plus a whole number of STEPs; without STEP both
-/// bounds are integers.
-pub fn parse_sweep(s: &str) -> Result<Sweep, SimError> {
-    let bad = |why: &str| {
-        SimError::Model(format!(
-            "--sweep {s}: {why}; expected key=LO..HI (integers, e.g. point=1..12) or \
-             key=LO..HI:STEP (e.g. stretch=0.010..0.020:0.002)"
-        ))
-    };
-    let (k, r) = s.split_once('=').ok_or_else(|| bad("no '='"))?;
-    let (range, step) = match r.split_once(':') {
-        Some((range, step)) => (range, Some(step)),
-        None => (r, None),
-    };
-    let (lo, hi) = range.split_once("..").ok_or_else(|| bad("no '..'"))?;
-    let num = |v: &str| -> Result<f64, SimError> {
-        v.trim()
-            .parse::<f64>()
-            .ok()
-            .filter(|v| v.is_finite())
-            .ok_or_else(|| bad(&format!("{v:?} is not a number")))
-    };
-    let (lo, hi) = (num(lo)?, num(hi)?);
-    let step = match step {
-        Some(st) => num(st)?,
-        None if lo.fract() == 0.0 && hi.fract() == 0.0 => 1.0,
-        None => return Err(bad("real bounds need a step")),
-    };
-    if step <= 0.0 {
-        return Err(bad("the step must be > 0"));
-    }
-    if lo > hi {
-        return Err(bad("empty range (LO > HI)"));
-    }
-    let n = (hi - lo) / step;
-    let whole = n.round();
-    if (n - whole).abs() > 1e-6 * whole.max(1.0) {
-        return Err(bad(&format!(
-            "HI is not LO plus a whole number of steps ({n:.4})"
-        )));
-    }
-    if whole as usize >= MAX_SWEEP_VALUES {
-        return Err(bad(&format!("more than {MAX_SWEEP_VALUES} values")));
-    }
-    let decimal = |v: f64| format!("{v:.11e}").parse::<f64>().unwrap_or(v);
-    let values = (0..=whole as usize)
-        .map(|i| decimal(lo + i as f64 * step))
-        .collect();
-    Ok(Sweep {
-        key: k.trim().to_string(),
-        values,
-    })
-}
-
-/// Several sweeps checked before their combinations are made: no key twice (the first would
-/// silently do nothing), and at most [`MAX_SWEEP_VALUES`] runs in all.
-pub fn check_sweeps(sweeps: &[Sweep]) -> Result<usize, SimError> {
-    for (i, s) in sweeps.iter().enumerate() {
-        if sweeps[..i].iter().any(|o| o.key == s.key) {
-            return Err(SimError::Model(format!(
-                "--sweep {}: the key is swept twice",
-                s.key
-            )));
-        }
-    }
-    sweeps
-        .iter()
-        .try_fold(1usize, |n, s| n.checked_mul(s.values.len()))
-        .filter(|&n| n <= MAX_SWEEP_VALUES)
-        .ok_or_else(|| {
-            SimError::Model(format!("--sweep: more than {MAX_SWEEP_VALUES} runs in all"))
-        })
-}
-
-/// The runs of several sweeps: every combination, the first sweep varying slowest.
-pub fn sweep_grid(sweeps: &[Sweep]) -> Vec<Vec<(String, f64)>> {
-    let mut runs: Vec<Vec<(String, f64)>> = vec![Vec::new()];
-    for s in sweeps {
-        runs = runs
-            .into_iter()
-            .flat_map(|r| {
-                s.values.iter().map(move |&v| {
-                    let mut r = r.clone();
-                    r.push((s.key.clone(), v));
-                    r
-                })
-            })
-            .collect();
-    }
-    runs
-}
-
-/// Paper fibre material of Table 4.1: E 35 GPa, t 2.8 µm, w 35 µm, ν 0.28, density 1.5 g/cm³.
-pub const FIBRE_E: f64 = 3.5e10;
-pub const FIBRE_T: f64 = 2.8e-6;
-pub const FIBRE_W: f64 = 3.5e-5;
-pub const FIBRE_NU: f64 = 0.28;
-pub const FIBRE_RHO: f64 = 1500.0;
-
 /// Build a scenario by name. `params` overrides its defaults; the keys each one reads are
 /// listed in the README.
 pub fn build(name: &str, p: &Params) -> Result<ModelFile, SimError> {
@@ -200,60 +35,9 @@ pub fn build(name: &str, p: &Params) -> Result<ModelFile, SimError> {
     asked_only(name, p, |p| build_asked(name, p))
 }
 
-/// The stiff string of §6.2 from its parameters (`fibre-stiff-string`): `tension_n`,
-/// `length_m`, `radius_m`, `youngs_pa`, `density_kg_m3`, `damping` (1/s), `duration_s`,
-/// `amplitude_m`, `intervals`, `dt` (0: half the stable step); the defaults are the paper
-/// fibre of Table 3.8 as a string.
+/// The stiff string of §6.2 from its parameters ([`super::string::StiffString::from_params`]).
 pub fn build_string(p: &Params) -> Result<super::string::StiffString, SimError> {
-    asked_only(super::string::NAME, p, |p| {
-        let d = super::string::StiffString::paper_fibre();
-        let intervals = p.get("intervals", d.intervals as f64);
-        if intervals.fract() != 0.0 || intervals < 0.0 {
-            return Err(SimError::Model(format!(
-                "{}: intervals must be a whole number, got {intervals}",
-                super::string::NAME
-            )));
-        }
-        super::string::StiffString {
-            tension_n: p.get("tension_n", d.tension_n),
-            length_m: p.get("length_m", d.length_m),
-            radius_m: p.get("radius_m", d.radius_m),
-            youngs_pa: p.get("youngs_pa", d.youngs_pa),
-            density_kg_m3: p.get("density_kg_m3", d.density_kg_m3),
-            damping: p.get("damping", d.damping),
-            duration_s: p.get("duration_s", d.duration_s),
-            amplitude_m: p.get("amplitude_m", d.amplitude_m),
-            intervals: intervals as usize,
-            dt: p.get("dt", 0.0),
-        }
-        .checked()
-    })
-}
-
-/// Run `f` and refuse, by name, a parameter it never asked for (a typo never runs the
-/// default).
-fn asked_only<T>(
-    name: &str,
-    p: &Params,
-    f: impl FnOnce(&Params) -> Result<T, SimError>,
-) -> Result<T, SimError> {
-    ASKED.with(|a| *a.borrow_mut() = Some(Default::default()));
-    let built = f(p);
-    let asked = ASKED.with(|a| a.borrow_mut().take()).unwrap_or_default();
-    let m = built?;
-    let unknown: Vec<&str> =
-        p.0.iter()
-            .map(|(k, _)| k.as_str())
-            .filter(|k| !asked.contains(*k))
-            .collect();
-    if !unknown.is_empty() {
-        return Err(SimError::Model(format!(
-            "scenario {name:?} has no parameter {}; it reads {}",
-            unknown.join(", "),
-            asked.into_iter().collect::<Vec<_>>().join(", ")
-        )));
-    }
-    Ok(m)
+    super::string::StiffString::from_params(p)
 }
 
 fn build_asked(name: &str, p: &Params) -> Result<ModelFile, SimError> {
@@ -404,61 +188,6 @@ fn refine(m: &mut ModelFile, h: f64) -> Result<(), SimError> {
     Ok(())
 }
 
-#[allow(clippy::too_many_arguments)]
-pub(super) fn spring(
-    a: usize,
-    b: usize,
-    e: f64,
-    l: Option<f64>,
-    t: f64,
-    w: f64,
-    nu: f64,
-    fibre: u32,
-) -> SpringSpec {
-    SpringSpec {
-        a,
-        b,
-        e,
-        length: l,
-        t,
-        w,
-        poisson: nu,
-        fibre,
-    }
-}
-
-pub(super) fn node(x: f64, y: f64, mass: f64, fixed: bool) -> NodeSpec {
-    NodeSpec {
-        x,
-        y,
-        z: None,
-        mass,
-        fixed,
-    }
-}
-
-/// An equilibrium initial condition (Alg. 7's EqIC): node displaced in the plane, at rest.
-pub fn eq(node: usize, dx: f64, dy: f64) -> InitialSpec {
-    InitialSpec {
-        node,
-        dx,
-        dy,
-        du: 0.0,
-        dv: 0.0,
-        dz: 0.0,
-        dw: 0.0,
-        kind: IcKind::Eq,
-    }
-}
-
-/// A static initial condition (StIC): [`eq`]'s, held for the whole run.
-pub(super) fn st(node: usize, dx: f64, dy: f64) -> InitialSpec {
-    InitialSpec {
-        kind: IcKind::St,
-        ..eq(node, dx, dy)
-    }
-}
-
 /// A straight chain of equal masses from x0 to x1 on y = 0, ends fixed, with springs of the
 /// given material and rest length.
 #[allow(clippy::too_many_arguments)]
@@ -483,16 +212,6 @@ fn chain(
         .map(|i| spring(i, i + 1, e, Some(l), t, w, nu, 0))
         .collect();
     (nodes, springs)
-}
-
-pub(super) fn system(dt: f64, damping: f64, iterations: usize) -> System {
-    System {
-        dt,
-        damping,
-        iterations,
-        solver: Solver::ImplicitEuler,
-        relax: true,
-    }
 }
 
 /// Table 3.1: one 0.2 kg mass between two fixed masses 0.55 m away on springs of rest length
@@ -664,25 +383,6 @@ fn rubber_band(p: &Params) -> ModelFile {
         damage: vec![],
         grid: None,
         sensors: vec![],
-    }
-}
-
-/// The Appendix-A acoustic grid: ±9 mm, 250 × 250 cells (72 µm), Δt 0.1 µs (10 MHz), air
-/// (ρ 1.25 kg/m³, c 350 m/s), 4th order.
-pub fn paper_grid() -> GridSpec {
-    GridSpec {
-        x1: -9e-3,
-        x2: 9e-3,
-        y1: -9e-3,
-        y2: 9e-3,
-        nx: 250,
-        ny: 250,
-        dt: 1e-7,
-        rho: 1.25,
-        c: 350.0,
-        order: Order::Fourth,
-        dipole_m: None,
-        z: None,
     }
 }
 

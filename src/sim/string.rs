@@ -14,6 +14,8 @@
 //! Against the continuum: mode n rings at f_n = n·f_s·√(1 + B·n²), f_s = (1/2L)·√(τ/μ),
 //! B = π³Er⁴/(4τL²), damped to √(f_n² − (α/4π)²).
 
+use super::params::{asked_only, Params};
+use super::parts::{FIBRE_E, FIBRE_RHO, FIBRE_T, FIBRE_W};
 use super::{Frame, SimError};
 use std::f64::consts::PI;
 
@@ -62,19 +64,48 @@ impl StiffString {
     /// The paper fibre of Table 3.8 as a stiff string: 1 mm, the cross-section 2.8 × 35 µm as
     /// a circle of the same area, E 35 GPa, 1.5 g/cm³, stretched 1 % (τ = E·A·0.01).
     pub fn paper_fibre() -> StiffString {
-        let area = super::scenario::FIBRE_T * super::scenario::FIBRE_W;
+        let area = FIBRE_T * FIBRE_W;
         StiffString {
-            tension_n: super::scenario::FIBRE_E * area * 0.01,
+            tension_n: FIBRE_E * area * 0.01,
             length_m: 1e-3,
             radius_m: (area / PI).sqrt(),
-            youngs_pa: super::scenario::FIBRE_E,
-            density_kg_m3: super::scenario::FIBRE_RHO,
+            youngs_pa: FIBRE_E,
+            density_kg_m3: FIBRE_RHO,
             damping: 0.0,
             duration_s: 40e-6,
             amplitude_m: 1e-5,
             intervals: 200,
             dt: 0.0,
         }
+    }
+
+    /// The stiff string of §6.2 from its parameters (`fibre-stiff-string`): `tension_n`,
+    /// `length_m`, `radius_m`, `youngs_pa`, `density_kg_m3`, `damping` (1/s), `duration_s`,
+    /// `amplitude_m`, `intervals`, `dt` (0: half the stable step); the defaults are the paper
+    /// fibre of Table 3.8 as a string. A key it does not read is refused by name.
+    pub fn from_params(p: &Params) -> Result<StiffString, SimError> {
+        asked_only(NAME, p, |p| {
+            let d = StiffString::paper_fibre();
+            let intervals = p.get("intervals", d.intervals as f64);
+            if intervals.fract() != 0.0 || intervals < 0.0 {
+                return Err(SimError::Model(format!(
+                    "{NAME}: intervals must be a whole number, got {intervals}"
+                )));
+            }
+            StiffString {
+                tension_n: p.get("tension_n", d.tension_n),
+                length_m: p.get("length_m", d.length_m),
+                radius_m: p.get("radius_m", d.radius_m),
+                youngs_pa: p.get("youngs_pa", d.youngs_pa),
+                density_kg_m3: p.get("density_kg_m3", d.density_kg_m3),
+                damping: p.get("damping", d.damping),
+                duration_s: p.get("duration_s", d.duration_s),
+                amplitude_m: p.get("amplitude_m", d.amplitude_m),
+                intervals: intervals as usize,
+                dt: p.get("dt", 0.0),
+            }
+            .checked()
+        })
     }
 
     /// Check the values and fix the step (`dt` 0: half the stable limit).
@@ -302,13 +333,13 @@ pub(super) fn run_job(job: &super::SimJob) -> Result<super::SimReport, SimError>
     }
     let io = |e: std::io::Error| SimError::Io(format!("{}: {e}", job.out.display()));
     std::fs::create_dir_all(&job.out).map_err(io)?;
-    let grid = super::scenario::sweep_grid(&job.sweep);
+    let grid = super::params::sweep_grid(&job.sweep);
     // Every run's string is built (and checked) before the first runs.
     let mut strings = Vec::new();
     for v in &grid {
         let mut p = job.params.clone();
         p.0.extend(v.iter().cloned());
-        let s = super::scenario::build_string(&p)?;
+        let s = StiffString::from_params(&p)?;
         s.check_frames(job.run.trajectory_every)?;
         strings.push((s, p.to_json()));
     }

@@ -40,7 +40,7 @@ pub struct SweepTable {
 
 impl SweepTable {
     /// An empty table for `sweeps`' keys.
-    pub fn of(sweeps: &[super::scenario::Sweep]) -> SweepTable {
+    pub fn of(sweeps: &[super::params::Sweep]) -> SweepTable {
         SweepTable {
             keys: sweeps.iter().map(|s| s.key.clone()).collect(),
             rows: Vec::new(),

@@ -557,7 +557,3 @@ pub fn load_model(path: &Path) -> Result<Model, SomError> {
     }
     Ok(m)
 }
-
-pub use super::classify::{
-    classification_table, classify_tables, Classified, ClassifyRules, Confusion, Reading,
-};

@@ -8,7 +8,7 @@ use crate::config::{ConfigError, PipelineConfig, ValidConfig};
 use crate::pipeline::{PipelineError, RunReport, StreamOptions};
 use crate::report::{Gallery, Gathered};
 pub use crate::report::{RunSummary, SomStage, TruthScore};
-use crate::som::tables::Confusion;
+use crate::som::classify::Confusion;
 use crate::som::SomError;
 use crate::store::{HitKey, StoreError, TableScan};
 use crate::util::IoAt;

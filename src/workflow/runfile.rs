@@ -68,13 +68,13 @@ pub fn rebuild_report(dir: &Path) -> Result<PathBuf, WorkflowError> {
     if config.som.enabled && run.som_model().json().is_file() {
         let sdir = run.som();
         let model = crate::som::tables::load_model(run.som_model().path())?;
-        let confusion = crate::som::tables::classify_tables(
+        let confusion = crate::som::classify::classify_tables(
             &model,
             &feats,
             Some(&config.som.label),
             sdir.path(),
             config.source_rows(),
-            crate::som::tables::ClassifyRules::of(&config.som),
+            crate::som::classify::ClassifyRules::of(&config.som),
         )?;
         let existing = |p: PathBuf| p.is_file().then_some(p);
         let trained = Trained {

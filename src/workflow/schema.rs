@@ -42,7 +42,7 @@ pub fn table_schema(name: &str, cfg: &PipelineConfig) -> Option<crate::store::Ta
         "markers" => crate::store::markers_table().schema(),
         "events" => crate::events::events_table().schema(),
         "trend" => crate::analysis::trend::trend_table().schema(),
-        "classification" => crate::som::tables::classification_table().schema(),
+        "classification" => crate::som::classify::classification_table().schema(),
         "damage_profile" => crate::som::profile::profile_table().schema(),
         "evolution" => crate::analysis::evolution::evolution_table().schema(),
         "cycles" => crate::analysis::cycles::cycles_table().schema(),

@@ -51,7 +51,7 @@ pub(super) fn som_stage(
     written: &crate::pipeline::RunReport,
     log: &mut StageLog,
 ) -> Result<SomStage, WorkflowError> {
-    use crate::som::tables::classify_tables;
+    use crate::som::classify::classify_tables;
     let cfg = job.config;
     let run = job.dir();
     let som_dir = run.som();
@@ -77,7 +77,7 @@ pub(super) fn som_stage(
             Some(&cfg.som.label),
             som_dir.path(),
             cfg.source_rows(),
-            crate::som::tables::ClassifyRules::of(&cfg.som),
+            crate::som::classify::ClassifyRules::of(&cfg.som),
         )?;
         crate::plot::u_matrix_png(&som_dir.u_matrix(), &model.som)?;
         crate::plot::hit_maps_png(&som_dir.hit_maps(), &model.som, &confusion.hits)?;

@@ -6,11 +6,11 @@
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
 
-fn src() -> PathBuf {
+pub(crate) fn src() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("src")
 }
 
-fn rust_files(dir: &Path, out: &mut Vec<PathBuf>) {
+pub(crate) fn rust_files(dir: &Path, out: &mut Vec<PathBuf>) {
     for e in std::fs::read_dir(dir).unwrap().flatten() {
         let p = e.path();
         if p.is_dir() {
@@ -95,7 +95,7 @@ fn graph() -> BTreeMap<String, BTreeSet<String>> {
 }
 
 /// A cycle through `start`, if any (depth-first search).
-fn find_cycle(g: &BTreeMap<String, BTreeSet<String>>) -> Option<Vec<String>> {
+pub(crate) fn find_cycle(g: &BTreeMap<String, BTreeSet<String>>) -> Option<Vec<String>> {
     fn visit(
         n: &str,
         g: &BTreeMap<String, BTreeSet<String>>,
@@ -529,4 +529,136 @@ fn class_names_come_only_from_model() {
         }
     }
     assert!(found.is_empty(), "{}", found.join("\n"));
+}
+
+/// docs/design.md is read against the code, so it cannot fall behind unseen: its direction
+/// line is the README's, its room table names exactly the rooms of `src/lib.rs`, lib.rs's
+/// doc lists the rooms in the direction's order, its error-enum list names every error enum
+/// of `src/` (and none that is gone), and every file it cites exists.
+#[test]
+fn design_md_is_true_to_the_code() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let design = std::fs::read_to_string(root.join("docs/design.md")).unwrap();
+    let problems = design_problems(&design, root);
+    assert!(problems.is_empty(), "docs/design.md: {problems:#?}");
+    // The checks can fail: a design.md that has fallen behind is caught on each count.
+    let stale = design
+        .replace("demo, bench, live, thesis ←", "demo, bench, live ←")
+        .replace("| `export` |", "| `exported` |")
+        .replace("`ThesisError`", "`ThesesError`")
+        .replace("`src/synth/mod.rs`", "`src/synth.rs`");
+    let found = design_problems(&stale, root).join("\n");
+    for want in [
+        "direction line",
+        "room table: exported",
+        "ThesisError",
+        "ThesesError",
+        "src/synth.rs",
+    ] {
+        assert!(
+            found.contains(want),
+            "a stale {want} was not caught:\n{found}"
+        );
+    }
+}
+
+/// What in `design` (docs/design.md's text) disagrees with the code under `root`.
+fn design_problems(design: &str, root: &Path) -> Vec<String> {
+    let mut bad = Vec::new();
+    let readme = std::fs::read_to_string(root.join("README.md")).unwrap();
+    let direction = |t: &str| {
+        t.lines()
+            .find(|l| l.starts_with("util, model ←"))
+            .map(str::to_string)
+    };
+    if direction(design) != direction(&readme) {
+        bad.push("its direction line is not the README's".into());
+    }
+    // The room table: the first cell of each row, a room in backticks.
+    let lib = std::fs::read_to_string(root.join("src/lib.rs")).unwrap();
+    let rooms: BTreeSet<String> = lib
+        .lines()
+        .filter_map(|l| l.trim().strip_prefix("pub mod "))
+        .map(|m| m.trim_end_matches(';').to_string())
+        .collect();
+    let table: BTreeSet<String> = design
+        .lines()
+        .filter_map(|l| l.strip_prefix("| `"))
+        .filter_map(|l| l.split(" |").next())
+        .flat_map(|cell| {
+            cell.split(", ")
+                .map(|r| r.trim_matches('`').to_string())
+                .collect::<Vec<_>>()
+        })
+        .filter(|r| r != "main.rs" && !r.starts_with("crates/"))
+        .collect();
+    for r in rooms.symmetric_difference(&table) {
+        bad.push(format!(
+            "room table: {r} (lib.rs has: {})",
+            rooms.contains(r)
+        ));
+    }
+    // lib.rs's doc lists the rooms in the direction's order.
+    let tiers = readme_tiers();
+    let listed: Vec<&str> = lib
+        .lines()
+        .filter_map(|l| l.strip_prefix("//! - [`"))
+        .filter_map(|l| l.split('`').next())
+        .collect();
+    for w in listed.windows(2) {
+        if tiers.get(w[0]) > tiers.get(w[1]) {
+            bad.push(format!("lib.rs lists {} before {}", w[0], w[1]));
+        }
+    }
+    // Every error enum of src/ is named, and every one named exists.
+    let mut files = Vec::new();
+    rust_files(&src(), &mut files);
+    let mut enums = BTreeSet::new();
+    for f in &files {
+        let code = std::fs::read_to_string(f).unwrap();
+        for (i, _) in code.match_indices("pub enum ") {
+            let name: String = code[i + 9..]
+                .chars()
+                .take_while(|c| c.is_ascii_alphanumeric() || *c == '_')
+                .collect();
+            let head = &code[..i];
+            let derive = head.rfind("#[derive(").map_or("", |d| &head[d..]);
+            if name.ends_with("Error") && derive.contains("Error") {
+                enums.insert(name);
+            }
+        }
+    }
+    let named: BTreeSet<String> = design
+        .split('`')
+        .skip(1)
+        .step_by(2)
+        .filter(|w| w.ends_with("Error") && w.chars().all(|c| c.is_ascii_alphanumeric()))
+        .map(str::to_string)
+        .collect();
+    for e in enums.difference(&named) {
+        bad.push(format!("the error enum {e} is not named"));
+    }
+    for e in named.difference(&enums) {
+        bad.push(format!("{e} is named but no such error enum exists"));
+    }
+    // Every file it cites exists.
+    for cited in design.split('`').skip(1).step_by(2) {
+        let is_path = [
+            "src/",
+            "tests/",
+            "docs/",
+            "data-schema/",
+            "pipelines/",
+            "crates/",
+            "python/",
+        ]
+        .iter()
+        .any(|p| cited.starts_with(p))
+            && !cited.contains(' ')
+            && cited.contains('.');
+        if is_path && !root.join(cited).exists() {
+            bad.push(format!("it cites {cited}, which does not exist"));
+        }
+    }
+    bad
 }

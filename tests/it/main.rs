@@ -22,6 +22,7 @@ mod fidelity;
 mod formats;
 mod hitlist;
 mod hits;
+mod imports;
 mod live;
 mod pipeline;
 mod real_data;

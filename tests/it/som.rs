@@ -2,7 +2,8 @@
 //! confusion report, model files.
 
 use crate::{table_rows, TempDir};
-use aepipe::som::tables::{classify_tables as classify, load_model, train, TrainOptions};
+use aepipe::som::classify::classify_tables as classify;
+use aepipe::som::tables::{load_model, train, TrainOptions};
 use aepipe::som::Som;
 
 #[test]
@@ -45,7 +46,7 @@ fn som_trained_on_criteria_labels_classifies_the_experiment() {
         Some("criteria_label"),
         &out,
         Default::default(),
-        aepipe::som::tables::ClassifyRules {
+        aepipe::som::classify::ClassifyRules {
             read: aepipe::config::ReadErroneous::Map,
             ..Default::default()
         },

@@ -50,6 +50,19 @@ pub(super) struct Snap {
     pub given: Option<(u64, u32)>,
 }
 
+/// How far a growing stream has been handed out (what a watcher commits).
+#[derive(Debug, Clone, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct Position {
+    /// Frames read when the detectors were in `detectors` (none: from the start).
+    pub frames: u64,
+    pub detectors: Vec<Snapshot>,
+    /// Hits handed out, and the last one's first crossing and channel.
+    pub hits: u64,
+    pub through: Option<(u64, u32)>,
+    /// Frames whose samples the manifest has counted.
+    pub counted: u64,
+}
+
 /// What a cutter following a growing stream keeps besides.
 #[derive(Default)]
 pub(super) struct Live {
@@ -318,7 +331,7 @@ impl<T: Decode> Cutter<T> {
         counter: HitCounter,
         detect: ValidDetect,
         gain: f64,
-        from: &super::tail::Position,
+        from: &Position,
     ) -> Result<Cutter<T>, String> {
         let mut c = Cutter::<T>::new(layout, experiment, counter, detect, gain);
         c.out.clear();

@@ -15,25 +15,15 @@
 
 use super::cutter::{Cutter, LiveCut};
 use super::{Dtype, HitCounter, StreamError};
-use crate::detect::Snapshot;
 use crate::ingest::settings::IngestConfig;
 use crate::ingest::Source;
 use crate::model::{Item, RecordType, StreamTally, Tally};
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
-/// How far a growing stream has been handed out (what a watcher commits).
-#[derive(Debug, Clone, Default, PartialEq, serde::Serialize, serde::Deserialize)]
-pub struct Position {
-    /// Frames read when the detectors were in `detectors` (none: from the start).
-    pub frames: u64,
-    pub detectors: Vec<Snapshot>,
-    /// Hits handed out, and the last one's first crossing and channel.
-    pub hits: u64,
-    pub through: Option<(u64, u32)>,
-    /// Frames whose samples the manifest has counted.
-    pub counted: u64,
-}
+/// How far a growing stream has been handed out (what a watcher commits): the cutter's
+/// own resumable state, declared beside it.
+pub use super::cutter::Position;
 
 /// Hits carried without a quiet gap after which a part is cut anyway (an event may be
 /// split there: a stream whose hits never pause for the event builder's reach).
