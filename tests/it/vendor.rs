@@ -1053,4 +1053,61 @@ fn clusters_of_the_plb_angles_against_the_soms_classes() {
             "the README does not state '{stated}'"
         );
     }
+    // The binding check: scikit-learn's KMeans at the same k and n_init on the same rows and
+    // z-scored columns (tests/python/kmeans_reference.py), five seeds.
+    let cdir = t.path().join("kmeans-k6");
+    let Some(js) = python(
+        name,
+        "kmeans_reference.py",
+        &[&odd, &cdir, Path::new("experiment")],
+    ) else {
+        return;
+    };
+    let r: serde_json::Value = serde_json::from_str(js.trim()).unwrap();
+    println!("PLB angles, k-means k = 6 against scikit-learn: {r}");
+    assert_eq!(r["k"], 6, "{r}");
+    kmeans_no_worse_than_sklearn(&r).unwrap();
+    // The check can fail: a partition 2 % worse in inertia, or 0.05 lower in ARI, is caught.
+    let mut worse = r.clone();
+    worse["ours_inertia"] = serde_json::json!(mean(&r["sk_inertia"]) * 1.02);
+    assert!(kmeans_no_worse_than_sklearn(&worse).is_err());
+    let mut worse = r.clone();
+    worse["ours_ari"] = serde_json::json!(min(&r["sk_ari"]) - 0.05);
+    assert!(kmeans_no_worse_than_sklearn(&worse).is_err());
+}
+
+fn mean(v: &serde_json::Value) -> f64 {
+    let v = v.as_array().unwrap();
+    v.iter().map(|x| x.as_f64().unwrap()).sum::<f64>() / v.len() as f64
+}
+
+fn min(v: &serde_json::Value) -> f64 {
+    v.as_array()
+        .unwrap()
+        .iter()
+        .map(|x| x.as_f64().unwrap())
+        .fold(f64::INFINITY, f64::min)
+}
+
+/// aepipe's k-means against scikit-learn's on the same matrix: its inertia at most 1 % above
+/// the mean of scikit-learn's five seeds (the margin `python/tests/test_cluster.py` holds
+/// on overlapping clouds, where restarts matter), and its adjusted Rand index against the
+/// truth no lower than scikit-learn's lowest seed less 0.02 (within the spread of
+/// scikit-learn's own restarts).
+fn kmeans_no_worse_than_sklearn(r: &serde_json::Value) -> Result<(), String> {
+    let ours = r["ours_inertia"].as_f64().unwrap();
+    let sk = mean(&r["sk_inertia"]);
+    if !(ours <= sk * 1.01) {
+        return Err(format!(
+            "inertia {ours} above scikit-learn's {sk} by more than 1 %"
+        ));
+    }
+    let ari = r["ours_ari"].as_f64().unwrap();
+    let floor = min(&r["sk_ari"]) - 0.02;
+    if !(ari >= floor) {
+        return Err(format!(
+            "ARI {ari} below scikit-learn's lowest seed less 0.02 ({floor})"
+        ));
+    }
+    Ok(())
 }
