@@ -34,11 +34,29 @@ fn col(field: &str, unit: &str, long_name: &str, description: &str, integer: boo
     }
 }
 
-/// The power ratios' columns in `features.parquet`, in band order (Eq. 4.5.4).
-pub(super) fn power_ratio_names() -> Vec<String> {
-    (0..25)
-        .map(|k| format!("pr_{}_{}khz", 100 * k, 100 * (k + 1)))
+/// The power ratios' columns of a features table, in band order (Eq. 4.5.4): every
+/// `pr_<lo>_<hi>khz` column it has, so the bands are the ones the run's `[dsp] band_hz` made
+/// (`dsp::spectrum::band_column`), never assumed.
+pub(super) fn power_ratio_names(columns: &[String]) -> Vec<String> {
+    columns
+        .iter()
+        .filter(|c| band_of(c).is_some())
+        .cloned()
         .collect()
+}
+
+/// A power-ratio column's band, in kHz as its name gives it (`pr_250_500khz` → "250",
+/// "500"; `pr_62p5_125khz` → "62.5", "125").
+fn band_of(name: &str) -> Option<(String, String)> {
+    let (lo, hi) = name
+        .strip_prefix("pr_")?
+        .strip_suffix("khz")?
+        .split_once('_')?;
+    let num = |s: &str| {
+        let v = s.replace('p', ".");
+        v.parse::<f64>().is_ok().then_some(v)
+    };
+    Some((num(lo)?, num(hi)?))
 }
 
 /// A hit's SOM results.
@@ -50,6 +68,15 @@ struct Classified {
     qe: Option<f64>,
 }
 
+/// How one column's value comes from the run's results and a features row.
+type ValueOf = Box<dyn Fn(&Results, &HitKey, &FeatureRow) -> Option<f64> + Send + Sync>;
+
+/// One column of an export, declared once: its field info and where its value comes from.
+pub(super) struct Field {
+    pub column: Column,
+    value: ValueOf,
+}
+
 /// The run's results other than the features, by hit, and the export's columns.
 pub struct Results {
     classes: Option<HashMap<HitKey, Classified>>,
@@ -58,7 +85,7 @@ pub struct Results {
     places: Option<crate::events::table::Places>,
     /// Class name → code (1…).
     codes: HashMap<String, i64>,
-    pub columns: Vec<Column>,
+    pub(super) fields: Vec<Field>,
 }
 
 const CRACK: [&str; 2] = ["tensile", "shear"];
@@ -79,11 +106,13 @@ fn code_of(names: &[&str], v: Option<&str>) -> Option<f64> {
 }
 
 impl Results {
-    /// Read the classification, cluster and event tables that exist.
+    /// Read the classification, cluster and event tables that exist; `ratios`: the features
+    /// table's power-ratio columns ([`power_ratio_names`]).
     pub fn read(
         classification: Option<&Path>,
         clusters: Option<&Path>,
         events: Option<&Path>,
+        ratios: &[String],
     ) -> Result<Results, StoreError> {
         let classes = classification.map(read_classes).transpose()?;
         let clusters = clusters.map(read_clusters).transpose()?;
@@ -107,175 +136,226 @@ impl Results {
             .collect();
         let class_legend = legend(&names.iter().map(String::as_str).collect::<Vec<_>>());
         let has = (classes.is_some(), clusters.is_some(), places.is_some());
-        let columns = columns(has, &class_legend);
         Ok(Results {
             classes,
             clusters,
             places,
             codes,
-            columns,
+            fields: fields(has, &class_legend, ratios),
         })
+    }
+
+    /// The export's columns, in order.
+    pub fn columns(&self) -> impl Iterator<Item = &Column> {
+        self.fields.iter().map(|f| &f.column)
     }
 
     /// The values of the columns for one feature row (`f`: its features, by column).
     pub(super) fn values(&self, key: &HitKey, f: &FeatureRow) -> Vec<Option<f64>> {
-        let mut v = Vec::with_capacity(self.columns.len());
-        if let Some(classes) = &self.classes {
-            let c = classes.get(key).cloned().unwrap_or_default();
-            let code = |n: &Option<String>| {
-                n.as_ref()
-                    .and_then(|n| self.codes.get(n))
-                    .map(|c| *c as f64)
-            };
-            v.extend([
-                code(&c.som),
-                code(&c.node),
-                c.novel.map(|b| b as i64 as f64),
-                c.qe,
-            ]);
-        }
-        if let Some(clusters) = &self.clusters {
-            v.push(clusters.get(key).map(|c| *c as f64));
-        }
-        v.extend([
-            code_of(
-                &Mechanism::ALL.map(Mechanism::as_str),
-                f.criteria.as_deref(),
-            ),
-            code_of(&CRACK, f.crack.as_deref()),
-            f.ra,
-            f.af,
-            f.event.map(|e| e as f64),
-            code_of(&ZONES, f.zone.as_deref()),
-        ]);
-        if let Some(places) = &self.places {
-            let p = f.event.and_then(|e| places.get(&(key.0.clone(), e)));
-            let mm = |x: Option<f64>| x.map(|x| x * 1e3);
-            v.extend([mm(p.and_then(|p| p.0)), mm(p.and_then(|p| p.1))]);
-        }
-        v.extend(f.ratios.iter().copied());
-        v
+        self.fields
+            .iter()
+            .map(|c| (c.value)(self, key, f))
+            .collect()
+    }
+
+    fn class(&self, key: &HitKey) -> Classified {
+        self.classes
+            .as_ref()
+            .and_then(|c| c.get(key).cloned())
+            .unwrap_or_default()
+    }
+
+    fn code(&self, name: &Option<String>) -> Option<f64> {
+        name.as_ref()
+            .and_then(|n| self.codes.get(n))
+            .map(|c| *c as f64)
+    }
+
+    /// The source position (m) of the row's event.
+    fn place(&self, key: &HitKey, f: &FeatureRow) -> Option<(Option<f64>, Option<f64>)> {
+        let e = f.event?;
+        self.places.as_ref()?.get(&(key.0.clone(), e)).copied()
     }
 }
 
-/// The export's columns: the SOM's, the clusters' and the locations' where those tables are
-/// (`has`), the rest always.
-fn columns(has: (bool, bool, bool), class_legend: &str) -> Vec<Column> {
-    let mut columns = Vec::new();
+fn field(
+    column: Column,
+    value: impl Fn(&Results, &HitKey, &FeatureRow) -> Option<f64> + Send + Sync + 'static,
+) -> Field {
+    Field {
+        column,
+        value: Box::new(value),
+    }
+}
+
+/// The export's columns, each with its value: the SOM's, the clusters' and the locations'
+/// where those tables are (`has`), the rest always, then one per power-ratio band.
+fn fields(has: (bool, bool, bool), class_legend: &str, ratios: &[String]) -> Vec<Field> {
+    let mut out = Vec::new();
     if has.0 {
-        columns.extend([
-            col(
-                "SOM_Class",
-                "",
-                "aepipe SOM class",
-                &format!("the SOM stage's class (som_label): {class_legend}"),
-                true,
+        out.extend([
+            field(
+                col(
+                    "SOM_Class",
+                    "",
+                    "aepipe SOM class",
+                    &format!("the SOM stage's class (som_label): {class_legend}"),
+                    true,
+                ),
+                |r, k, _| r.code(&r.class(k).som),
             ),
-            col(
-                "SOM_Node",
-                "",
-                "aepipe SOM node class",
-                &format!("the class of the hit's best-matching node (node_label): {class_legend}"),
-                true,
+            field(
+                col(
+                    "SOM_Node",
+                    "",
+                    "aepipe SOM node class",
+                    &format!(
+                        "the class of the hit's best-matching node (node_label): {class_legend}"
+                    ),
+                    true,
+                ),
+                |r, k, _| r.code(&r.class(k).node),
             ),
-            col(
-                "Novel",
-                "",
-                "aepipe unlike the references",
-                "1: farther from the map than its novelty threshold (novel); 0: not",
-                true,
+            field(
+                col(
+                    "Novel",
+                    "",
+                    "aepipe unlike the references",
+                    "1: farther from the map than its novelty threshold (novel); 0: not",
+                    true,
+                ),
+                |r, k, _| r.class(k).novel.map(|b| b as i64 as f64),
             ),
-            col(
-                "QE",
-                "",
-                "aepipe quantization error",
-                "distance to the best-matching node (quantization_error, Eq. 5.4.1)",
-                false,
+            field(
+                col(
+                    "QE",
+                    "",
+                    "aepipe quantization error",
+                    "distance to the best-matching node (quantization_error, Eq. 5.4.1)",
+                    false,
+                ),
+                |r, k, _| r.class(k).qe,
             ),
         ]);
     }
     if has.1 {
-        columns.push(col(
-            "Cluster",
-            "",
-            "aepipe cluster",
-            "the hit's cluster (clusters.parquet cluster, 0-based)",
-            true,
+        out.push(field(
+            col(
+                "Cluster",
+                "",
+                "aepipe cluster",
+                "the hit's cluster (clusters.parquet cluster, 0-based)",
+                true,
+            ),
+            |r, k, _| {
+                r.clusters
+                    .as_ref()
+                    .and_then(|c| c.get(k))
+                    .map(|c| *c as f64)
+            },
         ));
     }
     let mech = Mechanism::ALL.map(Mechanism::as_str);
-    columns.extend([
-        col(
-            "Criteria",
-            "",
-            "aepipe ch. 4.7 label",
-            &format!("criteria_label: {}", legend(&mech)),
-            true,
+    out.extend([
+        field(
+            col(
+                "Criteria",
+                "",
+                "aepipe ch. 4.7 label",
+                &format!("criteria_label: {}", legend(&mech)),
+                true,
+            ),
+            move |_, _, f| code_of(&mech, f.criteria.as_deref()),
         ),
-        col(
-            "CrackMode",
-            "",
-            "aepipe RA-AF crack mode",
-            &format!("crack_mode: {}", legend(&CRACK)),
-            true,
+        field(
+            col(
+                "CrackMode",
+                "",
+                "aepipe RA-AF crack mode",
+                &format!("crack_mode: {}", legend(&CRACK)),
+                true,
+            ),
+            |_, _, f| code_of(&CRACK, f.crack.as_deref()),
         ),
-        col(
-            "RA",
-            "[ms/V]",
-            "RA value",
-            "rise time over peak amplitude (ra_ms_per_v)",
-            false,
+        field(
+            col(
+                "RA",
+                "[ms/V]",
+                "RA value",
+                "rise time over peak amplitude (ra_ms_per_v)",
+                false,
+            ),
+            |_, _, f| f.ra,
         ),
-        col(
-            "AF",
-            "[kHz]",
-            "Average frequency",
-            "counts over duration (af_khz)",
-            false,
+        field(
+            col(
+                "AF",
+                "[kHz]",
+                "Average frequency",
+                "counts over duration (af_khz)",
+                false,
+            ),
+            |_, _, f| f.af,
         ),
-        col(
-            "Event",
-            "",
-            "aepipe event",
-            "1-based event of the experiment (event)",
-            true,
+        field(
+            col(
+                "Event",
+                "",
+                "aepipe event",
+                "1-based event of the experiment (event)",
+                true,
+            ),
+            |_, _, f| f.event.map(|e| e as f64),
         ),
-        col(
-            "Zone",
-            "",
-            "aepipe zone",
-            &format!("zone: {}", legend(&ZONES)),
-            true,
+        field(
+            col(
+                "Zone",
+                "",
+                "aepipe zone",
+                &format!("zone: {}", legend(&ZONES)),
+                true,
+            ),
+            |_, _, f| code_of(&ZONES, f.zone.as_deref()),
         ),
     ]);
     if has.2 {
-        columns.extend([
-            col(
-                "X",
-                "[mm]",
-                "aepipe location x",
-                "the event's source x (events.parquet x_m, in mm)",
-                false,
+        out.extend([
+            field(
+                col(
+                    "X",
+                    "[mm]",
+                    "aepipe location x",
+                    "the event's source x (events.parquet x_m, in mm)",
+                    false,
+                ),
+                |r, k, f| r.place(k, f).and_then(|p| p.0).map(|x| x * 1e3),
             ),
-            col(
-                "Y",
-                "[mm]",
-                "aepipe location y",
-                "the event's source y (events.parquet y_m, in mm)",
-                false,
+            field(
+                col(
+                    "Y",
+                    "[mm]",
+                    "aepipe location y",
+                    "the event's source y (events.parquet y_m, in mm)",
+                    false,
+                ),
+                |r, k, f| r.place(k, f).and_then(|p| p.1).map(|y| y * 1e3),
             ),
         ]);
     }
-    for (k, name) in power_ratio_names().iter().enumerate() {
-        columns.push(col(
-            &format!("PR{:02}", k + 1),
-            "[1]",
-            &format!("Power ratio {}-{} kHz", 100 * k, 100 * (k + 1)),
-            &format!("{name}: power in the band over the total (Eq. 4.5.4), a fraction"),
-            false,
+    for (k, name) in ratios.iter().enumerate() {
+        let (lo, hi) = band_of(name).unwrap_or_default();
+        out.push(field(
+            col(
+                &format!("PR{:02}", k + 1),
+                "[1]",
+                &format!("Power ratio {lo}-{hi} kHz"),
+                &format!("{name}: power in the band over the total (Eq. 4.5.4), a fraction"),
+                false,
+            ),
+            move |_, _, f| f.ratios.get(k).copied().flatten(),
         ));
     }
-    columns
+    out
 }
 
 /// What an export takes from one features row.

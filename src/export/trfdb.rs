@@ -67,7 +67,7 @@ enum Sink {
 /// with the vendor's hit number and file). An existing output is an error unless `force`.
 pub fn export(t: &RunTables, out: &Path, force: bool) -> Result<ExportSummary, ExportError> {
     let scan = TableScan::open(&t.features)?;
-    let ratios = power_ratio_names();
+    let ratios = power_ratio_names(&scan.column_names());
     let mut names: Vec<&str> = vec![
         cols::EXPERIMENT.name,
         cols::CHANNEL.name,
@@ -86,6 +86,7 @@ pub fn export(t: &RunTables, out: &Path, force: bool) -> Result<ExportSummary, E
         t.classification.as_deref(),
         t.clusters.as_deref(),
         t.events.as_deref(),
+        &ratios,
     )?;
     let hits = t
         .hits
@@ -223,7 +224,7 @@ fn open_sink(
             message: e.to_string(),
         })?;
         let mut header = vec!["hit".to_string(), "vendor_hit".into(), "source_file".into()];
-        header.extend(res.columns.iter().map(|c| c.field.clone()));
+        header.extend(res.columns().map(|c| c.field.clone()));
         w.write_record(&header).map_err(|e| ExportError::Csv {
             path: tmp.display().to_string(),
             message: e.to_string(),
@@ -238,11 +239,7 @@ fn open_sink(
     let conn = rusqlite::Connection::open(&tmp).map_err(sqlite_err(&tmp))?;
     create_schema(&conn, res, source_file).map_err(sqlite_err(&tmp))?;
     conn.execute_batch("BEGIN").map_err(sqlite_err(&tmp))?;
-    let names: Vec<String> = res
-        .columns
-        .iter()
-        .map(|c| format!("\"{}\"", c.field))
-        .collect();
+    let names: Vec<String> = res.columns().map(|c| format!("\"{}\"", c.field)).collect();
     let marks = vec!["?"; names.len() + 1].join(", ");
     let insert = format!(
         "INSERT INTO trf_data (\"TRAI\", {}) VALUES ({marks})",
@@ -266,8 +263,7 @@ fn create_schema(
     source_file: &str,
 ) -> rusqlite::Result<()> {
     let columns: Vec<String> = res
-        .columns
-        .iter()
+        .columns()
         .map(|k| format!(", \"{}\" REAL", k.field))
         .collect();
     c.execute_batch(&format!(
@@ -293,7 +289,7 @@ fn create_schema(
             (k, v),
         )?;
     }
-    for k in &res.columns {
+    for k in res.columns() {
         // SetTypes 2: a transient's features, as VisualAE marks its spectral features.
         c.execute(
             "INSERT INTO trf_fieldinfo (field, SetTypes, Unit, LongName, Description, ShortName, FormatStr) VALUES (?1, 2, ?2, ?3, ?4, NULL, ?5)",

@@ -1,17 +1,21 @@
 //! `aepipe export trfdb` and `[export] trfdb`: what VisualAE would load, read back by an
 //! independent reader. vallenae's `TrfDatabase` reads each written `.trfdb`; its rows are
 //! compared, by TRAI, with the run's own tables read by pyarrow — the class codes decoded
-//! through the legend the file's own field info gives, the locations from events.parquet —
-//! on the real Vallen sets and on a synthetic test with clusters and events. The MISTRAS
+//! through the class names aepipe declares, which the file's legends must equal, the
+//! locations from events.parquet — on the real Vallen sets and on a synthetic test with
+//! SOM classes, clusters and locations, where every field is compared unconditionally. The MISTRAS
 //! chain gets a CSV keyed by aepipe's hit with the system's hit numbers from hits.parquet.
 
 use crate::{aepipe, TempDir};
 use std::path::Path;
 
 /// vallenae's reading of `trfdb` against the run's tables in `run` for `experiment`: the
-/// rows compared and the mismatches (empty when every value agrees), as JSON. None after
-/// [`crate::skip`] when vallenae or pyarrow is absent.
-fn compare(trfdb: &Path, run: &Path, experiment: &str) -> Option<serde_json::Value> {
+/// rows compared and the mismatches (empty when every value agrees), as JSON. With `full`
+/// the run must have SOM classes, clusters and locations, and every field is compared
+/// unconditionally. Codes are decoded through the class names aepipe declares (the
+/// mechanisms, then unlike_references, then the run's map's other labels, sorted), which the
+/// file's legends must equal. None after [`crate::skip`] when vallenae or pyarrow is absent.
+fn compare(trfdb: &Path, run: &Path, experiment: &str, full: bool) -> Option<serde_json::Value> {
     let script = r#"
 import json, math, os, sys
 try:
@@ -20,14 +24,11 @@ try:
 except ImportError as e:
     print(f"missing: {e}", file=sys.stderr)
     sys.exit(3)
-trfdb, run, exp = sys.argv[1], sys.argv[2], sys.argv[3]
+trfdb, run, exp, full = sys.argv[1], sys.argv[2], sys.argv[3], sys.argv[4] == "full"
 with vae.io.TrfDatabase(trfdb) as t:
     df = t.read()
     info = t.fieldinfo()
     glob = t.globalinfo()
-def legend(field):
-    d = info[field]["Description"]
-    return {float(k): v for k, v in (p.split(" = ") for p in d.split(": ", 1)[1].split("; "))}
 def table(p):
     return pq.read_table(p).to_pylist() if os.path.exists(p) else []
 feats = [r for r in table(f"{run}/features/features.parquet") if r["experiment"] == exp]
@@ -36,14 +37,40 @@ cls = {key(r): r for r in table(f"{run}/som/classification.parquet") if r["exper
 clu = {key(r): r for r in table(f"{run}/cluster/clusters.parquet") if r["experiment"] == exp}
 ev = {r["event"]: r for r in table(f"{run}/features/events.parquet") if r["experiment"] == exp}
 bad = []
+# The codes as aepipe declares them (data-schema/trfdb.md): the mechanisms in order, then
+# unlike_references, then any other label the run's map was trained on, sorted; the file's
+# legends must say the same, and codes are decoded through these, not through the file.
+MECH = ["bond_failure", "fibre_failure", "both", "erroneous", "unclassified"]
+model = f"{run}/som/model/model.json"
+trained = set(json.load(open(model))["som"]["labels"]) if os.path.exists(model) else set()
+CLASSES = MECH + ["unlike_references"] + sorted(trained - set(MECH) - {"unlike_references"})
+DECLARED = {"SOM_Class": CLASSES, "SOM_Node": CLASSES, "Criteria": MECH,
+            "CrackMode": ["tensile", "shear"], "Zone": ["inside", "outside", "guard"]}
+def legend(field):
+    d = info[field]["Description"]
+    return {float(k): v for k, v in (p.split(" = ") for p in d.split(": ", 1)[1].split("; "))}
+for field, names in DECLARED.items():
+    if field in info:
+        want = {float(k + 1): n for k, n in enumerate(names)}
+        if legend(field) != want:
+            bad.append(f"{field}: the file's legend {legend(field)} is not aepipe's {want}")
+if full:
+    # A run with location, the SOM and clusters: every field must be there.
+    for field in ["SOM_Class", "SOM_Node", "Novel", "QE", "Cluster", "X", "Y"]:
+        if field not in info:
+            bad.append(f"no {field} field")
+    if not cls or not clu or not any(e.get("x_m") is not None for e in ev.values()):
+        bad.append(f"the run lacks classes ({len(cls)}), clusters ({len(clu)}) or locations")
 def same(what, trai, got, want):
     g = None if got is None or (isinstance(got, float) and math.isnan(got)) else got
     if (g is None) != (want is None) or (g is not None and not math.isclose(g, want, rel_tol=1e-12, abs_tol=1e-15)):
         bad.append(f"TRAI {trai} {what}: {got!r} vs {want!r}")
 def decoded(what, trai, code, want):
-    got = None if code != code else legend(what)[code]
+    names = DECLARED[what]
+    got = None if code != code else names[int(code) - 1] if 1 <= code <= len(names) else f"code {code}"
     if got != want:
         bad.append(f"TRAI {trai} {what}: {got!r} vs {want!r}")
+ratios = [c for c in (feats[0].keys() if feats else []) if c.startswith("pr_") and c.endswith("khz")]
 for f in feats:
     trai = f["hit"]
     if trai not in df.index:
@@ -58,22 +85,25 @@ for f in feats:
     decoded("Criteria", trai, r["Criteria"], f["criteria_label"])
     decoded("CrackMode", trai, r["CrackMode"], f["crack_mode"])
     decoded("Zone", trai, r["Zone"], f["zone"])
-    for k in range(25):
-        same(f"PR{k+1:02d}", trai, r[f"PR{k+1:02d}"], f[f"pr_{100*k}_{100*(k+1)}khz"])
-    c = cls.get(key(f))
-    if cls:
-        decoded("SOM_Class", trai, r["SOM_Class"], c and c["som_label"])
-        decoded("SOM_Node", trai, r["SOM_Node"], c and c["node_label"])
-        same("Novel", trai, r["Novel"], None if c is None or c["novel"] is None else float(c["novel"]))
-        same("QE", trai, r["QE"], c and c["quantization_error"])
-    if clu:
+    for k, name in enumerate(ratios):
+        same(f"PR{k+1:02d}", trai, r.get(f"PR{k+1:02d}", float("nan")), f[name])
+    if full or cls:
+        c = cls.get(key(f))
+        decoded("SOM_Class", trai, r.get("SOM_Class", float("nan")), c and c["som_label"])
+        decoded("SOM_Node", trai, r.get("SOM_Node", float("nan")), c and c["node_label"])
+        same("Novel", trai, r.get("Novel", float("nan")), None if c is None or c["novel"] is None else float(c["novel"]))
+        same("QE", trai, r.get("QE", float("nan")), c and c["quantization_error"])
+    if full or clu:
         u = clu.get(key(f))
-        same("Cluster", trai, r["Cluster"], u and u["cluster"])
-    if "X" in info:
+        same("Cluster", trai, r.get("Cluster", float("nan")), u and u["cluster"])
+    if full or "X" in info:
         e = ev.get(f["event"])
-        same("X", trai, r["X"], None if e is None or e["x_m"] is None else e["x_m"] * 1e3)
+        mm = lambda v: None if e is None or e.get(v) is None else e[v] * 1e3
+        same("X", trai, r.get("X", float("nan")), mm("x_m"))
+        same("Y", trai, r.get("Y", float("nan")), mm("y_m"))
 print(json.dumps({
-    "rows": len(df), "features": len(feats), "bad": bad[:20],
+    "rows": len(df), "features": len(feats), "bad": bad[:20], "n_bad": len(bad),
+    "ratios": len(ratios),
     "units": {k: v["Unit"] for k, v in info.items()},
     "reference_id": str(glob.get("ReferenceID", "")),
     "writer": str(glob.get("WriterID", "")), "valid_sets": glob.get("ValidSets"),
@@ -86,7 +116,8 @@ print(json.dumps({
             .args(["-c", script])
             .arg(trfdb)
             .arg(run)
-            .arg(experiment),
+            .arg(experiment)
+            .arg(if full { "full" } else { "part" }),
     )?;
     Some(serde_json::from_slice(&o).unwrap())
 }
@@ -138,7 +169,7 @@ fn the_real_vallen_sets_are_written_back_for_visualae() {
         );
         let db = out.join("export").join(format!("{exp}.aepipe.trfdb"));
         assert!(db.is_file(), "{}", db.display());
-        let Some(v) = compare(&db, &out, exp) else {
+        let Some(v) = compare(&db, &out, exp, false) else {
             return;
         };
         assert!(v["features"].as_u64().unwrap() > 0, "{v}");
@@ -184,7 +215,9 @@ fn a_run_with_clusters_and_events_exports_and_an_export_is_replaced_only_when_fo
     run(
         &data.join("data"),
         &out,
-        "[export]\ntrfdb = true\n\n[cluster]\nenabled = true\nk_min = 2\nk_max = 3\n",
+        "[export]\ntrfdb = true\n\n[cluster]\nenabled = true\nk_min = 2\nk_max = 3\n\n\
+         [location]\nkind = \"linear\"\nvelocity_m_s = 2700.0\n\
+         sensors = { 1 = [-0.020], 2 = [0.020] }\nzone = [-0.015, 0.015]\n",
     );
     let exported = out.join("export");
     let dbs: Vec<_> = std::fs::read_dir(&exported)
@@ -201,13 +234,35 @@ fn a_run_with_clusters_and_events_exports_and_an_export_is_replaced_only_when_fo
         .unwrap()
         .trim_end_matches(".aepipe.trfdb")
         .to_string();
-    let Some(v) = compare(db, &out, &exp) else {
+    let Some(v) = compare(db, &out, &exp, true) else {
         return;
     };
     assert_eq!(v["rows"], v["features"], "{v}");
     assert!(v["bad"].as_array().unwrap().is_empty(), "{}", v["bad"]);
     assert!(v["units"].get("Cluster").is_some(), "{v}");
     assert!(v["units"].get("SOM_Class").is_some(), "{v}");
+    assert_eq!(v["units"]["X"], "[mm]", "{v}");
+    assert!(v["ratios"].as_u64().unwrap() >= 25, "{v}");
+    // The comparison can fail: a copy with one location moved, one SOM code changed and the
+    // SOM legend's first two names swapped is caught on each count.
+    let planted = t.path().join("planted.trfdb");
+    std::fs::copy(db, &planted).unwrap();
+    let c = rusqlite::Connection::open(&planted).unwrap();
+    c.execute_batch(
+        "UPDATE trf_data SET X = X + 1.0 WHERE TRAI = (SELECT min(TRAI) FROM trf_data WHERE X IS NOT NULL);
+         UPDATE trf_data SET SOM_Class = SOM_Class + 1 WHERE TRAI = (SELECT max(TRAI) FROM trf_data WHERE SOM_Class IS NOT NULL);
+         UPDATE trf_fieldinfo SET Description = replace(replace(replace(Description, '1 = bond_failure', '1 = X'), '2 = fibre_failure', '2 = bond_failure'), '1 = X', '1 = fibre_failure') WHERE field = 'SOM_Node';",
+    )
+    .unwrap();
+    drop(c);
+    let p = compare(&planted, &out, &exp, true).unwrap();
+    let bad = p["bad"].to_string();
+    for want in [" X: ", " SOM_Class: ", "SOM_Node: the file's legend"] {
+        assert!(
+            bad.contains(want),
+            "the planted {want:?} was not caught: {bad}"
+        );
+    }
 
     // Again into the same folder: refused, then forced.
     let first = std::fs::read(db).unwrap();
@@ -218,7 +273,7 @@ fn a_run_with_clusters_and_events_exports_and_an_export_is_replaced_only_when_fo
     let (code, said, err) = aepipe(&["export", "trfdb", out.to_str().unwrap(), "--force"]);
     assert_eq!(code, 0, "{err}");
     assert!(said.contains(&format!("export {exp}: ")), "{said}");
-    let v = compare(db, &out, &exp).unwrap();
+    let v = compare(db, &out, &exp, true).unwrap();
     assert!(v["bad"].as_array().unwrap().is_empty(), "{}", v["bad"]);
 }
 
@@ -305,7 +360,7 @@ fn the_demo_run_is_written_back_for_visualae() {
         .trim_end_matches(".aepipe.trfdb")
         .to_string();
     assert!(said.contains(&format!("export {exp}: ")), "{said}");
-    let Some(v) = compare(&dbs[0], &run, &exp) else {
+    let Some(v) = compare(&dbs[0], &run, &exp, false) else {
         return;
     };
     assert!(v["features"].as_u64().unwrap() > 0, "{v}");
