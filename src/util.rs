@@ -335,6 +335,16 @@ impl Rng {
     }
 }
 
+/// A value named by the word its serde form uses (a unit variant's `rename_all` name: the
+/// pipeline file's word), so a flag, a Python argument and the TOML key accept the same
+/// words and a new variant needs no second parser.
+pub fn from_serde_name<T: serde::de::DeserializeOwned>(
+    word: &str,
+) -> Result<T, serde::de::value::Error> {
+    use serde::de::IntoDeserializer;
+    T::deserialize(word.into_deserializer())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -138,21 +138,6 @@ pub enum InitArg {
     Linear,
 }
 
-#[derive(Clone, Copy, clap::ValueEnum)]
-pub enum ReadErroneousArg {
-    QualityCheck,
-    Map,
-}
-
-impl From<ReadErroneousArg> for crate::config::ReadErroneous {
-    fn from(a: ReadErroneousArg) -> Self {
-        match a {
-            ReadErroneousArg::QualityCheck => crate::config::ReadErroneous::QualityCheck,
-            ReadErroneousArg::Map => crate::config::ReadErroneous::Map,
-        }
-    }
-}
-
 #[derive(Subcommand)]
 pub enum SomCmd {
     /// Train a map on a balanced ~10 % of the labelled hits (ch. 5.4): MODEL_DIR/model.json, model.cod, train.dat, u_matrix.png
@@ -305,9 +290,9 @@ pub struct ClusterArgs {
     /// A pipeline TOML whose [cluster] gives the defaults the flags below override
     #[arg(long)]
     pub config: Option<PathBuf>,
-    /// kmeans | gmm | som-kmeans
-    #[arg(long)]
-    pub method: Option<String>,
+    /// kmeans | gmm | som-kmeans (as [cluster] method)
+    #[arg(long, value_parser = serde_choice::<crate::cluster::Method>)]
+    pub method: Option<crate::cluster::Method>,
     /// The number of clusters, or a range tried (2..8)
     #[arg(long, value_parser = crate::cluster::settings::parse_k)]
     pub k: Option<(usize, usize)>,
@@ -315,9 +300,9 @@ pub struct ClusterArgs {
     /// centroid frequency and the power ratios; tf_bins adds the 200 bins)
     #[arg(long, value_delimiter = ',')]
     pub columns: Vec<String>,
-    /// davies-bouldin | silhouette | calinski-harabasz | bic: how k is chosen
-    #[arg(long)]
-    pub choose: Option<String>,
+    /// davies-bouldin | silhouette | calinski-harabasz | bic: how k is chosen (as [cluster] choose)
+    #[arg(long, value_parser = serde_choice::<crate::cluster::Choose>)]
+    pub choose: Option<crate::cluster::Choose>,
     #[arg(long)]
     pub seed: Option<u64>,
     /// k-means restarts
@@ -589,22 +574,18 @@ pub struct SomClassifyArgs {
     /// How the map's erroneous area is read: quality-check (erroneous iff the features'
     /// quality_fault is set; a sound hit on an erroneous node takes its nearest other
     /// node's class) or map (the BMU's label alone, as the thesis)
-    #[arg(long, value_enum, default_value_t = ReadErroneousArg::QualityCheck)]
-    pub read_erroneous: ReadErroneousArg,
+    #[arg(long, default_value = "quality-check", value_parser = serde_choice::<crate::config::ReadErroneous>)]
+    pub read_erroneous: crate::config::ReadErroneous,
     /// A hit farther from its node than this conformal quantile of the held-out references'
-    /// distances is unlike_references (0 < q ≤ 1; as [som] novelty_quantile)
-    #[arg(long, default_value_t = crate::som::settings::som_defaults::NOVELTY_QUANTILE, value_parser = novelty_quantile)]
+    /// distances is unlike_references (0 < q ≤ 1; checked as [som] novelty_quantile)
+    #[arg(long, default_value_t = crate::som::settings::som_defaults::NOVELTY_QUANTILE)]
     pub novelty_quantile: f64,
 }
 
-/// `--novelty-quantile`: a number in (0, 1].
-fn novelty_quantile(s: &str) -> Result<f64, String> {
-    let q: f64 = s.parse().map_err(|e| format!("{s}: {e}"))?;
-    if q > 0.0 && q <= 1.0 {
-        Ok(q)
-    } else {
-        Err(format!("{q} is not in (0, 1]"))
-    }
+/// A choice read by the words its serde form uses — the pipeline file's — so a flag and its
+/// TOML key accept the same words and a new variant needs no second parser.
+fn serde_choice<T: serde::de::DeserializeOwned>(s: &str) -> Result<T, String> {
+    crate::util::from_serde_name(s).map_err(|e| e.to_string())
 }
 
 #[derive(clap::Args)]

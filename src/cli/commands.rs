@@ -452,31 +452,21 @@ fn export_trfdb(a: ExportTrfdbArgs) -> Result<Outcome> {
 }
 
 fn cluster(a: ClusterArgs) -> Result<Outcome> {
-    use crate::cluster::{settings::Choose, ClusterError, Method};
     let cfg = load_config(a.config.as_deref())?;
     let mut c = cfg.cluster.clone();
-    if let Some(m) = &a.method {
-        c.method = Method::parse(m).ok_or_else(|| {
-            ClusterError::Settings(format!("--method {m}: kmeans, gmm or som-kmeans"))
-        })?;
-    }
+    c.method = a.method.unwrap_or(c.method);
     if let Some((lo, hi)) = a.k {
         (c.k_min, c.k_max) = (lo, hi);
     }
     if !a.columns.is_empty() {
         c.columns = a.columns;
     }
-    if let Some(r) = &a.choose {
-        c.choose = Choose::parse(r).ok_or_else(|| {
-            ClusterError::Settings(format!(
-                "--choose {r}: davies-bouldin, silhouette, calinski-harabasz or bic"
-            ))
-        })?;
-    }
+    c.choose = a.choose.unwrap_or(c.choose);
     c.seed = a.seed.unwrap_or(c.seed);
     c.n_init = a.n_init.unwrap_or(c.n_init);
     c.max_fit_rows = a.max_fit_rows.unwrap_or(c.max_fit_rows);
-    let c = c.check()?;
+    // The flags override [cluster]'s values: the result is checked by [cluster]'s check.
+    let c = c.check().map_err(crate::config::ConfigError::from)?;
     let rep =
         crate::cluster::cluster_tables(&a.features, &a.out, &c, cfg.source_rows(), &cfg.hash())?;
     print!("{}", print::cluster_report(&rep));
@@ -582,10 +572,17 @@ fn som(which: SomCmd) -> Result<Outcome> {
                 Some(&reference),
                 &out,
                 crate::store::SourceRows::default(),
-                crate::som::classify::ClassifyRules {
-                    read: read_erroneous.into(),
-                    novelty_quantile,
-                },
+                // The flags are [som]'s keys: checked by [som]'s own check.
+                crate::som::classify::ClassifyRules::of(
+                    &crate::som::settings::SomConfig {
+                        read_erroneous,
+                        novelty_quantile,
+                        ..Default::default()
+                    }
+                    .check()
+                    .map_err(crate::config::ConfigError::from)?
+                    .into_inner(),
+                ),
             )?;
             println!("{}", conf.reading.describe());
             println!("{}", conf.novelty.describe());

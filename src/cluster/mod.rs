@@ -16,7 +16,7 @@ pub mod stage;
 pub mod validity;
 
 pub use fit::{fit_matrix, ClusterModel, Fitted, ValidityRow};
-pub use settings::{Choose, ClusterConfig, Method, ValidCluster};
+pub use settings::{Choose, ClusterConfig, ClusterSettingsError, Method, ValidCluster};
 pub use stage::{cluster_matrix, cluster_tables, ClusterReport};
 
 /// What went wrong clustering.
@@ -28,8 +28,8 @@ pub enum ClusterError {
     File { path: String, message: String },
     #[error("{path}: cannot write: {message}")]
     Write { path: String, message: String },
-    #[error("cluster settings: {0}")]
-    Settings(String),
+    #[error(transparent)]
+    Settings(#[from] settings::ClusterSettingsError),
     #[error(transparent)]
     Som(#[from] crate::som::SomError),
 }

@@ -1,7 +1,10 @@
 //! `[cluster]` of the pipeline TOML and the flags of `aepipe cluster`: checked once into a
 //! [`ValidCluster`], then used.
 
-use super::ClusterError;
+/// A `[cluster]` value out of range, naming its key (or a `--k` that does not parse).
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("cluster settings: {0}")]
+pub struct ClusterSettingsError(pub String);
 use serde::{Deserialize, Serialize};
 
 /// How hits are clustered.
@@ -27,10 +30,9 @@ impl Method {
         }
     }
 
+    /// The method named by its `[cluster] method` word.
     pub fn parse(s: &str) -> Option<Method> {
-        [Method::Kmeans, Method::Gmm, Method::SomKmeans]
-            .into_iter()
-            .find(|m| m.as_str() == s)
+        crate::util::from_serde_name(s).ok()
     }
 }
 
@@ -59,15 +61,9 @@ impl Choose {
         }
     }
 
+    /// The rule named by its `[cluster] choose` word.
     pub fn parse(s: &str) -> Option<Choose> {
-        [
-            Choose::DaviesBouldin,
-            Choose::Silhouette,
-            Choose::CalinskiHarabasz,
-            Choose::Bic,
-        ]
-        .into_iter()
-        .find(|c| c.as_str() == s)
+        crate::util::from_serde_name(s).ok()
     }
 }
 
@@ -152,8 +148,8 @@ impl std::ops::Deref for ValidCluster {
 
 impl ClusterConfig {
     /// The checks serde cannot express, each naming its key.
-    pub fn check(self) -> Result<ValidCluster, ClusterError> {
-        let bad = |m: String| Err(ClusterError::Settings(m));
+    pub fn check(self) -> Result<ValidCluster, ClusterSettingsError> {
+        let bad = |m: String| Err(ClusterSettingsError(m));
         if self.k_min < 2 || self.k_max < self.k_min || self.k_max > 20 {
             return bad(format!(
                 "cluster.k_min ({}) and k_max ({}) must satisfy 2 ≤ k_min ≤ k_max ≤ 20",
@@ -189,11 +185,11 @@ impl ClusterConfig {
 }
 
 /// `--k 4` or `--k 2..8`: (k_min, k_max).
-pub fn parse_k(s: &str) -> Result<(usize, usize), ClusterError> {
+pub fn parse_k(s: &str) -> Result<(usize, usize), ClusterSettingsError> {
     let num = |t: &str| {
         t.trim()
             .parse::<usize>()
-            .map_err(|e| ClusterError::Settings(format!("--k {t}: {e}")))
+            .map_err(|e| ClusterSettingsError(format!("--k {t}: {e}")))
     };
     match s.split_once("..") {
         Some((a, b)) => Ok((num(a)?, num(b.trim_start_matches('='))?)),
@@ -222,5 +218,18 @@ mod tests {
         assert_eq!(parse_k("3..=5").unwrap(), (3, 5));
         assert!(parse_k("x").is_err());
         assert_eq!(Method::parse("som-kmeans"), Some(Method::SomKmeans));
+        // The words printed are the words parsed (serde's), for every variant.
+        for m in [Method::Kmeans, Method::Gmm, Method::SomKmeans] {
+            assert_eq!(Method::parse(m.as_str()), Some(m));
+        }
+        for c in [
+            Choose::DaviesBouldin,
+            Choose::Silhouette,
+            Choose::CalinskiHarabasz,
+            Choose::Bic,
+        ] {
+            assert_eq!(Choose::parse(c.as_str()), Some(c));
+        }
+        assert_eq!(Method::parse("k-means"), None);
     }
 }

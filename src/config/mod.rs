@@ -48,8 +48,8 @@ pub enum SettingsError {
     CrackMode(#[from] crate::model::crack::CrackModeError),
     #[error(transparent)]
     Detect(#[from] crate::detect::DetectSettingsError),
-    #[error("{0}")]
-    Cluster(String),
+    #[error(transparent)]
+    Cluster(#[from] crate::cluster::ClusterSettingsError),
     /// `[pipeline]` or `[live]`.
     #[error("{key} {rule}, got {value}")]
     Run {
@@ -109,7 +109,8 @@ invalid_from!(
     FeatureSettingsError,
     EventsSettingsError,
     AnalysisSettingsError,
-    SomSettingsError
+    SomSettingsError,
+    crate::cluster::ClusterSettingsError
 );
 
 #[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
@@ -286,12 +287,16 @@ impl LiveConfig {
 /// (`Deref`); to change a value, take it out with [`ValidConfig::into_inner`] and check it
 /// again.
 #[derive(Debug, Clone, PartialEq)]
-pub struct ValidConfig(PipelineConfig);
+pub struct ValidConfig {
+    cfg: PipelineConfig,
+    /// `[cluster]` as its own check made it, handed on to the clustering stage as it is.
+    cluster: crate::cluster::ValidCluster,
+}
 
 impl std::ops::Deref for ValidConfig {
     type Target = PipelineConfig;
     fn deref(&self) -> &PipelineConfig {
-        &self.0
+        &self.cfg
     }
 }
 
@@ -305,12 +310,17 @@ impl Default for ValidConfig {
 
 impl ValidConfig {
     pub fn into_inner(self) -> PipelineConfig {
-        self.0
+        self.cfg
+    }
+
+    /// `[cluster]`, checked once with the rest.
+    pub fn cluster(&self) -> &crate::cluster::ValidCluster {
+        &self.cluster
     }
 
     /// The same configuration with `edit` applied, checked again.
     pub fn with(self, edit: impl FnOnce(&mut PipelineConfig)) -> Result<ValidConfig, ConfigError> {
-        let mut c = self.0;
+        let mut c = self.cfg;
         edit(&mut c);
         c.check()
     }
@@ -380,29 +390,39 @@ impl PipelineConfig {
         let mut ingest = ingest.check()?.into_inner();
         // The readers cut streams as `[detect]` says: they get its checked copy.
         ingest.detect = valid_detect;
-        Ok(ValidConfig(PipelineConfig {
-            ingest,
-            detect,
-            pipeline,
-            validate,
-            dsp: dsp.check()?.into_inner(),
-            criteria: criteria.check()?.into_inner(),
-            crack_mode,
-            onset: onset.check()?.into_inner(),
-            events: events.check()?.into_inner(),
-            location: location.check()?.into_inner(),
-            evolution: evolution.check()?.into_inner(),
-            trend: trend.check()?.into_inner(),
-            som: som.check()?.into_inner(),
-            cluster: cluster
-                .check()
-                .map_err(|e| SettingsError::Cluster(e.to_string()))?
-                .into_inner(),
-            export,
-            report,
-            load: load.check()?.into_inner(),
-            live,
-        }))
+        let dsp = dsp.check()?.into_inner();
+        let criteria = criteria.check()?.into_inner();
+        let onset = onset.check()?.into_inner();
+        let events = events.check()?.into_inner();
+        let location = location.check()?.into_inner();
+        let evolution = evolution.check()?.into_inner();
+        let trend = trend.check()?.into_inner();
+        let som = som.check()?.into_inner();
+        let valid_cluster = cluster.check().map_err(SettingsError::from)?;
+        let load = load.check()?.into_inner();
+        Ok(ValidConfig {
+            cluster: valid_cluster.clone(),
+            cfg: PipelineConfig {
+                ingest,
+                detect,
+                pipeline,
+                validate,
+                dsp,
+                criteria,
+                crack_mode,
+                onset,
+                events,
+                location,
+                evolution,
+                trend,
+                som,
+                cluster: valid_cluster.into_inner(),
+                export,
+                report,
+                load,
+                live,
+            },
+        })
     }
 
     /// Read and check a pipeline TOML file.

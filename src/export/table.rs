@@ -193,50 +193,7 @@ fn field(
 fn fields(has: (bool, bool, bool), class_legend: &str, ratios: &[String]) -> Vec<Field> {
     let mut out = Vec::new();
     if has.0 {
-        out.extend([
-            field(
-                col(
-                    "SOM_Class",
-                    "",
-                    "aepipe SOM class",
-                    &format!("the SOM stage's class (som_label): {class_legend}"),
-                    true,
-                ),
-                |r, k, _| r.code(&r.class(k).som),
-            ),
-            field(
-                col(
-                    "SOM_Node",
-                    "",
-                    "aepipe SOM node class",
-                    &format!(
-                        "the class of the hit's best-matching node (node_label): {class_legend}"
-                    ),
-                    true,
-                ),
-                |r, k, _| r.code(&r.class(k).node),
-            ),
-            field(
-                col(
-                    "Novel",
-                    "",
-                    "aepipe unlike the references",
-                    "1: farther from the map than its novelty threshold (novel); 0: not",
-                    true,
-                ),
-                |r, k, _| r.class(k).novel.map(|b| b as i64 as f64),
-            ),
-            field(
-                col(
-                    "QE",
-                    "",
-                    "aepipe quantization error",
-                    "distance to the best-matching node (quantization_error, Eq. 5.4.1)",
-                    false,
-                ),
-                |r, k, _| r.class(k).qe,
-            ),
-        ]);
+        out.extend(som_fields(class_legend));
     }
     if has.1 {
         out.push(field(
@@ -255,8 +212,97 @@ fn fields(has: (bool, bool, bool), class_legend: &str, ratios: &[String]) -> Vec
             },
         ));
     }
+    out.extend(hit_fields());
+    if has.2 {
+        out.extend([
+            field(
+                col(
+                    "X",
+                    "[mm]",
+                    "aepipe location x",
+                    "the event's source x (events.parquet x_m, in mm)",
+                    false,
+                ),
+                |r, k, f| r.place(k, f).and_then(|p| p.0).map(|x| x * 1e3),
+            ),
+            field(
+                col(
+                    "Y",
+                    "[mm]",
+                    "aepipe location y",
+                    "the event's source y (events.parquet y_m, in mm)",
+                    false,
+                ),
+                |r, k, f| r.place(k, f).and_then(|p| p.1).map(|y| y * 1e3),
+            ),
+        ]);
+    }
+    for (k, name) in ratios.iter().enumerate() {
+        let (lo, hi) = band_of(name).unwrap_or_default();
+        out.push(field(
+            col(
+                &format!("PR{:02}", k + 1),
+                "[1]",
+                &format!("Power ratio {lo}-{hi} kHz"),
+                &format!("{name}: power in the band over the total (Eq. 4.5.4), a fraction"),
+                false,
+            ),
+            move |_, _, f| f.ratios.get(k).copied().flatten(),
+        ));
+    }
+    out
+}
+
+/// The SOM stage's columns (classes as codes of `class_legend`).
+fn som_fields(class_legend: &str) -> [Field; 4] {
+    [
+        field(
+            col(
+                "SOM_Class",
+                "",
+                "aepipe SOM class",
+                &format!("the SOM stage's class (som_label): {class_legend}"),
+                true,
+            ),
+            |r, k, _| r.code(&r.class(k).som),
+        ),
+        field(
+            col(
+                "SOM_Node",
+                "",
+                "aepipe SOM node class",
+                &format!("the class of the hit's best-matching node (node_label): {class_legend}"),
+                true,
+            ),
+            |r, k, _| r.code(&r.class(k).node),
+        ),
+        field(
+            col(
+                "Novel",
+                "",
+                "aepipe unlike the references",
+                "1: farther from the map than its novelty threshold (novel); 0: not",
+                true,
+            ),
+            |r, k, _| r.class(k).novel.map(|b| b as i64 as f64),
+        ),
+        field(
+            col(
+                "QE",
+                "",
+                "aepipe quantization error",
+                "distance to the best-matching node (quantization_error, Eq. 5.4.1)",
+                false,
+            ),
+            |r, k, _| r.class(k).qe,
+        ),
+    ]
+}
+
+/// The columns every export has: the criteria label, crack mode, RA, AF, event and zone.
+fn hit_fields() -> [Field; 6] {
     let mech = Mechanism::ALL.map(Mechanism::as_str);
-    out.extend([
+    [
         field(
             col(
                 "Criteria",
@@ -317,45 +363,7 @@ fn fields(has: (bool, bool, bool), class_legend: &str, ratios: &[String]) -> Vec
             ),
             |_, _, f| code_of(&ZONES, f.zone.as_deref()),
         ),
-    ]);
-    if has.2 {
-        out.extend([
-            field(
-                col(
-                    "X",
-                    "[mm]",
-                    "aepipe location x",
-                    "the event's source x (events.parquet x_m, in mm)",
-                    false,
-                ),
-                |r, k, f| r.place(k, f).and_then(|p| p.0).map(|x| x * 1e3),
-            ),
-            field(
-                col(
-                    "Y",
-                    "[mm]",
-                    "aepipe location y",
-                    "the event's source y (events.parquet y_m, in mm)",
-                    false,
-                ),
-                |r, k, f| r.place(k, f).and_then(|p| p.1).map(|y| y * 1e3),
-            ),
-        ]);
-    }
-    for (k, name) in ratios.iter().enumerate() {
-        let (lo, hi) = band_of(name).unwrap_or_default();
-        out.push(field(
-            col(
-                &format!("PR{:02}", k + 1),
-                "[1]",
-                &format!("Power ratio {lo}-{hi} kHz"),
-                &format!("{name}: power in the band over the total (Eq. 4.5.4), a fraction"),
-                false,
-            ),
-            move |_, _, f| f.ratios.get(k).copied().flatten(),
-        ));
-    }
-    out
+    ]
 }
 
 /// What an export takes from one features row.

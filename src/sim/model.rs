@@ -20,6 +20,40 @@ pub enum Solver {
     ImplicitEuler,
 }
 
+impl Solver {
+    /// The solvers by their number in `--param solver=N` (a number, so that `--sweep
+    /// solver=0:3:4` steps through them): 0 explicit Euler, 1 RK4, 2 Verlet, 3 implicit Euler.
+    pub const BY_NUMBER: [Solver; 4] = [
+        Solver::ExplicitEuler,
+        Solver::Rk4,
+        Solver::Verlet,
+        Solver::ImplicitEuler,
+    ];
+
+    /// The solver numbered `n`; an error for any other value (a typo never runs the
+    /// default).
+    pub fn numbered(n: f64) -> Result<Solver, SimError> {
+        Solver::BY_NUMBER
+            .iter()
+            .enumerate()
+            .find(|(k, _)| *k as f64 == n)
+            .map(|(_, s)| *s)
+            .ok_or_else(|| {
+                SimError::Model(format!(
+                    "solver={n}: 0 (explicit-euler), 1 (rk4), 2 (verlet) or 3 (implicit-euler), or one of those names"
+                ))
+            })
+    }
+
+    /// Its number in `--param solver=N`.
+    pub fn number(self) -> usize {
+        Solver::BY_NUMBER
+            .iter()
+            .position(|s| *s == self)
+            .expect("every solver is numbered")
+    }
+}
+
 impl std::str::FromStr for Solver {
     type Err = SimError;
     /// The names of the TOML (`explicit-euler`, `rk4`, `verlet`, `implicit-euler`) and the

@@ -48,11 +48,15 @@ impl Params {
         serde_json::to_string(&map).unwrap_or_else(|_| "{}".into())
     }
 
-    /// Parse `key=value`.
+    /// Parse `key=value`; `solver=<name>` (`verlet`, `rk4`, …) is the solver's number.
     pub fn parse_one(s: &str) -> Result<(String, f64), SimError> {
         let (k, v) = s
             .split_once('=')
             .ok_or_else(|| SimError::Model(format!("--param {s}: expected key=value")))?;
+        if k.trim() == "solver" && v.trim().parse::<f64>().is_err() {
+            let solver: super::model::Solver = v.trim().parse()?;
+            return Ok(("solver".into(), solver.number() as f64));
+        }
         let v: f64 = v
             .trim()
             .parse()

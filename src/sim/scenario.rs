@@ -41,12 +41,10 @@ pub fn build_string(p: &Params) -> Result<super::string::StiffString, SimError> 
 }
 
 fn build_asked(name: &str, p: &Params) -> Result<ModelFile, SimError> {
-    let solver = match p.get("solver", -1.0) as i64 {
-        0 => Some(Solver::ExplicitEuler),
-        1 => Some(Solver::Rk4),
-        2 => Some(Solver::Verlet),
-        3 => Some(Solver::ImplicitEuler),
-        _ => None,
+    let solver = if p.has("solver") {
+        Some(Solver::numbered(p.get("solver", 0.0))?)
+    } else {
+        None
     };
     let mut m = match name {
         "sho" => sho(p),

@@ -19,8 +19,8 @@ pub(super) fn cluster_stage(
     dir: &Path,
     som: Option<&SomStage>,
 ) -> Result<ClusterStage, WorkflowError> {
-    let c = cfg.cluster.clone().check()?;
-    let report = crate::cluster::cluster_tables(feats, dir, &c, cfg.source_rows(), &cfg.hash())?;
+    let report =
+        crate::cluster::cluster_tables(feats, dir, cfg.cluster(), cfg.source_rows(), &cfg.hash())?;
     let validity_png = dir.join("validity.png");
     crate::plot::validity_png(&validity_png, &report.validity)?;
     let slope = cfg.crack_mode.af_per_ra;

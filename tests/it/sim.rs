@@ -884,3 +884,22 @@ fn two_fibres_relax_to_the_statics_of_a_weightless_string() {
         }
     }
 }
+
+/// The solver is chosen by name or by its number, and a number that names none is refused
+/// (it used to run the scenario's default solver silently).
+#[test]
+fn a_solver_is_named_or_numbered_and_a_wrong_number_is_refused() {
+    for (k, want) in Solver::BY_NUMBER.iter().enumerate() {
+        let m = scenario::build("sho", &params(&[("solver", k as f64)])).unwrap();
+        assert_eq!(m.system.solver, *want);
+    }
+    let (key, v) = Params::parse_one("solver=verlet").unwrap();
+    assert_eq!((key.as_str(), v), ("solver", 2.0));
+    let m = scenario::build("sho", &Params(vec![(key, v)])).unwrap();
+    assert_eq!(m.system.solver, Solver::Verlet);
+    for bad in [7.0, 1.5, -1.0] {
+        let e = scenario::build("sho", &params(&[("solver", bad)])).unwrap_err();
+        assert!(e.to_string().contains("2 (verlet)"), "{bad}: {e}");
+    }
+    assert!(Params::parse_one("solver=verlett").is_err());
+}
