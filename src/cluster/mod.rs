@@ -30,8 +30,12 @@ pub enum ClusterError {
     Write { path: String, message: String },
     #[error(transparent)]
     Settings(#[from] settings::ClusterSettingsError),
+    /// The SOM of `som-kmeans` could not be trained.
     #[error(transparent)]
     Som(#[from] crate::som::SomError),
+    /// A feature table could not be read past its schema (Parquet, I/O).
+    #[error(transparent)]
+    Store(#[from] crate::store::StoreError),
 }
 
 impl crate::util::HasKind for ClusterError {
@@ -39,6 +43,7 @@ impl crate::util::HasKind for ClusterError {
         match self {
             ClusterError::Write { .. } => crate::util::ErrorKind::Failed,
             ClusterError::Som(e) => e.kind(),
+            ClusterError::Store(e) => e.kind(),
             _ => crate::util::ErrorKind::Usage,
         }
     }

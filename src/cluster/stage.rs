@@ -5,7 +5,8 @@ use super::fit::{fit_matrix, Assigner, ValidityRow};
 use super::settings::{ValidCluster, DEFAULT_COLUMNS};
 use super::ClusterError;
 use crate::model::columns as cols;
-use crate::som::tables::{for_each_input, Scaling};
+use crate::som::tables::Scaling;
+use crate::store::{for_each_matrix, StoreError};
 use crate::store::{ColType, ColumnSpec, HitKey, SourceRows, Table, TableScan, TableWriter, Value};
 use ndarray::Array2;
 use std::path::{Path, PathBuf};
@@ -71,6 +72,15 @@ fn ferr(p: &Path, m: impl std::fmt::Display) -> ClusterError {
     }
 }
 
+/// A feature table that cannot be read, in the clustering's words (the store's errors name
+/// the file).
+fn serr(e: StoreError) -> ClusterError {
+    match e {
+        StoreError::Read { path, message } => ClusterError::File { path, message },
+        other => ClusterError::Store(other),
+    }
+}
+
 fn werr(p: &Path, m: impl std::fmt::Display) -> ClusterError {
     ClusterError::Write {
         path: p.display().to_string(),
@@ -84,7 +94,7 @@ pub fn columns_of(first: &Path, cfg: &ValidCluster) -> Result<Vec<String>, Clust
     if !cfg.columns.is_empty() {
         return Ok(cfg.columns.clone());
     }
-    let t = TableScan::open(first).map_err(|e| ferr(first, e))?;
+    let t = TableScan::open(first).map_err(serr)?;
     let names = t.column_names();
     let mut c: Vec<String> = DEFAULT_COLUMNS
         .iter()
@@ -216,7 +226,7 @@ pub fn cluster_tables(
     let mut sample: Vec<Vec<f64>> = Vec::new();
     let (mut seen, mut skipped) = (0usize, 0usize);
     let mut rng = crate::util::Rng::new(cfg.seed ^ 0x7e5e_7001);
-    for_each_input(paths, &columns, None, sources, |b| {
+    for_each_matrix(paths, &columns, None, sources, serr, |b| {
         skipped += b.skipped;
         let m = mom.get_or_insert_with(|| Moments::new(b.dim()));
         for r in b.data.rows() {
@@ -255,7 +265,7 @@ pub fn cluster_tables(
         .map_err(|e| werr(&clusters, e))?;
     let mut sizes = vec![0usize; fitted.model.k];
     let (mut x, mut post) = (vec![0.0; dim], Vec::new());
-    for_each_input(paths, &columns, None, sources, |b| {
+    for_each_matrix(paths, &columns, None, sources, serr, |b| {
         for (key, r) in b.keys.into_iter().zip(b.data.rows()) {
             x.iter_mut().zip(r).for_each(|(a, v)| *a = *v);
             sc.apply(&mut x);
@@ -267,10 +277,7 @@ pub fn cluster_tables(
                 distance,
                 probability,
             }))
-            .map_err(|e| crate::som::SomError::Write {
-                path: clusters.display().to_string(),
-                message: e.to_string(),
-            })?;
+            .map_err(|e| werr(&clusters, e))?;
         }
         Ok(())
     })?;

@@ -15,6 +15,12 @@ thread_local! {
         const { std::cell::RefCell::new(None) };
 }
 
+/// Whether no build is recording the keys it asks (outside [`asked_only`]).
+#[cfg(test)]
+pub(super) fn recorder_is_off() -> bool {
+    ASKED.with(|a| a.borrow().is_none())
+}
+
 fn asked(key: &str) {
     ASKED.with(|a| {
         if let Some(s) = a.borrow_mut().as_mut() {

@@ -529,6 +529,6 @@ mod tests {
         let e = build("sho", &p(&[("kink", 1.0)])).unwrap_err();
         assert!(e.to_string().contains("no parameter kink"), "{e}");
         // The recorder is off outside build.
-        assert!(ASKED.with(|a| a.borrow().is_none()));
+        assert!(crate::sim::params::recorder_is_off());
     }
 }

@@ -5,39 +5,14 @@ use super::layout::ModelDir;
 use super::{Init, Som, SomError, SomParams};
 use crate::model::columns as cols;
 use crate::model::Mechanism;
-use crate::store::{HitKey, SourceRows, TableScan};
+use crate::store::SourceRows;
 use ndarray::{Array2, ArrayView2};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
-/// Per-hit vectors read from feature tables.
-#[derive(Debug, Clone)]
-pub struct SomInput {
-    pub keys: Vec<HitKey>,
-    /// One row per kept hit.
-    pub data: Array2<f64>,
-    pub labels: Vec<Option<String>>,
-    /// Each row's time-domain quality (`features.parquet`'s `quality_fault`).
-    pub quality: Vec<Quality>,
-    /// Rows left out because a feature was null or not finite (flat or empty records).
-    pub skipped: usize,
-}
-
-/// A row's time-domain quality check, as its feature table states it.
-#[derive(Debug, Clone, PartialEq, Eq)]
-pub enum Quality {
-    /// The table has no `quality_fault` column (written by another tool or an older aepipe).
-    Unknown,
-    Sound,
-    /// The fault's kind (`clipped`, `two_bursts`, …).
-    Fault(String),
-}
-
-impl SomInput {
-    pub fn dim(&self) -> usize {
-        self.data.ncols()
-    }
-}
+/// Per-hit vectors read from feature tables (the store's [`HitMatrix`]).
+pub type SomInput = crate::store::HitMatrix;
+pub use crate::store::Quality;
 
 fn ferr(p: &Path, m: impl std::fmt::Display) -> SomError {
     SomError::File {
@@ -61,84 +36,16 @@ fn werr(p: &Path, m: impl std::fmt::Display) -> SomError {
     }
 }
 
-/// `features.parquet`'s time-domain quality column, and its alias when read.
-const QUALITY: &str = "quality_fault";
-
-/// The usable rows of the tables a batch at a time ([`crate::store::read::BATCH_ROWS`] rows of a file):
-/// `f` gets each batch's usable rows, in file order, so memory does not grow with the
-/// table. Every batch has the same dimension (else an error naming the file).
+/// The usable rows of the tables a batch at a time ([`crate::store::for_each_matrix`]), the
+/// reading's errors in the SOM's words.
 pub fn for_each_input(
     paths: &[PathBuf],
     columns: &[String],
     label: Option<&str>,
     sources: SourceRows,
-    mut f: impl FnMut(SomInput) -> Result<(), SomError>,
+    f: impl FnMut(SomInput) -> Result<(), SomError>,
 ) -> Result<(), SomError> {
-    let mut dim = None;
-    for p in paths {
-        let t = TableScan::open(p).map_err(serr)?.sources(sources);
-        let mut need = vec![cols::EXPERIMENT.name, cols::CHANNEL.name, cols::HIT.name];
-        need.extend(label);
-        t.require(&need, "").map_err(serr)?;
-        let names: Vec<&str> = columns.iter().map(String::as_str).collect();
-        t.require(&names, "").map_err(serr)?;
-        // The label may be any column, a key column included (`--label experiment`), read as
-        // text; a column named twice is read once (the batch reader selects each name once).
-        let mut sel: Vec<&str> = vec![cols::EXPERIMENT.name, cols::CHANNEL.name, cols::HIT.name];
-        sel.extend(label);
-        let has_quality = t.dtype(QUALITY).is_some();
-        if has_quality {
-            sel.push(QUALITY);
-        }
-        sel.extend(columns.iter().map(String::as_str));
-        for batch in t.batches(&sel) {
-            let (_, df) = batch.map_err(serr)?;
-            let k = t.hit_keys(&df).map_err(serr)?;
-            let l = match label {
-                Some(name) => t.as_strings(&df, name).map_err(serr)?,
-                None => vec![None; k.len()],
-            };
-            let q: Vec<Quality> = if has_quality {
-                t.as_strings(&df, QUALITY)
-                    .map_err(serr)?
-                    .into_iter()
-                    .map(|f| match f {
-                        Some(f) if !f.is_empty() => Quality::Fault(f),
-                        _ => Quality::Sound,
-                    })
-                    .collect()
-            } else {
-                vec![Quality::Unknown; k.len()]
-            };
-            let (m, keep) = t.matrix_of(&df, columns).map_err(serr)?;
-            if m.nrows() > 0 {
-                match dim {
-                    Some(d) if d != m.ncols() => {
-                        return Err(ferr(p, format!("rows of dimension {d} and {}", m.ncols())))
-                    }
-                    _ => dim = Some(m.ncols()),
-                }
-            }
-            let mut input = SomInput {
-                keys: Vec::with_capacity(m.nrows()),
-                data: m,
-                labels: Vec::with_capacity(keep.len()),
-                quality: Vec::with_capacity(keep.len()),
-                skipped: 0,
-            };
-            for (((key, lab), q), kept) in k.into_iter().zip(l).zip(q).zip(&keep) {
-                if *kept {
-                    input.keys.push(key);
-                    input.labels.push(lab);
-                    input.quality.push(q);
-                } else {
-                    input.skipped += 1;
-                }
-            }
-            f(input)?;
-        }
-    }
-    Ok(())
+    crate::store::for_each_matrix(paths, columns, label, sources, serr, f)
 }
 
 /// How the training set is drawn (ch. 5.4).

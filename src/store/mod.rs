@@ -412,11 +412,13 @@ pub struct TableWriter {
 pub use crate::util::tmp_path_for;
 
 pub mod cache;
+pub mod matrix;
 pub mod read;
 pub mod rewrite;
 pub mod shard;
 pub mod spill;
 pub mod table;
+pub use matrix::{for_each_matrix, HitMatrix, Quality};
 pub use read::{group_channel, HitKey, SourceRows, TableScan};
 pub use table::{
     hits_table, identity_table, markers_table, parametric_table, rejects_table, waveforms_table,

@@ -366,3 +366,47 @@ fn an_experiment_id_never_writes_outside_the_output_folder() {
         }
     }
 }
+
+/// `aepipe cluster` on tables it cannot use says so in its own words, naming the file once:
+/// not Parquet, a column it lacks, and a method word that is not `[cluster] method`'s.
+#[test]
+fn cluster_reads_its_tables_with_its_own_errors() {
+    let t = crate::TempDir::new("cluster-bad");
+    let junk = t.path().join("junk.parquet");
+    std::fs::write(&junk, b"x").unwrap();
+    let out = t.path().join("out");
+    let s = |p: &std::path::Path| p.display().to_string();
+    let (code, _, err) = crate::aepipe(&["cluster", &s(&junk), "--out", &s(&out)]);
+    assert_eq!(code, 1, "{err}");
+    assert_eq!(err.matches(&s(&junk)).count(), 1, "{err}");
+    assert!(!err.contains("som"), "{err}");
+    let data = t.path().join("data");
+    crate::vallen_fixture(&data, "x", 30, 3);
+    let feats = t.path().join("f");
+    let (code, so, err) = crate::aepipe(&["features", &s(&data), "--out", &s(&feats)]);
+    assert_eq!(code, 0, "{so}{err}");
+    let table = feats.join("features.parquet");
+    let (code, _, err) = crate::aepipe(&[
+        "cluster",
+        &s(&table),
+        "--out",
+        &s(&out),
+        "--columns",
+        "nope",
+    ]);
+    assert_eq!(code, 1, "{err}");
+    assert!(err.contains("no column nope"), "{err}");
+    let (code, _, err) = crate::aepipe(&[
+        "cluster",
+        &s(&table),
+        "--out",
+        &s(&out),
+        "--method",
+        "k-means",
+    ]);
+    assert_eq!(code, 1, "{err}");
+    assert!(
+        err.contains("expected one of `kmeans`, `gmm`, `som-kmeans`"),
+        "{err}"
+    );
+}
