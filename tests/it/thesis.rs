@@ -6,23 +6,106 @@ use crate::{aepipe, TempDir};
 
 /// (entry, verdict) of each row of docs/thesis.md's table.
 fn record() -> Vec<(String, String)> {
+    record_rows()
+        .into_iter()
+        .map(|(id, _, verdict)| (id, verdict))
+        .collect()
+}
+
+/// (entry, the value the record prints for aepipe, verdict) of each row of the table.
+fn record_rows() -> Vec<(String, String, String)> {
     let text =
         std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/docs/thesis.md")).unwrap();
     text.lines()
         .filter(|l| l.starts_with("| `"))
         .map(|l| {
-            let cells: Vec<&str> = l.split('|').map(str::trim).collect();
+            let cells: Vec<&str> = l.split(" | ").map(str::trim).collect();
             (
-                cells[1].trim_matches('`').to_string(),
+                cells[0]
+                    .trim_start_matches("| ")
+                    .trim_matches('`')
+                    .to_string(),
                 cells[cells.len() - 2].to_string(),
+                cells[cells.len() - 1].trim_end_matches(" |").to_string(),
             )
         })
         .collect()
 }
 
+/// The number a record cell opens with, and half a unit of its last printed digit: the
+/// record's own precision. `52 135 1/s` → (52135, 0.5); `5.30·10⁴ 1/kg` → (53000, 50);
+/// `−0.51 (p = …)` → (−0.51, 0.005); `1 533.3 kHz` → (1533.3, 0.05).
+fn printed(cell: &str) -> Option<(f64, f64)> {
+    let s = cell.replace('−', "-");
+    let b: Vec<char> = s.chars().collect();
+    let mut i = 0;
+    let mut digits = String::new();
+    if matches!(b.first(), Some('+' | '-')) {
+        digits.push(b[0]);
+        i = 1;
+    }
+    let mut decimals: Option<i32> = None;
+    while i < b.len() {
+        let c = b[i];
+        if c.is_ascii_digit() {
+            digits.push(c);
+            if let Some(d) = decimals.as_mut() {
+                *d += 1;
+            }
+        } else if c == '.' && decimals.is_none() {
+            digits.push(c);
+            decimals = Some(0);
+        } else if c == ' '
+            && decimals.is_none()
+            && b.len() >= i + 4
+            && b[i + 1..i + 4].iter().all(char::is_ascii_digit)
+            && b.get(i + 4).is_none_or(|n| !n.is_ascii_digit())
+        {
+            // A thousands group.
+        } else {
+            break;
+        }
+        i += 1;
+    }
+    let mut v: f64 = digits.parse().ok()?;
+    let mut exp = 0i32;
+    let rest: String = b[i..].iter().collect();
+    if let Some(e) = rest.strip_prefix("·10") {
+        let sup = |c: char| "⁰¹²³⁴⁵⁶⁷⁸⁹".chars().position(|d| d == c);
+        let neg = e.starts_with('⁻');
+        let n: String = e
+            .chars()
+            .skip(neg as usize)
+            .map_while(|c| sup(c).map(|d| char::from(b'0' + d as u8)))
+            .collect();
+        exp = n.parse::<i32>().ok()? * if neg { -1 } else { 1 };
+        v *= 10f64.powi(exp);
+    }
+    Some((v, 0.5 * 10f64.powi(exp - decimals.unwrap_or(0))))
+}
+
+#[test]
+fn the_record_cells_read_as_their_printed_precision() {
+    let near = |cell: &str, v: f64, half: f64| {
+        let (a, h) = printed(cell).unwrap();
+        assert!(
+            (a - v).abs() <= 1e-9 * v.abs().max(1.0) && (h - half).abs() <= 1e-12 * half.max(1e-12),
+            "{cell}: {a} ± {h}"
+        );
+    };
+    near("52 135 1/s (+4.3 %)", 52135.0, 0.5);
+    near("5.30·10⁴ 1/kg (+68 %)", 53000.0, 50.0);
+    near("−0.51 (p = 4·10⁻⁶)", -0.51, 0.005);
+    near("1 533.3 kHz (−0.3 %)", 1533.3, 0.05);
+    near("0.05466 1/s (+0.2 %)", 0.05466, 0.000005);
+    near("8·10⁻⁷ 1/s", 8e-7, 5e-8);
+    assert_eq!(printed("agrees"), None);
+}
+
 #[test]
 fn every_entry_runs_and_gives_the_verdict_the_record_states() {
     let rows = record();
+    let values = record_rows();
     let declared: Vec<&str> = aepipe::thesis::ENTRIES.iter().map(|e| e.id).collect();
     let named: Vec<&str> = rows.iter().map(|(id, _)| id.as_str()).collect();
     assert_eq!(
@@ -38,6 +121,18 @@ fn every_entry_runs_and_gives_the_verdict_the_record_states() {
             got, want,
             "{}: aepipe {} against {}",
             e.id, o.aepipe, e.thesis
+        );
+        // The value the record prints for aepipe is the run's, to the printed precision:
+        // a departure is expected exactly where the record says, and a NaN or a value
+        // elsewhere fails whichever the verdict.
+        let cell = &values.iter().find(|(id, _, _)| id == e.id).unwrap().1;
+        let (shown, half) =
+            printed(cell).unwrap_or_else(|| panic!("{}: no number in {cell:?}", e.id));
+        assert!(
+            (o.aepipe - shown).abs() <= half * (1.0 + 1e-9),
+            "{}: the run gives {} where the record prints {cell:?} (±{half})",
+            e.id,
+            o.aepipe
         );
         // Its figure and its data.
         let files: Vec<String> = std::fs::read_dir(&o.dir)
