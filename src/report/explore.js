@@ -374,5 +374,9 @@
   };
   redraw();
   // For scripted checks (the browser test) and the console.
-  window.aepipeExplore = { D, charts, open, select, keyOf, embedded: emb };
+  window.aepipeExplore = {
+    D, charts, open, select, keyOf, embedded: emb,
+    // The keys of the points a selection holds (none while nothing is selected).
+    selected: () => (selecting ? [...mask.keys()].filter((i) => mask[i]).map(keyOf) : []),
+  };
 })();

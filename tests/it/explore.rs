@@ -101,4 +101,65 @@ fn the_explorable_report_draws_and_opens_a_clicked_hit_in_a_browser() {
             assert!(cmd.contains(&format!("--hit {hit} ")), "{cmd}");
         }
     }
+    interaction(&v["interaction"]);
+}
+
+/// Geometry and interaction against the run's own values (the script reads them from the
+/// tables, not from the page): points drawn where their values put them, a drag zooming to
+/// the dragged ranges, a Shift-drag selecting exactly the hits inside and every chart
+/// highlighting them, each colouring's legend listing the run's own classes.
+fn interaction(v: &serde_json::Value) {
+    let f = |x: &serde_json::Value| x.as_f64().unwrap();
+    let placed = v["placed"].as_array().unwrap();
+    assert!(placed.len() >= 5, "{v}");
+    for p in placed {
+        for k in 0..2 {
+            let (want, drawn) = (f(&p["expected"][k]), f(&p["chart"][k]));
+            assert!((want - drawn).abs() < 0.01, "a point off its values: {p}");
+        }
+        assert!(
+            !p["ink"].as_array().unwrap().is_empty(),
+            "nothing drawn there: {p}"
+        );
+    }
+    // The drag's ends are whole CSS pixels the script converts back; the page's own rounding
+    // of a mouse position is below a thousandth of the range.
+    let z = &v["zoom"];
+    for k in 0..4 {
+        let (want, got) = (f(&z["expected"][k]), f(&z["view"][k]));
+        let span = (f(&z["expected"][k | 1]) - f(&z["expected"][k & 2])).abs();
+        assert!(
+            (want - got).abs() <= 1e-3 * span,
+            "zoom {k}: {got} for {want}: {z}"
+        );
+    }
+    let s = &v["selection"];
+    let (want, got) = (
+        s["expected"].as_array().unwrap(),
+        s["selected"].as_array().unwrap(),
+    );
+    assert!(!want.is_empty() && want.len() < 300, "{s}");
+    assert_eq!(got, want, "the Shift-drag selected other hits");
+    assert_eq!(s["said"], format!("{} points selected", want.len()));
+    assert_eq!(s["grey_seen"], true, "the unselected are not faded: {s}");
+    let coloured = |c: &serde_json::Value| {
+        let h = c.as_str().unwrap();
+        let ch: Vec<i64> = (0..3)
+            .map(|k| i64::from_str_radix(&h[1 + 2 * k..3 + 2 * k], 16).unwrap())
+            .collect();
+        ch.iter().max().unwrap() - ch.iter().min().unwrap() > 60
+    };
+    let hl = s["highlighted"].as_array().unwrap();
+    assert!(!hl.is_empty(), "{s}");
+    for h in hl {
+        assert!(
+            h["colours"].as_array().unwrap().iter().any(coloured),
+            "a selected hit not highlighted over the test: {h}"
+        );
+    }
+    let legends = v["legends"].as_object().unwrap();
+    assert!(legends.len() >= 3, "{v}");
+    for (name, l) in legends {
+        assert_eq!(l["legend"], l["expected"], "the {name} legend");
+    }
 }
