@@ -199,34 +199,27 @@ pub fn cluster_matrix(
     Ok((fitted, out))
 }
 
-/// Cluster the feature tables' usable rows into `out` (see the module). `config_sha256`
-/// (the run's configuration hash) goes into the tables' metadata beside `aepipe.table`.
-pub fn cluster_tables(
+/// Pass 1 of [`cluster_tables`]: the moments of every usable row, and a seeded reservoir of
+/// at most `max_fit_rows` of them.
+struct Sampled {
+    mom: Moments,
+    sample: Vec<Vec<f64>>,
+    seen: usize,
+    skipped: usize,
+}
+
+fn sample_rows(
     paths: &[PathBuf],
-    out: &Path,
+    columns: &[String],
     cfg: &ValidCluster,
     sources: SourceRows,
-    config_sha256: &str,
-) -> Result<ClusterReport, ClusterError> {
-    let meta = [(
-        "aepipe.config_sha256".to_string(),
-        config_sha256.to_string(),
-    )];
-    let first = paths
-        .first()
-        .ok_or_else(|| ClusterError::Data("no feature table to cluster".into()))?;
-    let columns = columns_of(first, cfg)?;
-    let key_col = columns
-        .iter()
-        .position(|c| c == "peak_freq_hz")
-        .unwrap_or(0);
-    // Pass 1: moments of every usable row, and a seeded reservoir of at most max_fit_rows.
+) -> Result<Sampled, ClusterError> {
     let cap = cfg.max_fit_rows;
     let mut mom: Option<Moments> = None;
     let mut sample: Vec<Vec<f64>> = Vec::new();
     let (mut seen, mut skipped) = (0usize, 0usize);
     let mut rng = crate::util::Rng::new(cfg.seed ^ 0x7e5e_7001);
-    for_each_matrix(paths, &columns, None, sources, serr, |b| {
+    for_each_matrix(paths, columns, None, sources, serr, |b| {
         skipped += b.skipped;
         let m = mom.get_or_insert_with(|| Moments::new(b.dim()));
         for r in b.data.rows() {
@@ -249,23 +242,31 @@ pub fn cluster_tables(
             columns.join(", ")
         ))
     })?;
-    let sc = mom.scaling();
-    let dim = sc.mean.len();
-    let key: Vec<f64> = sample.iter().map(|r| r[key_col.min(dim - 1)]).collect();
-    let mut z = Array2::from_shape_vec((sample.len(), dim), sample.concat())
-        .expect("every sampled row has the table's dimension");
-    drop(sample);
-    sc.apply_rows(&mut z);
-    let fitted = fit_matrix(z.view(), &key, cfg)?;
-    std::fs::create_dir_all(out).map_err(|e| werr(out, e))?;
-    // Pass 2: every usable row's cluster.
-    let clusters = out.join("clusters.parquet");
+    Ok(Sampled {
+        mom,
+        sample,
+        seen,
+        skipped,
+    })
+}
+
+/// Pass 2 of [`cluster_tables`]: every usable row's cluster, written to `clusters`; the
+/// cluster sizes.
+fn assign_rows(
+    paths: &[PathBuf],
+    columns: &[String],
+    sources: SourceRows,
+    sc: &Scaling,
+    fitted: &super::Fitted,
+    clusters: &Path,
+    meta: &[(String, String)],
+) -> Result<Vec<usize>, ClusterError> {
     let table = clusters_table();
-    let mut w = TableWriter::create(&clusters, table.schema(), &meta, 16_384)
-        .map_err(|e| werr(&clusters, e))?;
+    let mut w = TableWriter::create(clusters, table.schema(), meta, 16_384)
+        .map_err(|e| werr(clusters, e))?;
     let mut sizes = vec![0usize; fitted.model.k];
-    let (mut x, mut post) = (vec![0.0; dim], Vec::new());
-    for_each_matrix(paths, &columns, None, sources, serr, |b| {
+    let (mut x, mut post) = (vec![0.0; sc.mean.len()], Vec::new());
+    for_each_matrix(paths, columns, None, sources, serr, |b| {
         for (key, r) in b.keys.into_iter().zip(b.data.rows()) {
             x.iter_mut().zip(r).for_each(|(a, v)| *a = *v);
             sc.apply(&mut x);
@@ -277,11 +278,52 @@ pub fn cluster_tables(
                 distance,
                 probability,
             }))
-            .map_err(|e| werr(&clusters, e))?;
+            .map_err(|e| werr(clusters, e))?;
         }
         Ok(())
     })?;
-    w.finish().map_err(|e| werr(&clusters, e))?;
+    w.finish().map_err(|e| werr(clusters, e))?;
+    Ok(sizes)
+}
+
+/// Cluster the feature tables' usable rows into `out` (see the module). `config_sha256`
+/// (the run's configuration hash) goes into the tables' metadata beside `aepipe.table`.
+pub fn cluster_tables(
+    paths: &[PathBuf],
+    out: &Path,
+    cfg: &ValidCluster,
+    sources: SourceRows,
+    config_sha256: &str,
+) -> Result<ClusterReport, ClusterError> {
+    let meta = [(
+        "aepipe.config_sha256".to_string(),
+        config_sha256.to_string(),
+    )];
+    let first = paths
+        .first()
+        .ok_or_else(|| ClusterError::Data("no feature table to cluster".into()))?;
+    let columns = columns_of(first, cfg)?;
+    let key_col = columns
+        .iter()
+        .position(|c| c == "peak_freq_hz")
+        .unwrap_or(0);
+    let Sampled {
+        mom,
+        sample,
+        seen,
+        skipped,
+    } = sample_rows(paths, &columns, cfg, sources)?;
+    let sc = mom.scaling();
+    let dim = sc.mean.len();
+    let key: Vec<f64> = sample.iter().map(|r| r[key_col.min(dim - 1)]).collect();
+    let mut z = Array2::from_shape_vec((sample.len(), dim), sample.concat())
+        .expect("every sampled row has the table's dimension");
+    drop(sample);
+    sc.apply_rows(&mut z);
+    let fitted = fit_matrix(z.view(), &key, cfg)?;
+    std::fs::create_dir_all(out).map_err(|e| werr(out, e))?;
+    let clusters = out.join("clusters.parquet");
+    let sizes = assign_rows(paths, &columns, sources, &sc, &fitted, &clusters, &meta)?;
     let validity_path = out.join("validity.parquet");
     let vt = validity_table();
     let mut vw = TableWriter::create(&validity_path, vt.schema(), &meta, 1024)
