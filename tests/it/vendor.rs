@@ -1097,14 +1097,15 @@ fn min(v: &serde_json::Value) -> f64 {
 fn kmeans_no_worse_than_sklearn(r: &serde_json::Value) -> Result<(), String> {
     let ours = r["ours_inertia"].as_f64().unwrap();
     let sk = mean(&r["sk_inertia"]);
-    if !(ours <= sk * 1.01) {
+    // NaN fails too.
+    if ours.is_nan() || ours > sk * 1.01 {
         return Err(format!(
             "inertia {ours} above scikit-learn's {sk} by more than 1 %"
         ));
     }
     let ari = r["ours_ari"].as_f64().unwrap();
     let floor = min(&r["sk_ari"]) - 0.02;
-    if !(ari >= floor) {
+    if ari.is_nan() || ari < floor {
         return Err(format!(
             "ARI {ari} below scikit-learn's lowest seed less 0.02 ({floor})"
         ));

@@ -17,6 +17,7 @@ use std::path::PathBuf;
 
 /// `trend.parquet`'s rows for feature tables (files written by aepipe, or by the Python
 /// layer from a frame).
+#[allow(clippy::too_many_arguments)] // one per keyword argument of the Python function
 #[pyfunction]
 #[pyo3(signature = (paths, cutoff="peak-load".to_string(), columns=None, alpha=0.01, exclude_outside=false, min_load_span_n=1.0, min_hits=10))]
 pub fn trend(
@@ -360,7 +361,7 @@ pub fn cluster_fit<'py>(
         ..ClusterConfig::default()
     }
     .check()
-    .map_err(errors::cluster)?;
+    .map_err(|e| errors::cluster(e.into()))?;
     let a = x.as_array().to_owned();
     let (fitted, rows) = py
         .detach(|| aepipe::cluster::cluster_matrix(a.view(), &key, &cfg))
