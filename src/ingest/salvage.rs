@@ -660,29 +660,9 @@ fn salvage_pages(
         if t.shape.is_none() {
             t.shape = shape.clone();
         }
-        for r in records {
-            let Ok((rowid, mut values)) = r else {
-                out.partial_records += 1;
-                continue;
-            };
-            if shape.as_ref().is_some_and(|s| !s.fits(&values)) {
-                out.partial_records += 1;
-                continue;
-            }
-            if let Some(i) = shape.as_ref().and_then(|s| s.rowid_column) {
-                values[i] = Value::Int(rowid);
-            }
-            out.whole_records += 1;
-            let row = Row { rowid, values };
-            match t.rows.get(&rowid) {
-                Some(old) if *old != row => {
-                    conflicts.insert((table.clone(), rowid));
-                }
-                _ => {
-                    t.rows.insert(rowid, row);
-                }
-            }
-        }
+        let (whole, partial) = take_records(t, &table, shape.as_ref(), records, &mut conflicts);
+        out.whole_records += whole;
+        out.partial_records += partial;
     }
     for (table, rowid) in conflicts {
         if let Some(t) = out.tables.get_mut(&table) {
@@ -690,6 +670,43 @@ fn salvage_pages(
         }
     }
     out
+}
+
+/// One table-leaf page's records into its table `t`: each whole one that fits the table's
+/// shape, under its rowid (a rowid found twice with different values goes to `conflicts`,
+/// dropped at the end). (whole, partial) records.
+fn take_records(
+    t: &mut TableRows,
+    table: &str,
+    shape: Option<&Shape>,
+    records: Vec<Result<(i64, Vec<Value>), Partial>>,
+    conflicts: &mut BTreeSet<(String, i64)>,
+) -> (u64, u64) {
+    let (mut whole, mut partial) = (0, 0);
+    for r in records {
+        let Ok((rowid, mut values)) = r else {
+            partial += 1;
+            continue;
+        };
+        if shape.is_some_and(|s| !s.fits(&values)) {
+            partial += 1;
+            continue;
+        }
+        if let Some(i) = shape.and_then(|s| s.rowid_column) {
+            values[i] = Value::Int(rowid);
+        }
+        whole += 1;
+        let row = Row { rowid, values };
+        match t.rows.get(&rowid) {
+            Some(old) if *old != row => {
+                conflicts.insert((table.to_string(), rowid));
+            }
+            _ => {
+                t.rows.insert(rowid, row);
+            }
+        }
+    }
+    (whole, partial)
 }
 
 /// The tables of the schema (`sqlite_master`, rooted on page 1) with their root pages, and
