@@ -109,108 +109,132 @@ pub fn headline(s: &RunSummary) -> Vec<String> {
         st.records_read, st.rows, st.rejects
     ));
     l.extend(series_part(s));
-    if let Some(t) = &s.trend {
-        for sel in t.selections.iter().take(SERIES_LINES) {
-            l.push(format!(
-                "trend {} ch{}: {} of {} hits used ({})",
-                sel.experiment, sel.channel, sel.hits_used, sel.hits_total, sel.cutoff
-            ));
-            if let Some(few) = t.too_few(sel) {
-                l.push(format!("  {few}"));
-            }
-        }
-        more(&mut l, t.selections.len(), &t.table_path);
-        let shown: std::collections::BTreeSet<(&str, i32)> = t
-            .selections
-            .iter()
-            .take(SERIES_LINES)
-            .map(|s| (s.experiment.as_str(), s.channel))
-            .collect();
-        for r in t
-            .significant
-            .iter()
-            .filter(|r| shown.contains(&(r.experiment.as_str(), r.channel)))
-        {
-            if let Some(f) = &r.fit {
-                l.push(format!(
-                    "  {:<16} r = {:+.2}  p = {:.1e}  slope {:+.2e}",
-                    crate::analysis::trend::window_name(&r.column),
-                    f.r,
-                    f.p,
-                    f.slope
-                ));
-            }
-        }
-    }
-    if let Some(m) = &s.som {
-        l.push(format!(
-            "SOM trained on {} ({} training rows)",
-            m.trained_on, m.training_rows
-        ));
-        l.push(format!(
-            "SOM classes: {}",
-            m.classes
-                .iter()
-                .map(|(k, v)| format!("{k} {v}"))
-                .collect::<Vec<_>>()
-                .join(", ")
-        ));
-        l.push(m.confusion.novelty.describe());
-        l.extend(m.profile.iter().take(SERIES_LINES).map(|p| p.line()));
-        more(&mut l, m.profile.len(), &m.profile_table);
-        if let Some(a) = m.confusion.accuracy() {
-            l.push(format!(
-                "agreement with the ch. 4.7 criteria labels: {}/{} = {:.1} %",
-                m.confusion.correct,
-                m.confusion.total,
-                100.0 * a
-            ));
-        }
-    }
+    l.extend(trend_part(s));
+    l.extend(som_part(s));
     if let Some(sc) = &s.sources {
         l.extend(sc.lines());
     }
     l.extend(indices_lines(s));
-    if let Some(t) = &s.truth {
-        if let Some(a) = t.accuracy() {
-            l.push(format!(
-                "accuracy against the ground truth, bond vs fibre failures: {}/{} = {:.1} %",
-                t.bond_fibre_correct,
-                t.bond_fibre_total,
-                100.0 * a
-            ));
-        }
-        l.push(format!(
-            "recall by true class (→ the same SOM class): {}{}",
-            t.recall_line(),
-            t.balanced_accuracy().map_or(String::new(), |b| format!(
-                "; balanced accuracy (mean of bond and fibre recalls) {:.1} %",
-                100.0 * b
-            ))
-        ));
-        let (ek, en) = t.erroneous_recall();
-        let (ok, all) = t.thesis_overall();
-        let called = t.erroneous_called();
-        l.push(format!(
-            "erroneous records kept from the mechanisms: {ek}/{en} ({called} called erroneous, {} unlike the references); overall the thesis's way (mechanism, or an erroneous record kept from the mechanisms, over all hits): {ok}/{all} = {:.1} %",
-            ek - called,
-            100.0 * ok as f64 / all.max(1) as f64
-        ));
-        let (bn, bt) = t.unlike(&[Mechanism::BondFailure, Mechanism::FibreFailure]);
-        let (en, et) = t.unlike(&[Mechanism::Erroneous]);
-        let (xn, xt) = t.unlike(&[Mechanism::Both]);
-        if s.som
-            .as_ref()
-            .is_some_and(|m| m.confusion.novelty.threshold.is_some())
-        {
-            l.push(format!(
-                "unlike the references, by truth: bond and fibre failures {bn}/{bt}, erroneous {en}/{et}, both {xn}/{xt}"
-            ));
-        }
-        l.push("Table 5.4 (share of each SOM class's hits):".into());
-        l.extend(t.format_table_5_4().lines().map(|x| format!("  {x}")));
-    }
+    l.extend(truth_part(s));
     l.push(format!("stages: {}", crate::report::stage_line(s)));
+    l
+}
+
+/// The trend lines: each series' selection and its significant trends.
+fn trend_part(s: &RunSummary) -> Vec<String> {
+    let mut l = Vec::new();
+    let Some(t) = &s.trend else {
+        return l;
+    };
+    for sel in t.selections.iter().take(SERIES_LINES) {
+        l.push(format!(
+            "trend {} ch{}: {} of {} hits used ({})",
+            sel.experiment, sel.channel, sel.hits_used, sel.hits_total, sel.cutoff
+        ));
+        if let Some(few) = t.too_few(sel) {
+            l.push(format!("  {few}"));
+        }
+    }
+    more(&mut l, t.selections.len(), &t.table_path);
+    let shown: std::collections::BTreeSet<(&str, i32)> = t
+        .selections
+        .iter()
+        .take(SERIES_LINES)
+        .map(|s| (s.experiment.as_str(), s.channel))
+        .collect();
+    for r in t
+        .significant
+        .iter()
+        .filter(|r| shown.contains(&(r.experiment.as_str(), r.channel)))
+    {
+        if let Some(f) = &r.fit {
+            l.push(format!(
+                "  {:<16} r = {:+.2}  p = {:.1e}  slope {:+.2e}",
+                crate::analysis::trend::window_name(&r.column),
+                f.r,
+                f.p,
+                f.slope
+            ));
+        }
+    }
+    l
+}
+
+/// The SOM lines: what it was trained on, its classes, novelty, the damage profile.
+fn som_part(s: &RunSummary) -> Vec<String> {
+    let mut l = Vec::new();
+    let Some(m) = &s.som else {
+        return l;
+    };
+    l.push(format!(
+        "SOM trained on {} ({} training rows)",
+        m.trained_on, m.training_rows
+    ));
+    l.push(format!(
+        "SOM classes: {}",
+        m.classes
+            .iter()
+            .map(|(k, v)| format!("{k} {v}"))
+            .collect::<Vec<_>>()
+            .join(", ")
+    ));
+    l.push(m.confusion.novelty.describe());
+    l.extend(m.profile.iter().take(SERIES_LINES).map(|p| p.line()));
+    more(&mut l, m.profile.len(), &m.profile_table);
+    if let Some(a) = m.confusion.accuracy() {
+        l.push(format!(
+            "agreement with the ch. 4.7 criteria labels: {}/{} = {:.1} %",
+            m.confusion.correct,
+            m.confusion.total,
+            100.0 * a
+        ));
+    }
+    l
+}
+
+/// Against the ground truth (a synthetic test): accuracy, recalls, Table 5.4.
+fn truth_part(s: &RunSummary) -> Vec<String> {
+    let mut l = Vec::new();
+    let Some(t) = &s.truth else {
+        return l;
+    };
+    if let Some(a) = t.accuracy() {
+        l.push(format!(
+            "accuracy against the ground truth, bond vs fibre failures: {}/{} = {:.1} %",
+            t.bond_fibre_correct,
+            t.bond_fibre_total,
+            100.0 * a
+        ));
+    }
+    l.push(format!(
+        "recall by true class (→ the same SOM class): {}{}",
+        t.recall_line(),
+        t.balanced_accuracy().map_or(String::new(), |b| format!(
+            "; balanced accuracy (mean of bond and fibre recalls) {:.1} %",
+            100.0 * b
+        ))
+    ));
+    let (ek, en) = t.erroneous_recall();
+    let (ok, all) = t.thesis_overall();
+    let called = t.erroneous_called();
+    l.push(format!(
+        "erroneous records kept from the mechanisms: {ek}/{en} ({called} called erroneous, {} unlike the references); overall the thesis's way (mechanism, or an erroneous record kept from the mechanisms, over all hits): {ok}/{all} = {:.1} %",
+        ek - called,
+        100.0 * ok as f64 / all.max(1) as f64
+    ));
+    let (bn, bt) = t.unlike(&[Mechanism::BondFailure, Mechanism::FibreFailure]);
+    let (en, et) = t.unlike(&[Mechanism::Erroneous]);
+    let (xn, xt) = t.unlike(&[Mechanism::Both]);
+    if s.som
+        .as_ref()
+        .is_some_and(|m| m.confusion.novelty.threshold.is_some())
+    {
+        l.push(format!(
+            "unlike the references, by truth: bond and fibre failures {bn}/{bt}, erroneous {en}/{et}, both {xn}/{xt}"
+        ));
+    }
+    l.push("Table 5.4 (share of each SOM class's hits):".into());
+    l.extend(t.format_table_5_4().lines().map(|x| format!("  {x}")));
     l
 }
 
