@@ -313,6 +313,19 @@ pub struct Note {
     pub said: bool,
 }
 
+impl Note {
+    /// A note as a reader's item: `source_file` the file it is about; `said` when the terminal
+    /// says it too.
+    pub fn item(experiment: &str, source_file: &str, message: String, said: bool) -> Item {
+        Item::Note(Note {
+            experiment: experiment.to_string(),
+            source_file: source_file.to_string(),
+            message,
+            said,
+        })
+    }
+}
+
 /// Where a parametric row came from.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum ParametricSource {

@@ -35,46 +35,14 @@ fn room_of(file: &Path) -> Option<String> {
 }
 
 /// Top-level rooms named by `crate::x` (also inside `use crate::{x, y::z}`) in the code
-/// before any `#[cfg(test)]`.
+/// before any `#[cfg(test)]`: the first segment of every crate-rooted path the file-circle
+/// reader finds ([`crate::imports::paths`]).
 fn uses(text: &str) -> BTreeSet<String> {
-    let code = text.split("#[cfg(test)]").next().unwrap_or("");
-    let code: String = code
-        .lines()
-        .filter(|l| !l.trim_start().starts_with("//"))
-        .collect::<Vec<_>>()
-        .join("\n");
-    let ident = |s: &str| -> String {
-        s.chars()
-            .take_while(|c| c.is_ascii_alphanumeric() || *c == '_')
-            .collect()
-    };
-    let mut out = BTreeSet::new();
-    for (i, _) in code.match_indices("crate::") {
-        let rest = &code[i + 7..];
-        if let Some(group) = rest.strip_prefix('{') {
-            let end = group.find('}').unwrap_or(group.len());
-            // Top-level names of the group: split on commas at brace depth 0.
-            let mut depth = 0;
-            let mut start = 0;
-            let g = &group[..end.min(group.len())];
-            for (k, ch) in g.char_indices() {
-                match ch {
-                    '{' => depth += 1,
-                    '}' => depth -= 1,
-                    ',' if depth == 0 => {
-                        out.insert(ident(g[start..k].trim()));
-                        start = k + 1;
-                    }
-                    _ => {}
-                }
-            }
-            out.insert(ident(g[start..].trim()));
-        } else {
-            out.insert(ident(rest));
-        }
-    }
-    out.retain(|s| !s.is_empty());
-    out
+    crate::imports::paths(text)
+        .into_iter()
+        .filter(|p| p.len() > 1 && p[0] == "crate")
+        .map(|p| p[1].clone())
+        .collect()
 }
 
 fn graph() -> BTreeMap<String, BTreeSet<String>> {

@@ -139,16 +139,14 @@ fn hit_rows(out: &Path) -> Vec<BTreeMap<String, String>> {
 
 /// `aepipe run --config CFG DATA --out OUT`, which must succeed: its terminal output.
 fn run(cfg: &Path, data: &Path, out: &Path) -> String {
-    let (c, so, se) = aepipe(&[
+    crate::aepipe_ok(&[
         "run",
         "--config",
         cfg.to_str().unwrap(),
         data.to_str().unwrap(),
         "--out",
         out.to_str().unwrap(),
-    ]);
-    assert_eq!(c, 0, "{so}\n{se}");
-    so
+    ])
 }
 
 fn num(r: &BTreeMap<String, String>, c: &str) -> Option<f64> {

@@ -34,7 +34,7 @@ fn module_of(file: &Path) -> Vec<String> {
 /// Every path a text names from `crate::`, `super::` or `self::`, as segments after the
 /// root word (`super::{a::X, b}` → `["super", "a", "X"]`, `["super", "b"]`), in the code
 /// before any `#[cfg(test)]`, comments dropped.
-fn paths(text: &str) -> Vec<Vec<String>> {
+pub(crate) fn paths(text: &str) -> Vec<Vec<String>> {
     let code: String = text
         .split("#[cfg(test)]")
         .next()

@@ -50,6 +50,13 @@ pub fn aepipe(args: &[&str]) -> (i32, String, String) {
     )
 }
 
+/// [`aepipe`], which must succeed (else the test fails with its output): its stdout.
+pub fn aepipe_ok(args: &[&str]) -> String {
+    let (code, so, se) = aepipe(args);
+    assert_eq!(code, 0, "aepipe {}:\n{so}\n{se}", args.join(" "));
+    so
+}
+
 /// [`aepipe`] with `XDG_CACHE_HOME` = `cache`.
 pub fn aepipe_with_cache(args: &[&str], cache: &Path) -> (i32, String, String) {
     let o = std::process::Command::new(env!("CARGO_BIN_EXE_aepipe"))
@@ -280,34 +287,23 @@ fn a_failing_reference_fails_and_only_an_absent_module_skips() {
         );
         return;
     }
-    let said = |r: std::thread::Result<Option<Vec<u8>>>| match r {
+    // What `reference` does with a script: "returned …", or its panic's message.
+    let outcome = |code: &str| match std::panic::catch_unwind(|| {
+        reference("planted", "-", &mut python(code))
+    }) {
         Ok(out) => format!("returned {out:?}"),
         Err(p) => p
             .downcast_ref::<String>()
             .cloned()
             .unwrap_or_else(|| "a panic".into()),
     };
-    let planted = std::panic::catch_unwind(|| {
-        reference(
-            "planted",
-            "-",
-            &mut python("assert 1 + 1 == 3, 'planted defect'"),
-        )
-    });
-    let s = said(planted);
+    let s = outcome("assert 1 + 1 == 3, 'planted defect'");
     assert!(
         s.contains("the reference failed") && s.contains("planted defect"),
         "{s}"
     );
-    let absent = std::panic::catch_unwind(|| {
-        reference(
-            "absent",
-            "-",
-            &mut python("import aepipe_no_such_module_xyz"),
-        )
-    });
     let strict = std::env::var("AEPIPE_REQUIRE_ALL").is_ok_and(|v| v == "1");
-    let s = said(absent);
+    let s = outcome("import aepipe_no_such_module_xyz");
     if strict {
         assert!(
             s.contains("cannot run") && s.contains("No module named"),
@@ -316,14 +312,7 @@ fn a_failing_reference_fails_and_only_an_absent_module_skips() {
     } else {
         assert_eq!(s, "returned None");
     }
-    let exit3 = std::panic::catch_unwind(|| {
-        reference(
-            "exit3",
-            "-",
-            &mut python("import sys; print('missing: x', file=sys.stderr); sys.exit(3)"),
-        )
-    });
-    let s = said(exit3);
+    let s = outcome("import sys; print('missing: x', file=sys.stderr); sys.exit(3)");
     assert!(
         if strict {
             s.contains("cannot run")

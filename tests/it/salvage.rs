@@ -372,13 +372,12 @@ fn a_salvage_is_said_and_every_lost_transient_is_a_reject() {
     let len = std::fs::metadata(&tradb).unwrap().len() as usize;
     let d = damaged(&src, &t.path().join("cut"), "S", |b| b.truncate(len / 2));
     let out = t.path().join("out");
-    let (c, so, se) = crate::aepipe(&[
+    let so = crate::aepipe_ok(&[
         "features",
         d.to_str().unwrap(),
         "--out",
         out.to_str().unwrap(),
     ]);
-    assert_eq!(c, 0, "{so}{se}");
     let line = so
         .lines()
         .find(|l| l.contains("salvaged"))
@@ -669,13 +668,12 @@ fn a_pridb_cut_short_gives_back_the_hits_its_pages_hold() {
             .map(Result::unwrap)
             .collect();
         let intact_out = t.path().join(format!("{id}-intact-out"));
-        let (c, so, se) = crate::aepipe(&[
+        crate::aepipe_ok(&[
             "features",
             dir.to_str().unwrap(),
             "--out",
             intact_out.to_str().unwrap(),
         ]);
-        assert_eq!(c, 0, "{so}{se}");
         let len = std::fs::metadata(&pridb).unwrap().len() as usize;
         for pct in cuts {
             let cut = len * pct / 100;
@@ -696,13 +694,12 @@ fn a_pridb_cut_short_gives_back_the_hits_its_pages_hold() {
             b.truncate(cut);
             std::fs::write(d.join(format!("{id}.pridb")), b).unwrap();
             let out = t.path().join(format!("{id}-{pct}-out"));
-            let (c, so, se) = crate::aepipe(&[
+            let so = crate::aepipe_ok(&[
                 "features",
                 d.to_str().unwrap(),
                 "--out",
                 out.to_str().unwrap(),
             ]);
-            assert_eq!(c, 0, "{so}{se}");
             for name in ["hits", "parametric", "markers"] {
                 let want = table(&intact_out, name);
                 for r in table(&out, name) {
@@ -741,15 +738,13 @@ fn a_damaged_trfdb_gives_back_the_feature_rows_its_pages_hold() {
     let (w, _) = fixture(&src, "S", 300, Journal::Delete);
     drop(w);
     let run = t.path().join("run");
-    let (c, so, se) = crate::aepipe(&[
+    crate::aepipe_ok(&[
         "features",
         src.to_str().unwrap(),
         "--out",
         run.join("features").to_str().unwrap(),
     ]);
-    assert_eq!(c, 0, "{so}{se}");
-    let (c, so, se) = crate::aepipe(&["export", "trfdb", run.to_str().unwrap()]);
-    assert_eq!(c, 0, "{so}{se}");
+    crate::aepipe_ok(&["export", "trfdb", run.to_str().unwrap()]);
     let trfdb = run.join("export/S.aepipe.trfdb");
     let walk = walk_table(&trfdb, "trf_data");
     let trai: BTreeMap<i64, String> = rusqlite::Connection::open(&trfdb)
@@ -774,13 +769,12 @@ fn a_damaged_trfdb_gives_back_the_feature_rows_its_pages_hold() {
         damage(&mut b);
         std::fs::write(d.join("S.trfdb"), b).unwrap();
         let out = t.path().join(format!("{name}-out"));
-        let (c, so, se) = crate::aepipe(&[
+        let so = crate::aepipe_ok(&[
             "features",
             d.to_str().unwrap(),
             "--out",
             out.to_str().unwrap(),
         ]);
-        assert_eq!(c, 0, "{so}{se}");
         let got: BTreeMap<String, String> = crate::table_maps(&out.join("hits.parquet"))
             .into_iter()
             .map(|r| (r["trai"].clone(), r["vendor_features"].clone()))

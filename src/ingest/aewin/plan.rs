@@ -35,12 +35,7 @@ pub(super) struct Plan {
 }
 
 fn note(experiment: &str, file: &str, message: String, said: bool) -> Item {
-    Item::Note(Note {
-        experiment: experiment.to_string(),
-        source_file: file.to_string(),
-        message,
-        said,
-    })
+    Note::item(experiment, file, message, said)
 }
 
 fn mhz(hz: f64) -> String {

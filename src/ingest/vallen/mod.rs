@@ -618,12 +618,12 @@ fn open_features(
             Ok(m) => m,
             Err((e, s)) => {
                 let e = format!("{e}; salvage: {}", salvaged::sqlite_cause(&s.to_string()));
-                first.push(Item::Note(crate::model::Note {
-                    said: true,
-                    experiment: experiment.to_string(),
-                    source_file: t.display().to_string(),
-                    message: format!("features not joined: {e}"),
-                }));
+                first.push(crate::model::Note::item(
+                    experiment,
+                    &t.display().to_string(),
+                    format!("features not joined: {e}"),
+                    true,
+                ));
                 HashMap::new()
             }
         },

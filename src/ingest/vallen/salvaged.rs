@@ -7,7 +7,7 @@ use super::write::{AE_SCHEMA, TR_TABLES};
 use crate::ingest::salvage::{salvage, Row, Salvage, Shape, Value};
 use crate::ingest::settings::IngestConfig;
 use crate::ingest::{file_err, IngestError};
-use crate::model::Item;
+use crate::model::{Item, Note};
 use std::collections::{HashMap, HashSet};
 use std::path::Path;
 
@@ -224,14 +224,8 @@ pub(super) fn transients(
     let of = info.link.len().max(raw.len());
     let pages = pages_of(sv.pages, sv.declared_pages);
     let cause = sqlite_cause(&e.to_string());
-    let note = |message: String, said: bool| {
-        Item::Note(crate::model::Note {
-            experiment: experiment.to_string(),
-            source_file: tradb.display().to_string(),
-            message,
-            said,
-        })
-    };
+    let file = tradb.display().to_string();
+    let note = |message: String, said: bool| Note::item(experiment, &file, message, said);
     first.push(note(
         format!(
             "{experiment}: salvaged {} of ≥ {of} transients from a damaged {name} ({pages}; SQLite: {cause})",
@@ -281,43 +275,39 @@ pub(super) fn salvage_pridb(
     let name = p
         .file_name()
         .map_or(String::new(), |n| n.to_string_lossy().to_string());
+    let file = p.display().to_string();
+    let note = |message: String, said: bool| Note::item(experiment, &file, message, said);
     let r = match rebuild_pridb(p, &to) {
         Ok(r) => r,
         Err(e) => {
-            first.push(Item::Note(crate::model::Note {
-                experiment: experiment.to_string(),
-                source_file: p.display().to_string(),
-                message: format!(
+            first.push(note(
+                format!(
                     "{experiment}: nothing salvaged from a damaged {name} (SQLite: {}; {})",
                     sqlite_cause(&why),
                     sqlite_cause(&e.to_string())
                 ),
-                said: true,
-            }));
+                true,
+            ));
             return None;
         }
     };
     let pages = pages_of(r.pages, r.declared_pages);
-    first.push(Item::Note(crate::model::Note {
-        experiment: experiment.to_string(),
-        source_file: p.display().to_string(),
-        message: format!(
+    first.push(note(
+        format!(
             "{experiment}: salvaged {} hits ({} sets) from a damaged {name} ({pages}; SQLite: {})",
             r.hits,
             r.sets,
             sqlite_cause(&why)
         ),
-        said: true,
-    }));
-    first.push(Item::Note(crate::model::Note {
-        experiment: experiment.to_string(),
-        source_file: p.display().to_string(),
-        message: format!(
+        true,
+    ));
+    first.push(note(
+        format!(
             "salvage of {name}: tables found: {}; {} record(s) of its table-leaf pages not whole: not taken",
             r.tables, r.partial
         ),
-        said: false,
-    }));
+        false,
+    ));
     Some(r)
 }
 
@@ -365,14 +355,8 @@ pub(super) fn salvage_trfdb(
         .file_name()
         .map_or(String::new(), |n| n.to_string_lossy().to_string());
     let of = hits.max(features.len() as u64);
-    let note = |message: String, said: bool| {
-        Item::Note(crate::model::Note {
-            experiment: experiment.to_string(),
-            source_file: path.display().to_string(),
-            message,
-            said,
-        })
-    };
+    let file = path.display().to_string();
+    let note = |message: String, said: bool| Note::item(experiment, &file, message, said);
     first.push(note(
         format!(
             "{experiment}: salvaged the features of {} of ≥ {of} transients from a damaged {name} ({}; SQLite: {}); a hit without its row stands without vendor_features",
