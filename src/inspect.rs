@@ -1,7 +1,7 @@
 //! `aepipe inspect`: a human summary per experiment — format, channels, hits, sample rates,
 //! record lengths, time span, load/extension channels found, rejects.
 
-use crate::config::PipelineConfig;
+use crate::config::ValidConfig;
 use crate::ingest::{self, Source};
 use crate::model::Item;
 use std::collections::BTreeSet;
@@ -46,7 +46,7 @@ fn widen(r: &mut Option<(f64, f64)>, v: f64) {
 }
 
 /// Read a source fully (one record at a time) and summarise it.
-pub fn summarise(src: &Source, cfg: &PipelineConfig) -> Summary {
+pub fn summarise(src: &Source, cfg: &ValidConfig) -> Summary {
     let mut s = Summary {
         id: src.id.clone(),
         format: src.format.as_str().into(),
@@ -74,9 +74,13 @@ pub fn summarise(src: &Source, cfg: &PipelineConfig) -> Summary {
             s.max_len = t.longest;
             s.sample_rates_hz.extend(t.sample_rates_hz.iter().copied());
             s.channels.extend(t.channels.iter().copied());
-            ingest::loadfile::attach(ingest::vallen::open_hits(src, &cfg.ingest), src, &cfg.load)
+            ingest::loadfile::attach(
+                ingest::vallen::open_hits(src, cfg.read_settings()),
+                src,
+                &cfg.load,
+            )
         }
-        None => ingest::open(src, &cfg.ingest, &cfg.load),
+        None => ingest::open(src, cfg.read_settings(), &cfg.load),
     };
     for item in items {
         match item {

@@ -291,6 +291,8 @@ pub struct ValidConfig {
     cfg: PipelineConfig,
     /// `[cluster]` as its own check made it, handed on to the clustering stage as it is.
     cluster: crate::cluster::ValidCluster,
+    /// `[ingest]` and `[detect]` as their checks made them, handed on to the readers.
+    read: crate::ingest::settings::ReadSettings,
 }
 
 impl std::ops::Deref for ValidConfig {
@@ -316,6 +318,11 @@ impl ValidConfig {
     /// `[cluster]`, checked once with the rest.
     pub fn cluster(&self) -> &crate::cluster::ValidCluster {
         &self.cluster
+    }
+
+    /// `[ingest]` with `[detect]`, checked once with the rest: what every reader reads by.
+    pub fn read_settings(&self) -> &crate::ingest::settings::ReadSettings {
+        &self.read
     }
 
     /// The same configuration with `edit` applied, checked again.
@@ -386,10 +393,11 @@ impl PipelineConfig {
         pipeline.check()?;
         live.check()?;
         crack_mode.check().map_err(SettingsError::from)?;
-        let valid_detect = detect.clone().check().map_err(SettingsError::from)?;
-        let mut ingest = ingest.check()?.into_inner();
-        // The readers cut streams as `[detect]` says: they get its checked copy.
-        ingest.detect = valid_detect;
+        // The readers cut streams as `[detect]` says: they get both sections checked.
+        let read = crate::ingest::settings::ReadSettings::new(
+            ingest.clone().check()?,
+            detect.clone().check().map_err(SettingsError::from)?,
+        );
         let dsp = dsp.check()?.into_inner();
         let criteria = criteria.check()?.into_inner();
         let onset = onset.check()?.into_inner();
@@ -402,6 +410,7 @@ impl PipelineConfig {
         let load = load.check()?.into_inner();
         Ok(ValidConfig {
             cluster: valid_cluster.clone(),
+            read,
             cfg: PipelineConfig {
                 ingest,
                 detect,
@@ -469,6 +478,27 @@ impl PipelineConfig {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// `[detect]` is written once (top level) and the readers see it only through the
+    /// checked view: a changed section reaches them, a bad one never does.
+    #[test]
+    fn the_readers_read_detect_as_the_file_says_it() {
+        let cfg = PipelineConfig::from_toml("[detect]\nmode = \"on\"\n").unwrap();
+        assert_eq!(
+            cfg.read_settings().detect().mode,
+            crate::detect::DetectMode::On
+        );
+        assert_eq!(&**cfg.read_settings().detect(), &cfg.detect);
+        let off = cfg
+            .clone()
+            .with(|c| c.detect.mode = crate::detect::DetectMode::Off)
+            .unwrap();
+        assert_eq!(
+            off.read_settings().detect().mode,
+            crate::detect::DetectMode::Off
+        );
+        assert!(cfg.with(|c| c.detect.block_samples = 0).is_err());
+    }
 
     #[test]
     fn empty_toml_is_the_default() {

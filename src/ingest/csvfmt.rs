@@ -10,7 +10,7 @@
 
 use super::sniff::{Head, Kind, Recogniser, Strength, Verdict};
 use super::{gain_factor, Source};
-use crate::ingest::settings::{FormatChoice, IngestConfig};
+use crate::ingest::settings::{FormatChoice, IngestConfig, ReadSettings};
 use crate::model::{AeRecord, Item, Reject, Stage};
 use std::path::Path;
 
@@ -301,7 +301,7 @@ pub(crate) const PER_HIT_FORMAT: crate::ingest::FormatSpec = crate::ingest::Form
     open: open_per_hit,
 };
 
-pub fn open_per_hit(src: &Source, cfg: &IngestConfig) -> Box<dyn Iterator<Item = Item> + Send> {
+pub fn open_per_hit(src: &Source, cfg: &ReadSettings) -> Box<dyn Iterator<Item = Item> + Send> {
     let experiment = src.id.clone();
     let cfg = cfg.clone();
     let files = src.files.clone();
@@ -482,7 +482,7 @@ pub(crate) const LONG_FORMAT: crate::ingest::FormatSpec = crate::ingest::FormatS
     open: open_long,
 };
 
-pub fn open_long(src: &Source, cfg: &IngestConfig) -> Box<dyn Iterator<Item = Item> + Send> {
+pub fn open_long(src: &Source, cfg: &ReadSettings) -> Box<dyn Iterator<Item = Item> + Send> {
     let path = src.files[0].clone();
     match reader(&path) {
         Ok((l, r)) => Box::new(LongReader {
@@ -492,7 +492,7 @@ pub fn open_long(src: &Source, cfg: &IngestConfig) -> Box<dyn Iterator<Item = It
             records: r.into_records(),
             peek: None,
             seen: Default::default(),
-            cfg: cfg.clone(),
+            cfg: IngestConfig::clone(cfg),
             done: false,
         }),
         Err(reason) => Box::new(std::iter::once(Item::Reject(Reject {

@@ -22,7 +22,7 @@ mod waveexplorer;
 pub mod wavfmt;
 
 use crate::model::{HitRow, Item, Reject, Stage};
-use settings::{IngestConfig, LoadConfig};
+use settings::{LoadConfig, ReadSettings};
 use std::path::{Path, PathBuf};
 
 pub use aewin::MachineLog;
@@ -113,7 +113,7 @@ pub struct FormatSpec {
     pub numbered_by_place: bool,
     pub follow: Follow,
     /// The reader: records, hits, rejects and the rest, in order.
-    pub open: fn(&Source, &IngestConfig) -> Items,
+    pub open: fn(&Source, &ReadSettings) -> Items,
 }
 
 impl Format {
@@ -315,14 +315,14 @@ impl Iterator for Guarded {
 /// row); with `[load] file` set, the test machine's load file gives the load.
 pub fn open(
     src: &Source,
-    ingest: &IngestConfig,
+    ingest: &ReadSettings,
     load: &LoadConfig,
 ) -> Box<dyn Iterator<Item = Item> + Send> {
     loadfile::attach(open_recording(src, ingest), src, load)
 }
 
 /// [`open`] without the load file: what the recording itself holds.
-pub fn open_recording(src: &Source, cfg: &IngestConfig) -> Box<dyn Iterator<Item = Item> + Send> {
+pub fn open_recording(src: &Source, cfg: &ReadSettings) -> Box<dyn Iterator<Item = Item> + Send> {
     let (s, c) = (src.clone(), cfg.clone());
     guarded(
         src,
@@ -335,7 +335,7 @@ pub fn open_recording(src: &Source, cfg: &IngestConfig) -> Box<dyn Iterator<Item
 pub fn open_window(
     src: &Source,
     w: &vallen::tail::Window,
-    ingest: &IngestConfig,
+    ingest: &ReadSettings,
     load: &LoadConfig,
 ) -> Box<dyn Iterator<Item = Item> + Send> {
     let (w, c) = (w.clone(), ingest.clone());
@@ -399,7 +399,7 @@ fn guarded(
     }))
 }
 
-fn open_format(src: &Source, cfg: &IngestConfig) -> Items {
+fn open_format(src: &Source, cfg: &ReadSettings) -> Items {
     (src.format.spec().open)(src, cfg)
 }
 

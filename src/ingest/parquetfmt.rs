@@ -2,7 +2,7 @@
 //! Read batch by batch; the rows carry their own experiment ids.
 
 use super::Source;
-use crate::ingest::settings::IngestConfig;
+use crate::ingest::settings::ReadSettings;
 use crate::model::columns as cols;
 use crate::model::{AeRecord, Item, Reject, Stage};
 use crate::store;
@@ -147,7 +147,7 @@ pub(crate) const FORMAT: crate::ingest::FormatSpec = crate::ingest::FormatSpec {
     open,
 };
 
-pub fn open(src: &Source, _cfg: &IngestConfig) -> Box<dyn Iterator<Item = Item> + Send> {
+pub fn open(src: &Source, _cfg: &ReadSettings) -> Box<dyn Iterator<Item = Item> + Send> {
     let path = &src.files[0];
     match store::open_parquet(path, 64) {
         Ok((schema, _, batches)) if schema.field_with_name("samples_v").is_ok() => {

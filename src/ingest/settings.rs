@@ -62,10 +62,37 @@ pub struct IngestConfig {
     pub aewin: AewinConfig,
     pub waveexplorer: WaveExplorerConfig,
     pub mistras: MistrasConfig,
-    /// `[detect]`, checked (set by the pipeline's check, not written in `[ingest]`): how the
-    /// readers cut a continuous recording into hits.
-    #[serde(skip)]
-    pub detect: crate::detect::ValidDetect,
+}
+
+/// What every reader reads by: `[ingest]` and `[detect]` (how a continuous recording is cut
+/// into hits), both checked. The pipeline file keeps each section once; this is the
+/// checked view the configuration's check hands to the readers
+/// (`ValidConfig::read_settings`), never edited in place: change the sections and check again.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct ReadSettings {
+    ingest: IngestConfig,
+    detect: crate::detect::ValidDetect,
+}
+
+impl ReadSettings {
+    pub fn new(ingest: Checked<IngestConfig>, detect: crate::detect::ValidDetect) -> ReadSettings {
+        ReadSettings {
+            ingest: ingest.into_inner(),
+            detect,
+        }
+    }
+
+    /// `[detect]`, checked.
+    pub fn detect(&self) -> &crate::detect::ValidDetect {
+        &self.detect
+    }
+}
+
+impl std::ops::Deref for ReadSettings {
+    type Target = IngestConfig;
+    fn deref(&self) -> &IngestConfig {
+        &self.ingest
+    }
 }
 
 /// A MISTRAS characteristic id (CHID, 1–255): a key of `[ingest.mistras] chid_sizes`,
@@ -241,7 +268,6 @@ impl Default for IngestConfig {
             aewin: AewinConfig::default(),
             waveexplorer: WaveExplorerConfig::default(),
             mistras: MistrasConfig::default(),
-            detect: Default::default(),
         }
     }
 }

@@ -3,7 +3,7 @@
 
 use super::sniff::{Head, Kind, Recogniser, Strength, Verdict};
 use super::{gain_factor, Source};
-use crate::ingest::settings::{FormatChoice, IngestConfig};
+use crate::ingest::settings::{FormatChoice, ReadSettings};
 use crate::model::{AeRecord, Item, Reject, Stage};
 use std::path::Path;
 
@@ -87,7 +87,7 @@ pub(crate) const FORMAT: crate::ingest::FormatSpec = crate::ingest::FormatSpec {
     open,
 };
 
-pub fn open(src: &Source, cfg: &IngestConfig) -> Box<dyn Iterator<Item = Item> + Send> {
+pub fn open(src: &Source, cfg: &ReadSettings) -> Box<dyn Iterator<Item = Item> + Send> {
     let experiment = src.id.clone();
     let rate = cfg.sample_rate_hz;
     let pre = cfg.pretrigger_samples;

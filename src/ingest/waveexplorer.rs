@@ -8,7 +8,7 @@
 
 use super::sniff::{cells, Head, Kind, Recogniser, Strength, Verdict};
 use super::{file_err, Source};
-use crate::ingest::settings::{FormatChoice, IngestConfig};
+use crate::ingest::settings::{FormatChoice, ReadSettings};
 use crate::model::{AeRecord, Item, Reject, Stage};
 use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};
@@ -233,7 +233,7 @@ pub(crate) const FORMAT: crate::ingest::FormatSpec = crate::ingest::FormatSpec {
     open,
 };
 
-pub fn open(src: &Source, cfg: &IngestConfig) -> Box<dyn Iterator<Item = Item> + Send> {
+pub fn open(src: &Source, cfg: &ReadSettings) -> Box<dyn Iterator<Item = Item> + Send> {
     let path = src.files[0].clone();
     let reject = |reason: String| -> Box<dyn Iterator<Item = Item> + Send> {
         Box::new(std::iter::once(Item::Reject(Reject {

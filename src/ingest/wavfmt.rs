@@ -3,7 +3,7 @@
 //! `[ingest] gain_db` is divided out. The rate comes from the header.
 
 use super::{gain_factor, Source};
-use crate::ingest::settings::IngestConfig;
+use crate::ingest::settings::ReadSettings;
 use crate::model::{AeRecord, Item, Reject, Stage};
 use std::path::Path;
 
@@ -54,7 +54,7 @@ pub(crate) const FORMAT: crate::ingest::FormatSpec = crate::ingest::FormatSpec {
     open,
 };
 
-pub fn open(src: &Source, cfg: &IngestConfig) -> Box<dyn Iterator<Item = Item> + Send> {
+pub fn open(src: &Source, cfg: &ReadSettings) -> Box<dyn Iterator<Item = Item> + Send> {
     let experiment = src.id.clone();
     let gain = gain_factor(cfg.gain_db) as f32;
     let pre = cfg.pretrigger_samples;
@@ -65,7 +65,7 @@ pub fn open(src: &Source, cfg: &IngestConfig) -> Box<dyn Iterator<Item = Item> +
     Box::new(files.into_iter().flat_map(move |p| {
         // A WAV that `[detect]` cuts is a stream, read block by block.
         if let Ok(l) = super::stream::wav_layout(&p) {
-            if cfg.detect.cuts(l.frames) {
+            if cfg.detect().cuts(l.frames) {
                 let c = counter.clone();
                 return super::stream::open_layout(Ok(l), &p, experiment.clone(), c, &cfg);
             }

@@ -355,12 +355,12 @@ impl Follower {
                 let from = self.stream_positions.get(&s.id).cloned();
                 let cuts = s.files.first().and_then(|f| {
                     let l = crate::ingest::stream::raw_layout(f).ok()?;
-                    Some(cfg.ingest.detect.cuts(l.frames))
+                    Some(cfg.read_settings().detect().cuts(l.frames))
                 });
                 if from.is_none() && cuts != Some(true) {
                     return false;
                 }
-                match StreamTail::open(s, &from.clone().unwrap_or_default(), &cfg.ingest) {
+                match StreamTail::open(s, &from.clone().unwrap_or_default(), cfg.read_settings()) {
                     Ok(t) => e.insert(t),
                     Err(_) => return from.is_some(),
                 }

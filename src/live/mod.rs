@@ -480,13 +480,13 @@ fn part_items<'a>(
 ) -> impl Iterator<Item = crate::model::Item> + Send + 'a {
     sources.iter().flat_map(|p| match &p.part {
         Some(pending::Part::Vallen(w)) => {
-            crate::ingest::open_window(&p.source, w, &cfg.ingest, &cfg.load)
+            crate::ingest::open_window(&p.source, w, cfg.read_settings(), &cfg.load)
         }
         Some(pending::Part::Dta { items, .. }) | Some(pending::Part::Stream { items, .. }) => {
             let items = std::mem::take(&mut *items.lock().expect("not poisoned"));
             crate::ingest::with_load_file(Box::new(items.into_iter()), &p.source, &cfg.load)
         }
-        None => crate::ingest::open(&p.source, &cfg.ingest, &cfg.load),
+        None => crate::ingest::open(&p.source, cfg.read_settings(), &cfg.load),
     })
 }
 

@@ -86,7 +86,7 @@ pub fn latest_record(
                 files: vec![last],
                 ..p.source.clone()
             };
-            crate::ingest::open(&src, &cfg.ingest, &cfg.load).find_map(|it| match it {
+            crate::ingest::open(&src, cfg.read_settings(), &cfg.load).find_map(|it| match it {
                 Item::Record(r) => Some(r),
                 _ => None,
             })

@@ -273,7 +273,7 @@ fn stream_part(
     std::fs::create_dir_all(dir.path()).map_err(|e| IoAt::new(dir.path(), e))?;
     let items = g
         .iter()
-        .flat_map(|s| ingest::open(s, &cfg.ingest, &cfg.load));
+        .flat_map(|s| ingest::open(s, cfg.read_settings(), &cfg.load));
     let run = super::part::run_part(
         id,
         items,

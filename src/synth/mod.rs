@@ -305,11 +305,11 @@ impl Library {
     /// Read a simulated `waveforms.parquet` (from `aepipe reference`): bond- and
     /// fibre-failure signals sampled at `fs`.
     pub fn read(path: &std::path::Path, fs: f64) -> Result<Library, SynthError> {
-        let cfg = crate::config::PipelineConfig::default();
+        let cfg = crate::config::ValidConfig::default();
         let d = crate::ingest::discover(&[path.to_path_buf()], &cfg.ingest);
         let mut lib = Library::default();
         for src in &d.sources {
-            for it in crate::ingest::open(src, &cfg.ingest, &cfg.load) {
+            for it in crate::ingest::open(src, cfg.read_settings(), &cfg.load) {
                 let crate::model::Item::Record(r) = it else {
                     continue;
                 };

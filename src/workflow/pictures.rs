@@ -231,7 +231,7 @@ fn draw_gallery(
     let mut ex = crate::features::FeatureExtractor::new(cfg);
     let d = crate::ingest::discover(inputs, &cfg.ingest);
     for src in &d.sources {
-        for it in crate::ingest::open(src, &cfg.ingest, &cfg.load) {
+        for it in crate::ingest::open(src, cfg.read_settings(), &cfg.load) {
             let crate::model::Item::Record(r) = it else {
                 continue;
             };
@@ -292,7 +292,7 @@ pub fn cwt_of_hit(
         .filter(|s| {
             experiment.is_none_or(|e| s.id == e || s.format == crate::ingest::Format::Parquet)
         })
-        .flat_map(|s| crate::ingest::open(s, &cfg.ingest, &cfg.load))
+        .flat_map(|s| crate::ingest::open(s, cfg.read_settings(), &cfg.load))
         .find_map(|it| match it {
             crate::model::Item::Record(r)
                 if r.hit == hit

@@ -14,7 +14,7 @@ fn items(inputs: &[PathBuf]) -> (Vec<HitRow>, Vec<AeRecord>, Vec<String>, Vec<St
     let d = aepipe::ingest::discover(inputs, &cfg.ingest);
     let (mut h, mut r, mut rej, mut notes) = (vec![], vec![], vec![], vec![]);
     for s in &d.sources {
-        for it in aepipe::ingest::open(s, &cfg.ingest, &cfg.load) {
+        for it in aepipe::ingest::open(s, cfg.read_settings(), &cfg.load) {
             match it {
                 Item::Hit(x) => h.push(*x),
                 Item::Record(x) => r.push(x),
@@ -358,7 +358,9 @@ fn a_growing_dta_chain_read_in_pieces_gives_the_offline_items() {
     use aepipe::ingest::dta::tail::{DtaTail, Position};
     use aepipe::ingest::{Format, Source};
     use std::time::Duration;
-    let cfg = aepipe::config::IngestConfig::default();
+    let cfg = aepipe::config::ValidConfig::default()
+        .read_settings()
+        .clone();
     let long = Duration::from_secs(3600);
     let t = TempDir::new("dta-tail");
 
@@ -488,7 +490,9 @@ fn a_dta_tail_restarted_after_every_commit_reads_nothing_twice() {
     use aepipe::ingest::{Format, Source};
     use std::io::Write;
     use std::time::Duration;
-    let cfg = aepipe::config::IngestConfig::default();
+    let cfg = aepipe::config::ValidConfig::default()
+        .read_settings()
+        .clone();
     let t = TempDir::new("dta-restarts");
     let files = [t.path().join("X.DTA"), t.path().join("X__2.DTA")];
     let src = Source {

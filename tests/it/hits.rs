@@ -298,7 +298,7 @@ fn the_steel_plate_trfdb_features_join_its_hits_by_trai() {
     // Independent: the trf_data row of each TRAI, read here with SQLite.
     let trf = rusqlite::Connection::open(dir.join("sample.trfdb")).unwrap();
     let mut checked = 0;
-    for it in aepipe::ingest::open(src, &cfg.ingest, &cfg.load) {
+    for it in aepipe::ingest::open(src, cfg.read_settings(), &cfg.load) {
         let aepipe::model::Item::Hit(h) = it else {
             continue;
         };

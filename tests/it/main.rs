@@ -254,13 +254,13 @@ pub fn files(dir: &Path) -> Vec<PathBuf> {
 /// Records of all sources found under `inputs`, with the default configuration.
 pub fn read_all(
     inputs: &[PathBuf],
-    cfg: &aepipe::config::PipelineConfig,
+    cfg: &aepipe::config::ValidConfig,
 ) -> (Vec<aepipe::model::AeRecord>, Vec<aepipe::model::Reject>) {
     let d = aepipe::ingest::discover(inputs, &cfg.ingest);
     let mut recs = Vec::new();
     let mut rejs = d.rejects;
     for s in &d.sources {
-        for it in aepipe::ingest::open(s, &cfg.ingest, &cfg.load) {
+        for it in aepipe::ingest::open(s, cfg.read_settings(), &cfg.load) {
             match it {
                 aepipe::model::Item::Record(r) => recs.push(r),
                 aepipe::model::Item::Reject(r) => rejs.push(r),

@@ -11,7 +11,7 @@ fn counts(dir: &std::path::Path) -> BTreeMap<String, usize> {
     let d = discover(&[dir.to_path_buf()], &cfg.ingest);
     let mut m = BTreeMap::new();
     for s in &d.sources {
-        let n = open(s, &cfg.ingest, &cfg.load)
+        let n = open(s, cfg.read_settings(), &cfg.load)
             .filter(|i| matches!(i, Item::Record(_)))
             .count();
         *m.entry(s.id.clone()).or_default() += n;

@@ -912,7 +912,7 @@ fn a_pair_arriving_by_a_copy_is_followed_without_reading_a_half_page() {
     }
     assert!(looks > 0);
     let offline: Vec<aepipe::model::Item> =
-        aepipe::ingest::open(&src, &cfg.ingest, &cfg.load).collect();
+        aepipe::ingest::open(&src, cfg.read_settings(), &cfg.load).collect();
     let (got, offline) = (show(got), show(offline));
     assert_eq!(offline.len(), 160, "{offline:?}");
     let extra: Vec<&String> = got.iter().filter(|g| !offline.contains(g)).collect();

@@ -280,7 +280,7 @@ pub fn detect<'py>(
         file: "",
         rate_hz: sample_rate_hz,
     };
-    let detect = &cfg.ingest.detect;
+    let detect = cfg.read_settings().detect();
     let items = py.detach(|| {
         let views: Vec<&[f32]> = owned.iter().map(Vec::as_slice).collect();
         cutting.cut_channels(&views, detect)

@@ -93,7 +93,7 @@ fn read_all(
         .par_iter()
         .map(|s| {
             let (mut rows, mut rej) = (Vec::new(), Vec::new());
-            for it in ingest::open(s, &cfg.ingest, &cfg.load) {
+            for it in ingest::open(s, cfg.read_settings(), &cfg.load) {
                 if control.is_cancelled() {
                     break;
                 }
@@ -349,7 +349,7 @@ pub fn iter_waveforms(
     let c = cfg.clone();
     let items: Items = Box::new(
         srcs.into_iter()
-            .flat_map(move |s| ingest::open(&s, &c.ingest, &c.load)),
+            .flat_map(move |s| ingest::open(&s, c.read_settings(), &c.load)),
     );
     Ok(WaveformIter {
         items: std::sync::Mutex::new(Some(items)),

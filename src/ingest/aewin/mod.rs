@@ -17,7 +17,7 @@ mod plan;
 
 use super::sniff::{self, Head, Kind, Recogniser, Strength, Verdict};
 use super::{gain_factor, text, Role, Source};
-use crate::ingest::settings::{FormatChoice, IngestConfig};
+use crate::ingest::settings::{FormatChoice, ReadSettings};
 use crate::model::{AeRecord, HitRow, Item, Note, Reject, Stage};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -545,7 +545,7 @@ pub(crate) const FORMAT: crate::ingest::FormatSpec = crate::ingest::FormatSpec {
     open,
 };
 
-pub fn open(src: &Source, cfg: &IngestConfig) -> Box<dyn Iterator<Item = Item> + Send> {
+pub fn open(src: &Source, cfg: &ReadSettings) -> Box<dyn Iterator<Item = Item> + Send> {
     let mut first = Vec::new();
     let mut files: Vec<WaveFile> = src
         .files

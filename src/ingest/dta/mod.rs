@@ -23,7 +23,7 @@ pub use walker::{
 };
 
 use super::Source;
-use crate::ingest::settings::{IngestConfig, MistrasConfig};
+use crate::ingest::settings::{IngestConfig, MistrasConfig, ReadSettings};
 use crate::model::{
     AcquisitionSetup, AeRecord, ChannelSetup, HitRow, HitSource, Item, MarkerKind, MarkerRow, Note,
     ParametricRow, ParametricSource, RecordKind, RecordType, Reject, Stage, Tally,
@@ -691,7 +691,7 @@ pub(crate) const FORMAT: crate::ingest::FormatSpec = crate::ingest::FormatSpec {
 };
 
 /// Open a MISTRAS source: its files as one chain, in chain order.
-pub fn open(src: &Source, cfg: &IngestConfig) -> Box<dyn Iterator<Item = Item> + Send> {
+pub fn open(src: &Source, cfg: &ReadSettings) -> Box<dyn Iterator<Item = Item> + Send> {
     Box::new(open_source(src, cfg))
 }
 

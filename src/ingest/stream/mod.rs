@@ -119,7 +119,7 @@ pub(crate) const FORMAT: super::FormatSpec = super::FormatSpec {
     open,
 };
 
-fn open(src: &super::Source, cfg: &super::settings::IngestConfig) -> super::Items {
+fn open(src: &super::Source, cfg: &super::settings::ReadSettings) -> super::Items {
     let Some(path) = src.files.first().cloned() else {
         return Box::new(std::iter::empty());
     };
@@ -141,7 +141,7 @@ pub(crate) fn open_layout(
     path: &Path,
     experiment: String,
     counter: HitCounter,
-    cfg: &super::settings::IngestConfig,
+    cfg: &super::settings::ReadSettings,
 ) -> super::Items {
     let reject = |reason: String| -> super::Items {
         Box::new(std::iter::once(Item::Reject(Reject {
@@ -158,8 +158,8 @@ pub(crate) fn open_layout(
         Err(why) => return reject(why.to_string()),
     };
     let gain = super::gain_factor(cfg.gain_db);
-    if cfg.detect.cuts(layout.frames) {
-        return cut(layout, experiment, counter, cfg.detect.clone(), gain);
+    if cfg.detect().cuts(layout.frames) {
+        return cut(layout, experiment, counter, cfg.detect().clone(), gain);
     }
     if layout.frames > cfg.max_samples_per_record {
         return reject(format!(

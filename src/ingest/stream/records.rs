@@ -98,12 +98,12 @@ impl Cutting<'_> {
 /// stream files are cut by their own readers, block by block.
 pub(crate) fn cut_long_records(
     items: crate::ingest::Items,
-    cfg: &crate::ingest::settings::IngestConfig,
+    cfg: &crate::ingest::settings::ReadSettings,
 ) -> crate::ingest::Items {
-    if cfg.detect.mode == crate::detect::DetectMode::Off {
+    if cfg.detect().mode == crate::detect::DetectMode::Off {
         return items;
     }
-    let detect = cfg.detect.clone();
+    let detect = cfg.detect().clone();
     // A record just cut from a stream (its detected hit row right before it) is not cut
     // again.
     let mut cut: Option<(u32, u64)> = None;

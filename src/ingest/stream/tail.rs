@@ -15,7 +15,7 @@
 
 use super::cutter::{Cutter, LiveCut};
 use super::{Dtype, HitCounter, StreamError};
-use crate::ingest::settings::IngestConfig;
+use crate::ingest::settings::ReadSettings;
 use crate::ingest::Source;
 use crate::model::{Item, RecordType, StreamTally, Tally};
 use std::path::PathBuf;
@@ -55,7 +55,7 @@ impl StreamTail {
     pub fn open(
         src: &Source,
         from: &Position,
-        cfg: &IngestConfig,
+        cfg: &ReadSettings,
     ) -> Result<StreamTail, StreamError> {
         let path = src.files.first().cloned().ok_or("no stream file")?;
         if path
@@ -68,7 +68,7 @@ impl StreamTail {
         let frames = layout.frames;
         let counter = HitCounter::new((src.first_hit + from.hits).into());
         let gain = crate::ingest::gain_factor(cfg.gain_db);
-        let (e, d) = (src.id.clone(), cfg.detect.clone());
+        let (e, d) = (src.id.clone(), cfg.detect().clone());
         let cutter: Box<dyn LiveCut> = match layout.dtype {
             Dtype::I16 => Box::new(Cutter::<i16>::following(layout, e, counter, d, gain, from)?),
             _ => Box::new(Cutter::<f32>::following(layout, e, counter, d, gain, from)?),

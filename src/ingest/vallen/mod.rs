@@ -14,7 +14,7 @@
 //! its primary key: ordered output without asking SQLite to sort blobs, one waveform in memory.
 
 use super::{file_err, IngestError, Source};
-use crate::ingest::settings::IngestConfig;
+use crate::ingest::settings::{IngestConfig, ReadSettings};
 use crate::model::{AeRecord, Item, Reject, Stage};
 use rusqlite::{Connection, OpenFlags, OptionalExtension};
 use std::collections::{HashMap, HashSet, VecDeque};
@@ -429,7 +429,7 @@ pub(crate) fn pair_sources(pairs: &Pairs, skipped: &mut Vec<(PathBuf, String)>) 
 /// Open a Vallen source: the hit rows of its `.pridb` (every acquisition), then its
 /// transient records in (channel, transient number) order, then a reject for each hit whose
 /// transient the `.tradb` lacks.
-pub fn open(src: &Source, cfg: &IngestConfig) -> Box<dyn Iterator<Item = Item> + Send> {
+pub fn open(src: &Source, cfg: &ReadSettings) -> Box<dyn Iterator<Item = Item> + Send> {
     open_with(src, cfg, true)
 }
 

@@ -890,7 +890,9 @@ mod tests {
             .is_empty());
         assert_eq!(last_end.hits, 36);
         drop(w);
-        let offline = describe(super::super::open(&src, &cfg));
+        let read =
+            crate::ingest::settings::ReadSettings::new(cfg.check().unwrap(), Default::default());
+        let offline = describe(super::super::open(&src, &read));
         let live = describe(got);
         assert_eq!(live.len(), offline.len(), "rows in the windows and offline");
         for (a, b) in live.iter().zip(&offline) {

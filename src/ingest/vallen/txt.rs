@@ -8,7 +8,7 @@
 //! hit came, so its `time_s` is null. When the `.tradb` an export came from lies beside it,
 //! discovery passes the export over (the same transient is never read twice).
 
-use crate::ingest::settings::{FormatChoice, IngestConfig};
+use crate::ingest::settings::{FormatChoice, ReadSettings};
 use crate::ingest::sniff::{self, Head, Kind, Recogniser, Strength, Verdict};
 use crate::ingest::{RecordError, Source};
 use crate::model::{AeRecord, Item, Note, Reject, Stage};
@@ -300,7 +300,7 @@ pub(crate) const FORMAT: crate::ingest::FormatSpec = crate::ingest::FormatSpec {
 
 /// Read a source of exports: one record (or reject row) per file, in (channel, TRAI) order,
 /// the order the `.tradb` reader gives its transients.
-pub fn open(src: &Source, cfg: &IngestConfig) -> Box<dyn Iterator<Item = Item> + Send> {
+pub fn open(src: &Source, cfg: &ReadSettings) -> Box<dyn Iterator<Item = Item> + Send> {
     let mut files: Vec<(u64, u32, PathBuf)> = src
         .files
         .iter()
