@@ -9,13 +9,32 @@
 //! of Fig. 4.8 and Fig. 4.19, the same masses, springs and stretch).
 
 use super::model::*;
-use super::paper::{mesh, structure, Across};
-use super::params::Params;
+use super::paper::{mesh, structure, Across, Mesh, Structure};
+use super::params::{scenario_params, Builder, Common, Params, Scenario};
 use super::parts::FIBRE_T;
 use super::SimError;
 
 /// The 3-D scenarios (names are contracts).
-pub const NAMES: &[&str] = &["network3d-bond-failure", "network3d-fibre-failure"];
+pub(super) const SCENARIOS: &[Scenario<Builder>] = &[
+    Scenario::new(
+        "network3d-bond-failure",
+        &[Mesh::KEYS, Cells::KEYS],
+        bond_failure,
+    ),
+    Scenario::new(
+        "network3d-fibre-failure",
+        &[Structure::KEYS, Cells::KEYS],
+        fibre_failure,
+    ),
+];
+
+scenario_params! {
+    /// Cells across the 3-D grid in x and y: a whole number from 60 (the sensors' 1.8 mm
+    /// fit) to 401 (a grid 7× the default's memory).
+    pub struct Cells {
+        cells: u32 = CELLS as u32,
+    }
+}
 
 /// Cells across the default 3-D grid, in x and in y.
 pub const CELLS: usize = 125;
@@ -92,11 +111,10 @@ fn layered(mut m: ModelFile, layer: &dyn Fn(u32) -> u32, cells: usize) -> ModelF
     m
 }
 
-/// The `cells` parameter: cells across the 3-D grid (default [`CELLS`]); a whole number
-/// from 60 (the sensors' 1.8 mm fit) to 401 (a grid 7× the default's memory).
+/// The `cells` parameter ([`Cells`]; default [`CELLS`]), checked.
 fn cells(p: &Params) -> Result<usize, SimError> {
-    let c = p.get("cells", CELLS as f64);
-    if c.fract() != 0.0 || !(60.0..=401.0).contains(&c) {
+    let c = Cells::read(p)?.cells;
+    if !(60..=401).contains(&c) {
         return Err(SimError::Model(format!(
             "cells must be a whole number from 60 to 401, got {c}"
         )));
@@ -127,15 +145,6 @@ fn sensors(g: &GridSpec) -> Vec<SensorSpec> {
     ]
 }
 
-/// Build a 3-D scenario by name (`None`: not one of [`NAMES`]).
-pub fn build(name: &str, p: &Params) -> Option<Result<ModelFile, SimError>> {
-    match name {
-        "network3d-bond-failure" => Some(bond_failure(p)),
-        "network3d-fibre-failure" => Some(fibre_failure(p)),
-        _ => None,
-    }
-}
-
 /// Fig. 4.8's mesh (three horizontal, three vertical 2 mm fibres, 0.5 mm apart) laid in six
 /// layers, horizontal and vertical alternating (h, v, h, v, h, v from the bottom). The
 /// middle horizontal fibre is bent across the damage zone *out of the sheet* — its nodes
@@ -143,8 +152,14 @@ pub fn build(name: &str, p: &Params) -> Option<Result<ModelFile, SimError>> {
 /// another one is — and bond (1) at the centre fails at `t1`: the freed 1 mm length rings
 /// through the sheet at its fundamental (~250 kHz). Bond (2), at (+0.5 mm, 0), fails at `t2`
 /// (negative, the default: never).
-fn bond_failure(p: &Params) -> Result<ModelFile, SimError> {
-    let m = mesh(p, "network3d-bond-failure", Across::Sheet, -1.0);
+fn bond_failure(p: &Params, c: &Common) -> Result<ModelFile, SimError> {
+    let m = mesh(
+        &Mesh::read(p)?,
+        c,
+        "network3d-bond-failure",
+        Across::Sheet,
+        -1.0,
+    );
     // Fibre ids: the three horizontal fibres 0–2, then the three vertical ones 3–5.
     let layer = |f| if f < 3 { 2 * f } else { 2 * (f - 3) + 1 };
     Ok(layered(m, &layer, cells(p)?))
@@ -154,8 +169,8 @@ fn bond_failure(p: &Params) -> Result<ModelFile, SimError> {
 /// fibre 3 (horizontal, y = 0) laid over them; fibre 3 and fibre 2 stretched 1 %, fibre 1
 /// 0.2 %. Spring `point` + 1 of fibre 3's 14 between the bonds breaks at `t1` (1 µs): the
 /// two ends recoil along the fibre, and the pieces, tilted down to the bonds, swing.
-fn fibre_failure(p: &Params) -> Result<ModelFile, SimError> {
-    let m = structure(p, "network3d-fibre-failure", false)?;
+fn fibre_failure(p: &Params, c: &Common) -> Result<ModelFile, SimError> {
+    let m = structure(&Structure::read(p)?, 1, c, "network3d-fibre-failure")?;
     // Fibre id 0 is fibre 3.
     Ok(layered(m, &|f| u32::from(f == 0), cells(p)?))
 }

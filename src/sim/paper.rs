@@ -3,7 +3,7 @@
 //! 3-D networks of [`super::network3d`] are made from the same lattice.
 
 use super::model::*;
-use super::params::Params;
+use super::params::{scenario_params, Common, Params};
 use super::parts::{
     eq, node, paper_grid, spring, st, system, FIBRE_E, FIBRE_NU, FIBRE_RHO, FIBRE_T, FIBRE_W,
 };
@@ -113,11 +113,61 @@ fn lattice_fine(
 /// free length's fundamental (~250 kHz) and third harmonic (~750 kHz).
 /// Bond (2), at (+0.5 mm, 0), fails at `t2` (20 µs; negative: never), lengthening the free
 /// fibre to 1.5 mm.
-pub(super) fn mesh3x3(p: &Params) -> ModelFile {
-    let mut m = mesh(p, "mesh3x3-bond-failure", Across::Plane, 20e-6);
+pub(super) fn mesh3x3(p: &Params, c: &Common) -> Result<ModelFile, SimError> {
+    let mut m = mesh(
+        &Mesh::read(p)?,
+        c,
+        "mesh3x3-bond-failure",
+        Across::Plane,
+        20e-6,
+    );
     m.grid = Some(paper_grid());
     m.sensors = below_and_beside();
-    m
+    Ok(m)
+}
+
+scenario_params! {
+    /// Fig. 4.8's mesh: the fibres' stretch (strain), the bent fibre's kink (m), when bond
+    /// (1) fails (`t1`, s) and bond (2) (`t2`, s; negative: never; each scenario its own
+    /// default).
+    pub struct Mesh {
+        stretch: f64 = 0.01,
+        kink: f64 = 1e-5,
+        t1: f64 = 0.0,
+        t2: Option<f64> = None,
+    }
+}
+
+scenario_params! {
+    /// [`damaged_mesh`]'s keys: the bonds already `broken` (a mask of bits 0…8), the `bond`
+    /// (0…8) that fails at `t1`, the fibre `along` it (0 the row, 1 the column), the stretch
+    /// and the kink.
+    pub struct DamagedMesh {
+        broken: u32 = 0,
+        bond: u32 = 4,
+        along: u32 = 0,
+        stretch: f64 = 0.01,
+        kink: f64 = 1e-5,
+        t1: f64 = 0.0,
+    }
+}
+
+scenario_params! {
+    /// Fig. 4.19's structure: the break `point` (1…12), fibres 3 and 2's stretch, fibre 1's
+    /// (`stretch1`), when the fibre breaks (`t1`, s).
+    pub struct Structure {
+        point: u32 = 7,
+        stretch: f64 = 0.01,
+        stretch1: f64 = 0.002,
+        t1: f64 = 1e-6,
+    }
+}
+
+scenario_params! {
+    /// The plane structure's springs each cut in `split` (1…8).
+    pub struct Split {
+        split: u32 = 1,
+    }
 }
 
 /// The crossing of bond k (0…8) of Fig. 4.8's mesh, (ix, iy) in lattice steps: k = 3·row +
@@ -135,28 +185,28 @@ pub fn mesh_bond(k: u32) -> (i32, i32) {
 /// [`mesh3x3`]'s, peaked at the failing bond: kink·sin²(π/2·s/S) on each side, s from the
 /// span's end, S from that end to the bond (for a centred bond exactly mesh3x3's
 /// sin²(πξ)); the crossing fibre's held ends are shifted by the kink, as there.
-pub(super) fn damaged_mesh(p: &Params) -> Result<ModelFile, SimError> {
+pub(super) fn damaged_mesh(p: &Params, c: &Common) -> Result<ModelFile, SimError> {
     let name = "mesh3x3-damaged-bond-failure";
-    let whole = |key: &str, v: f64, hi: f64| -> Result<u32, SimError> {
-        if (0.0..=hi).contains(&v) && v.fract() == 0.0 {
-            Ok(v as u32)
+    let d = DamagedMesh::read(p)?;
+    let at_most = |key: &str, v: u32, hi: u32| -> Result<u32, SimError> {
+        if v <= hi {
+            Ok(v)
         } else {
             Err(SimError::Model(format!(
                 "{name}: {key} must be a whole number 0…{hi}, got {v}"
             )))
         }
     };
-    let broken = whole("broken", p.get("broken", 0.0), 511.0)?;
-    let bond = whole("bond", p.get("bond", 4.0), 8.0)?;
-    let along = whole("along", p.get("along", 0.0), 1.0)?;
+    let broken = at_most("broken", d.broken, 511)?;
+    let bond = at_most("bond", d.bond, 8)?;
+    let along = at_most("along", d.along, 1)?;
     if broken >> bond & 1 == 1 {
         return Err(SimError::Model(format!(
             "{name}: bond {bond} is among the broken ({broken:#b}); a bond fails once"
         )));
     }
     let bonded = |ix: i32, iy: i32| intact(broken, (ix, iy));
-    let stretch = p.get("stretch", 0.01);
-    let kink = p.get("kink", 1e-5);
+    let (stretch, kink) = (d.stretch, d.kink);
     let mut lat = lattice_fine(&[-7, 0, 7], &[-7, 0, 7], &|_| stretch, 1, &bonded);
     let (bx, by) = mesh_bond(bond);
     // Fibres: rows 0…2 (iy −7, 0, 7), then columns 3…5 (ix −7, 0, 7); position s along a
@@ -188,17 +238,14 @@ pub(super) fn damaged_mesh(p: &Params) -> Result<ModelFile, SimError> {
         }
     }
     let node = lat.fibres[bent][(at + 14) as usize];
-    let damage = vec![DamageSpec::Bond {
-        node,
-        time: p.get("t1", 0.0),
-    }];
+    let damage = vec![DamageSpec::Bond { node, time: d.t1 }];
     let mut m = lattice_model(
         format!("{name}-b{bond}"),
         crate::model::Mechanism::BondFailure,
         lat,
         damage,
-        p.get("damping", 1.5e-6),
-        p,
+        c.damping.unwrap_or(1.5e-6),
+        c,
     );
     m.grid = Some(paper_grid());
     m.sensors = below_and_beside();
@@ -256,10 +303,9 @@ impl Across {
 
 /// [`mesh3x3`]'s fibres, kink and bond failures, bent `across`, bond (2) failing at `t2`
 /// unless given (negative: never); no grid and no sensors yet.
-pub(super) fn mesh(p: &Params, name: &str, across: Across, t2_default: f64) -> ModelFile {
-    let stretch = p.get("stretch", 0.01);
+pub(super) fn mesh(p: &Mesh, c: &Common, name: &str, across: Across, t2_default: f64) -> ModelFile {
+    let (stretch, kink) = (p.stretch, p.kink);
     let mut lat = lattice(&[-7, 0, 7], &[-7, 0, 7], &|_| stretch);
-    let kink = p.get("kink", 1e-5);
     let b1 = lat.index[&(0, 0)];
     let b2 = lat.index[&(7, 0)];
     for ix in -6..=6 {
@@ -280,7 +326,7 @@ pub(super) fn mesh(p: &Params, name: &str, across: Across, t2_default: f64) -> M
             across.add(ic, kink);
         }
     }
-    let (t1, t2) = (p.get("t1", 0.0), p.get("t2", t2_default));
+    let (t1, t2) = (p.t1, p.t2.unwrap_or(t2_default));
     let mut damage = vec![DamageSpec::Bond { node: b1, time: t1 }];
     if t2 >= 0.0 {
         damage.push(DamageSpec::Bond { node: b2, time: t2 });
@@ -290,8 +336,8 @@ pub(super) fn mesh(p: &Params, name: &str, across: Across, t2_default: f64) -> M
         crate::model::Mechanism::BondFailure,
         lat,
         damage,
-        p.get("damping", 1.5e-6),
-        p,
+        c.damping.unwrap_or(1.5e-6),
+        c,
     )
 }
 
@@ -304,20 +350,21 @@ fn below_and_beside() -> Vec<SensorSpec> {
         .collect()
 }
 
-/// A lattice as a model with the paper scenarios' system (implicit Euler, 10 ns, the given
-/// damping, 4 000 steps), its own initial conditions, no grid and no sensors.
+/// A lattice as a model with the paper scenarios' system (implicit Euler, 10 ns unless
+/// `dt` is given, the given damping, 4 000 steps), its own initial conditions, no grid and
+/// no sensors.
 fn lattice_model(
     name: String,
     label: crate::model::Mechanism,
     lat: Lattice,
     damage: Vec<DamageSpec>,
     damping: f64,
-    p: &Params,
+    c: &Common,
 ) -> ModelFile {
     ModelFile {
         name,
         label: Some(label.as_str().into()),
-        system: system(p.get("dt", 1e-8), damping, 4_000),
+        system: system(c.dt.unwrap_or(1e-8), damping, 4_000),
         nodes: lat.nodes,
         springs: lat.springs,
         initial: lat.initial,
@@ -334,32 +381,36 @@ fn lattice_model(
 /// the bonds are the candidate break points; `point` p = 1…12 removes the (p+1)-th of them
 /// at `t1` (1 µs), leaving p springs on fibre 1's side and 13 − p on fibre 2's: points p and
 /// 13 − p mirror each other, as (1) and (12) do in the thesis.
-pub(super) fn structure2x1(p: &Params) -> Result<ModelFile, SimError> {
-    let mut m = structure(p, "structure2x1-fibre-failure", true)?;
+pub(super) fn structure2x1(p: &Params, c: &Common) -> Result<ModelFile, SimError> {
+    let s = Structure::read(p)?;
+    let mut m = structure(&s, Split::read(p)?.split, c, "structure2x1-fibre-failure")?;
     m.grid = Some(paper_grid());
     m.sensors = below_and_beside();
     Ok(m)
 }
 
-/// [`structure2x1`]'s fibres and failure, its name `prefix`-p`point`, no grid and no sensors
-/// yet; `split` (each spring cut in K) read only where `splittable`.
-pub(super) fn structure(p: &Params, prefix: &str, splittable: bool) -> Result<ModelFile, SimError> {
-    let point = p.get("point", 7.0);
-    if !(1.0..=12.0).contains(&point) || point.fract() != 0.0 {
+/// [`structure2x1`]'s fibres and failure, each spring cut in `split`, its name
+/// `prefix`-p`point`, no grid and no sensors yet.
+pub(super) fn structure(
+    p: &Structure,
+    split: u32,
+    c: &Common,
+    prefix: &str,
+) -> Result<ModelFile, SimError> {
+    if !(1..=12).contains(&p.point) {
         return Err(SimError::Model(format!(
-            "{prefix}: point must be 1…12, got {point}"
+            "{prefix}: point must be 1…12, got {}",
+            p.point
         )));
     }
-    let point = point as i32;
-    let s3 = p.get("stretch", 0.01);
-    let s1 = p.get("stretch1", 0.002);
-    let k = if splittable { p.get("split", 1.0) } else { 1.0 };
-    if !(1.0..=8.0).contains(&k) || k.fract() != 0.0 {
+    let point = p.point as i32;
+    let (s3, s1) = (p.stretch, p.stretch1);
+    if !(1..=8).contains(&split) {
         return Err(SimError::Model(format!(
-            "{prefix}: split must be 1…8 springs per spring, got {k}"
+            "{prefix}: split must be 1…8 springs per spring, got {split}"
         )));
     }
-    let k = k as i32;
+    let k = split as i32;
     // Fibre ids: 0 = fibre 3 (horizontal), 1 = fibre 1, 2 = fibre 2.
     let lat = lattice_fine(
         &[0],
@@ -382,17 +433,14 @@ pub(super) fn structure(p: &Params, prefix: &str, splittable: bool) -> Result<Mo
         .iter()
         .position(|s| (s.a == lo && s.b == hi) || (s.a == hi && s.b == lo))
         .expect("fibre 3 has the spring");
-    let damage = vec![DamageSpec::Fibre {
-        spring,
-        time: p.get("t1", 1e-6),
-    }];
-    let damping = p.get("damping", 1.5e-6 / k as f64);
+    let damage = vec![DamageSpec::Fibre { spring, time: p.t1 }];
+    let damping = c.damping.unwrap_or(1.5e-6 / k as f64);
     Ok(lattice_model(
         format!("{prefix}-p{point}"),
         crate::model::Mechanism::FibreFailure,
         lat,
         damage,
         damping,
-        p,
+        c,
     ))
 }

@@ -1,49 +1,31 @@
-//! A scenario's parameters (`--param key=value`) and sweeps (`--sweep key=a:b:n`): the
-//! values every builder reads, below the builders and the registry that names them. A key
-//! given but never read by the scenario's builder is refused by name ([`asked_only`]).
+//! A scenario's parameters: `--param key=value` as given ([`Params`]), read once into the
+//! scenario's own typed parameters (a struct per group of keys, declared with
+//! [`scenario_params!`]), and sweeps (`--sweep key=a:b:n`). Below the builders and the
+//! registry that names them. A scenario declares the keys it takes; a key given that it does
+//! not take is refused by name before anything is built ([`Scenario::check`]).
 
 use super::SimError;
 
-/// Knobs a scenario takes (`--param key=value`); each scenario reads the ones it knows.
+/// `--param key=value` as given (a repeated key keeps its last value): the wire form every
+/// caller builds, read into a scenario's typed parameters by [`Param`].
 #[derive(Debug, Clone, Default)]
 pub struct Params(pub Vec<(String, f64)>);
 
-thread_local! {
-    /// The keys [`Params::get`] and [`Params::has`] were asked for while a scenario is built on
-    /// this thread: a key given but never asked for is a typo, reported by name.
-    static ASKED: std::cell::RefCell<Option<std::collections::BTreeSet<String>>> =
-        const { std::cell::RefCell::new(None) };
-}
-
-/// Whether no build is recording the keys it asks (outside [`asked_only`]).
-#[cfg(test)]
-pub(super) fn recorder_is_off() -> bool {
-    ASKED.with(|a| a.borrow().is_none())
-}
-
-fn asked(key: &str) {
-    ASKED.with(|a| {
-        if let Some(s) = a.borrow_mut().as_mut() {
-            s.insert(key.to_string());
-        }
-    });
-}
-
 impl Params {
-    pub fn get(&self, key: &str, default: f64) -> f64 {
-        asked(key);
-        self.0
-            .iter()
-            .rev()
-            .find(|(k, _)| k == key)
-            .map(|(_, v)| *v)
-            .unwrap_or(default)
+    /// The value given for `key` (the last if repeated).
+    fn given(&self, key: &str) -> Option<f64> {
+        self.0.iter().rev().find(|(k, _)| k == key).map(|(_, v)| *v)
     }
 
-    /// Whether `key` was given.
-    pub fn has(&self, key: &str) -> bool {
-        asked(key);
-        self.0.iter().any(|(k, _)| k == key)
+    /// `key` read as its type, or `default` when not given; a value the type refuses is an
+    /// error naming the key.
+    pub fn take<T: Param>(&self, key: &str, default: T) -> Result<T, SimError> {
+        match self.given(key) {
+            None => Ok(default),
+            Some(v) => {
+                T::read(v).map_err(|why| SimError::Model(format!("--param {key}={v}: {why}")))
+            }
+        }
     }
 
     /// The parameters as a JSON object (sorted keys; a repeated key keeps its last value),
@@ -70,6 +52,157 @@ impl Params {
         Ok((k.trim().to_string(), v))
     }
 }
+
+/// A parameter's type: how a `--param` number becomes it (every value on the command line
+/// is a number; `solver=verlet` is turned into its number by [`Params::parse_one`]).
+pub trait Param: Sized {
+    fn read(v: f64) -> Result<Self, String>;
+}
+
+impl Param for f64 {
+    fn read(v: f64) -> Result<f64, String> {
+        Ok(v)
+    }
+}
+
+/// A count or an index: a whole number ≥ 0 (ranges are the builder's to check).
+impl Param for u32 {
+    fn read(v: f64) -> Result<u32, String> {
+        if v.fract() == 0.0 && (0.0..=u32::MAX as f64).contains(&v) {
+            Ok(v as u32)
+        } else {
+            Err("must be a whole number ≥ 0".into())
+        }
+    }
+}
+
+/// A switch: 0 off, 1 on.
+impl Param for bool {
+    fn read(v: f64) -> Result<bool, String> {
+        match v {
+            0.0 => Ok(false),
+            1.0 => Ok(true),
+            _ => Err("must be 0 (off) or 1 (on)".into()),
+        }
+    }
+}
+
+impl Param for super::model::Solver {
+    fn read(v: f64) -> Result<Self, String> {
+        super::model::Solver::numbered(v).map_err(|e| e.to_string())
+    }
+}
+
+/// A value with no fixed default (the scenario's own, or "leave as built").
+impl<T: Param> Param for Option<T> {
+    fn read(v: f64) -> Result<Option<T>, String> {
+        T::read(v).map(Some)
+    }
+}
+
+/// A group of parameters as a typed struct: each field a key (its name), its type and its
+/// default; `KEYS` lists them and `read` takes them from [`Params`] once.
+macro_rules! scenario_params {
+    ($(#[$m:meta])* pub struct $name:ident {
+        $($(#[$fm:meta])* $field:ident : $ty:ty = $default:expr,)*
+    }) => {
+        $(#[$m])*
+        #[derive(Debug, Clone, PartialEq)]
+        pub struct $name {
+            $($(#[$fm])* pub $field: $ty,)*
+        }
+
+        impl $name {
+            /// The keys, as `--param` names them.
+            pub const KEYS: &'static [&'static str] = &[$(stringify!($field)),*];
+
+            /// The keys read from the given parameters, each its default where not given.
+            #[allow(unused_variables)]
+            pub fn read(
+                p: &$crate::sim::params::Params,
+            ) -> Result<Self, $crate::sim::SimError> {
+                Ok($name {
+                    $($field: p.take(stringify!($field), $default)?,)*
+                })
+            }
+        }
+    };
+}
+pub(crate) use scenario_params;
+
+/// A scenario in a registry: its name, the groups of keys it takes, and its builder `F`, which
+/// reads those groups (the registry says what it is handed besides).
+pub struct Scenario<F> {
+    pub name: &'static str,
+    pub keys: &'static [&'static [&'static str]],
+    pub build: F,
+}
+
+impl<F> Scenario<F> {
+    pub const fn new(
+        name: &'static str,
+        keys: &'static [&'static [&'static str]],
+        build: F,
+    ) -> Scenario<F> {
+        Scenario { name, keys, build }
+    }
+
+    /// Refuse, by name, a key given that neither this scenario nor `shared` takes (a typo
+    /// never runs the default), before anything is built.
+    pub fn check(&self, p: &Params, shared: &'static [&'static str]) -> Result<(), SimError> {
+        let groups: Vec<&[&str]> = self.keys.iter().copied().chain([shared]).collect();
+        takes_only(self.name, p, &groups)
+    }
+}
+
+/// Refuse, by name, a key given that none of `groups` holds, saying what `name` reads.
+pub fn takes_only(name: &str, p: &Params, groups: &[&[&str]]) -> Result<(), SimError> {
+    let takes = |k: &str| groups.iter().any(|g| g.contains(&k));
+    let mut unknown: Vec<&str> = Vec::new();
+    for k in p.0.iter().map(|(k, _)| k.as_str()).filter(|k| !takes(k)) {
+        if !unknown.contains(&k) {
+            unknown.push(k);
+        }
+    }
+    if unknown.is_empty() {
+        return Ok(());
+    }
+    let mut known: Vec<&str> = groups.iter().flat_map(|g| g.iter().copied()).collect();
+    known.sort_unstable();
+    known.dedup();
+    Err(SimError::Model(format!(
+        "scenario {name:?} has no parameter {}; it reads {}",
+        unknown.join(", "),
+        known.join(", ")
+    )))
+}
+
+scenario_params! {
+    /// What every mass/spring scenario takes besides its own keys, applied to the structure
+    /// it built: the solver (its number or name), the step and damping (each scenario has
+    /// its own defaults), relaxation iterations, the acoustic grid off (`grid=0`) or refined
+    /// (`grid_um`), and the material's variation (Table 4.1 gives ranges) or another material
+    /// (`sim::material`): Young's modulus, thickness, width and density scaled, Poisson's
+    /// ratio set.
+    pub struct Common {
+        solver: Option<super::model::Solver> = None,
+        dt: Option<f64> = None,
+        damping: Option<f64> = None,
+        iterations: Option<u32> = None,
+        grid: bool = true,
+        grid_um: Option<f64> = None,
+        e_scale: f64 = 1.0,
+        t_scale: f64 = 1.0,
+        w_scale: f64 = 1.0,
+        rho_scale: f64 = 1.0,
+        nu: Option<f64> = None,
+    }
+}
+
+/// A mass/spring scenario's builder: handed the given parameters (it reads its own keys
+/// from them) and the [`Common`] keys, read once by `scenario::build`, which applies them
+/// to what it built.
+pub type Builder = fn(&Params, &Common) -> Result<super::model::ModelFile, SimError>;
 
 /// The most runs one `--sweep` may ask for.
 pub const MAX_SWEEP_VALUES: usize = 10_000;
@@ -174,30 +307,4 @@ pub fn sweep_grid(sweeps: &[Sweep]) -> Vec<Vec<(String, f64)>> {
             .collect();
     }
     runs
-}
-
-/// Run `f` and refuse, by name, a parameter it never asked for (a typo never runs the
-/// default).
-pub(super) fn asked_only<T>(
-    name: &str,
-    p: &Params,
-    f: impl FnOnce(&Params) -> Result<T, SimError>,
-) -> Result<T, SimError> {
-    ASKED.with(|a| *a.borrow_mut() = Some(Default::default()));
-    let built = f(p);
-    let asked = ASKED.with(|a| a.borrow_mut().take()).unwrap_or_default();
-    let m = built?;
-    let unknown: Vec<&str> =
-        p.0.iter()
-            .map(|(k, _)| k.as_str())
-            .filter(|k| !asked.contains(*k))
-            .collect();
-    if !unknown.is_empty() {
-        return Err(SimError::Model(format!(
-            "scenario {name:?} has no parameter {}; it reads {}",
-            unknown.join(", "),
-            asked.into_iter().collect::<Vec<_>>().join(", ")
-        )));
-    }
-    Ok(m)
 }

@@ -139,15 +139,12 @@ impl ReferenceFile {
             message: e.message().to_string(),
         })?;
         for g in &f.reference.scenario {
-            let known =
-                |n: &str| scenario::NAMES.contains(&n) || super::network3d::NAMES.contains(&n);
-            if !known(&g.name) {
+            if !scenario::model_names().any(|k| k == g.name) {
                 return Err(SimError::Model(format!(
-                    "{}: unknown scenario {:?}; known: {}, {}",
+                    "{}: unknown scenario {:?}; known: {}",
                     path.display(),
                     g.name,
-                    scenario::NAMES.join(", "),
-                    super::network3d::NAMES.join(", ")
+                    scenario::model_names().collect::<Vec<_>>().join(", ")
                 )));
             }
         }

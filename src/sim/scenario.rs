@@ -2,29 +2,115 @@
 //! and its two damage structures (Fig. 4.8, Fig. 4.19), built with the material of Table 4.1.
 
 use super::model::*;
-use super::paper::{damaged_mesh, mesh3x3, structure2x1};
-use super::params::asked_only;
+use super::paper::{damaged_mesh, mesh3x3, structure2x1, DamagedMesh, Mesh, Split, Structure};
+pub use super::params::Common;
 pub use super::params::{check_sweeps, parse_sweep, sweep_grid, Params, Sweep, MAX_SWEEP_VALUES};
+use super::params::{scenario_params, Builder, Scenario};
 pub use super::parts::{eq, paper_grid, FIBRE_E, FIBRE_NU, FIBRE_RHO, FIBRE_T, FIBRE_W};
 use super::parts::{node, spring, st, system};
 use super::SimError;
 
-/// Scenario names, for the CLI and errors.
-pub const NAMES: &[&str] = &[
-    "sho",
-    "five-mass-fibre",
-    "fibre-single-constraint",
-    "fibre-multiple-constraints",
-    "two-fibres",
-    "rubber-band",
-    "paper-fibre",
-    "mesh3x3-bond-failure",
-    "mesh3x3-damaged-bond-failure",
-    "structure2x1-fibre-failure",
+scenario_params! {
+    /// [`sho`]'s keys: the moving mass (kg) and how far it is lifted (m).
+    pub struct Sho {
+        mass: f64 = 0.2,
+        amplitude: f64 = 0.1,
+    }
+}
+
+scenario_params! {
+    /// The chapter-3 fibres' lift (m): [`five_mass`]'s centre, [`single_constraint`]'s mass.
+    pub struct Lift {
+        amplitude: f64 = 0.1,
+    }
+}
+
+scenario_params! {
+    /// [`two_fibres`]' keys: the initial conditions (1, 2 or 3), the stretch of the ends (m)
+    /// and the bond's lift (m).
+    pub struct TwoFibres {
+        ic: f64 = 1.0,
+        stretch: f64 = 0.1,
+        amplitude: f64 = 0.03,
+    }
+}
+
+scenario_params! {
+    /// [`rubber_band`]'s pluck (m at the centre).
+    pub struct RubberBand {
+        amplitude: f64 = 0.010,
+    }
+}
+
+scenario_params! {
+    /// [`paper_fibre`]'s keys: its length (m), node mass (kg), stretch (strain) and lift (m).
+    pub struct PaperFibre {
+        length: f64 = 1e-3,
+        mass: f64 = 5.1e-12,
+        stretch: f64 = 0.01,
+        amplitude: f64 = 1e-5,
+    }
+}
+
+/// The plane scenarios: the thesis's test cases and damage structures.
+const PLANE: &[Scenario<Builder>] = &[
+    Scenario::new("sho", &[Sho::KEYS], sho),
+    Scenario::new("five-mass-fibre", &[Lift::KEYS], five_mass),
+    Scenario::new("fibre-single-constraint", &[Lift::KEYS], single_constraint),
+    Scenario::new(
+        "fibre-multiple-constraints",
+        &[Lift::KEYS],
+        multiple_constraints,
+    ),
+    Scenario::new("two-fibres", &[TwoFibres::KEYS], two_fibres),
+    Scenario::new("rubber-band", &[RubberBand::KEYS], rubber_band),
+    Scenario::new("paper-fibre", &[PaperFibre::KEYS], paper_fibre),
+    Scenario::new("mesh3x3-bond-failure", &[Mesh::KEYS], mesh3x3),
+    Scenario::new(
+        "mesh3x3-damaged-bond-failure",
+        &[DamagedMesh::KEYS],
+        damaged_mesh,
+    ),
+    Scenario::new(
+        "structure2x1-fibre-failure",
+        &[Structure::KEYS, Split::KEYS],
+        structure2x1,
+    ),
 ];
 
-/// Build a scenario by name. `params` overrides its defaults; the keys each one reads are
-/// listed in the README.
+/// Every mass/spring scenario: the plane ones, then the 3-D ones.
+fn registry() -> impl Iterator<Item = &'static Scenario<Builder>> {
+    PLANE.iter().chain(super::network3d::SCENARIOS)
+}
+
+/// Every mass/spring scenario's name (what a reference library may run).
+pub fn model_names() -> impl Iterator<Item = &'static str> {
+    registry().map(|s| s.name)
+}
+
+/// Every scenario's name, for the CLI and errors (the stiff string's last).
+pub fn names() -> impl Iterator<Item = &'static str> {
+    model_names().chain([super::string::NAME])
+}
+
+/// The keys a scenario takes (its own, then the [`Common`] ones; the stiff string's own),
+/// `None` for a name that is not a scenario.
+pub fn keys(name: &str) -> Option<Vec<&'static str>> {
+    if name == super::string::NAME {
+        return Some(super::string::StringParams::KEYS.to_vec());
+    }
+    let s = registry().find(|s| s.name == name)?;
+    Some(
+        s.keys
+            .iter()
+            .flat_map(|g| g.iter().copied())
+            .chain(Common::KEYS.iter().copied())
+            .collect(),
+    )
+}
+
+/// Build a scenario by name. `params` overrides its defaults; a key it does not take is
+/// refused by name before anything is built ([`keys`] lists them; so does the README).
 pub fn build(name: &str, p: &Params) -> Result<ModelFile, SimError> {
     if name == super::string::NAME {
         return Err(SimError::Model(format!(
@@ -32,7 +118,18 @@ pub fn build(name: &str, p: &Params) -> Result<ModelFile, SimError> {
              {name}` runs it"
         )));
     }
-    asked_only(name, p, |p| build_asked(name, p))
+    let Some(s) = registry().find(|s| s.name == name) else {
+        return Err(SimError::Model(format!(
+            "unknown scenario {name:?}; known: {}",
+            names().collect::<Vec<_>>().join(", ")
+        )));
+    };
+    s.check(p, Common::KEYS)?;
+    let common = Common::read(p)?;
+    let mut m = (s.build)(p, &common)?;
+    common.apply(name, &mut m)?;
+    m.check()?;
+    Ok(m)
 }
 
 /// The stiff string of §6.2 from its parameters ([`super::string::StiffString::from_params`]).
@@ -40,89 +137,55 @@ pub fn build_string(p: &Params) -> Result<super::string::StiffString, SimError> 
     super::string::StiffString::from_params(p)
 }
 
-fn build_asked(name: &str, p: &Params) -> Result<ModelFile, SimError> {
-    let solver = if p.has("solver") {
-        Some(Solver::numbered(p.get("solver", 0.0))?)
-    } else {
-        None
-    };
-    let mut m = match name {
-        "sho" => sho(p),
-        "five-mass-fibre" => five_mass(p),
-        "fibre-single-constraint" => single_constraint(p),
-        "fibre-multiple-constraints" => multiple_constraints(p),
-        "two-fibres" => two_fibres(p)?,
-        "rubber-band" => rubber_band(p),
-        "paper-fibre" => paper_fibre(p),
-        "mesh3x3-bond-failure" => mesh3x3(p),
-        "mesh3x3-damaged-bond-failure" => damaged_mesh(p)?,
-        "structure2x1-fibre-failure" => structure2x1(p)?,
-        _ => match super::network3d::build(name, p) {
-            Some(m) => m?,
-            None => {
+impl Common {
+    /// Apply the keys given to the structure `name` built.
+    fn apply(&self, name: &str, m: &mut ModelFile) -> Result<(), SimError> {
+        if let Some(s) = self.solver {
+            m.system.solver = s;
+        }
+        if let Some(dt) = self.dt {
+            m.system.dt = dt;
+        }
+        if let Some(b) = self.damping {
+            m.system.damping = b;
+        }
+        if let Some(n) = self.iterations {
+            m.system.iterations = n as usize;
+        }
+        if !self.grid {
+            m.grid = None;
+            m.sensors.clear();
+        }
+        if let Some(um) = self.grid_um {
+            refine(m, um * 1e-6)?;
+        }
+        // Masses follow thickness × width × density.
+        let (es, ts, ws, rs) = (self.e_scale, self.t_scale, self.w_scale, self.rho_scale);
+        if (es, ts, ws, rs) != (1.0, 1.0, 1.0, 1.0) {
+            if !(es > 0.0 && ts > 0.0 && ws > 0.0 && rs > 0.0) {
                 return Err(SimError::Model(format!(
-                    "unknown scenario {name:?}; known: {}, {}, {}",
-                    NAMES.join(", "),
-                    super::network3d::NAMES.join(", "),
-                    super::string::NAME
-                )))
+                    "{name}: e_scale, t_scale, w_scale and rho_scale must be > 0"
+                )));
             }
-        },
-    };
-    if let Some(s) = solver {
-        m.system.solver = s;
-    }
-    if p.has("dt") {
-        m.system.dt = p.get("dt", m.system.dt);
-    }
-    if p.has("damping") {
-        m.system.damping = p.get("damping", m.system.damping);
-    }
-    if p.has("iterations") {
-        m.system.iterations = p.get("iterations", 0.0) as usize;
-    }
-    if p.get("grid", 1.0) == 0.0 {
-        m.grid = None;
-        m.sensors.clear();
-    }
-    if p.has("grid_um") {
-        refine(&mut m, p.get("grid_um", 0.0) * 1e-6)?;
-    }
-    // Material variation (Table 4.1 gives ranges) and other materials
-    // (`sim::material`): Young's modulus, thickness and width scaled; masses follow
-    // thickness × width × density; Poisson's ratio set.
-    let (es, ts, ws, rs) = (
-        p.get("e_scale", 1.0),
-        p.get("t_scale", 1.0),
-        p.get("w_scale", 1.0),
-        p.get("rho_scale", 1.0),
-    );
-    if (es, ts, ws, rs) != (1.0, 1.0, 1.0, 1.0) {
-        if !(es > 0.0 && ts > 0.0 && ws > 0.0 && rs > 0.0) {
-            return Err(SimError::Model(format!(
-                "{name}: e_scale, t_scale, w_scale and rho_scale must be > 0"
-            )));
+            for s in &mut m.springs {
+                s.e *= es;
+                s.t *= ts;
+                s.w *= ws;
+            }
+            for n in &mut m.nodes {
+                n.mass *= ts * ws * rs;
+            }
         }
-        for s in &mut m.springs {
-            s.e *= es;
-            s.t *= ts;
-            s.w *= ws;
+        if let Some(nu) = self.nu {
+            if !(0.0..0.5).contains(&nu) {
+                return Err(SimError::Model(format!("{name}: nu must be in [0, 0.5)")));
+            }
+            for s in &mut m.springs {
+                s.poisson = nu;
+            }
         }
-        for n in &mut m.nodes {
-            n.mass *= ts * ws * rs;
-        }
+        Ok(())
     }
-    if p.has("nu") {
-        let nu = p.get("nu", 0.0);
-        if !(0.0..0.5).contains(&nu) {
-            return Err(SimError::Model(format!("{name}: nu must be in [0, 0.5)")));
-        }
-        for s in &mut m.springs {
-            s.poisson = nu;
-        }
-    }
-    m.check()?;
-    Ok(m)
 }
 
 /// `grid_um`: the scenario's acoustic grid at cell size `h` (m) over the same extent, its
@@ -215,17 +278,18 @@ fn chain(
 /// Table 3.1: one 0.2 kg mass between two fixed masses 0.55 m away on springs of rest length
 /// 0.25 m (k = 1 N/m), lifted 0.1 m. With `grid=1` (default) it radiates into a 20 m × 20 m
 /// air-less test domain (c = 1 m/s, Section 3.3.6) for Fig. 3.29/3.30.
-fn sho(p: &Params) -> ModelFile {
+fn sho(p: &Params, c: &Common) -> Result<ModelFile, SimError> {
+    let s = Sho::read(p)?;
     let (mut nodes, springs) = chain(3, -0.55, 0.55, 0.2, 1.0, 0.25, 1.0, 0.25, 0.0);
-    nodes[1].mass = p.get("mass", 0.2);
-    let dt = p.get("dt", 0.01);
-    ModelFile {
+    nodes[1].mass = s.mass;
+    let dt = c.dt.unwrap_or(0.01);
+    Ok(ModelFile {
         name: "sho".into(),
         label: Some("sho".into()),
         system: system(dt, 0.0, 10_000),
         nodes,
         springs,
-        initial: vec![eq(1, 0.0, p.get("amplitude", 0.1))],
+        initial: vec![eq(1, 0.0, s.amplitude)],
         forces: vec![],
         damage: vec![],
         grid: Some(test_grid(dt * 10.0)),
@@ -234,7 +298,7 @@ fn sho(p: &Params) -> ModelFile {
             j: 60,
             k: None,
         }],
-    }
+    })
 }
 
 /// The acoustic test grid of Section 3.3.6: −10…10 m, Δh = 0.2 m, c = 1 m/s, ρ = 1 kg/m³.
@@ -256,13 +320,13 @@ pub fn test_grid(dt: f64) -> GridSpec {
 }
 
 /// Table 3.3: five masses, the three inner ones lifted 0.05, 0.1, 0.05 m.
-fn five_mass(p: &Params) -> ModelFile {
+fn five_mass(p: &Params, c: &Common) -> Result<ModelFile, SimError> {
     let (nodes, springs) = chain(5, -0.55, 0.55, 0.2, 1.0, 0.25, 1.0, 0.25, 0.0);
-    let a = p.get("amplitude", 0.1);
-    ModelFile {
+    let a = Lift::read(p)?.amplitude;
+    Ok(ModelFile {
         name: "five-mass-fibre".into(),
         label: None,
-        system: system(p.get("dt", 0.01), 0.0, 10_000),
+        system: system(c.dt.unwrap_or(0.01), 0.0, 10_000),
         nodes,
         springs,
         initial: vec![eq(1, 0.0, 0.5 * a), eq(2, 0.0, a), eq(3, 0.0, 0.5 * a)],
@@ -270,36 +334,36 @@ fn five_mass(p: &Params) -> ModelFile {
         damage: vec![],
         grid: None,
         sensors: vec![],
-    }
+    })
 }
 
 /// Table 3.5: 21 masses (1/21 kg) from −0.5 to 0.6 m, rest length 0.05 m, only the central
 /// mass lifted 0.1 m: the relaxation (Alg. 7) shapes the rest of the fibre.
-fn single_constraint(p: &Params) -> ModelFile {
+fn single_constraint(p: &Params, c: &Common) -> Result<ModelFile, SimError> {
     let (nodes, springs) = chain(21, -0.5, 0.6, 1.0 / 21.0, 1.0, 0.05, 1.0, 0.25, 0.0);
-    ModelFile {
+    Ok(ModelFile {
         name: "fibre-single-constraint".into(),
         label: None,
-        system: system(p.get("dt", 0.01), 0.0, 2_000),
+        system: system(c.dt.unwrap_or(0.01), 0.0, 2_000),
         nodes,
         springs,
-        initial: vec![eq(10, 0.0, p.get("amplitude", 0.1))],
+        initial: vec![eq(10, 0.0, Lift::read(p)?.amplitude)],
         forces: vec![],
         damage: vec![],
         grid: None,
         sensors: vec![],
-    }
+    })
 }
 
 /// Table 3.6: the fibre of Table 3.5 with two more constraints — masses 9 and 11 held where
 /// they are while mass 10 is lifted and the rest relaxes (Fig. 3.8a), all three let go at
 /// t = 0: a kink that excites the fibre's high modes (Figs. 3.8–3.9).
-fn multiple_constraints(p: &Params) -> ModelFile {
-    let mut m = single_constraint(p);
+fn multiple_constraints(p: &Params, c: &Common) -> Result<ModelFile, SimError> {
+    let mut m = single_constraint(p, c)?;
     m.name = "fibre-multiple-constraints".into();
     m.initial.push(eq(9, 0.0, 0.0));
     m.initial.push(eq(11, 0.0, 0.0));
-    m
+    Ok(m)
 }
 
 /// Figs. 3.11–3.13: two fibres of Table 3.5's material (21 masses, 1 m at rest) crossing at
@@ -307,14 +371,17 @@ fn multiple_constraints(p: &Params) -> ModelFile {
 /// by `stretch` (StICs); 1 (Fig. 3.11): and the bond lifted by `amplitude` (an EqIC); 2
 /// (Fig. 3.12): and the horizontal fibre's quarter points lifted by half that too. Alg. 7
 /// relaxes the rest; the motion after t = 0 is the release.
-fn two_fibres(p: &Params) -> Result<ModelFile, SimError> {
-    let ic = p.get("ic", 1.0);
+fn two_fibres(p: &Params, c: &Common) -> Result<ModelFile, SimError> {
+    let TwoFibres {
+        ic,
+        stretch,
+        amplitude: amp,
+    } = TwoFibres::read(p)?;
     if ![1.0, 2.0, 3.0].contains(&ic) {
         return Err(SimError::Model(format!(
             "two-fibres: ic must be 1 (a single displacement), 2 (several) or 3 (stretching only), got {ic}"
         )));
     }
-    let (stretch, amp) = (p.get("stretch", 0.1), p.get("amplitude", 0.03));
     let m = 1.0 / 21.0;
     let (mut nodes, mut springs) = chain(21, -0.5, 0.5, m, 1.0, 0.05, 1.0, 0.25, 0.0);
     // The vertical fibre: its own 20 masses, its centre the horizontal fibre's (node 10).
@@ -349,7 +416,7 @@ fn two_fibres(p: &Params) -> Result<ModelFile, SimError> {
     Ok(ModelFile {
         name: "two-fibres".into(),
         label: None,
-        system: system(p.get("dt", 0.01), 0.0, 2_000),
+        system: system(c.dt.unwrap_or(0.01), 0.0, 2_000),
         nodes,
         springs,
         initial,
@@ -362,18 +429,18 @@ fn two_fibres(p: &Params) -> Result<ModelFile, SimError> {
 
 /// Table 3.7: a rubber band of 11 masses over ±76 mm, plucked 10 mm at the centre
 /// (triangle), damping 7e-4 kg/s.
-fn rubber_band(p: &Params) -> ModelFile {
+fn rubber_band(p: &Params, c: &Common) -> Result<ModelFile, SimError> {
     let (nodes, springs) = chain(
         11, -0.076, 0.076, 1.96e-5, 8.63e5, 3.4e-3, 1e-3, 6e-3, 0.144,
     );
-    let a = p.get("amplitude", 0.010);
+    let a = RubberBand::read(p)?.amplitude;
     let initial = (1..10)
         .map(|i| eq(i, 0.0, a * (5.0 - (i as f64 - 5.0).abs()) / 5.0))
         .collect();
-    ModelFile {
+    Ok(ModelFile {
         name: "rubber-band".into(),
         label: Some("rubber_band".into()),
-        system: system(p.get("dt", 2e-5), p.get("damping", 7e-4), 5_000),
+        system: system(c.dt.unwrap_or(2e-5), c.damping.unwrap_or(7e-4), 5_000),
         nodes,
         springs,
         initial,
@@ -381,30 +448,33 @@ fn rubber_band(p: &Params) -> ModelFile {
         damage: vec![],
         grid: None,
         sensors: vec![],
-    }
+    })
 }
 
 /// Appendix A / Table 3.8: a 1 mm paper fibre of 29 masses, stretched 1 % by StICs on its
 /// end masses (±5 µm), plucked in its fundamental mode shape (10 µm at the centre), implicit
 /// Euler at 10 ns, b = 1.5e-6 kg/s, 40 µs. Rest lengths are the node spacing (the file's
 /// 3.6e-5 m is that spacing rounded); node masses 5.1e-12 kg as in the file.
-fn paper_fibre(p: &Params) -> ModelFile {
+fn paper_fibre(p: &Params, c: &Common) -> Result<ModelFile, SimError> {
+    let PaperFibre {
+        length: len,
+        mass,
+        stretch,
+        amplitude: amp,
+    } = PaperFibre::read(p)?;
     let n = 29;
-    let len = p.get("length", 1e-3);
     let a = len / (n - 1) as f64;
     let (nodes, springs) = chain(
         n,
         -len / 2.0,
         len / 2.0,
-        p.get("mass", 5.1e-12),
+        mass,
         FIBRE_E,
         a,
         FIBRE_T,
         FIBRE_W,
         FIBRE_NU,
     );
-    let stretch = p.get("stretch", 0.01);
-    let amp = p.get("amplitude", 1e-5);
     let mut initial = vec![
         st(0, -stretch * len / 2.0, 0.0),
         st(n - 1, stretch * len / 2.0, 0.0),
@@ -418,10 +488,10 @@ fn paper_fibre(p: &Params) -> ModelFile {
         let x = -len / 2.0 + len * i as f64 / (n - 1) as f64;
         initial.push(eq(i, stretch * x, amp * s));
     }
-    ModelFile {
+    Ok(ModelFile {
         name: "paper-fibre".into(),
         label: Some("fibre_vibration".into()),
-        system: system(p.get("dt", 1e-8), p.get("damping", 1.5e-6), 4_000),
+        system: system(c.dt.unwrap_or(1e-8), c.damping.unwrap_or(1.5e-6), 4_000),
         nodes,
         springs,
         initial,
@@ -442,7 +512,7 @@ fn paper_fibre(p: &Params) -> ModelFile {
         .iter()
         .map(|&(i, j)| SensorSpec { i, j, k: None })
         .collect(),
-    }
+    })
 }
 
 #[cfg(test)]
@@ -528,7 +598,106 @@ mod tests {
         // A key one scenario reads is still unknown to another.
         let e = build("sho", &p(&[("kink", 1.0)])).unwrap_err();
         assert!(e.to_string().contains("no parameter kink"), "{e}");
-        // The recorder is off outside build.
-        assert!(crate::sim::params::recorder_is_off());
+        // `split` is the plane structure's: the 3-D one refuses it.
+        let e = build("network3d-fibre-failure", &p(&[("split", 2.0)])).unwrap_err();
+        assert!(e.to_string().contains("no parameter split"), "{e}");
+        let e = build_string(&p(&[("kink", 1.0)])).unwrap_err();
+        assert!(e.to_string().contains("no parameter kink"), "{e}");
+    }
+
+    /// Each key is read as its type: a value the type refuses names the key, whatever
+    /// scenario reads it.
+    #[test]
+    fn a_value_of_the_wrong_kind_is_refused_naming_its_key() {
+        let p = |kv: &[(&str, f64)]| Params(kv.iter().map(|(k, v)| (k.to_string(), *v)).collect());
+        for (name, key, v) in [
+            ("sho", "grid", 2.0),
+            ("sho", "iterations", 1.5),
+            ("sho", "solver", 7.0),
+            ("paper-fibre", "iterations", -1.0),
+            ("structure2x1-fibre-failure", "point", 7.5),
+            ("structure2x1-fibre-failure", "split", 0.5),
+            ("mesh3x3-damaged-bond-failure", "bond", -1.0),
+            ("network3d-bond-failure", "cells", 125.5),
+        ] {
+            let e = build(name, &p(&[(key, v)])).unwrap_err().to_string();
+            assert!(
+                e.contains(key) && !e.contains("no parameter"),
+                "{name} {key}={v}: {e}"
+            );
+        }
+        let e = build_string(&p(&[("intervals", 2.5)]))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("intervals"), "{e}");
+        // The common keys reach what was built.
+        let m = build(
+            "paper-fibre",
+            &p(&[
+                ("grid", 0.0),
+                ("dt", 2e-8),
+                ("iterations", 7.0),
+                ("solver", 2.0),
+            ]),
+        )
+        .unwrap();
+        assert!(m.grid.is_none() && m.sensors.is_empty());
+        assert_eq!((m.system.dt, m.system.iterations), (2e-8, 7));
+        assert_eq!(m.system.solver, Solver::Verlet);
+    }
+
+    /// docs/simulator.md's scenario tables name every key each scenario takes and no other,
+    /// and its "every scenario also takes" sentence names the common ones.
+    #[test]
+    fn the_simulator_page_lists_each_scenarios_keys() {
+        let page = std::fs::read_to_string(
+            std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("docs/simulator.md"),
+        )
+        .unwrap();
+        let ticked = |text: &str| -> Vec<String> {
+            text.split('`')
+                .skip(1)
+                .step_by(2)
+                .map(|w| w.split('=').next().unwrap_or(w).to_string())
+                .collect()
+        };
+        for name in names() {
+            let head = format!("| `{name}` |");
+            let row = page
+                .lines()
+                .find(|l| l.starts_with(&head))
+                .unwrap_or_else(|| panic!("docs/simulator.md has no row for {name}"));
+            let said = ticked(row.rsplit('|').nth(1).unwrap());
+            let keys = keys(name).unwrap();
+            let own: Vec<&str> = keys
+                .iter()
+                .copied()
+                .filter(|k| name == super::super::string::NAME || !Common::KEYS.contains(k))
+                .collect();
+            for k in &own {
+                assert!(
+                    said.iter().any(|s| s == k),
+                    "{name}: the page does not name {k}"
+                );
+            }
+            for s in &said {
+                assert!(
+                    keys.contains(&s.as_str()),
+                    "{name}: the page names {s}, not a key"
+                );
+            }
+        }
+        let common = page
+            .split("Every scenario also takes")
+            .nth(1)
+            .and_then(|t| t.split("\n\n").next())
+            .expect("the common keys' sentence");
+        let said = ticked(common);
+        for k in Common::KEYS {
+            assert!(
+                said.iter().any(|s| s == k),
+                "the common sentence does not name {k}"
+            );
+        }
     }
 }

@@ -14,7 +14,7 @@
 //! Against the continuum: mode n rings at f_n = n·f_s·√(1 + B·n²), f_s = (1/2L)·√(τ/μ),
 //! B = π³Er⁴/(4τL²), damped to √(f_n² − (α/4π)²).
 
-use super::params::{asked_only, Params};
+use super::params::{scenario_params, takes_only, Params};
 use super::parts::{FIBRE_E, FIBRE_RHO, FIBRE_T, FIBRE_W};
 use super::{Frame, SimError};
 use std::f64::consts::PI;
@@ -60,6 +60,25 @@ pub struct StringRun {
 /// Modes whose coordinates a run keeps.
 pub const MODES: usize = 5;
 
+scenario_params! {
+    /// `fibre-stiff-string`'s keys: tension (N), length, radius (m), Young's modulus (Pa),
+    /// density (kg/m³), damping (1/s), duration (s), the pluck (m), the intervals of the
+    /// grid and the step (s; 0: half the stable step). The defaults are
+    /// [`StiffString::paper_fibre`]'s.
+    pub struct StringParams {
+        tension_n: f64 = StiffString::paper_fibre().tension_n,
+        length_m: f64 = StiffString::paper_fibre().length_m,
+        radius_m: f64 = StiffString::paper_fibre().radius_m,
+        youngs_pa: f64 = StiffString::paper_fibre().youngs_pa,
+        density_kg_m3: f64 = StiffString::paper_fibre().density_kg_m3,
+        damping: f64 = StiffString::paper_fibre().damping,
+        duration_s: f64 = StiffString::paper_fibre().duration_s,
+        amplitude_m: f64 = StiffString::paper_fibre().amplitude_m,
+        intervals: u32 = StiffString::paper_fibre().intervals as u32,
+        dt: f64 = 0.0,
+    }
+}
+
 impl StiffString {
     /// The paper fibre of Table 3.8 as a stiff string: 1 mm, the cross-section 2.8 × 35 µm as
     /// a circle of the same area, E 35 GPa, 1.5 g/cm³, stretched 1 % (τ = E·A·0.01).
@@ -79,33 +98,24 @@ impl StiffString {
         }
     }
 
-    /// The stiff string of §6.2 from its parameters (`fibre-stiff-string`): `tension_n`,
-    /// `length_m`, `radius_m`, `youngs_pa`, `density_kg_m3`, `damping` (1/s), `duration_s`,
-    /// `amplitude_m`, `intervals`, `dt` (0: half the stable step); the defaults are the paper
-    /// fibre of Table 3.8 as a string. A key it does not read is refused by name.
+    /// The stiff string of §6.2 from its parameters ([`StringParams`]); the defaults are
+    /// the paper fibre of Table 3.8 as a string. A key it does not take is refused by name.
     pub fn from_params(p: &Params) -> Result<StiffString, SimError> {
-        asked_only(NAME, p, |p| {
-            let d = StiffString::paper_fibre();
-            let intervals = p.get("intervals", d.intervals as f64);
-            if intervals.fract() != 0.0 || intervals < 0.0 {
-                return Err(SimError::Model(format!(
-                    "{NAME}: intervals must be a whole number, got {intervals}"
-                )));
-            }
-            StiffString {
-                tension_n: p.get("tension_n", d.tension_n),
-                length_m: p.get("length_m", d.length_m),
-                radius_m: p.get("radius_m", d.radius_m),
-                youngs_pa: p.get("youngs_pa", d.youngs_pa),
-                density_kg_m3: p.get("density_kg_m3", d.density_kg_m3),
-                damping: p.get("damping", d.damping),
-                duration_s: p.get("duration_s", d.duration_s),
-                amplitude_m: p.get("amplitude_m", d.amplitude_m),
-                intervals: intervals as usize,
-                dt: p.get("dt", 0.0),
-            }
-            .checked()
-        })
+        takes_only(NAME, p, &[StringParams::KEYS])?;
+        let s = StringParams::read(p)?;
+        StiffString {
+            tension_n: s.tension_n,
+            length_m: s.length_m,
+            radius_m: s.radius_m,
+            youngs_pa: s.youngs_pa,
+            density_kg_m3: s.density_kg_m3,
+            damping: s.damping,
+            duration_s: s.duration_s,
+            amplitude_m: s.amplitude_m,
+            intervals: s.intervals as usize,
+            dt: s.dt,
+        }
+        .checked()
     }
 
     /// Check the values and fix the step (`dt` 0: half the stable limit).

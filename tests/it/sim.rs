@@ -620,9 +620,13 @@ fn reference_library_runs_the_grid_with_varied_material() {
     let runs = expand(&f.reference);
     assert_eq!(runs.len(), 4);
     for (_, p, _) in &runs {
-        for k in ["e_scale", "t_scale", "w_scale"] {
-            let v = p.get(k, 0.0);
-            assert!((0.9..=1.1).contains(&v), "{k} = {v}");
+        let c = aepipe::sim::params::Common::read(p).unwrap();
+        for (k, v) in [
+            ("e_scale", c.e_scale),
+            ("t_scale", c.t_scale),
+            ("w_scale", c.w_scale),
+        ] {
+            assert!((0.9..=1.1).contains(&v) && v != 1.0, "{k} = {v}");
         }
     }
     let (n, signals, _) = build_library(&f.reference, &d.path().join("lib"), false).unwrap();
