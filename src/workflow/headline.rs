@@ -247,6 +247,53 @@ pub fn summary_json(s: &RunSummary) -> serde_json::Value {
     let path = |p: &Path| p.display().to_string();
     let existing = |p: PathBuf| p.is_file().then(|| path(&p));
     let st = &s.features.stats;
+    let tables = tables_json(s, &dir);
+    let trend = s.trend.as_ref().map(|t| {
+        t.significant
+            .iter()
+            .map(|r| {
+                json!({
+                    "experiment": r.experiment, "channel": r.channel, "column": r.column,
+                    "n": r.n, "cutoff": r.cutoff,
+                    "r": r.fit.map(|f| f.r), "p": r.fit.map(|f| f.p),
+                    "slope": r.fit.map(|f| f.slope), "intercept": r.fit.map(|f| f.intercept),
+                })
+            })
+            .collect::<Vec<_>>()
+    });
+    let som = s.som.as_ref().map(som_json);
+    let truth = s.truth.as_ref().map(truth_json);
+    let report = existing(dir.report_html());
+    json!({
+        "out": path(&s.out),
+        "report": report,
+        "run_json": existing(dir.run_json()),
+        "inputs": s.inputs.iter().map(|p| path(p)).collect::<Vec<_>>(),
+        "tables": tables,
+        "counts": {
+            "records_read": st.records_read, "hits": st.hits, "feature_rows": st.rows,
+            "rejects": st.rejects, "parametric": st.parametric, "markers": st.markers,
+        },
+        "trend_significant": trend,
+        "som": som,
+        "truth": truth,
+        "cluster": s.cluster.as_ref().map(|c| json!({
+            "k": c.report.k,
+            "method": c.report.validity.first().map(|v| v.method.as_str()),
+            "sizes": c.report.sizes,
+            "clusters": path(&c.report.clusters),
+            "validity": path(&c.report.validity_table),
+        })),
+        "seconds": s.seconds.iter().map(|(k, v)| (k.clone(), json!(v))).collect::<serde_json::Map<_, _>>(),
+        "peak_rss_bytes": s.peak_rss.iter().map(|(k, v)| (k.clone(), json!(v))).collect::<serde_json::Map<_, _>>(),
+        "headline": headline(s),
+    })
+}
+
+/// The run's tables that exist, by name, for `summary.json`.
+fn tables_json(s: &RunSummary, dir: &RunDir) -> serde_json::Map<String, serde_json::Value> {
+    let path = |p: &Path| p.display().to_string();
+    let existing = |p: PathBuf| p.is_file().then(|| path(&p));
     let mut tables = serde_json::Map::new();
     let f = &s.features;
     for (name, p) in [
@@ -274,81 +321,53 @@ pub fn summary_json(s: &RunSummary) -> serde_json::Value {
             tables.insert("cycles".into(), p.into());
         }
     }
-    let trend = s.trend.as_ref().map(|t| {
-        t.significant
-            .iter()
-            .map(|r| {
-                json!({
-                    "experiment": r.experiment, "channel": r.channel, "column": r.column,
-                    "n": r.n, "cutoff": r.cutoff,
-                    "r": r.fit.map(|f| f.r), "p": r.fit.map(|f| f.p),
-                    "slope": r.fit.map(|f| f.slope), "intercept": r.fit.map(|f| f.intercept),
-                })
-            })
-            .collect::<Vec<_>>()
-    });
-    let som = s.som.as_ref().map(|m| {
-        json!({
-            "model": path(&m.model_dir),
-            "trained_on": m.trained_on,
-            "training_rows": m.training_rows,
-            "classes": m.classes,
-            "agreement_with_criteria": {"correct": m.confusion.correct, "total": m.confusion.total},
-            "reading": m.confusion.reading.describe(),
-            "novelty": {
-                "threshold": m.confusion.novelty.threshold,
-                "quantile": m.confusion.novelty.quantile,
-                "calibrated_on": m.confusion.novelty.calibrated_on,
-                "per_experiment": m.confusion.novelty.per_experiment.iter()
-                    .map(|(e, (n, t))| (e.clone(), json!({"novel": n, "classified": t})))
-                    .collect::<serde_json::Map<_, _>>(),
-                "undescribed": m.confusion.novelty.undescribed(),
-            },
-            "reloads": m.reloads.iter().filter(|r| r.kaiser.is_some()).map(|r| json!({
-                "experiment": r.experiment, "cycle": r.cycle.index,
-                "previous_max_n": r.cycle.previous_max_n, "onset_load_n": r.onset_load_n,
-                "felicity_ratio": r.felicity_ratio, "kaiser": r.kaiser,
-            })).collect::<Vec<_>>(),
-        })
-    });
-    let truth = s.truth.as_ref().map(|t| {
-        let (ek, en) = t.erroneous_recall();
-        let (ok, all) = t.thesis_overall();
-        json!({
-            "path": path(&t.path),
-            "bond_vs_fibre": {"correct": t.bond_fibre_correct, "total": t.bond_fibre_total},
-            "erroneous_recognised": {"correct": ek, "total": en, "called_erroneous": t.erroneous_called(), "novel": ek - t.erroneous_called()},
-            "thesis_overall": {"correct": ok, "total": all},
-            "recall": Mechanism::ALL.iter().filter_map(|&m| {
-                let (k, n) = t.recall(m);
-                (n > 0).then(|| (m.as_str().to_string(), json!({"correct": k, "total": n})))
-            }).collect::<serde_json::Map<_, _>>(),
-            "balanced_accuracy": t.balanced_accuracy(),
-        })
-    });
-    let report = existing(dir.report_html());
+    tables
+}
+
+/// The SOM stage for `summary.json`: the map, its classes, its agreement with the criteria,
+/// novelty and the reloads' Felicity ratios.
+fn som_json(m: &SomStage) -> serde_json::Value {
+    use serde_json::json;
+    let path = |p: &Path| p.display().to_string();
     json!({
-        "out": path(&s.out),
-        "report": report,
-        "run_json": existing(dir.run_json()),
-        "inputs": s.inputs.iter().map(|p| path(p)).collect::<Vec<_>>(),
-        "tables": tables,
-        "counts": {
-            "records_read": st.records_read, "hits": st.hits, "feature_rows": st.rows,
-            "rejects": st.rejects, "parametric": st.parametric, "markers": st.markers,
+        "model": path(&m.model_dir),
+        "trained_on": m.trained_on,
+        "training_rows": m.training_rows,
+        "classes": m.classes,
+        "agreement_with_criteria": {"correct": m.confusion.correct, "total": m.confusion.total},
+        "reading": m.confusion.reading.describe(),
+        "novelty": {
+            "threshold": m.confusion.novelty.threshold,
+            "quantile": m.confusion.novelty.quantile,
+            "calibrated_on": m.confusion.novelty.calibrated_on,
+            "per_experiment": m.confusion.novelty.per_experiment.iter()
+                .map(|(e, (n, t))| (e.clone(), json!({"novel": n, "classified": t})))
+                .collect::<serde_json::Map<_, _>>(),
+            "undescribed": m.confusion.novelty.undescribed(),
         },
-        "trend_significant": trend,
-        "som": som,
-        "truth": truth,
-        "cluster": s.cluster.as_ref().map(|c| json!({
-            "k": c.report.k,
-            "method": c.report.validity.first().map(|v| v.method.as_str()),
-            "sizes": c.report.sizes,
-            "clusters": path(&c.report.clusters),
-            "validity": path(&c.report.validity_table),
-        })),
-        "seconds": s.seconds.iter().map(|(k, v)| (k.clone(), json!(v))).collect::<serde_json::Map<_, _>>(),
-        "peak_rss_bytes": s.peak_rss.iter().map(|(k, v)| (k.clone(), json!(v))).collect::<serde_json::Map<_, _>>(),
-        "headline": headline(s),
+        "reloads": m.reloads.iter().filter(|r| r.kaiser.is_some()).map(|r| json!({
+            "experiment": r.experiment, "cycle": r.cycle.index,
+            "previous_max_n": r.cycle.previous_max_n, "onset_load_n": r.onset_load_n,
+            "felicity_ratio": r.felicity_ratio, "kaiser": r.kaiser,
+        })).collect::<Vec<_>>(),
+    })
+}
+
+/// The truth table's counts for `summary.json`.
+fn truth_json(t: &TruthScore) -> serde_json::Value {
+    use serde_json::json;
+    let path = |p: &Path| p.display().to_string();
+    let (ek, en) = t.erroneous_recall();
+    let (ok, all) = t.thesis_overall();
+    json!({
+        "path": path(&t.path),
+        "bond_vs_fibre": {"correct": t.bond_fibre_correct, "total": t.bond_fibre_total},
+        "erroneous_recognised": {"correct": ek, "total": en, "called_erroneous": t.erroneous_called(), "novel": ek - t.erroneous_called()},
+        "thesis_overall": {"correct": ok, "total": all},
+        "recall": Mechanism::ALL.iter().filter_map(|&m| {
+            let (k, n) = t.recall(m);
+            (n > 0).then(|| (m.as_str().to_string(), json!({"correct": k, "total": n})))
+        }).collect::<serde_json::Map<_, _>>(),
+        "balanced_accuracy": t.balanced_accuracy(),
     })
 }
