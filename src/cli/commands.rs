@@ -136,16 +136,18 @@ fn thesis(a: ThesisArgs) -> Result<Outcome> {
     let entries = crate::thesis::select(&a.ids)?;
     println!("{}", print::thesis_header());
     let t0 = std::time::Instant::now();
-    let mut failed = 0;
+    let mut n = [0usize; 3];
     for e in &entries {
         let o = crate::thesis::run(e, &a.out)?;
-        failed += usize::from(!o.pass);
+        n[o.verdict as usize] += 1;
         println!("{}", print::thesis_line(&o));
     }
     println!(
-        "{} entries, {} within tolerance, in {:.1} s → {}",
+        "{} entries: {} agree, {} depart where the record expects, {} fail, in {:.1} s → {}",
         entries.len(),
-        entries.len() - failed,
+        n[0],
+        n[1],
+        n[2],
         t0.elapsed().as_secs_f64(),
         a.out.display()
     );

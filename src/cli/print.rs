@@ -379,13 +379,25 @@ pub fn thesis_line(o: &crate::thesis::Outcome) -> String {
         e.thesis,
         o.aepipe,
         o.deviation * 100.0,
-        e.tolerance * 100.0,
-        if o.pass { "agrees" } else { "DEPARTS" },
+        e.tolerance.rel * 100.0,
+        o.verdict.as_str(),
         e.compared
-    ) + &e
-        .caveat
-        .map(|c| format!("\n{:<10} but: {c}", ""))
-        .unwrap_or_default()
+    ) + &format!("\n{:<10} tolerance: {}", "", e.tolerance.source)
+        + &e.departs
+            .map(|d| {
+                format!(
+                    "\n{:<10} departure expected at {:.5} ± {:.0} %: {}; tolerance: {}",
+                    "",
+                    d.expected,
+                    d.tolerance.rel * 100.0,
+                    d.evidence,
+                    d.tolerance.source
+                )
+            })
+            .unwrap_or_default()
+        + &e.caveat
+            .map(|c| format!("\n{:<10} but: {c}", ""))
+            .unwrap_or_default()
 }
 
 /// Tables 3.2/3.4 as measured.

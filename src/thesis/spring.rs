@@ -47,7 +47,8 @@ pub fn simulated(l: f64) -> Result<f64, SimError> {
             length: Some(l),
             t: FIBRE_T,
             w: FIBRE_W,
-            // Poisson's ratio leaves the small-strain stiffness E·t·w/L of Eq. 4.6.1 as it is.
+            // Poisson's ratio thins the spring at the 1 % pull (frequency × (1 − ν·0.01),
+            // −0.28 %), which Eq. 4.6.1 omits: the entry's tolerance says so.
             poisson: FIBRE_NU,
             fibre: 0,
         }],

@@ -12,12 +12,59 @@ fn record() -> Vec<(String, String)> {
         .collect()
 }
 
+/// The cells of the rows of docs/thesis.md's table whose header starts with `header`.
+fn table(header: &str) -> Vec<Vec<String>> {
+    let text =
+        std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/docs/thesis.md")).unwrap();
+    text.lines()
+        .skip_while(|l| !l.starts_with(header))
+        .skip(2)
+        .take_while(|l| l.starts_with("| `"))
+        .map(|l| {
+            l.trim_start_matches("| ")
+                .trim_end_matches(" |")
+                .split(" | ")
+                .map(|c| c.trim().to_string())
+                .collect()
+        })
+        .collect()
+}
+
+/// Each entry's tolerance, its source and its expected departure as `src/thesis/mod.rs`
+/// declares them are the record's (its "Tolerances and expected departures" table), in
+/// the same order: the record says why each verdict's bound is what it is.
+#[test]
+fn the_record_states_each_tolerance_and_departure_the_code_uses() {
+    let rows = table("| entry | tolerance |");
+    let declared = aepipe::thesis::ENTRIES;
+    assert_eq!(rows.len(), declared.len(), "one row per entry");
+    let pct = |r: f64| format!("{}", (r * 100.0 * 1e6).round() / 1e6);
+    for (row, e) in rows.iter().zip(declared) {
+        assert_eq!(row[0], format!("`{}`", e.id));
+        assert_eq!(row[1], format!("±{} %", pct(e.tolerance.rel)), "{}", e.id);
+        assert_eq!(row[2], e.tolerance.source, "{}", e.id);
+        let want = match e.departs {
+            None => "—".to_string(),
+            Some(d) => format!(
+                "{} ± {} %: {} (±: {})",
+                d.expected,
+                pct(d.tolerance.rel),
+                d.evidence,
+                d.tolerance.source
+            ),
+        };
+        assert_eq!(row[3], want, "{}", e.id);
+    }
+}
+
 /// (entry, the value the record prints for aepipe, verdict) of each row of the table.
 fn record_rows() -> Vec<(String, String, String)> {
     let text =
         std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/docs/thesis.md")).unwrap();
     text.lines()
-        .filter(|l| l.starts_with("| `"))
+        .skip_while(|l| !l.starts_with("| entry | where |"))
+        .skip(2)
+        .take_while(|l| l.starts_with("| `"))
         .map(|l| {
             let cells: Vec<&str> = l.split(" | ").map(str::trim).collect();
             (
@@ -116,7 +163,7 @@ fn every_entry_runs_and_gives_the_verdict_the_record_states() {
     for e in aepipe::thesis::ENTRIES {
         let o = aepipe::thesis::run(e, t.path()).unwrap();
         let want = &rows.iter().find(|(id, _)| id == e.id).unwrap().1;
-        let got = if o.pass { "agrees" } else { "departs" };
+        let got = o.verdict.as_str();
         assert_eq!(
             got, want,
             "{}: aepipe {} against {}",
