@@ -137,9 +137,13 @@ fn thesis(a: ThesisArgs) -> Result<Outcome> {
     println!("{}", print::thesis_header());
     let t0 = std::time::Instant::now();
     let mut n = [0usize; 3];
+    let mut failing = None;
     for e in &entries {
         let o = crate::thesis::run(e, &a.out)?;
         n[o.verdict as usize] += 1;
+        if o.verdict == crate::thesis::Verdict::Fails {
+            failing.get_or_insert(e.id);
+        }
         println!("{}", print::thesis_line(&o));
     }
     println!(
@@ -151,6 +155,18 @@ fn thesis(a: ThesisArgs) -> Result<Outcome> {
         t0.elapsed().as_secs_f64(),
         a.out.display()
     );
+    // A value the record neither agrees with nor expects is a failed check (exit 3).
+    if let Some(id) = failing {
+        return Err(crate::thesis::ThesisError::Measure {
+            id,
+            message: format!(
+                "{} entr{} outside the thesis's tolerance and any departure the record expects",
+                n[2],
+                if n[2] == 1 { "y is" } else { "ies are" }
+            ),
+        }
+        .into());
+    }
     Ok(Outcome::Success)
 }
 

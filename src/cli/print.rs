@@ -373,7 +373,7 @@ pub fn thesis_header() -> String {
 pub fn thesis_line(o: &crate::thesis::Outcome) -> String {
     let e = &o.entry;
     format!(
-        "{:<10} {:<28} {:>12.5} {:>12.5} {:>+8.1}% {:>5.0}%  {:<7} {}",
+        "{:<10} {:<28} {:>12.5} {:>12.5} {:>+8.1}% {:>5.1}%  {:<7} {}",
         e.id,
         e.section,
         e.thesis,
@@ -386,7 +386,7 @@ pub fn thesis_line(o: &crate::thesis::Outcome) -> String {
         + &e.departs
             .map(|d| {
                 format!(
-                    "\n{:<10} departure expected at {:.5} ± {:.0} %: {}; tolerance: {}",
+                    "\n{:<10} departure expected at {:.5} ± {:.1} %: {}; tolerance: {}",
                     "",
                     d.expected,
                     d.tolerance.rel * 100.0,

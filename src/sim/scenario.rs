@@ -110,7 +110,7 @@ pub fn keys(name: &str) -> Option<Vec<&'static str>> {
 }
 
 /// Build a scenario by name. `params` overrides its defaults; a key it does not take is
-/// refused by name before anything is built ([`keys`] lists them; so does the README).
+/// refused by name before anything is built ([`keys`] lists them; so does docs/simulator.md).
 pub fn build(name: &str, p: &Params) -> Result<ModelFile, SimError> {
     if name == super::string::NAME {
         return Err(SimError::Model(format!(
@@ -688,7 +688,7 @@ mod tests {
             }
         }
         let common = page
-            .split("Every scenario also takes")
+            .split("Every mass/spring scenario also takes")
             .nth(1)
             .and_then(|t| t.split("\n\n").next())
             .expect("the common keys' sentence");

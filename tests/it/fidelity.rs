@@ -96,7 +96,8 @@ fn the_criteria_give_the_simulated_library_its_mechanisms() {
 /// bonds coupled per fibre (issue 51) does not: at sensor 1 every break point rings in the
 /// thesis's 800–1 700 kHz, but the frequency is not linear in 1/L over points 1–8. That is
 /// the step's, not the structure's: implicit Euler damps a 1.25 MHz mode at ω²Δt/2 ≈ 3·10⁵
-/// 1/s at 10 ns, gone in microseconds, and at a converged step the rise returns
+/// 1/s at 10 ns, gone in microseconds; at a converged step points 7–12 rise with the break
+/// point, though points 1–6 still do not order
 /// ([`the_fibre_failure_converges_in_the_step_and_rises_with_the_break_point`]).
 #[test]
 fn fibre_failure_frequency_does_not_follow_the_released_length() {
