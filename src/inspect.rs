@@ -51,11 +51,7 @@ pub fn summarise(src: &Source, cfg: &ValidConfig) -> Summary {
         id: src.id.clone(),
         format: src.format.as_str().into(),
         files: src.files.len(),
-        companions: src
-            .companions
-            .iter()
-            .map(|p| p.path.display().to_string())
-            .collect(),
+        companions: src.companion_names(),
         min_len: usize::MAX,
         ..Default::default()
     };

@@ -209,6 +209,17 @@ pub fn file_safe(id: &str) -> String {
     }
 }
 
+/// A tally as the terminal writes it: `name count, name count, …`.
+pub fn tally<K: std::fmt::Display, V: std::fmt::Display>(
+    counts: impl IntoIterator<Item = (K, V)>,
+) -> String {
+    counts
+        .into_iter()
+        .map(|(k, v)| format!("{k} {v}"))
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
 /// Lower-case hex of bytes.
 pub fn hex(bytes: &[u8]) -> String {
     bytes.iter().map(|b| format!("{b:02x}")).collect()

@@ -213,6 +213,14 @@ impl Source {
             .map(|c| c.path.as_path())
     }
 
+    /// Every companion's path, as the manifest and `aepipe inspect` list them.
+    pub fn companion_names(&self) -> Vec<String> {
+        self.companions
+            .iter()
+            .map(|c| c.path.display().to_string())
+            .collect()
+    }
+
     /// Every companion of `role`.
     pub fn companions_of(&self, role: Role) -> impl Iterator<Item = &Path> {
         self.companions

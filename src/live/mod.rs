@@ -125,14 +125,7 @@ impl Flush {
         let classes = if self.classes.is_empty() {
             String::new()
         } else {
-            format!(
-                " · {}",
-                self.classes
-                    .iter()
-                    .map(|(k, v)| format!("{k} {v}"))
-                    .collect::<Vec<_>>()
-                    .join(", ")
-            )
+            format!(" · {}", crate::util::tally(&self.classes))
         };
         let events = if self.events > 0 {
             format!(", {} events", self.events)

@@ -149,11 +149,7 @@ fn experiment_entries(p: &Produced, stats: &StreamStats) -> Vec<ExperimentEntry>
             id: s.id.clone(),
             format: s.format.as_str().into(),
             files: s.files.len(),
-            companions: s
-                .companions
-                .iter()
-                .map(|c| c.path.display().to_string())
-                .collect(),
+            companions: s.companion_names(),
             acquisition: stats
                 .setups
                 .iter()

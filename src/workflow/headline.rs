@@ -170,14 +170,7 @@ fn som_part(s: &RunSummary) -> Vec<String> {
         "SOM trained on {} ({} training rows)",
         m.trained_on, m.training_rows
     ));
-    l.push(format!(
-        "SOM classes: {}",
-        m.classes
-            .iter()
-            .map(|(k, v)| format!("{k} {v}"))
-            .collect::<Vec<_>>()
-            .join(", ")
-    ));
+    l.push(format!("SOM classes: {}", crate::util::tally(&m.classes)));
     l.push(m.confusion.novelty.describe());
     l.extend(m.profile.iter().take(SERIES_LINES).map(|p| p.line()));
     more(&mut l, m.profile.len(), &m.profile_table);
