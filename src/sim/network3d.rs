@@ -10,12 +10,12 @@
 
 use super::model::*;
 use super::paper::{mesh, structure, Across, Mesh, Structure};
-use super::params::{scenario_params, Builder, Common, Params, Scenario};
+use super::params::{scenario_params, Common, Params, Scenario};
 use super::parts::FIBRE_T;
 use super::SimError;
 
 /// The 3-D scenarios (names are contracts).
-pub(super) const SCENARIOS: &[Scenario<Builder>] = &[
+pub(super) const SCENARIOS: &[Scenario] = &[
     Scenario::new(
         "network3d-bond-failure",
         &[Mesh::KEYS, Cells::KEYS],

@@ -130,28 +130,32 @@ macro_rules! scenario_params {
 }
 pub(crate) use scenario_params;
 
-/// A scenario in a registry: its name, the groups of keys it takes, and its builder `F`, which
-/// reads those groups (the registry says what it is handed besides).
-pub struct Scenario<F> {
+/// A mass/spring scenario in a registry: its name, the groups of keys its builder reads
+/// (besides [`Common`]'s, which every one takes), and the builder.
+pub struct Scenario {
     pub name: &'static str,
     pub keys: &'static [&'static [&'static str]],
-    pub build: F,
+    pub build: Builder,
 }
 
-impl<F> Scenario<F> {
+impl Scenario {
     pub const fn new(
         name: &'static str,
         keys: &'static [&'static [&'static str]],
-        build: F,
-    ) -> Scenario<F> {
+        build: Builder,
+    ) -> Scenario {
         Scenario { name, keys, build }
     }
 
-    /// Refuse, by name, a key given that neither this scenario nor `shared` takes (a typo
-    /// never runs the default), before anything is built.
-    pub fn check(&self, p: &Params, shared: &'static [&'static str]) -> Result<(), SimError> {
-        let groups: Vec<&[&str]> = self.keys.iter().copied().chain([shared]).collect();
-        takes_only(self.name, p, &groups)
+    /// Every group of keys it takes: its own, then [`Common`]'s.
+    pub fn groups(&self) -> impl Iterator<Item = &'static [&'static str]> {
+        self.keys.iter().copied().chain([Common::KEYS])
+    }
+
+    /// Refuse, by name, a key given that it does not take (a typo never runs the default),
+    /// before anything is built.
+    pub fn check(&self, p: &Params) -> Result<(), SimError> {
+        takes_only(self.name, p, &self.groups().collect::<Vec<_>>())
     }
 }
 

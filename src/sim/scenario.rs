@@ -5,7 +5,7 @@ use super::model::*;
 use super::paper::{damaged_mesh, mesh3x3, structure2x1, DamagedMesh, Mesh, Split, Structure};
 pub use super::params::Common;
 pub use super::params::{check_sweeps, parse_sweep, sweep_grid, Params, Sweep, MAX_SWEEP_VALUES};
-use super::params::{scenario_params, Builder, Scenario};
+use super::params::{scenario_params, Scenario};
 pub use super::parts::{eq, paper_grid, FIBRE_E, FIBRE_NU, FIBRE_RHO, FIBRE_T, FIBRE_W};
 use super::parts::{node, spring, st, system};
 use super::SimError;
@@ -53,7 +53,7 @@ scenario_params! {
 }
 
 /// The plane scenarios: the thesis's test cases and damage structures.
-const PLANE: &[Scenario<Builder>] = &[
+const PLANE: &[Scenario] = &[
     Scenario::new("sho", &[Sho::KEYS], sho),
     Scenario::new("five-mass-fibre", &[Lift::KEYS], five_mass),
     Scenario::new("fibre-single-constraint", &[Lift::KEYS], single_constraint),
@@ -79,7 +79,7 @@ const PLANE: &[Scenario<Builder>] = &[
 ];
 
 /// Every mass/spring scenario: the plane ones, then the 3-D ones.
-fn registry() -> impl Iterator<Item = &'static Scenario<Builder>> {
+fn registry() -> impl Iterator<Item = &'static Scenario> {
     PLANE.iter().chain(super::network3d::SCENARIOS)
 }
 
@@ -100,13 +100,7 @@ pub fn keys(name: &str) -> Option<Vec<&'static str>> {
         return Some(super::string::StringParams::KEYS.to_vec());
     }
     let s = registry().find(|s| s.name == name)?;
-    Some(
-        s.keys
-            .iter()
-            .flat_map(|g| g.iter().copied())
-            .chain(Common::KEYS.iter().copied())
-            .collect(),
-    )
+    Some(s.groups().flatten().copied().collect())
 }
 
 /// Build a scenario by name. `params` overrides its defaults; a key it does not take is
@@ -124,7 +118,7 @@ pub fn build(name: &str, p: &Params) -> Result<ModelFile, SimError> {
             names().collect::<Vec<_>>().join(", ")
         )));
     };
-    s.check(p, Common::KEYS)?;
+    s.check(p)?;
     let common = Common::read(p)?;
     let mut m = (s.build)(p, &common)?;
     common.apply(name, &mut m)?;
