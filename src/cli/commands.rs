@@ -351,7 +351,10 @@ fn merge(a: MergeArgs) -> Result<Outcome> {
 }
 
 fn report(a: ReportArgs) -> Result<Outcome> {
-    let p = crate::workflow::rebuild_report(&a.run_dir)?;
+    let (p, fit) = crate::workflow::rebuild_report(&a.run_dir)?;
+    if let Some(n) = fit.note() {
+        println!("{n}");
+    }
     println!("report: {}", p.display());
     Ok(Outcome::Success)
 }

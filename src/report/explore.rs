@@ -308,10 +308,10 @@ pub fn section_with(h: &mut String, e: &Explorer, json: &str) {
 const SCRIPT: &str = include_str!("explore.js");
 
 #[cfg(test)]
-mod tests {
+pub(super) mod tests {
     use super::*;
 
-    fn explorer(n: usize) -> Explorer {
+    pub(in crate::report) fn explorer(n: usize) -> Explorer {
         let mut e = Explorer {
             total: n,
             stride: 1,

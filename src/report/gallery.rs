@@ -76,11 +76,10 @@ pub(super) fn gallery_section(h: &mut String, g: &Gallery) {
             match png {
                 Some((thumb, full)) => {
                     // The explorer opens a hit's picture by this key.
-                    let pic = img_swap(thumb, full, &cap, 270).replacen(
-                        "<img ",
-                        &format!("<img data-key=\"{}\" ", esc(&explore::key_text(k))),
-                        1,
-                    );
+                    let pic = super::page::Pic::new(thumb, &cap, Some(270))
+                        .swap(full)
+                        .key(explore::key_text(k))
+                        .marker();
                     let _ = write!(
                         h,
                         "<figure>{}<figcaption>{}</figcaption></figure>",

@@ -9,6 +9,7 @@
 
 pub mod explore;
 mod gallery;
+mod page;
 mod series;
 mod sources;
 
@@ -21,7 +22,7 @@ use crate::analysis::trend::TrendReport;
 use crate::model::Mechanism;
 use crate::pipeline::RunReport;
 use crate::som::classify::Confusion;
-use crate::util::{base64, write_atomic, IoAt};
+use crate::util::{write_atomic, IoAt};
 use std::collections::{BTreeMap, BTreeSet};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -64,6 +65,8 @@ pub struct RunSummary {
     pub peak_rss: Vec<(String, u64)>,
     /// The tests side by side (`series.parquet`).
     pub series: Option<crate::analysis::series::Series>,
+    /// What the report's page bound left out (once the report is written).
+    pub page: Option<PageFit>,
 }
 
 impl RunSummary {
@@ -363,20 +366,9 @@ pub fn esc(s: &str) -> String {
         .replace('"', "&quot;")
 }
 
+/// A picture, embedded when the page is fitted within its bound (else linked as its file).
 fn img(path: &Path, alt: &str, width: Option<u32>) -> String {
-    match std::fs::read(path) {
-        Ok(bytes) => format!(
-            "<img alt=\"{}\" src=\"data:image/png;base64,{}\"{}>",
-            esc(alt),
-            base64(&bytes),
-            width.map(|w| format!(" width=\"{w}\"")).unwrap_or_default()
-        ),
-        Err(e) => format!(
-            "<p class=\"missing\">{}: {}</p>",
-            esc(&path.display().to_string()),
-            esc(&e.to_string())
-        ),
-    }
+    page::Pic::new(path, alt, width).marker()
 }
 
 /// One 900-px figure per (name, picture): alt text "`what` name", caption "name`note`".
@@ -394,30 +386,27 @@ fn figures(h: &mut String, plots: &[(String, PathBuf)], what: &str, note: &str) 
 
 /// A thumbnail that a click swaps for the whole picture (and back): the full PNG rides in a
 /// data attribute, so the report stays one file and no data: URL is navigated to (browsers
-/// refuse that).
+/// refuse that). Where the page's bound leaves no room for it, the thumbnail names its file.
 fn img_swap(thumb: &Path, full: &Path, alt: &str, width: u32) -> String {
-    match std::fs::read(full) {
-        Ok(bytes) => img(thumb, alt, Some(width)).replacen(
-            "<img ",
-            &format!(
-                "<img class=swap title=\"click: the whole record\" data-alt=\"data:image/png;base64,{}\" \
-                 onclick=\"[this.src,this.dataset.alt]=[this.dataset.alt,this.src];\
-                 this.closest('figure').classList.toggle('big');this.removeAttribute('width')\" ",
-                base64(&bytes)
-            ),
-            1,
-        ),
-        Err(_) => img(thumb, alt, Some(width)),
-    }
+    page::Pic::new(thumb, alt, Some(width)).swap(full).marker()
 }
 
-/// Write the report to `path` (atomically).
-pub fn write(s: &RunSummary, g: &Gathered, path: &Path) -> Result<(), ReportError> {
-    Ok(write_atomic(path, render(s, g).as_bytes())?)
+/// Write the report to `path` (atomically): what the page's bound left out.
+pub fn write(s: &RunSummary, g: &Gathered, path: &Path) -> Result<PageFit, ReportError> {
+    let dir = path.parent().unwrap_or(Path::new("."));
+    let (page, fit) = render_in(s, g, dir);
+    write_atomic(path, page.as_bytes())?;
+    Ok(fit)
 }
 
-/// The whole page.
+/// The whole page, its pictures' links relative to the run folder.
 pub fn render(s: &RunSummary, g: &Gathered) -> String {
+    render_in(s, g, &s.out).0
+}
+
+/// The whole page for a report written in `dir`: every section, then the page fitted within
+/// [`PAGE_BYTES`] (the explorer's points before the pictures; see `page`).
+fn render_in(s: &RunSummary, g: &Gathered, dir: &Path) -> (String, PageFit) {
     let mut h = String::new();
     let title = format!("aepipe run — {}", s.out.display());
     let _ = write!(
@@ -432,6 +421,7 @@ pre{{background:#f6f6f6;padding:8px;overflow-x:auto}}.missing{{color:#b00}}</sty
         esc(&title)
     );
     first_lines(&mut h, s);
+    h.push_str(page::FIT_NOTE_HERE);
     series::series_section(&mut h, s);
     inputs_section(&mut h, s);
     classes_section(&mut h, g);
@@ -455,18 +445,11 @@ pre{{background:#f6f6f6;padding:8px;overflow-x:auto}}.missing{{color:#b00}}</sty
     appendix_b_section(&mut h, g.appendix_b.as_ref());
     gallery_section(&mut h, &g.cluster_gallery);
     footer(&mut h, s, g);
-    let mut section = String::new();
-    let budget = PAGE_BYTES.saturating_sub(h.len());
-    let (fitted, json) = g.explorer.fitted(budget);
-    explore::section_with(&mut section, &fitted, &json);
-    h.replacen(EXPLORE_HERE, &section, 1)
+    page::fit(&h, &g.explorer, dir)
 }
 
-/// The report's bound: the explorer's points are thinned evenly so that the whole page
-/// stays within it (the pictures are bounded by the classes and `series_figures`).
-pub const PAGE_BYTES: usize = 25_000_000;
-
-const EXPLORE_HERE: &str = "<!--aepipe:explore-->";
+use page::EXPLORE_HERE;
+pub use page::{PageFit, PAGE_BYTES};
 
 /// What a reader must know before any number below: how much of each test the map's
 /// references describe (issue 39), and which tests have no usable load.

@@ -116,6 +116,9 @@ pub fn headline(s: &RunSummary) -> Vec<String> {
     }
     l.extend(indices_lines(s));
     l.extend(truth_part(s));
+    if let Some(n) = s.page.as_ref().and_then(|p| p.note()) {
+        l.push(n);
+    }
     l.push(format!("stages: {}", crate::report::stage_line(s)));
     l
 }

@@ -314,6 +314,7 @@ pub fn analyse(
         seconds: Vec::new(),
         peak_rss: Vec::new(),
         series: None,
+        page: None,
     };
     summary.series = Some(log.time("series", || series::series_stage(&summary, &dir.series()))?);
     if cfg.report.enabled {
@@ -321,11 +322,11 @@ pub fn analyse(
         // The report shows the stages before it; its own time goes into run.json.
         summary.seconds = log.seconds.clone();
         summary.peak_rss = log.peak_rss.clone();
-        log.time("report", || -> Result<(), WorkflowError> {
+        let fit = log.time("report", || -> Result<_, WorkflowError> {
             let g = gather(&summary)?;
-            crate::report::write(&summary, &g, &dir.report_html())?;
-            Ok(())
+            Ok(crate::report::write(&summary, &g, &dir.report_html())?)
         })?;
+        summary.page = Some(fit);
     }
     summary.seconds = log.seconds;
     summary.peak_rss = log.peak_rss;

@@ -45,7 +45,7 @@ pub(super) fn write_run_json(s: &RunSummary) -> Result<(), WorkflowError> {
 /// `aepipe report RUN_DIR`: rebuild the summary of a finished run from its folder (tables,
 /// model, `run.json`; the trend and the classification are recomputed, deterministically)
 /// and write `RUN_DIR/report.html` again.
-pub fn rebuild_report(dir: &Path) -> Result<PathBuf, WorkflowError> {
+pub fn rebuild_report(dir: &Path) -> Result<(PathBuf, crate::report::PageFit), WorkflowError> {
     let run = RunDir::new(dir);
     let rp = run.run_json();
     let text = std::fs::read_to_string(&rp)
@@ -125,10 +125,11 @@ pub fn rebuild_report(dir: &Path) -> Result<PathBuf, WorkflowError> {
         seconds: f.seconds,
         peak_rss: f.peak_rss,
         series: None,
+        page: None,
     };
     summary.series = Some(super::series::series_stage(&summary, &run.series())?);
     let out = run.report_html();
     let g = gather(&summary)?;
-    crate::report::write(&summary, &g, &out)?;
-    Ok(out)
+    let fit = crate::report::write(&summary, &g, &out)?;
+    Ok((out, fit))
 }
