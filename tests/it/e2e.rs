@@ -621,18 +621,17 @@ fn evolution_matches_the_profile(dir: &Path) {
     assert!(all[48][col("b_value")].is_empty() && !all[49][col("b_value")].is_empty());
 }
 
-/// Issue 24's acceptance, held out: the demo's pipeline on the evaluation seeds 31–38 (the
-/// quality check's clip rule, the reading of the map's erroneous area and the library's 4
-/// material draws were chosen on seeds 11–14 and the real files; nothing was chosen on
-/// 31–38). Pooled: erroneous records kept from the mechanisms ≥ 85 %, bond vs fibre ≥ 97 %,
-/// thesis-way ≥ 87 %. Until issue 51 this ran seeds 31–32 only and asked thesis-way ≥ 88 %:
-/// on the corrected references (bonds coupled per fibre) 31–32 alone give bond vs fibre
-/// 916/948 = 96.6 % and all eight 3705/3803 = 97.4 %, a margin smaller than two seeds'
-/// spread, so all eight run; and thesis-way fell from 88.6 % to 87.6 % (3884/4434: some bond
-/// failures heard at the diagonal sensor read as fibre failures), reported as measured in
-/// docs/fidelity.md, not restored by keeping the defect. And classification.parquet keeps its contract: a novel hit is
-/// unlike_references whatever its node or fault (issue 39); any other hit is erroneous
-/// exactly when its features carry a quality fault, and node_label is the map's own reading.
+/// The erroneous records' acceptance, held out: the demo's pipeline on the evaluation seeds
+/// 101–108, written here before their first run and never changed after it (the quality
+/// check's clip rule, the reading of the map's erroneous area and the library's 4 material
+/// draws were chosen on seeds 11–14 and the real files; seeds 31–38, which this test ran
+/// before, grew from 31–32 after those gave 96.6 % against the 97 % bound, so they are
+/// retired, not reused). Pooled over the eight: erroneous records kept from the mechanisms
+/// ≥ 85 %, bond vs fibre ≥ 97 %, thesis-way (Table 5.4: the true mechanism, or an erroneous
+/// record kept from the mechanisms, over all sources) ≥ 88 %, the goals as asked.
+/// And classification.parquet keeps its contract: a novel hit is unlike_references whatever
+/// its node or fault; any other hit is erroneous exactly when its features carry a quality
+/// fault, and node_label is the map's own reading.
 #[test]
 fn erroneous_records_are_recognised_on_held_out_seeds() {
     let t = TempDir::new("demo-held-out");
@@ -643,7 +642,7 @@ fn erroneous_records_are_recognised_on_held_out_seeds() {
         (a.trim().parse().unwrap(), b.trim().parse().unwrap())
     };
     let (mut bf, mut er, mut all) = ((0, 0), (0, 0), (0, 0));
-    for seed in ["31", "32", "33", "34", "35", "36", "37", "38"] {
+    for seed in ["101", "102", "103", "104", "105", "106", "107", "108"] {
         let out = t.path().join(seed);
         let so = demo(&out, &["--seed", seed, "--no-cross-model"]);
         let line = |start: &str| -> String {
@@ -697,7 +696,11 @@ fn erroneous_records_are_recognised_on_held_out_seeds() {
     assert!(er.1 >= 30, "too few erroneous events to judge: {er:?}");
     assert!(pct(er) >= 85.0, "erroneous recall {}/{}", er.0, er.1);
     assert!(pct(bf) >= 97.0, "bond vs fibre {}/{}", bf.0, bf.1);
-    assert!(pct(all) >= 87.0, "thesis-way {}/{}", all.0, all.1);
+    eprintln!(
+        "held out 101-108: erroneous {}/{} = {:.1} %, bond vs fibre {}/{} = {:.1} %, thesis-way {}/{} = {:.1} %",
+        er.0, er.1, pct(er), bf.0, bf.1, pct(bf), all.0, all.1, pct(all)
+    );
+    assert!(pct(all) >= 88.0, "thesis-way {}/{}", all.0, all.1);
 }
 
 /// Issue 39's novelty acceptance, held out: on demo seeds 41 and 42, never used to choose
