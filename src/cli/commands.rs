@@ -136,22 +136,29 @@ fn thesis(a: ThesisArgs) -> Result<Outcome> {
     let entries = crate::thesis::select(&a.ids)?;
     println!("{}", print::thesis_header());
     let t0 = std::time::Instant::now();
-    let mut n = [0usize; 3];
+    let mut n = [0usize; 4];
     let mut failing = None;
     for e in &entries {
         let o = crate::thesis::run(e, &a.out)?;
-        n[o.verdict as usize] += 1;
+        n[match o.verdict {
+            crate::thesis::Verdict::Agrees => 0,
+            crate::thesis::Verdict::Departs => 1,
+            crate::thesis::Verdict::Pinned => 2,
+            crate::thesis::Verdict::Fails => 3,
+        }] += 1;
         if o.verdict == crate::thesis::Verdict::Fails {
             failing.get_or_insert(e.id);
         }
         println!("{}", print::thesis_line(&o));
     }
     println!(
-        "{} entries: {} agree, {} depart where the record expects, {} fail, in {:.1} s → {}",
+        "{} entries: {} agree, {} depart where a closed form or a finer step expects, \
+         {} hold a regression pin, {} fail, in {:.1} s → {}",
         entries.len(),
         n[0],
         n[1],
         n[2],
+        n[3],
         t0.elapsed().as_secs_f64(),
         a.out.display()
     );

@@ -215,7 +215,7 @@ fn run_classifies_against_truth_finds_the_trend_and_writes_a_report_a_browser_re
     assert!(!html.contains("class=\"missing\""));
     // `aepipe report RUN_DIR` writes the same report again from the run's folder (only the
     // stage timings line may differ).
-    let again = aepipe::workflow::rebuild_report(&out).unwrap();
+    let (again, _) = aepipe::workflow::rebuild_report(&out).unwrap();
     let strip = |h: &str| match (h.find("Stages:"), h.find("</p><details>")) {
         (Some(a), Some(b)) if a < b => format!("{}{}", &h[..a], &h[b..]),
         _ => h.to_string(),

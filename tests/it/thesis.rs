@@ -46,9 +46,10 @@ fn the_record_states_each_tolerance_and_departure_the_code_uses() {
         let want = match e.departs {
             None => "—".to_string(),
             Some(d) => format!(
-                "{} ± {} %: {} (±: {})",
+                "{} ± {} % ({}): {} (±: {})",
                 d.expected,
                 pct(d.tolerance.rel),
+                d.basis.as_str(),
                 d.evidence,
                 d.tolerance.source
             ),
@@ -267,6 +268,10 @@ fn heard(name: &str, params: &[(&str, f64)], sensor: usize) -> (Vec<f64>, f64) {
     (x, f)
 }
 
+/// How far (of the peak) two runs of the same motion may differ: 100 × the mechanics' Newton
+/// stop (a residual of 1e-8).
+const SAME_MOTION: f64 = 1e-6;
+
 fn max_abs_diff(a: &[f64], b: &[f64]) -> f64 {
     assert_eq!(a.len(), b.len());
     let peak = a.iter().fold(0.0f64, |m, v| m.max(v.abs()));
@@ -282,15 +287,23 @@ fn max_abs_diff(a: &[f64], b: &[f64]) -> f64 {
 /// column and heard at sensor 2 it is its diagonal mirror bent along a row and heard at
 /// sensor 1; and with the row's neighbouring bonds gone the released free length grows from
 /// 1 to 1.5 and 2 mm, so its fundamental falls as 1/L at the same tension (Eq. 4.2.2).
+///
+/// The same motion by another formula, and a mirror image, agree to [`SAME_MOTION`] of the
+/// peak: the mechanics' Newton iteration stops at a residual of 1e-8, so the runs may differ
+/// there and not above (measured: 2.7e-9, 5.9e-12 and 3.0e-11). The bounds were 0.5 % and
+/// 5 % while a bond's coupling direction turned on the round-off (2.8 % and 3.9 % then);
+/// bonds are coupled per fibre now, and a wrong bond, direction or sensor moves the signal
+/// by percent. Plant: the column-bent bond heard at the row-bent bond's sensor (sensor 1
+/// instead of its mirror sensor 2) must differ by more than the bound.
 #[test]
 fn the_damaged_mesh_is_the_mesh_its_mirror_and_a_longer_string() {
     let (mesh, f_mesh) = heard("mesh3x3-bond-failure", &[("t2", -1.0)], 0);
     let (intact, f1) = heard("mesh3x3-damaged-bond-failure", &[], 0);
-    // Not to the bit: the same shape by another formula differs in the last digits, and a
-    // bond's coupling direction flips on them (docs/fidelity.md, "A bond's own direction").
+    // Not to the bit: the same shape by another formula differs at the Newton tolerance.
     let d = max_abs_diff(&mesh, &intact);
+    eprintln!("intact vs mesh3x3: {d:e}");
     assert!(
-        d < 0.005,
+        d < SAME_MOTION,
         "intact centre failure differs from mesh3x3 by {d}"
     );
     assert!((f1 / f_mesh - 1.0).abs() < 0.002, "{f1} vs {f_mesh}");
@@ -302,11 +315,20 @@ fn the_damaged_mesh_is_the_mesh_its_mirror_and_a_longer_string() {
         1,
     );
     let (row, _) = heard("mesh3x3-damaged-bond-failure", &[("bond", 3.0)], 0);
-    // 2.8 % of the peak at the worst sample (3.9 % in the damaged case below): the bonds'
-    // coupling direction turns on the round-off, which differs between mirror images
-    // (docs/fidelity.md, "A bond's own direction").
     let d = max_abs_diff(&row, &col);
-    assert!(d < 0.05, "mirror differs by {d}");
+    eprintln!("mirror: {d:e}");
+    assert!(d < SAME_MOTION, "mirror differs by {d}");
+    // Plant: the column-bent bond at the row-bent bond's own sensor is no mirror.
+    let (wrong, _) = heard(
+        "mesh3x3-damaged-bond-failure",
+        &[("bond", 1.0), ("along", 1.0)],
+        0,
+    );
+    let d = max_abs_diff(&row, &wrong);
+    assert!(
+        d > 100.0 * SAME_MOTION,
+        "the wrong sensor passes as a mirror: {d}"
+    );
     // And in a damaged mesh: bond 5 bent along its column after bonds 0 and 4, against bond
     // 7 bent along its row after bonds 0 and 4 (the mirror of {0, 4} is {0, 4}).
     let (col, _) = heard(
@@ -320,7 +342,8 @@ fn the_damaged_mesh_is_the_mesh_its_mirror_and_a_longer_string() {
         0,
     );
     let d = max_abs_diff(&row, &col);
-    assert!(d < 0.05, "damaged mirror differs by {d}");
+    eprintln!("damaged mirror: {d:e}");
+    assert!(d < SAME_MOTION, "damaged mirror differs by {d}");
     // The centre with bond 5 gone (1.5 mm), with bonds 3 and 5 gone (2 mm).
     for (broken, l) in [(1 << 5, 1.5), ((1 << 3) | (1 << 5), 2.0)] {
         let span = aepipe::sim::paper::damaged_span(broken, 4, 0);
