@@ -662,7 +662,7 @@ mod tests {
     }
 
     /// Through the whole computation: a median of √5 = 2.236 samples/µs is equally near 2 and
-    /// 2.5 MHz (none is clearly nearest); 6.28 is 25.6 % above 5 MHz (too far from every
+    /// 2.5 MHz (none is clearly nearest); 6.27 is 25.4 % above 5 MHz (too far from every
     /// usual rate, though 10 MHz is more than twice as far); 3.0 is a configured 3 MHz, and
     /// 2.5 MHz (20 % off, 2 MHz 2.2× as far) when the configured rate is 5 MHz.
     #[test]
@@ -670,14 +670,14 @@ mod tests {
         let ambiguous = implied(&[(559, 250.0); 5], 5e6).unwrap();
         assert!((ambiguous.samples_per_us - 2.236).abs() < 1e-12);
         assert_eq!(ambiguous.rate_hz, None);
-        let far = implied(&[(157, 25.0); 5], 5e6).unwrap();
-        assert_eq!((far.samples_per_us, far.rate_hz), (6.28, None));
+        let far = implied(&[(627, 100.0); 5], 5e6).unwrap();
+        assert_eq!((far.samples_per_us, far.rate_hz), (6.27, None));
         assert_eq!(implied(&[(30, 10.0); 5], 3e6).unwrap().rate_hz, Some(3e6));
         assert_eq!(implied(&[(30, 10.0); 5], 5e6).unwrap().rate_hz, Some(2.5e6));
     }
 
     /// (median samples/µs, configured Hz, the rate it clearly tells) on both sides of each
-    /// boundary, worked out by hand: within 25 % of 5 MHz (6.2 and 4.05 are, 6.28 and 3.95
+    /// boundary, worked out by hand: within 25 % of 5 MHz (6.2 and 4.05 are, 6.27 and 3.95
     /// are not); every other rate ≥ 2× as far in log ratio (2.15: ln(2.5/2.15) = 0.151 ≥
     /// 2·ln(1.075) = 0.145, 2.16: 0.146 < 0.154); √5 equally near 2 and 2.5 MHz; the
     /// configured rate a candidate (3 MHz) and, a few percent from a usual rate, never told
@@ -685,7 +685,7 @@ mod tests {
     const BOUNDARIES: [(f64, f64, Option<f64>); 13] = [
         (5.0, 5e6, Some(5e6)),
         (6.2, 5e6, Some(5e6)),
-        (6.28, 5e6, None),
+        (6.27, 5e6, None),
         (4.05, 5e6, Some(5e6)),
         (3.95, 5e6, None),
         (2.15, 5e6, Some(2e6)),
