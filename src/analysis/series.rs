@@ -139,3 +139,120 @@ pub fn series_lines(s: &Series, max: usize) -> Vec<String> {
 fn short(c: &str) -> String {
     c.chars().take(9).collect()
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn row() -> SeriesRow {
+        SeriesRow {
+            experiment: "EXP1".into(),
+            hits: 12,
+            rejects: 2,
+            hits_with_load: 3,
+            peak_load_n: Some(1950.0),
+            peak_load_s: Some(19.5),
+            classified: Some(10),
+            unlike_references_share: Some(0.3),
+            classes: vec![Some(4), None],
+            clusters: Some(3),
+            energy_n: 11,
+            alpha: Some(1.654),
+            significant_trends: Some(2),
+            trend_note: Some("ch1: n = 3".into()),
+        }
+    }
+
+    fn classes() -> Vec<String> {
+        vec!["bond_failure".into(), "both".into()]
+    }
+
+    /// The columns of a table, each with the cell a row gives it.
+    fn cells(t: &Table<SeriesRow>, r: SeriesRow) -> Vec<(String, Value)> {
+        let names = t.schema().columns.into_iter().map(|c| c.name);
+        names.zip(t.row(r).cells().to_vec()).collect()
+    }
+
+    /// What [`row`] must give, column by column (worked out from its fields by hand).
+    fn expected(clustering: bool) -> Vec<(String, Value)> {
+        let s = |v: &str| Value::Str(Some(v.into()));
+        let mut want = vec![
+            ("experiment", s("EXP1")),
+            ("hits", Value::I64(Some(12))),
+            ("rejects", Value::I64(Some(2))),
+            ("hits_with_load", Value::I64(Some(3))),
+            ("peak_load_n", Value::F64(Some(1950.0))),
+            ("peak_load_s", Value::F64(Some(19.5))),
+            ("classified", Value::I64(Some(10))),
+            ("unlike_references_share", Value::F64(Some(0.3))),
+            ("bond_failure_hits", Value::I64(Some(4))),
+            ("both_hits", Value::I64(None)),
+            ("clusters", Value::I64(Some(3))),
+            ("energy_n", Value::I64(Some(11))),
+            ("alpha", Value::F64(Some(1.654))),
+            ("significant_trends", Value::I64(Some(2))),
+            ("trend_note", s("ch1: n = 3")),
+        ];
+        if !clustering {
+            want.retain(|(n, _)| *n != "clusters");
+        }
+        want.into_iter().map(|(n, v)| (n.to_string(), v)).collect()
+    }
+
+    /// Each column holds its own field, one `<class>_hits` per class in order (null past the
+    /// row's counts), `clusters` only with clustering. Plant: a row whose `rejects` and
+    /// `energy_n` are swapped fails the same comparison.
+    #[test]
+    fn each_column_holds_its_field() {
+        for clustering in [true, false] {
+            let t = series_table(&classes(), clustering);
+            assert_eq!(cells(&t, row()), expected(clustering));
+        }
+        let t = series_table(&classes(), true);
+        let mut r = row();
+        r.classes.clear();
+        let got = cells(&t, r);
+        assert_eq!(got[8], ("bond_failure_hits".into(), Value::I64(None)));
+        let planted = SeriesRow {
+            rejects: 11,
+            energy_n: 2,
+            ..row()
+        };
+        assert_ne!(cells(&t, planted), expected(true));
+    }
+
+    /// The terminal's table of two tests, one of them all nulls, as it must read; more tests
+    /// than `max` name the file instead.
+    #[test]
+    fn the_terminal_table_reads_as_worked_out() {
+        let empty = SeriesRow {
+            experiment: "EXP2".into(),
+            hits: 5,
+            classes: vec![None, None],
+            ..Default::default()
+        };
+        let s = Series {
+            classes: classes(),
+            clustering: true,
+            rows: vec![row(), empty],
+            path: PathBuf::from("/run/series.parquet"),
+        };
+        assert_eq!(
+            series_lines(&s, 20),
+            [
+                "series             hits   load     peak N     at s  unlike bond_fail      both clusters  alpha",
+                "EXP1                 12      3     1950.0     19.5    30 %         4         –        3   1.65",
+                "EXP2                  5      0          –        –       –         –         –        –      –",
+            ]
+        );
+        assert_eq!(
+            series_lines(&s, 1),
+            ["series: 2 tests, side by side in /run/series.parquet"]
+        );
+        let s = Series {
+            clustering: false,
+            ..s
+        };
+        assert!(!series_lines(&s, 20)[0].contains("clusters"));
+    }
+}

@@ -26,6 +26,8 @@ struct Hit {
     duration_us: f64,
     counts: u64,
     para1: f64,
+    /// The burst's frequency, Hz.
+    freq_hz: f64,
 }
 
 /// `n` hits of a test at `rate_hz`: bursts of 150–400 kHz rising over 4–30 µs after a 20 µs
@@ -81,14 +83,49 @@ fn hits(n: usize, rate_hz: f64, seed: u64) -> Vec<Hit> {
                     .iter()
                     .map(|v| format!("{:.6}", v * gain).parse().unwrap())
                     .collect(),
-                amp: aepipe::model::db_ae(peak).round(),
+                amp: db_ae(peak).round(),
                 rise_us: ((peak_i - first) as f64 / rate_hz * 1e6).round(),
                 duration_us: ((last - first) as f64 / rate_hz * 1e6).round(),
                 counts,
                 para1: 1000.25 + 100.0 * k as f64,
+                freq_hz: f,
             }
         })
         .collect()
+}
+
+/// dB_AE, computed here (not with the code under test): 20·log10(|V| / 1 µV).
+fn db_ae(volts: f64) -> f64 {
+    20.0 * (volts.abs() / 1e-6).log10()
+}
+
+/// Known levels (volts, dB_AE) worked out by hand, and the levels `f` gets wrong (beyond
+/// 1e-9 dB).
+fn db_levels_wrong(f: &dyn Fn(f64) -> f64) -> Vec<(f64, f64)> {
+    const LEVELS: [(f64, f64); 6] = [
+        (1e-6, 0.0),
+        (1e-4, 40.0),
+        (-1e-3, 60.0),
+        (0.5, 113.979_400_086_720_37),
+        (1.0, 120.0),
+        (3.162_277_660_168_379_5e-6, 10.0),
+    ];
+    LEVELS
+        .iter()
+        .filter(|(v, db)| (f(*v) - db).abs() > 1e-9)
+        .copied()
+        .collect()
+}
+
+/// The fixtures' AMP is computed here, independently of aepipe: both it and
+/// `aepipe::model::db_ae` give the known levels. Plants: 10·log10 (a power ratio) and a
+/// 1 mV reference each get levels wrong.
+#[test]
+fn the_fixtures_db_ae_and_aepipes_agree_on_known_levels() {
+    assert_eq!(db_levels_wrong(&db_ae), vec![]);
+    assert_eq!(db_levels_wrong(&aepipe::model::db_ae), vec![]);
+    assert!(!db_levels_wrong(&|v: f64| 10.0 * (v.abs() / 1e-6).log10()).is_empty());
+    assert!(!db_levels_wrong(&|v: f64| 20.0 * (v.abs() / 1e-3).log10()).is_empty());
 }
 
 fn wave_name(test: &str, h: &Hit) -> String {
@@ -212,6 +249,34 @@ fn rates(out: &Path) -> Vec<String> {
     rows.into_iter().map(|r| r[k].clone()).collect()
 }
 
+/// Why `rates` are not `n` records all at `want` (an empty table is not "all at").
+fn rates_wrong(rates: &[String], want: &str, n: usize) -> Option<String> {
+    if rates.len() != n {
+        return Some(format!("{} records, not {n}", rates.len()));
+    }
+    let off: Vec<&String> = rates.iter().filter(|r| *r != want).collect();
+    (!off.is_empty()).then(|| format!("{} of {n} not at {want}: {off:?}", off.len()))
+}
+
+/// features.parquet of `out` holds `n` records, every one at `want`.
+fn assert_rates(out: &Path, want: &str, n: usize) {
+    if let Some(why) = rates_wrong(&rates(out), want, n) {
+        panic!("{}: {why}", out.display());
+    }
+}
+
+/// The rate check cannot pass on an empty table. Plants: no records, one record too few,
+/// and one record at another rate each fail it.
+#[test]
+fn the_rate_check_fails_on_an_empty_short_or_mixed_table() {
+    let at = |r: &[&str]| r.iter().map(|s| s.to_string()).collect::<Vec<_>>();
+    assert_eq!(rates_wrong(&at(&["5000000.0"; 3]), "5000000.0", 3), None);
+    assert!(rates_wrong(&[], "5000000.0", 3).is_some());
+    assert!(rates_wrong(&at(&["5000000.0"; 2]), "5000000.0", 3).is_some());
+    let mixed = at(&["5000000.0", "10000000.0", "5000000.0"]);
+    assert!(rates_wrong(&mixed, "5000000.0", 3).is_some());
+}
+
 #[test]
 fn a_header_less_export_is_read_at_the_rate_its_hit_list_implies_unless_the_file_sets_one() {
     let t = TempDir::new("hitlist-rate");
@@ -226,11 +291,7 @@ fn a_header_less_export_is_read_at_the_rate_its_hit_list_implies_unless_the_file
         so.contains("EXP10: 10 MHz, implied by the hit list's rise times (configured 5 MHz;"),
         "{so}"
     );
-    assert!(
-        rates(&out).iter().all(|r| r == "10000000.0"),
-        "{:?}",
-        rates(&out)
-    );
+    assert_rates(&out, "10000000.0", h10.len());
     for h in &h10 {
         assert_lands(&hit_rows(&out), h, false);
     }
@@ -243,7 +304,7 @@ fn a_header_less_export_is_read_at_the_rate_its_hit_list_implies_unless_the_file
         so.contains("EXP10: 5 MHz as set in the pipeline file, though the hit list's rise times imply 10 MHz"),
         "{so}"
     );
-    assert!(rates(&out).iter().all(|r| r == "5000000.0"));
+    assert_rates(&out, "5000000.0", h10.len());
     // A 5 MHz test beside it: 5 MHz, agreeing (a manifest note, not a terminal line).
     let h5 = hits(12, 5e6, 4);
     let data5 = t.path().join("data5");
@@ -251,7 +312,7 @@ fn a_header_less_export_is_read_at_the_rate_its_hit_list_implies_unless_the_file
     write_list(&data5, "EXP05", &COLS, &h5.iter().collect::<Vec<_>>());
     let out = t.path().join("five");
     let so = features(&data5, &out, None);
-    assert!(rates(&out).iter().all(|r| r == "5000000.0"));
+    assert_rates(&out, "5000000.0", h5.len());
     assert!(!so.contains("EXP05: 5 MHz"), "{so}");
     assert!(notes(&out)
         .iter()
@@ -439,6 +500,7 @@ fn exp2009s_hit_list_lands_and_its_short_machine_log_is_said() {
         std::slice::from_ref(&dir),
         &aepipe::config::ValidConfig::default(),
     );
+    assert_eq!(recs.len(), 29);
     assert!(recs.iter().all(|r| r.sample_rate_hz == 5e6));
 }
 
@@ -515,10 +577,246 @@ fn a_log_that_ends_early_is_said_and_three_hits_state_no_trend() {
     assert!(rows.iter().any(|row| !row[r].is_empty()));
 }
 
-/// `series.parquet` on the real sets: one row per experiment of the manifest, each count
-/// equal to an independent count over the run's own tables (hits with load over
-/// hits.parquet, the peak over parametric.parquet, classes over classification.parquet, α
-/// from statistics.parquet), and the terminal's table for these 2–20 tests.
+/// A run's tables, as column → value text.
+struct RunTables {
+    series: Vec<BTreeMap<String, String>>,
+    hits: Vec<BTreeMap<String, String>>,
+    params: Vec<BTreeMap<String, String>>,
+    classes: Vec<BTreeMap<String, String>>,
+    stats: Vec<BTreeMap<String, String>>,
+    rejects: Vec<BTreeMap<String, String>>,
+    clusters: Vec<BTreeMap<String, String>>,
+    trend: Vec<BTreeMap<String, String>>,
+    /// Per experiment: the sources' (hits outside events, events' first hits) positive
+    /// energies of features.parquet, the values statistics.parquet fits.
+    energies: BTreeMap<String, Vec<f64>>,
+    /// The manifest's counts by experiment.
+    by: serde_json::Map<String, serde_json::Value>,
+}
+
+impl RunTables {
+    fn read(out: &Path) -> RunTables {
+        // A stage that did not run (no SOM, no clustering) left no table: no rows.
+        let table = |p: &str| {
+            let p = out.join(p);
+            if p.is_file() {
+                table_maps(&p)
+            } else {
+                Vec::new()
+            }
+        };
+        let mut energies: BTreeMap<String, Vec<f64>> = BTreeMap::new();
+        for r in table("features/features.parquet") {
+            let first = r.get("event_first").map_or("", String::as_str);
+            let e = r["energy_eu"].parse::<f64>().ok();
+            if let Some(e) = e.filter(|e| e.is_finite() && *e > 0.0 && first != "false") {
+                energies.entry(r["experiment"].clone()).or_default().push(e);
+            }
+        }
+        let m: serde_json::Value = serde_json::from_str(
+            &std::fs::read_to_string(out.join("features/manifest.json")).unwrap(),
+        )
+        .unwrap();
+        RunTables {
+            series: table("series.parquet"),
+            hits: table("features/hits.parquet"),
+            params: table("features/parametric.parquet"),
+            classes: table("som/classification.parquet"),
+            stats: table("statistics.parquet"),
+            rejects: table("features/rejects.parquet"),
+            clusters: table("cluster/clusters.parquet"),
+            trend: table("trend/trend.parquet"),
+            energies,
+            by: m["counts"]["by_experiment"].as_object().unwrap().clone(),
+        }
+    }
+}
+
+/// The rows of `t` of experiment `e`.
+fn of<'a>(
+    t: &'a [BTreeMap<String, String>],
+    e: &'a str,
+) -> impl Iterator<Item = &'a BTreeMap<String, String>> + 'a {
+    t.iter().filter(move |x| x["experiment"] == e)
+}
+
+/// Where a series row's counts disagree with independent counts over the run's tables.
+fn series_counts_wrong(r: &BTreeMap<String, String>, t: &RunTables) -> Vec<String> {
+    let e = r["experiment"].as_str();
+    let mut wrong = Vec::new();
+    let want = |col: &str, v: String| {
+        (r[col] != v).then(|| format!("{e} {col}: {} (the tables: {v})", r[col]))
+    };
+    wrong.extend(want("hits", t.by[e]["hits"].to_string()));
+    wrong.extend(want("rejects", of(&t.rejects, e).count().to_string()));
+    let with_load = of(&t.hits, e).filter(|h| !h["load_n"].is_empty()).count();
+    wrong.extend(want("hits_with_load", with_load.to_string()));
+    let peak = of(&t.params, e)
+        .filter_map(|p| p["load_n"].parse::<f64>().ok())
+        .fold(f64::NEG_INFINITY, f64::max);
+    let got = r["peak_load_n"].parse::<f64>().ok();
+    if got != peak.is_finite().then_some(peak) {
+        wrong.push(format!("{e} peak_load_n: {got:?} (parametric: {peak})"));
+    }
+    let mut by_class: BTreeMap<String, usize> = BTreeMap::new();
+    for c in of(&t.classes, e) {
+        *by_class.entry(c["som_label"].clone()).or_default() += 1;
+    }
+    let classified: usize = by_class.values().sum();
+    if r["classified"].is_empty() {
+        // No SOM stage: no classification rows either.
+        if classified > 0 {
+            wrong.push(format!(
+                "{e} classified: null, {classified} classification rows"
+            ));
+        }
+    } else {
+        wrong.extend(want("classified", classified.to_string()));
+    }
+    for (class, n) in &by_class {
+        if class == "unlike_references" {
+            let share: f64 = r["unlike_references_share"].parse().unwrap();
+            if (share - *n as f64 / classified as f64).abs() > 1e-12 {
+                wrong.push(format!("{e} unlike_references_share: {share}"));
+            }
+        } else {
+            wrong.extend(want(&format!("{class}_hits"), n.to_string()));
+        }
+    }
+    let clusters: std::collections::BTreeSet<&String> = of(&t.clusters, e)
+        .map(|c| &c["cluster"])
+        .filter(|c| !c.is_empty())
+        .collect();
+    wrong.extend(want("clusters", clusters.len().to_string()));
+    let significant = of(&t.trend, e)
+        .filter(|x| x["p"].parse::<f64>().is_ok_and(|p| p < 0.01))
+        .count();
+    wrong.extend(want("significant_trends", significant.to_string()));
+    wrong
+}
+
+/// α̂ = 1 + n / Σ ln(x / x_min) over the energies ≥ x_min (the continuous power law's
+/// maximum-likelihood exponent, Clauset, Shalizi & Newman 2009, eq. 3.1), and n.
+fn mle_alpha(energies: &[f64], x_min: f64) -> (f64, usize) {
+    let tail: Vec<f64> = energies.iter().copied().filter(|x| *x >= x_min).collect();
+    let s: f64 = tail.iter().map(|x| (x / x_min).ln()).sum();
+    (1.0 + tail.len() as f64 / s, tail.len())
+}
+
+/// Where a series row's `energy_n` and `alpha` disagree with the sources' energies: the
+/// count, and α computed here at statistics.parquet's x_min (null below 50 energies).
+fn series_energy_wrong(r: &BTreeMap<String, String>, t: &RunTables) -> Vec<String> {
+    let e = r["experiment"].as_str();
+    let x = t.energies.get(e).map_or(&[][..], Vec::as_slice);
+    let mut wrong = Vec::new();
+    if r["energy_n"] != x.len().to_string() {
+        wrong.push(format!(
+            "{e} energy_n: {} (features: {})",
+            r["energy_n"],
+            x.len()
+        ));
+    }
+    let stat = of(&t.stats, e).next();
+    let x_min = stat.and_then(|s| s["energy_x_min_eu"].parse::<f64>().ok());
+    match (r["alpha"].parse::<f64>().ok(), x_min) {
+        (None, None) if x.len() < 50 => {}
+        (Some(alpha), Some(x_min)) if x.len() >= 50 => {
+            let (mle, n) = mle_alpha(x, x_min);
+            if (alpha - mle).abs() > 1e-9 * mle || n < 50 {
+                wrong.push(format!(
+                    "{e} alpha: {alpha} (here {mle} over {n} ≥ {x_min})"
+                ));
+            }
+        }
+        (a, m) => wrong.push(format!(
+            "{e} alpha {a:?}, x_min {m:?} of {} energies",
+            x.len()
+        )),
+    }
+    wrong
+}
+
+/// α by the Python `powerlaw` package (Alstott et al.) at the same x_min, per experiment;
+/// `None` after a skip when it is not installed.
+fn powerlaw_alphas(
+    dir: &Path,
+    fits: &BTreeMap<String, (Vec<f64>, f64)>,
+) -> Option<BTreeMap<String, f64>> {
+    let input = dir.join("energies.json");
+    std::fs::write(&input, serde_json::to_string(fits).unwrap()).unwrap();
+    let script = "import json, sys\ntry:\n    import powerlaw\nexcept ImportError as e:\n    print(f'missing: {e}', file=sys.stderr); sys.exit(3)\nd = json.load(open(sys.argv[1]))\nprint(json.dumps({e: powerlaw.Fit(x, xmin=m, verbose=False).power_law.alpha for e, (x, m) in d.items()}))\n";
+    let mut cmd = std::process::Command::new("python3");
+    cmd.args(["-c", script]).arg(&input);
+    let out = crate::reference("series_alpha_by_powerlaw", "pip install powerlaw", &mut cmd)?;
+    Some(serde_json::from_slice(&out).unwrap())
+}
+
+/// Where a series row disagrees with the run's tables ([`series_counts_wrong`],
+/// [`series_energy_wrong`]).
+fn series_wrong(r: &BTreeMap<String, String>, t: &RunTables) -> Vec<String> {
+    let mut w = series_counts_wrong(r, t);
+    w.extend(series_energy_wrong(r, t));
+    w
+}
+
+/// A test whose rows do count: 20 hits whose burst frequency rises from hit to hit (so each
+/// band's partial power trends with the AE number, significantly) and a hit list with one
+/// line that is not a row (a reject of the test). Its series row agrees with the run's
+/// tables, with significant_trends and rejects above 0 and clusters counted. Plants: the
+/// row with one significant trend or reject fewer fails the same check.
+#[test]
+fn a_series_row_counts_the_tests_rejects_clusters_and_significant_trends() {
+    let t = TempDir::new("series-counts");
+    let data = t.path().join("data");
+    let mut hs = hits(20, 5e6, 31);
+    hs.sort_by(|a, b| a.freq_hz.total_cmp(&b.freq_hz));
+    for (k, h) in hs.iter_mut().enumerate() {
+        h.hit = k as u64 + 1;
+        h.time_s = 2.0 + 4.0 * k as f64;
+    }
+    write_waves(&data, "EXP4001", &hs);
+    write_list(&data, "EXP4001", &COLS, &hs.iter().collect::<Vec<_>>());
+    let list = data.join("EXP4001.TXT");
+    let text = std::fs::read_to_string(&list).unwrap();
+    std::fs::write(&list, format!("{text}  1  2\n")).unwrap();
+    let cfg = t.path().join("p.toml");
+    std::fs::write(
+        &cfg,
+        "[som]\nenabled = false\n[report]\nenabled = false\n[cluster]\nenabled = true\n",
+    )
+    .unwrap();
+    let out = t.path().join("run");
+    run(&cfg, &data, &out);
+    let tables = RunTables::read(&out);
+    assert_eq!(tables.series.len(), 1);
+    let r = &tables.series[0];
+    assert_eq!(series_wrong(r, &tables), Vec::<String>::new());
+    assert_eq!((r["hits"].as_str(), r["rejects"].as_str()), ("20", "1"));
+    assert_eq!(r["classified"], "");
+    let significant: u64 = r["significant_trends"].parse().unwrap();
+    assert!(significant > 0, "{r:?}");
+    assert!(r["clusters"].parse::<u64>().unwrap() > 0, "{r:?}");
+    for col in ["significant_trends", "rejects"] {
+        let mut p = r.clone();
+        p.insert(col.into(), (p[col].parse::<u64>().unwrap() - 1).to_string());
+        assert!(
+            !series_wrong(&p, &tables).is_empty(),
+            "plant {col} − 1 passed"
+        );
+    }
+}
+
+/// `series.parquet` on the real sets, clustering on: one row per experiment of the
+/// manifest, each column equal to an independent count over the run's own tables (hits
+/// with load over hits.parquet, the peak over parametric.parquet, classes over
+/// classification.parquet, rejects over rejects.parquet, distinct clusters over
+/// clusters.parquet, significant trends as trend.parquet's rows with p < 0.01; none has
+/// any here, [`a_series_row_counts_the_tests_rejects_clusters_and_significant_trends`]
+/// has some), energy_n and α from the sources' energies of features.parquet (α
+/// computed here by maximum likelihood at statistics.parquet's x_min, and by the Python
+/// `powerlaw` package when installed), and the terminal's table for these 2–20 tests.
+/// Plants: a row with one reject, cluster, significant trend or energy too many, or the
+/// cumulative exponent α − 1 in place of α, each fail the checks.
 #[test]
 fn the_series_table_of_the_real_sets_agrees_with_the_runs_tables() {
     let Some(real) = real_data("the_series_table_of_the_real_sets_agrees_with_the_runs_tables")
@@ -527,7 +825,10 @@ fn the_series_table_of_the_real_sets_agrees_with_the_runs_tables() {
     };
     let t = TempDir::new("series-real");
     let out = t.path().join("run");
-    let cfg = Path::new(env!("CARGO_MANIFEST_DIR")).join("pipelines/aewin-cfrp.toml");
+    let base = Path::new(env!("CARGO_MANIFEST_DIR")).join("pipelines/aewin-cfrp.toml");
+    let cfg = t.path().join("p.toml");
+    let text = std::fs::read_to_string(base).unwrap();
+    std::fs::write(&cfg, format!("{text}\n[cluster]\nenabled = true\n")).unwrap();
     let sets = ["aewin_cfrp_tensile", "plb_cfrp_vallen", "mistras_dta"].map(|s| real.join(s));
     let mut args = vec![
         "run",
@@ -539,67 +840,62 @@ fn the_series_table_of_the_real_sets_agrees_with_the_runs_tables() {
     args.extend(sets.iter().map(|p| p.to_str().unwrap()));
     let (c, so, se) = aepipe(&args);
     assert_eq!(c, 0, "{so}\n{se}");
-    let table = |p: &str| table_maps(&out.join(p));
-    let series = table("series.parquet");
-    let hits = table("features/hits.parquet");
-    let params = table("features/parametric.parquet");
-    let classes = table("som/classification.parquet");
-    let stats = table("statistics.parquet");
-    let m: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(out.join("features/manifest.json")).unwrap())
-            .unwrap();
-    let by = m["counts"]["by_experiment"].as_object().unwrap();
-    let experiments: Vec<&String> = by.keys().filter(|e| !e.is_empty()).collect();
+    let t_ = RunTables::read(&out);
+    let series = &t_.series;
+    let experiments: Vec<&String> = t_.by.keys().filter(|e| !e.is_empty()).collect();
     assert_eq!(series.len(), experiments.len());
     assert!(series.len() >= 4, "{series:?}");
     // The terminal's table: a header and one line per test.
     assert!(
         so.lines()
-            .any(|l| l.starts_with("series ") && l.contains("alpha")),
+            .any(|l| l.starts_with("series ") && l.contains("alpha") && l.contains("clusters")),
         "{so}"
     );
-    for r in &series {
-        let e = &r["experiment"];
-        assert_eq!(r["hits"], by[e]["hits"].to_string());
-        let mine = |t: &[BTreeMap<String, String>]| -> Vec<BTreeMap<String, String>> {
-            t.iter()
-                .filter(|x| &x["experiment"] == e)
-                .cloned()
-                .collect()
-        };
-        let with_load = mine(&hits)
-            .iter()
-            .filter(|h| !h["load_n"].is_empty())
-            .count();
-        assert_eq!(r["hits_with_load"], with_load.to_string(), "{e}");
-        let peak = mine(&params)
-            .iter()
-            .filter_map(|p| p["load_n"].parse::<f64>().ok())
-            .fold(f64::NEG_INFINITY, f64::max);
-        match peak.is_finite() {
-            true => assert_eq!(r["peak_load_n"].parse::<f64>().unwrap(), peak, "{e}"),
-            false => assert_eq!(r["peak_load_n"], "", "{e}"),
-        }
-        let mut by_class: BTreeMap<String, usize> = BTreeMap::new();
-        for c in mine(&classes) {
-            *by_class.entry(c["som_label"].clone()).or_default() += 1;
-        }
-        let classified: usize = by_class.values().sum();
-        assert_eq!(r["classified"], classified.to_string(), "{e}");
-        for (class, n) in &by_class {
-            if class == "unlike_references" {
-                let share: f64 = r["unlike_references_share"].parse().unwrap();
-                assert!((share - *n as f64 / classified as f64).abs() < 1e-12, "{e}");
-            } else {
-                assert_eq!(r[&format!("{class}_hits")], n.to_string(), "{e} {class}");
-            }
-        }
-        let alpha = mine(&stats)[0]["energy_alpha"].clone();
-        assert_eq!(r["alpha"], alpha, "{e}");
+    let check = |r: &BTreeMap<String, String>| series_wrong(r, &t_);
+    for r in series {
+        assert_eq!(check(r), Vec::<String>::new());
     }
     let exp = series
         .iter()
         .find(|r| r["experiment"] == "EXP2009")
         .unwrap();
     assert_eq!(exp["hits_with_load"], "6");
+    let fitted: Vec<&BTreeMap<String, String>> =
+        series.iter().filter(|r| !r["alpha"].is_empty()).collect();
+    assert!(!fitted.is_empty(), "{series:?}");
+    // Plants: one too many of each count, the cumulative exponent for α.
+    for col in ["rejects", "clusters", "significant_trends", "energy_n"] {
+        let mut p = series[0].clone();
+        p.insert(col.into(), (p[col].parse::<u64>().unwrap() + 1).to_string());
+        assert!(!check(&p).is_empty(), "plant {col} + 1 passed");
+    }
+    let mut p = fitted[0].clone();
+    p.insert(
+        "alpha".into(),
+        (p["alpha"].parse::<f64>().unwrap() - 1.0).to_string(),
+    );
+    assert!(!check(&p).is_empty(), "plant alpha − 1 passed");
+    // The same α by the Python powerlaw package at the same x_min.
+    let fits: BTreeMap<String, (Vec<f64>, f64)> = fitted
+        .iter()
+        .map(|r| {
+            let e = &r["experiment"];
+            let x_min = of(&t_.stats, e).next().unwrap()["energy_x_min_eu"]
+                .parse()
+                .unwrap();
+            (e.clone(), (t_.energies[e].clone(), x_min))
+        })
+        .collect();
+    if let Some(alphas) = powerlaw_alphas(t.path(), &fits) {
+        assert_eq!(alphas.len(), fitted.len());
+        for r in &fitted {
+            let a: f64 = r["alpha"].parse().unwrap();
+            let b = alphas[&r["experiment"]];
+            assert!(
+                (a - b).abs() < 1e-9 * b,
+                "{}: {a} against powerlaw's {b}",
+                r["experiment"]
+            );
+        }
+    }
 }

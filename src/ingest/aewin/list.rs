@@ -479,22 +479,46 @@ pub fn implied_rate(
     } else {
         0.5 * (ratios[k / 2 - 1] + ratios[k / 2])
     };
+    Some(ImpliedRate {
+        samples_per_us: median,
+        used: k,
+        rate_hz: clear_rate(median, configured, CLEAR),
+    })
+}
+
+/// When a median of samples per list-µs clearly agrees on a candidate rate.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Clearly {
+    /// The median is within this ratio of the candidate (1.25: 25 %)…
+    within: f64,
+    /// …and every other candidate is at least this many times as far, in log ratio…
+    apart: f64,
+    /// …where the nearest's distance counts as at least this (so two candidates a few
+    /// percent apart, e.g. a configured 5.2 MHz beside 5 MHz, are never told apart).
+    floor: f64,
+}
+
+const CLEAR: Clearly = Clearly {
+    within: 1.25,
+    apart: 2.0,
+    floor: 0.05,
+};
+
+/// The candidate (the usual rates and `configured`) a median of `samples_per_us` clearly
+/// agrees on by `rule`; `None` when none does.
+fn clear_rate(samples_per_us: f64, configured: f64, rule: Clearly) -> Option<f64> {
     let mut cands: Vec<f64> = USUAL_RATES_HZ.to_vec();
     if !cands.contains(&configured) {
         cands.push(configured);
     }
-    let far = |c: f64| (median * 1e6 / c).ln().abs();
+    let far = |c: f64| (samples_per_us * 1e6 / c).ln().abs();
     cands.sort_by(|a, b| far(*a).total_cmp(&far(*b)));
     let (best, next) = (
         far(cands[0]),
         cands.get(1).map_or(f64::INFINITY, |c| far(*c)),
     );
-    let clear = best <= 1.25f64.ln() && next >= 2.0 * best.max(0.05);
-    Some(ImpliedRate {
-        samples_per_us: median,
-        used: k,
-        rate_hz: clear.then_some(cands[0]),
-    })
+    let clear = best <= rule.within.ln() && next >= rule.apart * best.max(rule.floor);
+    clear.then_some(cands[0])
 }
 
 #[cfg(test)]
@@ -551,5 +575,175 @@ mod tests {
         let waves: Vec<Peek> = [50.0, 60.0, 70.0, 80.0].iter().map(|a| wave(*a)).collect();
         let l = list(" ID AMP\n 1 90\n 1 40\n 1 85\n 1 45\n");
         assert!(!align(&l, &waves).holds());
+    }
+
+    /// A waveform whose running maximum holds `below` V, then rises from `start` V by 10 µV a
+    /// sample for `r` samples: `r` samples from the first crossing of any threshold in
+    /// (`below`, `start`] to the peak.
+    fn ramp(below: f32, start: f32, r: u32) -> Peek {
+        let mut v = vec![below, 0.0, 0.0];
+        v.extend((0..=r).map(|i| start + 1e-5 * i as f32));
+        Peek::of(&v, 1, None)
+    }
+
+    /// Every row paired with the waveform at its place.
+    fn paired(n: usize) -> Alignment {
+        Alignment {
+            pairs: (0..n).map(|i| (Some(i), Some(i))).collect(),
+            checked: 0,
+            agree: 0,
+        }
+    }
+
+    /// A list (`THR 40` dB_AE = 100 µV, `AMP 60`) of one row per (samples, rise µs), and
+    /// waveforms rising that many samples above 100 µV from 60 µV below it.
+    fn rises(cases: &[(u32, f64)]) -> (HitList, Vec<Peek>, Alignment) {
+        let text: String = std::iter::once(" ID THR AMP RISE\n".to_string())
+            .chain(cases.iter().map(|(_, us)| format!(" 1 40 60 {us}\n")))
+            .collect();
+        let waves = cases.iter().map(|(r, _)| ramp(6e-5, 2e-4, *r)).collect();
+        (list(&text), waves, paired(cases.len()))
+    }
+
+    fn implied(cases: &[(u32, f64)], configured: f64) -> Option<ImpliedRate> {
+        let (l, w, al) = rises(cases);
+        implied_rate(&l, &w, &al, configured)
+    }
+
+    /// Six usable ratios 4.5, 4.8, 5.0, 5.2, 5.4, 9.0 samples/µs: the median is 5.1 (the mean,
+    /// 5.65, would be off), nearest 5 MHz by 2 %, every other rate ≥ 2× as far: 5 MHz. Rises
+    /// under 3 µs, rows without a waveform and waveforms without a row are not used; the
+    /// threshold is the list's THR, so the 60 µV step below it does not count (it would add
+    /// 3 samples to each rise).
+    #[test]
+    fn the_median_rise_ratio_tells_a_clear_rate() {
+        let mut cases = vec![(45, 10.0), (48, 10.0), (50, 10.0), (52, 10.0), (54, 10.0)];
+        cases.extend([(90, 10.0), (20, 2.0), (29, 2.9)]);
+        let (mut l, mut w, mut al) = rises(&cases);
+        w.push(ramp(6e-5, 2e-4, 500));
+        l.rows.push(ListRow {
+            line: 99,
+            cells: vec![Some(1.0), Some(40.0), Some(60.0), Some(100.0)],
+        });
+        al.pairs.push((Some(cases.len()), None));
+        al.pairs.push((None, Some(cases.len())));
+        let got = implied_rate(&l, &w, &al, 5e6).unwrap();
+        assert_eq!(got.used, 6);
+        assert!((got.samples_per_us - 5.1).abs() < 1e-12, "{got:?}");
+        assert_eq!(got.rate_hz, Some(5e6));
+        // Without a THR column the threshold is the lowest AMP (60 dB_AE = 1 mV): the step
+        // of 0.5 mV below it does not count, the first sample at 1.5 mV does.
+        let text: String = std::iter::once(" ID AMP RISE\n".to_string())
+            .chain((0..5).map(|k| format!(" 1 {} 10\n", 60 + k)))
+            .collect();
+        let w: Vec<Peek> = (0..5).map(|_| ramp(5e-4, 1.5e-3, 100)).collect();
+        let got = implied_rate(&list(&text), &w, &paired(5), 5e6).unwrap();
+        assert_eq!((got.samples_per_us, got.rate_hz), (10.0, Some(10e6)));
+    }
+
+    /// Five rises of at least 3 µs tell a rate; four do not, however many shorter ones (or
+    /// rows without a RISE) stand beside them.
+    #[test]
+    fn too_few_rise_times_tell_no_rate() {
+        let short = [(20, 2.0), (29, 2.9), (10, 1.0)];
+        let mut four: Vec<(u32, f64)> = vec![(50, 10.0); 4];
+        four.extend(short);
+        assert_eq!(implied(&four, 5e6), None);
+        let (mut l, mut w, _) = rises(&four);
+        l.rows.push(ListRow {
+            line: 99,
+            cells: vec![Some(1.0), Some(40.0), Some(60.0), None],
+        });
+        w.push(ramp(6e-5, 2e-4, 50));
+        assert_eq!(implied_rate(&l, &w, &paired(w.len()), 5e6), None);
+        four.push((50, 10.0));
+        let five = implied(&four, 5e6).unwrap();
+        assert_eq!((five.used, five.rate_hz), (5, Some(5e6)));
+    }
+
+    /// Through the whole computation: a median of √5 = 2.236 samples/µs is equally near 2 and
+    /// 2.5 MHz (none is clearly nearest); 6.27 is 25.4 % above 5 MHz (too far from every
+    /// usual rate, though 10 MHz is more than twice as far); 3.0 is a configured 3 MHz, and
+    /// 2.5 MHz (20 % off, 2 MHz 2.2× as far) when the configured rate is 5 MHz.
+    #[test]
+    fn an_ambiguous_or_distant_median_tells_no_rate_and_the_configured_rate_is_a_candidate() {
+        let ambiguous = implied(&[(559, 250.0); 5], 5e6).unwrap();
+        assert!((ambiguous.samples_per_us - 2.236).abs() < 1e-12);
+        assert_eq!(ambiguous.rate_hz, None);
+        let far = implied(&[(627, 100.0); 5], 5e6).unwrap();
+        assert_eq!((far.samples_per_us, far.rate_hz), (6.27, None));
+        assert_eq!(implied(&[(30, 10.0); 5], 3e6).unwrap().rate_hz, Some(3e6));
+        assert_eq!(implied(&[(30, 10.0); 5], 5e6).unwrap().rate_hz, Some(2.5e6));
+    }
+
+    /// (median samples/µs, configured Hz, the rate it clearly tells) on both sides of each
+    /// boundary, worked out by hand: within 25 % of 5 MHz (6.2 and 4.05 are, 6.27 and 3.95
+    /// are not); every other rate ≥ 2× as far in log ratio (2.15: ln(2.5/2.15) = 0.151 ≥
+    /// 2·ln(1.075) = 0.145, 2.16: 0.146 < 0.154); √5 equally near 2 and 2.5 MHz; the
+    /// configured rate a candidate (3 MHz) and, a few percent from a usual rate, never told
+    /// apart from it (5.2 MHz: ln 1.04 = 0.039 < 2·0.05; 5.6 MHz: ln 1.12 = 0.113 ≥ 0.1).
+    const BOUNDARIES: [(f64, f64, Option<f64>); 13] = [
+        (5.0, 5e6, Some(5e6)),
+        (6.2, 5e6, Some(5e6)),
+        (6.27, 5e6, None),
+        (4.05, 5e6, Some(5e6)),
+        (3.95, 5e6, None),
+        (2.15, 5e6, Some(2e6)),
+        (2.16, 5e6, None),
+        (2.236_067_977_5, 5e6, None),
+        (3.0, 3e6, Some(3e6)),
+        (3.0, 5e6, Some(2.5e6)),
+        (5.0, 5.2e6, None),
+        (5.0, 5.6e6, Some(5e6)),
+        (20.0, 5e6, Some(20e6)),
+    ];
+
+    /// The cases of [`BOUNDARIES`] a decision gets wrong.
+    fn wrong(decide: &dyn Fn(f64, f64) -> Option<f64>) -> Vec<(f64, f64, Option<f64>)> {
+        BOUNDARIES
+            .iter()
+            .filter(|(m, c, want)| decide(*m, *c) != *want)
+            .copied()
+            .collect()
+    }
+
+    /// The decision agrees with every hand-worked boundary case. Plants: copies of it with
+    /// the 25 % rule at 30 % or 20 %, the 2× rule at 1.5× or 3×, no floor or a 0.06 floor, or
+    /// the configured rate left out of the candidates, each get a case wrong.
+    #[test]
+    fn the_rate_decision_holds_on_both_sides_of_each_boundary() {
+        assert_eq!(wrong(&|m, c| clear_rate(m, c, CLEAR)), vec![]);
+        let with = |r: Clearly| move |m: f64, c: f64| clear_rate(m, c, r);
+        let plants = [
+            Clearly {
+                within: 1.3,
+                ..CLEAR
+            },
+            Clearly {
+                within: 1.2,
+                ..CLEAR
+            },
+            Clearly {
+                apart: 1.5,
+                ..CLEAR
+            },
+            Clearly {
+                apart: 3.0,
+                ..CLEAR
+            },
+            Clearly {
+                floor: 0.0,
+                ..CLEAR
+            },
+            Clearly {
+                floor: 0.06,
+                ..CLEAR
+            },
+        ];
+        for p in plants {
+            assert!(!wrong(&with(p)).is_empty(), "plant {p:?} passed");
+        }
+        // The configured rate ignored: a usual rate in its place adds no candidate.
+        assert!(!wrong(&|m, _| clear_rate(m, 5e6, CLEAR)).is_empty());
     }
 }

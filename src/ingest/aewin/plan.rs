@@ -360,3 +360,63 @@ fn rate_decision(
         ),
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// `n` rows (THR 40 dB_AE = 100 µV, RISE `us` µs) paired with waveforms that rise `r`
+    /// samples from 200 µV (above the threshold) to their peak.
+    fn case(n: usize, r: u32, us: f64) -> (HitList, Vec<Peek>, Alignment) {
+        let text: String = std::iter::once(" ID THR AMP RISE\n".to_string())
+            .chain((0..n).map(|_| format!(" 1 40 60 {us}\n")))
+            .collect();
+        let mut v = vec![0f32; 3];
+        v.extend((0..=r).map(|i| 2e-4 + 1e-5 * i as f32));
+        let al = Alignment {
+            pairs: (0..n).map(|i| (Some(i), Some(i))).collect(),
+            checked: 0,
+            agree: 0,
+        };
+        let list = HitList::parse(std::path::Path::new("EXP.TXT"), &text);
+        (list, vec![Peek::of(&v, 1, None); n], al)
+    }
+
+    fn decide(c: (HitList, Vec<Peek>, Alignment), set: Option<f64>) -> (f64, String, bool) {
+        let cfg = AewinConfig {
+            sample_rate_hz: set,
+            ..Default::default()
+        };
+        rate_decision("EXP", &c.0, &c.1, &c.2, &cfg)
+    }
+
+    /// Each branch of the decision on a header-less test, the rate read and what is said:
+    /// four rises are too few to check the configured 5 MHz (five are enough: the same rows
+    /// with one more reach the next branch); a median of 2.236 samples/µs, equally near 2
+    /// and 2.5 MHz, implies no rate clearly; 5.0 confirms 5 MHz (a manifest note, not a
+    /// terminal line); 10.0 implies 10 MHz when no rate is set, and is said against a set
+    /// 5 MHz, which is kept.
+    #[test]
+    fn each_rate_decision_reads_at_the_rate_it_says() {
+        assert_eq!(
+            decide(case(4, 50, 10.0), None),
+            (5e6, "EXP: 5 MHz as configured; the hit list holds too few rise times (≥ 3 µs) to check it".into(), true)
+        );
+        assert_eq!(
+            decide(case(5, 559, 250.0), None),
+            (5e6, "EXP: 5 MHz as configured; the hit list's rise times imply no usual rate clearly (2.2 samples per list-µs over 5 hits)".into(), true)
+        );
+        assert_eq!(
+            decide(case(5, 50, 10.0), None),
+            (5e6, "EXP: 5 MHz, as the hit list's rise times imply (5.0 samples per list-µs over 5 hits)".into(), false)
+        );
+        assert_eq!(
+            decide(case(5, 100, 10.0), None),
+            (10e6, "EXP: 10 MHz, implied by the hit list's rise times (configured 5 MHz; 10.0 samples per list-µs over 5 hits)".into(), true)
+        );
+        assert_eq!(
+            decide(case(6, 100, 10.0), Some(5e6)),
+            (5e6, "EXP: 5 MHz as set in the pipeline file, though the hit list's rise times imply 10 MHz (10.0 samples per list-µs over 6 hits)".into(), true)
+        );
+    }
+}
