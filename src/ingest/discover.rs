@@ -41,23 +41,6 @@ fn ext_lower(p: &Path) -> String {
         .unwrap_or_default()
 }
 
-/// Read up to `n` bytes of the head of a file as text (lossy).
-pub(crate) fn head(p: &Path, n: usize) -> std::io::Result<String> {
-    use std::io::Read;
-    let mut f = std::fs::File::open(p)?;
-    let mut buf = vec![0u8; n];
-    let mut got = 0;
-    while got < n {
-        let k = f.read(&mut buf[got..])?;
-        if k == 0 {
-            break;
-        }
-        got += k;
-    }
-    buf.truncate(got);
-    Ok(String::from_utf8_lossy(&buf).into_owned())
-}
-
 /// Every text reader's recogniser, in the order that breaks a tie no name breaks.
 const TEXT_READERS: &[&sniff::Recogniser] = &[
     &super::waveexplorer::RECOGNISER,

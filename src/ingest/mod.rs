@@ -26,8 +26,8 @@ use settings::{LoadConfig, ReadSettings};
 use std::path::{Path, PathBuf};
 
 pub use aewin::MachineLog;
-pub(crate) use discover::head;
 pub use discover::{discover, Discovery};
+pub(crate) use sniff::head;
 
 #[derive(Debug, thiserror::Error)]
 pub enum IngestError {

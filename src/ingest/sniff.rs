@@ -25,6 +25,23 @@ pub(crate) const HEAD_BYTES: usize = 4096;
 /// their extension and magic bytes).
 pub(crate) const TEXT_EXTENSIONS: &[&str] = &["csv", "txt", "dat", "tsv", "asc"];
 
+/// Read up to `n` bytes of the head of a file as text (lossy).
+pub(crate) fn head(p: &Path, n: usize) -> std::io::Result<String> {
+    use std::io::Read;
+    let mut f = std::fs::File::open(p)?;
+    let mut buf = vec![0u8; n];
+    let mut got = 0;
+    while got < n {
+        let k = f.read(&mut buf[got..])?;
+        if k == 0 {
+            break;
+        }
+        got += k;
+    }
+    buf.truncate(got);
+    Ok(String::from_utf8_lossy(&buf).into_owned())
+}
+
 /// The first kilobytes of a file, as text.
 #[derive(Debug, Clone)]
 pub(crate) struct Head {

@@ -1,7 +1,9 @@
 //! The house's directions: every import between the library's top-level modules points down
 //! the chain the README states (so no cycle either), clap stays in the command line, the
-//! binary stays thin. Read from the source text (`crate::room` paths outside `#[cfg(test)]`),
-//! so an import against the direction fails here before anyone has to find it.
+//! binary stays thin. Read from the source text (`crate::room` paths in the code outside
+//! tests: the items `#[cfg(test)]` applies to dropped, the code after them read, files only
+//! tests compile left out), so an import against the direction fails here before anyone has
+//! to find it.
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
@@ -35,8 +37,8 @@ fn room_of(file: &Path) -> Option<String> {
 }
 
 /// Top-level rooms named by `crate::x` (also inside `use crate::{x, y::z}`) in the code
-/// before any `#[cfg(test)]`: the first segment of every crate-rooted path the file-circle
-/// reader finds ([`crate::imports::paths`]).
+/// outside tests: the first segment of every crate-rooted path the file-circle reader finds
+/// ([`crate::imports::paths`]).
 fn uses(text: &str) -> BTreeSet<String> {
     crate::imports::paths(text)
         .into_iter()
@@ -48,10 +50,11 @@ fn uses(text: &str) -> BTreeSet<String> {
 fn graph() -> BTreeMap<String, BTreeSet<String>> {
     let mut files = Vec::new();
     rust_files(&src(), &mut files);
+    let tests_only = crate::imports::test_only_files(&files);
     let mut g: BTreeMap<String, BTreeSet<String>> = BTreeMap::new();
-    for f in files {
-        let Some(room) = room_of(&f) else { continue };
-        let text = std::fs::read_to_string(&f).unwrap();
+    for f in files.iter().filter(|f| !tests_only.contains(*f)) {
+        let Some(room) = room_of(f) else { continue };
+        let text = std::fs::read_to_string(f).unwrap();
         let deps = g.entry(room.clone()).or_default();
         for u in uses(&text) {
             if u != room {
@@ -115,10 +118,11 @@ fn the_cycle_finder_finds_a_planted_cycle_and_reads_grouped_imports() {
     assert!(sig("pub fn f(x: u8) -> Result<Vec<u8>, String> "));
     assert!(!sig("pub fn f(x: u8) -> BTreeMap<u8, String> "));
     assert!(!sig("pub fn f(x: u8) -> Result<BTreeMap<u8, String>, E> "));
-    let u = uses("use crate::{config::X, util::{a, b}};\nfn f() { crate::store::g() }\n#[cfg(test)]\nuse crate::synth;");
+    // A test-only import is not read, the code after it is.
+    let u = uses("use crate::{config::X, util::{a, b}};\nfn f() { crate::store::g() }\n#[cfg(test)]\nuse crate::synth;\nfn g() { crate::events::h() }");
     assert_eq!(
         u.into_iter().collect::<Vec<_>>(),
-        vec!["config", "store", "util"]
+        vec!["config", "events", "store", "util"]
     );
     let mut g = BTreeMap::new();
     g.insert("a".to_string(), BTreeSet::from(["b".to_string()]));
@@ -353,7 +357,7 @@ fn no_string_errors_in_public_functions() {
     let mut bad = Vec::new();
     for f in files {
         let text = std::fs::read_to_string(&f).unwrap();
-        let code = text.split("#[cfg(test)]").next().unwrap_or("");
+        let code = crate::imports::without_tests(&text);
         // Signatures may span lines: join each `pub fn` (or `pub(crate) fn`) up to its body.
         let starts = code
             .match_indices("pub fn ")
@@ -373,14 +377,13 @@ fn no_string_errors_in_public_functions() {
     assert!(bad.is_empty(), "{}", bad.join("\n"));
 }
 
-/// The code of a file before its tests (an inline `#[cfg(test)]` module, or none for a
-/// `tests.rs`), its comment lines left out.
+/// The code of a file outside its tests (the items `#[cfg(test)]` applies to dropped, the
+/// code after them kept; none for a `tests.rs`), comments kept.
 fn code_without_tests(f: &Path) -> String {
     if f.file_name().is_some_and(|n| n == "tests.rs") {
         return String::new();
     }
-    let text = std::fs::read_to_string(f).unwrap();
-    text.split("#[cfg(test)]").next().unwrap_or("").to_string()
+    crate::imports::without_tests(&std::fs::read_to_string(f).unwrap())
 }
 
 /// Each function's length in lines, from its `fn` line to its closing brace (comments
