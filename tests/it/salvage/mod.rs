@@ -1,8 +1,10 @@
-//! Issue 53: a `.tradb` SQLite refuses (cut short, a page zeroed or overwritten) is salvaged
-//! from its whole pages. Files the project's writer makes are damaged several ways; the
-//! transients read back must equal the intact file's, record for record, and exactly the
-//! ones whose pages survived — counted by a page walk written here, from the SQLite file
-//! format, not by the project's reader. On the real sets, cut at 30/60/90 %, the same.
+//! A `.tradb`, `.pridb` or `.trfdb` SQLite refuses (cut short, a page zeroed or overwritten)
+//! is salvaged from its whole pages. Files the project's writer makes are damaged several
+//! ways; what is read back must equal the intact file's, record for record, and be exactly
+//! the records whose pages survived — found by a page walk written here ([`walk`]), from the
+//! SQLite file format, not by the project's reader. On the real sets, cut short, the same.
+//! Each checker is also fed a planted wrong result (a record dropped, duplicated, altered)
+//! and must reject it.
 
 use crate::{read_all, TempDir};
 use aepipe::ingest::vallen::{HitToWrite, Journal, PairWriter};
@@ -24,7 +26,15 @@ fn fixture(dir: &Path, id: &str, n: u64, journal: Journal) -> (PairWriter, PathB
     std::fs::create_dir_all(dir).unwrap();
     let w = PairWriter::create(&dir.join(id), 1.0, 0.01, journal).unwrap();
     let mut rng = aepipe::util::Rng::new(n);
-    for k in 0..n {
+    add_hits(&w, 0..n, &mut rng);
+    let tradb = w.paths().1;
+    (w, tradb)
+}
+
+/// Hits `ks` (TRAI k + 1, SetID k + 1 in each file) with their transients, each hit and its
+/// transient one transaction.
+fn add_hits(w: &PairWriter, ks: std::ops::Range<u64>, rng: &mut aepipe::util::Rng) {
+    for k in ks {
         let len = 1000 + ((k * 397) % 4000) as usize;
         let v: Vec<f32> = (0..len)
             .map(|i| (0.3 * (i as f64 * 0.21).sin() + 0.01 * rng.normal()) as f32)
@@ -45,8 +55,6 @@ fn fixture(dir: &Path, id: &str, n: u64, journal: Journal) -> (PairWriter, PathB
         })
         .unwrap();
     }
-    let tradb = w.paths().1;
-    (w, tradb)
 }
 
 /// Records keyed by (channel, hit).
@@ -54,8 +62,43 @@ fn by_key(recs: Vec<AeRecord>) -> BTreeMap<(u32, u64), AeRecord> {
     recs.into_iter().map(|r| ((r.channel, r.hit), r)).collect()
 }
 
-/// The transients read from `damaged` are the intact ones of `expect` (by TRAI = hit
-/// here), value for value, and no other; returned.
+/// The records read back against the intact ones: exactly the hits of `expect` (by TRAI =
+/// hit here), each read once, each equal to the intact file's value for value (its
+/// `source_file` aside). `Err` says how they differ; `Ok` gives them by key.
+fn salvage_matches(
+    recs: Vec<AeRecord>,
+    intact: &BTreeMap<(u32, u64), AeRecord>,
+    expect: &BTreeSet<u64>,
+) -> Result<BTreeMap<(u32, u64), AeRecord>, String> {
+    let n = recs.len();
+    let got = by_key(recs);
+    if got.len() != n {
+        return Err(format!("{} record(s) read more than once", n - got.len()));
+    }
+    let hits: BTreeSet<u64> = got.keys().map(|k| k.1).collect();
+    if &hits != expect {
+        return Err(format!(
+            "the transients salvaged: {} of {} expected; not expected {:?}, missing {:?}",
+            hits.len(),
+            expect.len(),
+            hits.difference(expect).collect::<Vec<_>>(),
+            expect.difference(&hits).collect::<Vec<_>>()
+        ));
+    }
+    for (k, r) in &got {
+        let mut want = intact
+            .get(k)
+            .ok_or_else(|| format!("{k:?} is not in the intact file"))?
+            .clone();
+        want.source_file = r.source_file.clone();
+        if r != &want {
+            return Err(format!("{k:?} differs from the intact file's"));
+        }
+    }
+    Ok(got)
+}
+
+/// The transients read from `damaged_dir` pass [`salvage_matches`]; returned by key.
 fn assert_salvaged(
     damaged_dir: &Path,
     intact: &BTreeMap<(u32, u64), AeRecord>,
@@ -66,15 +109,30 @@ fn assert_salvaged(
         &[damaged_dir.to_path_buf()],
         &aepipe::config::ValidConfig::default(),
     );
-    let got = by_key(recs);
-    let hits: BTreeSet<u64> = got.keys().map(|k| k.1).collect();
-    assert_eq!(&hits, expect, "{what}: the transients salvaged");
-    for (k, r) in &got {
-        let mut want = intact[k].clone();
-        want.source_file = r.source_file.clone();
-        assert_eq!(r, &want, "{what}: {k:?}");
+    salvage_matches(recs, intact, expect).unwrap_or_else(|e| panic!("{what}: {e}"))
+}
+
+/// The planted wrong readings of `got` (a record dropped, one read twice, one whose
+/// samples differ), each of which [`salvage_matches`] must reject.
+fn assert_plants_rejected(
+    got: &BTreeMap<(u32, u64), AeRecord>,
+    intact: &BTreeMap<(u32, u64), AeRecord>,
+    expect: &BTreeSet<u64>,
+    what: &str,
+) {
+    let recs: Vec<AeRecord> = got.values().cloned().collect();
+    assert!(!recs.is_empty(), "{what}: nothing to plant in");
+    let dropped = recs[1..].to_vec();
+    let mut twice = recs.clone();
+    twice.push(recs[0].clone());
+    let mut altered = recs.clone();
+    altered[0].samples[0] += 1e-3;
+    for (plant, bad) in [("dropped", dropped), ("twice", twice), ("altered", altered)] {
+        assert!(
+            salvage_matches(bad, intact, expect).is_err(),
+            "{what}: the planted reading ({plant}) passes the check"
+        );
     }
-    got
 }
 
 /// Page `p` (1-based, `page` bytes) overwritten with `fill`: "zeros" or "noise".
@@ -101,6 +159,11 @@ fn damaged(from: &Path, to: &Path, id: &str, damage: impl FnOnce(&mut Vec<u8>)) 
     to.to_path_buf()
 }
 
+/// A `.tradb` cut at every 10 %, or with one page (a leaf, an interior page, an overflow
+/// page mid-chain, the schema page, a chain's last page) zeroed or overwritten with noise,
+/// gives back exactly the records the page walk finds whole, each equal to the intact
+/// file's. Plant: the reading of the file cut at 50 % with a record dropped, one read
+/// twice, and one with a sample changed, each rejected by the same check.
 #[test]
 fn a_damaged_tradb_gives_back_exactly_the_records_whose_pages_survived() {
     let t = TempDir::new("salvage-fixture");
@@ -122,8 +185,9 @@ fn a_damaged_tradb_gives_back_exactly_the_records_whose_pages_survived() {
     let all: BTreeSet<u64> = (1..=60).collect();
     let len = std::fs::metadata(&tradb).unwrap().len() as usize;
     let page = walk.page;
-    let rowid_hit = |rowid: i64| rowid as u64; // SetID k+1 holds TRAI k+1
-                                               // Cut at every 10 %: the records whose every page lies before the cut.
+    // SetID k+1 holds TRAI k+1. Cut at every 10 %: the records whose every page lies
+    // before the cut.
+    let rowid_hit = |rowid: i64| rowid as u64;
     for tenth in 1..10 {
         let cut = len * tenth / 10;
         let whole_pages = (cut / page) as u64;
@@ -136,7 +200,11 @@ fn a_damaged_tradb_gives_back_exactly_the_records_whose_pages_survived() {
         let d = damaged(&src, &t.path().join(format!("cut{tenth}")), "S", |b| {
             b.truncate(cut)
         });
-        assert_salvaged(&d, &intact, &expect, &format!("cut at {tenth}0 %"));
+        let what = format!("cut at {tenth}0 %");
+        let got = assert_salvaged(&d, &intact, &expect, &what);
+        if tenth == 5 {
+            assert_plants_rejected(&got, &intact, &expect, &what);
+        }
     }
     // One page zeroed, or overwritten with noise: a leaf (its records lost), an interior
     // page (nothing lost: its leaves are told by their records' shape), an overflow page in
@@ -249,30 +317,55 @@ fn a_salvage_is_said_and_every_lost_transient_is_a_reject() {
     assert!(m["counts"]["unbalanced"].as_array().unwrap().is_empty());
 }
 
-/// A WAL-mode `.tradb` copied without its `-wal` while the writer still holds it: what the
-/// main file holds is read (by SQLite or salvage), each record equal to the writer's.
+/// A WAL-mode pair copied without its `-wal` files while the writer still holds them: the
+/// writer's first 20 hits were checkpointed into the main files, 10 more committed to the
+/// WAL alone. The copy gives back exactly those 20 — the page walk of the copied `.tradb`
+/// finds their 20 records and no other — each equal to the writer's. Plant: the live pair
+/// read with its WAL (all 30), and the copy's reading with a record dropped, each rejected
+/// by the same check.
 #[test]
 fn a_wal_tradb_without_its_wal_keeps_what_the_main_file_holds() {
     let t = TempDir::new("salvage-wal");
     let src = t.path().join("live");
-    let (w, tradb) = fixture(&src, "W", 30, Journal::Wal);
+    let (w, tradb) = fixture(&src, "W", 20, Journal::Wal);
+    for (name, path) in [("pridb", w.paths().0), ("tradb", tradb.clone())] {
+        let (busy, _, _): (i64, i64, i64) = rusqlite::Connection::open(&path)
+            .unwrap()
+            .query_row("PRAGMA wal_checkpoint(TRUNCATE)", [], |r| {
+                Ok((r.get(0)?, r.get(1)?, r.get(2)?))
+            })
+            .unwrap();
+        assert_eq!(busy, 0, "the {name} checkpoint was blocked");
+    }
+    add_hits(&w, 20..30, &mut aepipe::util::Rng::new(30));
     let copy = t.path().join("copy");
     std::fs::create_dir_all(&copy).unwrap();
     std::fs::copy(src.join("W.pridb"), copy.join("W.pridb")).unwrap();
     std::fs::copy(&tradb, copy.join("W.tradb")).unwrap();
     drop(w);
-    let (recs, _) = read_all(
-        std::slice::from_ref(&src),
-        &aepipe::config::ValidConfig::default(),
-    );
-    let intact = by_key(recs);
+    let cfg = aepipe::config::ValidConfig::default();
+    let (live, _) = read_all(std::slice::from_ref(&src), &cfg);
+    let intact = by_key(live.clone());
     assert_eq!(intact.len(), 30);
-    let (recs, _) = read_all(&[copy], &aepipe::config::ValidConfig::default());
-    for r in recs {
-        let mut want = intact[&(r.channel, r.hit)].clone();
-        want.source_file = r.source_file.clone();
-        assert_eq!(r, want);
-    }
+    let in_main: BTreeSet<u64> = walk(&copy.join("W.tradb"))
+        .records
+        .keys()
+        .map(|r| *r as u64)
+        .collect();
+    let expect: BTreeSet<u64> = (1..=20).collect();
+    assert_eq!(in_main, expect, "the page walk of the copied main file");
+    let (recs, _) = read_all(&[copy], &cfg);
+    let got = salvage_matches(recs.clone(), &intact, &expect)
+        .unwrap_or_else(|e| panic!("the copy without its WAL: {e}"));
+    assert_eq!(got.len(), 20);
+    assert!(
+        salvage_matches(live, &intact, &expect).is_err(),
+        "the planted reading with the WAL's 10 hits passes"
+    );
+    assert!(
+        salvage_matches(recs[1..].to_vec(), &intact, &expect).is_err(),
+        "the planted reading with a record dropped passes"
+    );
 }
 
 /// `aepipe watch` on a pair whose files arrive by a copy that knows nothing of SQLite's

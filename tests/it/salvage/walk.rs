@@ -4,8 +4,9 @@ use std::collections::{BTreeMap, BTreeSet};
 use std::path::Path;
 
 /// What a page walk of a SQLite file finds, written here from the file format: the page
-/// size, and for every `tr_data` record its rowid and the pages it occupies (its leaf page
-/// and overflow chain), and the pages of each kind.
+/// size, and for every record of one table its rowid and the pages it occupies (its leaf
+/// page and overflow chain), and the pages of each kind.
+#[derive(Clone)]
 pub(super) struct Walk {
     pub page: usize,
     pub records: BTreeMap<i64, Vec<u64>>,
