@@ -210,7 +210,8 @@ fn the_map_is_reused_for_the_same_settings_and_report_and_made_for_new_dsp_or_li
 /// The real AEwin test (EXP2009), in a cache of the test's own: the second run reuses the
 /// map (read from the cache and run folders, see [`MapRun::reused`]) and classifies byte
 /// for byte as the first, its `run.json` names the entry; a corrupted entry is made again,
-/// with a note, and classifies as the first.
+/// with a note, and classifies as the first — trained on the library entry the first run
+/// kept, which it leaves untouched.
 ///
 /// Plant: the first run's evidence fed to the reuse check (it made the entry) fails.
 #[test]
@@ -228,8 +229,15 @@ fn the_map_is_made_once_per_settings_and_a_broken_entry_is_made_again() {
         let class = std::fs::read(r.run.join("som/classification.parquet")).unwrap();
         (r, se, class)
     };
+    let libraries = xdg.join("aepipe/reference-library");
     let (r1, _, c1) = run("r1");
     let k1 = r1.made().unwrap();
+    let lib1 = entries(&libraries);
+    assert_eq!(
+        lib1.len(),
+        1,
+        "the embedded library is not kept once: {lib1:?}"
+    );
     let (r2, _, c2) = run("r2");
     assert_eq!(r2.reused(), Ok(k1.clone()));
     assert!(r1.reused().is_err(), "the plant passed the reuse check");
@@ -244,6 +252,12 @@ fn the_map_is_made_once_per_settings_and_a_broken_entry_is_made_again() {
     );
     assert_eq!(r3.made(), Ok(k1));
     assert_eq!(c1, c3);
+    // The map was trained again on the library already simulated: its entry untouched, and
+    // the run's library that entry's bytes.
+    assert_eq!(changed(&lib1, &entries(&libraries)), Ok(vec![]));
+    let (lib_k, _) = lib1.first_key_value().unwrap();
+    let kept = std::fs::read(libraries.join(lib_k).join("waveforms.parquet")).unwrap();
+    assert!(std::fs::read(r3.run.join("reference/waveforms.parquet")).unwrap() == kept);
 }
 
 /// What a call of the library cache is: cache root, definition, library folder.
