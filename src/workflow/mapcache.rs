@@ -196,3 +196,98 @@ pub fn name_in_manifest(manifest: &Path, c: &MapCache) -> Result<(), WorkflowErr
     });
     crate::pipeline::write_manifest(manifest, &m).map_err(|e| bad(e.to_string()))
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::config::ValidConfig;
+
+    type KeyFn = dyn Fn(&RunJob) -> Result<String, WorkflowError>;
+
+    /// `job` with its configuration edited (for the plants below).
+    fn edited(job: &RunJob, edit: impl FnOnce(&mut crate::config::PipelineConfig)) -> ValidConfig {
+        job.config
+            .clone()
+            .with(edit)
+            .expect("an edited test configuration")
+    }
+
+    /// What a map's key must follow, checked on `key`: the same settings give the same key;
+    /// a changed `[dsp]` (it shapes the library's features), `[som]`, or named library file
+    /// (its contents, at the same path and size) gives a new one; a changed `[report]` (it
+    /// shows the run, it does not shape the map) keeps it. The first rule broken, or Ok.
+    fn key_rules(key: &KeyFn) -> Result<(), String> {
+        let t = std::env::temp_dir().join(format!(
+            "aepipe-mapkey-{}-{:?}",
+            std::process::id(),
+            std::thread::current().id()
+        ));
+        let _ = std::fs::remove_dir_all(&t);
+        std::fs::create_dir_all(&t).unwrap();
+        let lib = t.join("waveforms.parquet");
+        std::fs::write(&lib, b"library one").unwrap();
+        let base = ValidConfig::default()
+            .with(|c| c.som.reference_library = Some(lib.clone()))
+            .unwrap();
+        let k = |cfg: &ValidConfig| {
+            key(&RunJob::new(cfg, &[], &t, 1)).map_err(|e| format!("no key: {e}"))
+        };
+        let k0 = k(&base)?;
+        let with = |edit: fn(&mut crate::config::PipelineConfig)| base.clone().with(edit).unwrap();
+        let out = (|| {
+            if k(&base)? != k0 {
+                return Err("the same settings give two keys".to_string());
+            }
+            if k(&with(|c| c.dsp.cwt.fwhm_periods = 2.5))? == k0 {
+                return Err("a changed [dsp] keeps the key".into());
+            }
+            if k(&with(|c| c.som.seed = 8))? == k0 {
+                return Err("a changed [som] keeps the key".into());
+            }
+            let report = with(|c| {
+                c.report.enabled = false;
+                c.report.gallery_per_class = 3;
+            });
+            if k(&report)? != k0 {
+                return Err("a changed [report] makes a new key".into());
+            }
+            // Same path, same size, other bytes: only the contents tell them apart.
+            std::fs::write(&lib, b"library two").unwrap();
+            if k(&base)? == k0 {
+                return Err("a changed library file keeps the key".into());
+            }
+            Ok(())
+        })();
+        let _ = std::fs::remove_dir_all(&t);
+        out
+    }
+
+    /// The map's key changes with what shapes the map and only with that.
+    /// Plants: a key that ignores `[dsp]`, one that names the library by its path and not
+    /// its contents, and one that hashes `[report]` too — each fails its rule.
+    #[test]
+    fn the_map_key_changes_with_what_shapes_the_map_and_only_that() {
+        key_rules(&map_key).unwrap();
+        let ignores_dsp: &KeyFn = &|job| {
+            let c = edited(job, |c| c.dsp = Default::default());
+            map_key(&RunJob::new(&c, job.inputs, job.out, job.threads))
+        };
+        let library_by_path: &KeyFn = &|job| {
+            let c = edited(job, |c| c.som.reference_library = None);
+            let path = format!("{:?}", job.config.som.reference_library);
+            let k = map_key(&RunJob::new(&c, job.inputs, job.out, job.threads))?;
+            Ok(key(&[k.as_bytes(), path.as_bytes()]))
+        };
+        let hashes_report: &KeyFn = &|job| {
+            let report = format!("{:?}", job.config.report);
+            Ok(key(&[map_key(job)?.as_bytes(), report.as_bytes()]))
+        };
+        for (plant, rule) in [
+            (ignores_dsp, "a changed [dsp] keeps the key"),
+            (library_by_path, "a changed library file keeps the key"),
+            (hashes_report, "a changed [report] makes a new key"),
+        ] {
+            assert_eq!(key_rules(plant), Err(rule.to_string()));
+        }
+    }
+}
