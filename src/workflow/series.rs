@@ -401,6 +401,7 @@ mod tests {
             seconds: vec![],
             peak_rss: vec![],
             series: None,
+            page: None,
         }
     }
 
