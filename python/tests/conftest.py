@@ -19,6 +19,15 @@ REAL = ROOT.parent / "shared" / "data" / "real"
 REQUIRE_ALL = os.environ.get("AEPIPE_REQUIRE_ALL") == "1"
 
 
+def pytest_configure(config: pytest.Config) -> None:
+    """The long-call tests carry a hang guard (`@pytest.mark.timeout`, pytest-timeout's thread
+    method prints every thread's stack where a test hung). Without the plugin the guard is
+    gone: a skip-worthy absence locally, a failure with AEPIPE_REQUIRE_ALL=1."""
+    config.addinivalue_line("markers", "timeout(seconds): pytest-timeout's hang guard")
+    if REQUIRE_ALL and not config.pluginmanager.hasplugin("timeout"):
+        raise pytest.UsageError("AEPIPE_REQUIRE_ALL=1 needs pytest-timeout (the hang guard)")
+
+
 def need(ok: bool, why: str) -> None:
     """Skip (locally) or fail (AEPIPE_REQUIRE_ALL=1) when a test cannot run."""
     if not ok:

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import doctest
-import faulthandler
 import os
 import threading
 import time
@@ -83,11 +82,12 @@ def test_cwt_equals_a_direct_convolution_and_keeps_a_sines_amplitude() -> None:
     assert aepipe.cwt(s[:1024], fs).shape == (250, 1024)
 
 
+@pytest.mark.timeout(120)
 def test_a_long_call_releases_the_interpreter(tmp_path: Path) -> None:
     """The job's inputs hold a named pipe that discovery must read, and only another Python
     thread feeds it: the call can end only if it let that thread run. No timing is measured;
-    a call that held the interpreter would wait forever, so a watchdog outside the
-    interpreter ends the process instead of hanging the run."""
+    a call that held the interpreter would wait forever, so pytest-timeout's guard ends it at
+    120 s and prints every thread's stack into the log."""
     fs = 10_000_000
     wav_folder(tmp_path / "e0", synthetic_signals(4, 4096, fs, seed=11), fs)
     (tmp_path / "gate").mkdir()
@@ -100,11 +100,9 @@ def test_a_long_call_releases_the_interpreter(tmp_path: Path) -> None:
 
     feeder = threading.Thread(target=feed_fifo, args=(fifo, VALUES, stop, fed), daemon=True)
     feeder.start()
-    faulthandler.dump_traceback_later(120, exit=True)
     try:
         feats = aepipe.features(tmp_path, threads=1)
     finally:
-        faulthandler.cancel_dump_traceback_later()
         stop.set()
     assert fed, "the other thread never ran during the call"
     assert feats.filter(pl.col("experiment") == "gate").height == 1

@@ -4,9 +4,10 @@ line, and what a long call does on Ctrl-C."""
 from __future__ import annotations
 
 import _thread
-import faulthandler
+import contextlib
 import glob
 import os
+import sys
 import tempfile
 import threading
 import time
@@ -75,51 +76,31 @@ def test_run_gives_the_command_lines_tables_and_a_summary(tmp_path: Path) -> Non
     assert set(s["peak_rss_bytes"]) == set(s["seconds"])
 
 
+@pytest.mark.timeout(120)
 def test_a_long_call_returns_on_ctrl_c_and_cleans_up(tmp_path: Path) -> None:
     """Each job interrupted here is one that cannot finish first, whatever the machine: a
     library of 2 048 simulations (the embedded one is 64), and a feature run that waits on
-    an input the test releases only after the interrupt. That the call raises
-    KeyboardInterrupt, after the interrupt was sent, is what is checked; no duration is
-    asserted on a shared machine. A call that ignored the request would run for many
-    minutes: a guard ends the test process after HANG_GUARD_S, naming where it hung."""
-    faulthandler.dump_traceback_later(HANG_GUARD_S, exit=True)
-    try:
-        _interrupt_two_jobs(tmp_path)
-    finally:
-        faulthandler.cancel_dump_traceback_later()
-
-
-#: Far above what an interrupted call takes (well under a second here), far below what the
-#: jobs take uninterrupted.
-HANG_GUARD_S = 120
-
-
-def _interrupt_two_jobs(tmp_path: Path) -> None:
-
-    def interrupt_later(delay: float, at: list[float], then=None) -> None:
-        time.sleep(delay)
-        at.append(time.perf_counter())
-        _thread.interrupt_main()
-        if then is not None:
-            then()
-
+    an input the test releases only after the interrupt. The interrupt is sent once the call
+    is known to be inside its wait: its progress line has been drawn (the call draws it from
+    its wait loop, so the job is running), never after a fixed delay, which on a loaded
+    machine could land before the call began or in the test's own code. That the call
+    raises KeyboardInterrupt after the interrupt was sent, and that its temporary folder is
+    gone once its job has stopped, is what is checked; no duration is asserted on a shared
+    machine. A call that ignored the request would run for many minutes: pytest-timeout's
+    guard ends it at 120 s and prints every thread's stack into the log."""
     leftovers = lambda: glob.glob(os.path.join(tempfile.gettempdir(), f"aepipe-py-{os.getpid()}-*"))  # noqa: E731
     # The embedded library with 32 times its material draws: 2 048 simulations of 6 000
-    # steps cannot be done in half a second by any build.
+    # steps cannot be done before the first progress line of any build.
     lib = (ROOT / "pipelines" / "reference-library.toml").read_text()
     assert "variants = 4\n" in lib
     big = tmp_path / "big-library.toml"
     big.write_text(lib.replace("variants = 4\n", "variants = 128\n"))
-    at: list[float] = []
-    threading.Thread(target=interrupt_later, args=(0.5, at), daemon=True).start()
-    with pytest.raises(KeyboardInterrupt):
-        aepipe.reference_library(big, threads=2)
-    assert len(at) == 1, "the call returned before the interrupt was sent"
-    # The job stopped (its next simulation saw the request) and its folder is gone.
-    deadline = time.time() + 20
-    while leftovers() and time.time() < deadline:
-        time.sleep(0.2)
-    assert not leftovers()
+    with _interrupt_once_drawn() as sent:
+        with pytest.raises(KeyboardInterrupt):
+            aepipe.reference_library(big, threads=2, progress=True)
+    assert len(sent) == 1, "the call returned before the interrupt was sent"
+    # The job stopped (its next simulation saw the request) and its folder went with it.
+    _gone(leftovers, 30)
     # The feature pipeline stops too. Its inputs hold a named pipe, which discovery must
     # read: the job waits there until the interrupt has been sent, then the pipe is fed (as
     # often as it is opened) and the job's next record sees the request.
@@ -132,18 +113,67 @@ def _interrupt_two_jobs(tmp_path: Path) -> None:
         stop = threading.Event()
         values = "".join(f"{0.1 * (k % 7) - 0.3:.2f}\n" for k in range(64)).encode()
         feeder = threading.Thread(target=feed_fifo, args=(fifo, values, stop), daemon=True)
-        at.clear()
-        threading.Thread(target=interrupt_later, args=(0.3, at, feeder.start), daemon=True).start()
         try:
-            with pytest.raises(KeyboardInterrupt):
-                aepipe.features(d, threads=1)
-            assert len(at) == 1, "the call returned before the interrupt was sent"
-            deadline = time.time() + 10
-            while leftovers() and time.time() < deadline:
-                time.sleep(0.2)
-            assert not leftovers()
+            with _interrupt_once_drawn(then=feeder.start) as sent:
+                with pytest.raises(KeyboardInterrupt):
+                    aepipe.features(d, threads=1, progress=True)
+            assert len(sent) == 1, "the call returned before the interrupt was sent"
+            _gone(leftovers, 30)
         finally:
             stop.set()
+
+
+class _Drawn:
+    """A stand-in for ``sys.stderr`` that notes the first progress line a call draws."""
+
+    def __init__(self) -> None:
+        self.drawn = threading.Event()
+
+    def write(self, text: str) -> int:
+        if "aepipe: " in text:
+            self.drawn.set()
+        return len(text)
+
+    def flush(self) -> None:
+        pass
+
+
+@contextlib.contextmanager
+def _interrupt_once_drawn(then=None):
+    """While the body runs, a thread waits until the call's progress line is drawn, then sends
+    one Ctrl-C (and calls ``then``). Yields the list the send is noted in. The thread is
+    joined before the context ends; a body that ended before the line was drawn (a failure)
+    gets no interrupt at all."""
+    sent: list[float] = []
+    pen = _Drawn()
+    ended = threading.Event()
+
+    def interrupt() -> None:
+        pen.drawn.wait(60)
+        if ended.is_set():
+            return
+        sent.append(time.perf_counter())
+        _thread.interrupt_main()
+        if then is not None:
+            then()
+
+    t = threading.Thread(target=interrupt, daemon=True)
+    saved, sys.stderr = sys.stderr, pen
+    t.start()
+    try:
+        yield sent
+    finally:
+        sys.stderr = saved
+        ended.set()
+        pen.drawn.set()
+        t.join()
+
+
+def _gone(leftovers, seconds: float) -> None:
+    deadline = time.time() + seconds
+    while leftovers() and time.time() < deadline:
+        time.sleep(0.2)
+    assert not leftovers(), leftovers()
 
 
 def test_bad_inputs_raise_typed_errors(tmp_path: Path) -> None:

@@ -1,7 +1,7 @@
 //! The per-hit method from Python: the feature rows of files or of NumPy signals, the CWT of
 //! one signal, and the four arrival pickers with their detection functions.
 
-use crate::control::{self, ProgressLine, TempDir};
+use crate::control::{self, ProgressLine};
 use crate::errors;
 use crate::frames::ArrowStream;
 use crate::io::{batches, config_of};
@@ -39,22 +39,19 @@ pub fn features_of_paths(
     progress: bool,
 ) -> PyResult<(ArrowStream, ArrowStream)> {
     let cfg = config_of(config)?;
-    let dir = TempDir::new()?;
-    let out = dir.path().to_path_buf();
-    let done = control::run(py, progress.then_some("records"), move |c| {
+    let done = control::run_in(py, progress.then_some("records"), move |c, out| {
         let opts = StreamOptions {
             threads: threads.unwrap_or(0),
             progress: false,
             control: Some(c),
             ..Default::default()
         };
-        let report = aepipe::pipeline::run(StreamJob::Features, &paths, &out, &cfg, &opts)?;
+        let report = aepipe::pipeline::run(StreamJob::Features, &paths, out, &cfg, &opts)?;
         Ok::<_, aepipe::pipeline::PipelineError>((
             ArrowStream::read(&report.table_path)?,
             ArrowStream::read(&report.rejects_path)?,
         ))
     })?;
-    drop(dir);
     done.map_err(errors::pipeline)
 }
 

@@ -3,7 +3,11 @@
 //! the job to stop (`JobControl::cancel`: the core checks it per record, simulation run or
 //! stage), waits at most 0.8 s for it to let go of its files (so the call returns within
 //! 0.9 s of the signal whatever the job is doing), and raises
-//! `KeyboardInterrupt`.
+//! `KeyboardInterrupt`. Any exception that ends the wait — a Ctrl-C the interpreter raises
+//! inside the progress line's `sys.stderr.write` (Python code, as in a notebook), or a
+//! stream that cannot be written — stops the job the same way: a call never returns while
+//! its job runs on unasked. A job's temporary folder belongs to the job ([`run_in`]), so it
+//! goes when the job has stopped writing into it, not when the call returns.
 
 use crate::errors;
 use aepipe::util::JobControl;
@@ -83,13 +87,14 @@ pub fn run<T: Send + 'static>(
                 return Ok(v);
             }
             Err(crossbeam_channel::RecvTimeoutError::Timeout) => {
-                if let Err(e) = py.check_signals() {
+                let looked = py.check_signals().and_then(|()| match &mut line {
+                    Some(l) => l.draw(py, control.done()),
+                    None => Ok(()),
+                });
+                if let Err(e) = looked {
                     control.cancel();
                     let _ = py.detach(|| rx.recv_timeout(GRACE));
                     return Err(e);
-                }
-                if let Some(l) = &mut line {
-                    l.draw(py, control.done())?;
                 }
             }
             Err(crossbeam_channel::RecvTimeoutError::Disconnected) => {
@@ -99,6 +104,22 @@ pub fn run<T: Send + 'static>(
             }
         }
     }
+}
+
+/// [`run`] with a temporary folder that the job owns: `job` gets its path, and the folder is
+/// removed on the worker thread once the job has returned (whether or not the call is still
+/// waiting for it), never while the job may still write into it.
+pub fn run_in<T: Send + 'static>(
+    py: Python<'_>,
+    progress: Option<&'static str>,
+    job: impl FnOnce(Arc<JobControl>, &std::path::Path) -> T + Send + 'static,
+) -> PyResult<T> {
+    let dir = TempDir::new()?;
+    run(py, progress, move |c| {
+        let out = job(c, dir.path());
+        drop(dir);
+        out
+    })
 }
 
 /// A fresh, empty temporary folder, removed when dropped.

@@ -1,6 +1,6 @@
 //! Whole jobs from Python: a simulation, a reference library, and `aepipe run`.
 
-use crate::control::{self, TempDir};
+use crate::control;
 use crate::errors;
 use crate::frames::ArrowStream;
 use aepipe::config::PipelineConfig;
@@ -19,18 +19,17 @@ pub fn simulate(
     params: Vec<(String, f64)>,
     model: Option<PathBuf>,
 ) -> PyResult<(ArrowStream, Vec<String>)> {
-    let dir = TempDir::new()?;
-    let job = SimJob {
-        model,
-        scenario,
-        params: Params(params),
-        sweep: Vec::new(),
-        solver: None,
-        out: dir.path().to_path_buf(),
-        run: SimOptions::default(),
-        acquisition: Default::default(),
-    };
-    let done = control::run(py, None, move |_| -> Result<_, SimError> {
+    let done = control::run_in(py, None, move |_, dir| -> Result<_, SimError> {
+        let job = SimJob {
+            model,
+            scenario,
+            params: Params(params),
+            sweep: Vec::new(),
+            solver: None,
+            out: dir.to_path_buf(),
+            run: SimOptions::default(),
+            acquisition: Default::default(),
+        };
         let lines = aepipe::sim::run_job(&job)?.lines;
         let wf = job.out.join("waveforms.parquet");
         if !wf.is_file() {
@@ -41,7 +40,6 @@ pub fn simulate(
         let t = ArrowStream::read(&wf).map_err(|e| SimError::Io(e.to_string()))?;
         Ok((t, lines))
     })?;
-    drop(dir);
     done.map_err(errors::sim)
 }
 
@@ -59,16 +57,13 @@ pub fn reference_library(
         Some(p) => ReferenceFile::read(p).map_err(errors::sim)?,
         None => ReferenceFile::default_library(),
     };
-    let dir = TempDir::new()?;
-    let out = dir.path().to_path_buf();
-    let done = control::run(py, progress.then_some("simulations"), move |c| {
+    let done = control::run_in(py, progress.then_some("simulations"), move |c, out| {
         aepipe::util::with_threads(threads.unwrap_or(0), || {
-            build_library_controlled(&f.reference, &out, None, false, Some(&c))?;
-            ArrowStream::read(&LibraryDir::new(&out).waveforms())
+            build_library_controlled(&f.reference, out, None, false, Some(&c))?;
+            ArrowStream::read(&LibraryDir::new(out).waveforms())
                 .map_err(|e| SimError::Io(e.to_string()))
         })
     })?;
-    drop(dir);
     done.map_err(errors::sim)
 }
 
