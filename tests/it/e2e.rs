@@ -332,6 +332,7 @@ fn demo(out: &Path, args: &[&str]) -> String {
 fn the_readme_states_the_numbers_the_demo_prints() {
     let t = TempDir::new("demo-readme");
     let so = demo(t.path(), &[]);
+    demo_report_is_explorable(t.path());
     let readme =
         std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("README.md")).unwrap();
     let after = |line_start: &str, sep: &str| -> String {
@@ -470,6 +471,24 @@ fn the_readme_states_the_numbers_the_demo_prints() {
             readme.replace('\u{2212}', "-").contains(&stated),
             "README lacks '{stated}'"
         );
+    }
+}
+
+/// The demo's own report, as a user opens it: within the page's bound, with its Explore
+/// section, and in headless Chromium every chart drawn with every feature row a point, a
+/// clicked point opening its hit (`explore::explorer_works`). The demo's pictures once
+/// filled the bound and the section was left out without a word.
+fn demo_report_is_explorable(dir: &Path) {
+    let report = dir.join("run/report.html");
+    let html = std::fs::read_to_string(&report).unwrap();
+    assert!(html.len() <= aepipe::report::PAGE_BYTES, "{} bytes", html.len());
+    assert!(
+        html.contains("<h2 id=explore>"),
+        "the demo's report has no Explore section"
+    );
+    let (_, rows) = crate::table_rows(&dir.join("run/features/features.parquet"));
+    if let Some(v) = crate::explore::browser(&report) {
+        crate::explore::explorer_works(&v, rows.len() as u64);
     }
 }
 

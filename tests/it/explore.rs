@@ -62,6 +62,15 @@ fn the_explorable_report_draws_and_opens_a_clicked_hit_in_a_browser() {
     let Some(v) = browser(&out.join("report.html")) else {
         return;
     };
+    // 150 sources heard by two sensors: 300 feature rows, all of them points.
+    explorer_works(&v, 300);
+}
+
+/// What a report's explorer must do in the browser, on a run of `rows` feature rows that all
+/// fit the page as points: no console error, no request to the network, every chart drawn
+/// with points (the cluster's validity chart among them), a click on a point opening that
+/// hit, and the geometry and interaction of [`interaction`].
+pub fn explorer_works(v: &serde_json::Value, rows: u64) {
     assert_eq!(v["errors"], serde_json::json!([]), "{v}");
     assert_eq!(v["requests"], serde_json::json!([]), "{v}");
     let charts = v["charts"].as_array().expect("the explorer ran");
@@ -82,8 +91,7 @@ fn the_explorable_report_draws_and_opens_a_clicked_hit_in_a_browser() {
         assert_eq!(c["drawn"], true, "{c}");
         assert!(c["points"].as_u64().unwrap() > 0, "{c}");
     }
-    // 150 sources heard by two sensors: 300 feature rows, all of them points.
-    assert_eq!(charts[1]["points"], 300, "{v}");
+    assert_eq!(charts[1]["points"], rows, "{v}");
     for c in v["clicks"].as_array().unwrap() {
         assert_eq!(c["found"], true, "{c}");
         assert_eq!(c["key"], c["expected"], "{c}");
@@ -101,7 +109,7 @@ fn the_explorable_report_draws_and_opens_a_clicked_hit_in_a_browser() {
             assert!(cmd.contains(&format!("--hit {hit} ")), "{cmd}");
         }
     }
-    interaction(&v["interaction"]);
+    interaction(&v["interaction"], rows);
 }
 
 /// Geometry and interaction against the run's own values (the script reads them from the
@@ -114,7 +122,7 @@ fn the_explorable_report_draws_and_opens_a_clicked_hit_in_a_browser() {
 /// before the measurement) must fail the geometry check; the SOM's classification table
 /// treated as absent, and that absence with the SOM's colouring gone from the page too (once
 /// a vacuous pass), must fail the legend check.
-fn interaction(v: &serde_json::Value) {
+fn interaction(v: &serde_json::Value, rows: u64) {
     let bad = legend_problems(&v["missing"], &v["legends"]);
     assert!(bad.is_empty(), "{}\n{v}", bad.join("\n"));
     let planted = &v["planted_absent"];
@@ -164,7 +172,7 @@ fn interaction(v: &serde_json::Value) {
         s["expected"].as_array().unwrap(),
         s["selected"].as_array().unwrap(),
     );
-    assert!(!want.is_empty() && want.len() < 300, "{s}");
+    assert!(!want.is_empty() && (want.len() as u64) < rows, "{s}");
     assert_eq!(got, want, "the Shift-drag selected other hits");
     assert_eq!(s["said"], format!("{} points selected", want.len()));
     assert_eq!(s["grey_seen"], true, "the unselected are not faded: {s}");
