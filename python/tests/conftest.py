@@ -26,6 +26,11 @@ def pytest_configure(config: pytest.Config) -> None:
     config.addinivalue_line("markers", "timeout(seconds): pytest-timeout's hang guard")
     if REQUIRE_ALL and not config.pluginmanager.hasplugin("timeout"):
         raise pytest.UsageError("AEPIPE_REQUIRE_ALL=1 needs pytest-timeout (the hang guard)")
+    # The reference maps' cache of every aepipe the tests start (in process and as the
+    # command) is the session's own, never the user's ~/.cache.
+    import tempfile
+
+    os.environ["XDG_CACHE_HOME"] = tempfile.mkdtemp(prefix="aepipe-pytest-cache-")
 
 
 def need(ok: bool, why: str) -> None:

@@ -227,6 +227,7 @@ fn truncated_waveexplorer_file_reports_every_missing_event() {
 /// values) fails the test instead of stalling it.
 pub(crate) fn aepipe_within(args: &[&str], secs: u64) -> (i32, String, String) {
     let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_aepipe"))
+        .env("XDG_CACHE_HOME", crate::test_cache())
         .args(args)
         .stdout(std::process::Stdio::piped())
         .stderr(std::process::Stdio::piped())

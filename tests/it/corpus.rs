@@ -859,6 +859,7 @@ fn every_broken_recording_is_a_named_reject_and_every_good_hit_is_written() {
 
     let out = t.path().join("out");
     let o = std::process::Command::new(env!("CARGO_BIN_EXE_aepipe"))
+        .env("XDG_CACHE_HOME", crate::test_cache())
         .args(["features", "--quiet", "--config"])
         .arg(&cfg)
         .arg(&batch)

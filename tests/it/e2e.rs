@@ -481,7 +481,11 @@ fn the_readme_states_the_numbers_the_demo_prints() {
 fn demo_report_is_explorable(dir: &Path) {
     let report = dir.join("run/report.html");
     let html = std::fs::read_to_string(&report).unwrap();
-    assert!(html.len() <= aepipe::report::PAGE_BYTES, "{} bytes", html.len());
+    assert!(
+        html.len() <= aepipe::report::PAGE_BYTES,
+        "{} bytes",
+        html.len()
+    );
     assert!(
         html.contains("<h2 id=explore>"),
         "the demo's report has no Explore section"

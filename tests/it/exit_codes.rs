@@ -12,6 +12,7 @@ use std::process::Command;
 
 fn code(args: &[&str]) -> (i32, String) {
     let o = Command::new(env!("CARGO_BIN_EXE_aepipe"))
+        .env("XDG_CACHE_HOME", crate::test_cache())
         .args(args)
         .env("AEPIPE_FONT", "")
         .output()
@@ -373,6 +374,7 @@ fn pictures_need_no_system_font_and_a_bad_font_override_is_a_usage_error() {
     let png = f.p("hit.png");
     // No AEPIPE_FONT and no font directories: the embedded DejaVu Sans draws the labels.
     let o = Command::new(env!("CARGO_BIN_EXE_aepipe"))
+        .env("XDG_CACHE_HOME", crate::test_cache())
         .args(["cwt", &f.p("data"), "--hit", "2", "--png", &png])
         .env_remove("AEPIPE_FONT")
         .env("XDG_DATA_DIRS", f.p("nothing"))
@@ -389,6 +391,7 @@ fn pictures_need_no_system_font_and_a_bad_font_override_is_a_usage_error() {
     assert!(bytes.starts_with(b"\x89PNG") && bytes.len() > 10_000);
     // AEPIPE_FONT naming a file that is not a font: exit 1, the variable named.
     let o = Command::new(env!("CARGO_BIN_EXE_aepipe"))
+        .env("XDG_CACHE_HOME", crate::test_cache())
         .args(["cwt", &f.p("data"), "--hit", "2", "--png", &png])
         .env("AEPIPE_FONT", f.p("file"))
         .output()

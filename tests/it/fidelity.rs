@@ -134,13 +134,17 @@ fn fibre_failure_frequency_does_not_follow_the_released_length() {
 }
 
 /// Fig. 4.24, at the source: from 1.0 % to 2.0 % extension of fibre 3 (point 7) the released
-/// piece's free end rings at the same frequency (within ±5 %) with more energy. At the sensor
+/// piece's free end rings at one frequency (every run within half the 60 µs record's bin,
+/// ±8.3 kHz, of the mean; measured 1 137.7–1 141.0 kHz) with more energy. The thesis puts it
+/// at "around 1175 kHz"; the model's 1 138.6 kHz is 3.1 % under (pinned, below).
+/// Plants: a spread of one bin and the thesis's own 1175 kHz each fail their check. At the sensor
 /// the band-limited spectrum's peak does move (928 → 1161 → 1139 kHz): there the piece's ring is
 /// mixed with the tension-dependent motion of the structure (see docs/fidelity.md).
 #[test]
 fn a_failing_fibre_rings_at_one_frequency_whatever_its_extension() {
     use aepipe::sim::scenario::{self, Params};
     let mut rows = Vec::new();
+    let mut out_len = 0;
     for k in 0..6 {
         let stretch = 0.010 + 0.002 * k as f64;
         let m = scenario::build(
@@ -168,6 +172,7 @@ fn a_failing_fibre_rings_at_one_frequency_whatever_its_extension() {
             .max_by(|&a, &b| energy(a).total_cmp(&energy(b)))
             .unwrap();
         let ux: Vec<f64> = out.trajectory.iter().map(|f| f.u[node][0]).collect();
+        out_len = ux.len();
         rows.push((
             stretch,
             node,
@@ -179,11 +184,29 @@ fn a_failing_fibre_rings_at_one_frequency_whatever_its_extension() {
     // The same node moves most each time: the free end the break leaves (fibre 3's centre).
     assert!(rows.iter().all(|r| r.1 == rows[0].1), "{rows:?}");
     let mean = rows.iter().map(|r| r.2).sum::<f64>() / rows.len() as f64;
+    // One frequency: every run within half a bin of the record's resolution (600 frames at
+    // 10 MHz, 60 µs: 1/T = 16.7 kHz, ±8.3 kHz), not the ±5 % (±58 kHz) it once allowed.
+    let half_bin = 0.5 * 1e7 / out_len as f64;
+    let one = |f: &[f64]| {
+        let m = f.iter().sum::<f64>() / f.len() as f64;
+        f.iter().all(|x| (x - m).abs() <= half_bin)
+    };
+    // Against the thesis's "around 1175 kHz" at ±2 % (written before the first run, in place
+    // of anywhere in the 800–1 700 kHz every break point spans) it failed: the free end rings
+    // at 1 138.6 kHz, 3.1 % under it (not the step's: implicit Euler's phase error at
+    // ωΔt = 0.072 is −0.17 %). Recorded in docs/fidelity.md and pinned here at the measured
+    // value ± half a bin, a regression guard, not a verdict.
+    let pinned = |m: f64| (m - 1138.6e3).abs() <= half_bin && (m / 1175e3 - 1.0).abs() > 0.02;
+    let f: Vec<f64> = rows.iter().map(|r| r.2).collect();
+    assert!(one(&f), "{rows:?}: spread beyond ±{half_bin} Hz");
     assert!(
-        rows.iter().all(|r| (r.2 / mean - 1.0).abs() <= 0.05),
-        "{rows:?}"
+        pinned(mean),
+        "{mean} Hz: the pin is 1138.6 kHz ± {half_bin} Hz"
     );
-    assert!((800e3..1700e3).contains(&mean), "{mean}");
+    // Plants: one run a bin off; the thesis's own value.
+    let mut off = f.clone();
+    off[3] += 2.0 * half_bin;
+    assert!(!one(&off) && !pinned(1175e3));
     // More extension, more strain energy released: the ring grows with it.
     assert!(rows.windows(2).all(|w| w[1].3 > w[0].3), "{rows:?}");
 }

@@ -14,6 +14,7 @@ const HITS: usize = 240;
 
 fn start_watch(data: &Path, out: &Path, cfg: &Path) -> Child {
     Command::new(env!("CARGO_BIN_EXE_aepipe"))
+        .env("XDG_CACHE_HOME", crate::test_cache())
         .args([
             "watch",
             data.to_str().unwrap(),

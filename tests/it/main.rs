@@ -41,13 +41,16 @@ mod vendor;
 
 use std::path::{Path, PathBuf};
 
+/// The test build's cache root (`XDG_CACHE_HOME` of every aepipe the tests start): never
+/// the user's `~/.cache`.
+pub fn test_cache() -> PathBuf {
+    Path::new(env!("CARGO_TARGET_TMPDIR")).join("xdg-cache")
+}
+
 /// Run the aepipe binary: exit code, stdout, stderr. Its cache (`XDG_CACHE_HOME`) is the
 /// test build's own, never the user's.
 pub fn aepipe(args: &[&str]) -> (i32, String, String) {
-    aepipe_with_cache(
-        args,
-        &Path::new(env!("CARGO_TARGET_TMPDIR")).join("xdg-cache"),
-    )
+    aepipe_with_cache(args, &test_cache())
 }
 
 /// [`aepipe`], which must succeed (else the test fails with its output): its stdout.

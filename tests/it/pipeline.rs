@@ -246,6 +246,7 @@ fn killing_a_run_leaves_no_features_file_and_the_rerun_succeeds() {
     let out = t.path().join("out");
     let bin = env!("CARGO_BIN_EXE_aepipe");
     let mut child = std::process::Command::new(bin)
+        .env("XDG_CACHE_HOME", crate::test_cache())
         .args([
             "features",
             data.to_str().unwrap(),
@@ -290,6 +291,7 @@ fn killing_a_run_leaves_no_features_file_and_the_rerun_succeeds() {
         eprintln!("note: the run finished before it could be killed; only the rerun is checked");
     }
     let st = std::process::Command::new(bin)
+        .env("XDG_CACHE_HOME", crate::test_cache())
         .args([
             "features",
             data.to_str().unwrap(),

@@ -44,6 +44,7 @@ fn run_args(cfg: &Path, data: &Path, out: &Path, resume: bool) -> Vec<String> {
 fn run_to_end(args: &[String]) -> Duration {
     let t = Instant::now();
     let o = Command::new(env!("CARGO_BIN_EXE_aepipe"))
+        .env("XDG_CACHE_HOME", crate::test_cache())
         .args(args)
         .output()
         .unwrap();
@@ -59,6 +60,7 @@ fn run_to_end(args: &[String]) -> Duration {
 /// Start a run and SIGKILL it after `after` (if it is still running then).
 fn run_killed(args: &[String], after: Duration) -> bool {
     let mut c = Command::new(env!("CARGO_BIN_EXE_aepipe"))
+        .env("XDG_CACHE_HOME", crate::test_cache())
         .args(args)
         .stdout(Stdio::null())
         .stderr(Stdio::null())

@@ -218,6 +218,112 @@ fn in_the_layered_network_a_fibre_failure_rings_above_a_bond_failure() {
     }
 }
 
+/// The layered network's frequencies are its fibres' own, not only in the right order. The
+/// freed 1 mm span of the 3-D bond failure is the plane mesh's (the same fibre, 14 springs of
+/// the same stiffness and mass, the same stretch), so at each 3-D sensor its dominant
+/// frequency is one of the span's modes: the plane mesh's fundamental (heard at the plane's
+/// sensor 1) times 1, or times sin(3π/28)/sin(π/28) = 2.950, the lumped string's third mode
+/// in closed form (the even modes do not move the span's centre, where the bond failed).
+/// The bound is half the record's 1/T (the resolution of a record of that length) on the
+/// fundamental, times the mode number's ratio (measured: 696.6 and 701.5 kHz, the third mode
+/// of the plane's 237.9 kHz). The plane structure's fibre failure rings in the thesis's
+/// fibre-failure range, above 800 kHz, at both sensors; the layered one does not (below).
+///
+/// Plants: a 3-D bond failure heard at the plane fundamental × 2 (an even mode), or at
+/// one record bin beyond 2.950 × f₁'s bound, fails the mode check (run by [`mode_of`] below).
+#[test]
+fn in_the_layered_network_each_mechanism_rings_at_its_fibres_modes() {
+    let run = |name: &str, p: &[(&str, f64)]| {
+        let m = scenario::build(name, &params(p)).unwrap();
+        let out = simulate(&m, &SimOptions::default()).unwrap();
+        let g = m.grid.clone().unwrap();
+        let f: Vec<f64> = out
+            .sensors
+            .iter()
+            .map(|s| {
+                let p = aepipe::sim::output::band_limited(s, &g);
+                dominant_frequency(&p, out.sample_rate_hz)
+            })
+            .collect();
+        let record_s = out.sensors[0].len() as f64 / out.sample_rate_hz;
+        (f, record_s)
+    };
+    let (plane, plane_t) = run("mesh3x3-bond-failure", &[("t2", -1.0)]);
+    let f1 = plane[0];
+    let (bond, t3) = run("network3d-bond-failure", &[]);
+    let (fibre, _) = run("network3d-fibre-failure", &[]);
+    let (plane_fibre, _) = run("structure2x1-fibre-failure", &[]);
+    let ratio3 = (3.0 * std::f64::consts::PI / 28.0).sin() / (std::f64::consts::PI / 28.0).sin();
+    let half_bin = 0.5 / plane_t.min(t3);
+    eprintln!(
+        "plane f1 {:.1} kHz (record {:.1} us); 3-D bond {:?} kHz (record {:.1} us); 3-D fibre {:?} kHz; plane fibre {:?} kHz; half bin {:.1} kHz",
+        f1 / 1e3,
+        plane_t * 1e6,
+        khz(&bond),
+        t3 * 1e6,
+        khz(&fibre),
+        khz(&plane_fibre),
+        half_bin / 1e3
+    );
+    assert!((2.94..2.96).contains(&ratio3), "{ratio3}");
+    for &b in &bond {
+        assert!(
+            mode_of(b, f1, ratio3, half_bin).is_some(),
+            "3-D bond failure at {b} Hz: neither f1 = {f1} Hz nor {ratio3:.3} f1 (± {half_bin} Hz × the mode's ratio)"
+        );
+    }
+    // Plants: an even mode, and one record bin beyond the third mode's bound.
+    assert_eq!(mode_of(2.0 * f1, f1, ratio3, half_bin), None);
+    assert_eq!(
+        mode_of(
+            ratio3 * f1 + (ratio3 + 2.0) * half_bin,
+            f1,
+            ratio3,
+            half_bin
+        ),
+        None
+    );
+    assert_eq!(mode_of(ratio3 * f1, f1, ratio3, half_bin), Some(3));
+    // The thesis's fibre-failure range starts at 800 kHz, and the plane structure's fibre
+    // failure is inside it; the layered one is not. Written as a bound before its first run
+    // (> 800 kHz), it failed: 765.7 and 797.2 kHz at sensors 1 and 2, 17 % and 12 % under the
+    // plane structure's 925.6 and 909.3 kHz. That is recorded (docs/fidelity.md, "The third
+    // dimension") and pinned here as a regression guard at the measured values, ± half a
+    // bin: a pin, not a verdict.
+    for &f in &plane_fibre {
+        assert!(
+            f > 800e3,
+            "plane fibre failure at {f} Hz: under the thesis's 800 kHz"
+        );
+    }
+    for (&f, pinned) in fibre.iter().zip([765.7e3, 797.2e3]) {
+        assert!(
+            (f - pinned).abs() <= half_bin,
+            "3-D fibre failure at {f} Hz: the pin is {pinned} Hz ± {half_bin} Hz"
+        );
+        assert!(
+            f < 800e3,
+            "3-D fibre failure at {f} Hz: now inside the thesis's range; update the record"
+        );
+    }
+}
+
+fn khz(f: &[f64]) -> Vec<f64> {
+    f.iter().map(|x| (x / 1e2).round() / 10.0).collect()
+}
+
+/// Which of the freed span's two odd modes `f` is (1 or 3), within `half_bin` × the mode's
+/// ratio of f₁ (the fundamental's uncertainty carries into its multiple).
+fn mode_of(f: f64, f1: f64, ratio3: f64, half_bin: f64) -> Option<u32> {
+    if (f - f1).abs() <= half_bin {
+        Some(1)
+    } else if (f - ratio3 * f1).abs() <= ratio3 * half_bin {
+        Some(3)
+    } else {
+        None
+    }
+}
+
 /// An Appendix-A file with z columns (nodes, initial conditions, forces, the grid's z axis,
 /// a sensor's layer) reads as a 3-D model; what a third axis cannot mean is refused by name.
 #[test]
