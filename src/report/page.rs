@@ -280,8 +280,9 @@ fn embed(p: &Pic, whole: bool, report_dir: &Path) -> String {
         let _ = write!(attrs, " data-key=\"{}\"", esc(k));
     }
     match (&p.full, whole) {
-        (Some(full), true) => match std::fs::read(full) {
-            Ok(b) => {
+        // A whole record that cannot be read leaves the picture without its swap.
+        (Some(full), true) => {
+            if let Ok(b) = std::fs::read(full) {
                 let _ = write!(
                     attrs,
                     " class=swap title=\"click: the whole record\" data-alt=\"data:image/png;base64,{}\" \
@@ -290,8 +291,7 @@ fn embed(p: &Pic, whole: bool, report_dir: &Path) -> String {
                     base64(&b)
                 );
             }
-            Err(_) => {}
-        },
+        }
         (Some(full), false) => {
             let _ = write!(
                 attrs,
