@@ -144,6 +144,24 @@ fn short(c: &str) -> String {
 mod tests {
     use super::*;
 
+    /// The default map's classes are the `<class>_hits` columns the committed schema page
+    /// (data-schema/series.md) documents, in the mechanisms' order. Plants (cargo mutants):
+    /// an empty list, an empty or a made-up name, and the filter inverted each fail it.
+    #[test]
+    fn the_default_classes_are_the_schema_pages_columns() {
+        let page = include_str!("../../data-schema/series.md");
+        let documented: Vec<&str> = page
+            .lines()
+            .filter_map(|l| {
+                l.strip_prefix("| `")?
+                    .split_once("_hits` |")
+                    .map(|(c, _)| c)
+            })
+            .collect();
+        assert_eq!(documented.len(), 4, "{documented:?}");
+        assert_eq!(default_classes(), documented);
+    }
+
     fn row() -> SeriesRow {
         SeriesRow {
             experiment: "EXP1".into(),
@@ -249,6 +267,8 @@ mod tests {
             series_lines(&s, 1),
             ["series: 2 tests, side by side in /run/series.parquet"]
         );
+        // Up to `max` tests is a table: exactly two at max 2 (plant: `>=` gives the summary).
+        assert_eq!(series_lines(&s, 2), series_lines(&s, 20));
         let s = Series {
             clustering: false,
             ..s

@@ -42,17 +42,22 @@ const ENTRY: &str = "entry.json";
 impl Cache {
     /// The user's cache directory (XDG base directories).
     pub fn user() -> Option<Cache> {
+        Cache::user_from(std::env::var_os("XDG_CACHE_HOME"), std::env::var_os("HOME"))
+    }
+
+    /// [`Cache::user`] from the two variables' values: `$XDG_CACHE_HOME/aepipe` when it is an
+    /// absolute path (the XDG rule: a relative one is ignored), else `$HOME/.cache/aepipe`.
+    fn user_from(
+        xdg: Option<std::ffi::OsString>,
+        home: Option<std::ffi::OsString>,
+    ) -> Option<Cache> {
         let abs = |v: std::ffi::OsString| {
             let p = PathBuf::from(v);
             p.is_absolute().then_some(p)
         };
-        let base = std::env::var_os("XDG_CACHE_HOME")
+        let base = xdg
             .and_then(abs)
-            .or_else(|| {
-                std::env::var_os("HOME")
-                    .and_then(abs)
-                    .map(|h| h.join(".cache"))
-            })?;
+            .or_else(|| home.and_then(abs).map(|h| h.join(".cache")))?;
         Some(Cache::at(base.join("aepipe")))
     }
 
@@ -173,6 +178,42 @@ pub fn key(parts: &[&[u8]]) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The XDG rule, worked by hand: an absolute `XDG_CACHE_HOME` wins, a relative one is
+    /// ignored for `HOME`'s `.cache`, and neither set is no cache.
+    #[test]
+    fn the_user_cache_follows_the_xdg_rule() {
+        let root = |x: Option<&str>, h: Option<&str>| {
+            Cache::user_from(x.map(Into::into), h.map(Into::into)).map(|c| c.root)
+        };
+        assert_eq!(
+            root(Some("/x"), Some("/h")),
+            Some(PathBuf::from("/x/aepipe"))
+        );
+        assert_eq!(
+            root(Some("rel"), Some("/h")),
+            Some(PathBuf::from("/h/.cache/aepipe"))
+        );
+        assert_eq!(
+            root(None, Some("/h")),
+            Some(PathBuf::from("/h/.cache/aepipe"))
+        );
+        assert_eq!(root(None, Some("h")), None);
+        assert_eq!(root(None, None), None);
+    }
+
+    /// The build id names this crate's version and this executable's size, so a rebuilt
+    /// binary of another size makes a new key.
+    #[test]
+    fn the_build_id_names_the_version_and_the_executable() {
+        let id = build_id();
+        let len = std::fs::metadata(std::env::current_exe().unwrap())
+            .unwrap()
+            .len();
+        let (version, exe) = id.split_once(' ').unwrap();
+        assert_eq!(version, env!("CARGO_PKG_VERSION"));
+        assert_eq!(exe.split(':').next().unwrap(), len.to_string(), "{id}");
+    }
 
     #[test]
     fn an_entry_is_found_whole_and_a_corrupted_one_is_removed() {

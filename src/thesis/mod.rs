@@ -621,6 +621,44 @@ fn swept(
 mod tests {
     use super::*;
 
+    /// The verdict and basis words are the record's contract: docs/thesis.md is read in them.
+    /// Every entry's row in its results table ends in one of the four verdict words, each
+    /// basis's words head the tolerances of the entries it grounds, and the words differ.
+    /// Plants: cargo mutants' "" and "xyzzy" for either `as_str` each fail it.
+    #[test]
+    fn the_verdict_and_basis_words_are_the_records() {
+        let doc = include_str!("../../docs/thesis.md");
+        let verdicts = [
+            Verdict::Agrees,
+            Verdict::Departs,
+            Verdict::Pinned,
+            Verdict::Fails,
+        ];
+        let words: Vec<&str> = verdicts.iter().map(|v| v.as_str()).collect();
+        assert_eq!(words, ["agrees", "departs", "pinned", "FAILS"]);
+        for e in ENTRIES {
+            let row = doc
+                .lines()
+                .find(|l| l.starts_with(&format!("| `{}` |", e.id)))
+                .unwrap_or_else(|| panic!("no row for {}", e.id));
+            let last = row.trim_end_matches('|').rsplit('|').next().unwrap().trim();
+            assert!(words.contains(&last), "{}: '{last}'", e.id);
+        }
+        for b in [Basis::ClosedForm, Basis::FinerStep, Basis::Pin] {
+            let n = ENTRIES
+                .iter()
+                .filter(|e| e.departs.is_some_and(|d| d.basis == b))
+                .count();
+            assert!(n > 0, "{b:?} grounds no entry");
+            assert_eq!(
+                doc.matches(&format!("({}):", b.as_str())).count(),
+                n,
+                "{b:?}: '{}'",
+                b.as_str()
+            );
+        }
+    }
+
     /// A departing entry agrees only within its own tolerance, departs only where its
     /// evidence expects, and fails anywhere else, NaN included; an entry without a
     /// declared departure fails wherever it leaves the thesis's tolerance.

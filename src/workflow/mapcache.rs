@@ -204,6 +204,80 @@ mod tests {
 
     type KeyFn = dyn Fn(&RunJob) -> Result<String, WorkflowError>;
 
+    /// A fresh folder under the system's temporary one.
+    fn scratch(name: &str) -> PathBuf {
+        let t = std::env::temp_dir().join(format!("aepipe-{name}-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&t);
+        std::fs::create_dir_all(&t).unwrap();
+        t
+    }
+
+    /// An entry copied out: its files, not its entry.json, and the library summary's counts
+    /// read back (runs 3, signals 12, 1.5 s); an entry without a summary gives zeros.
+    /// Plants (cargo mutants): either `==` of copy_entry as `!=`, copy_entry as `Ok(None)`,
+    /// and `files` as an empty list each fail it.
+    #[test]
+    fn an_entry_copies_its_files_and_its_library_summary() {
+        let t = scratch("copy-entry");
+        let (w, s) = (t.join("waveforms.parquet"), t.join(LIBRARY_SUMMARY));
+        std::fs::write(&w, b"rows").unwrap();
+        std::fs::write(&s, br#"{"runs": 3, "signals": 12, "seconds": 1.5}"#).unwrap();
+        let root = t.join("cache");
+        Cache::at(&root).put(LIBRARY, "k", &[&w, &s]).unwrap();
+        let to = t.join("out");
+        let lib = copy_entry(&root, LIBRARY, "k", &to, "")
+            .unwrap()
+            .expect("an entry");
+        assert_eq!(
+            (lib.runs, lib.signals, lib.seconds, lib.reused),
+            (3, 12, 1.5, true)
+        );
+        let mut names: Vec<String> = std::fs::read_dir(&to)
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .collect();
+        names.sort();
+        assert_eq!(names, [LIBRARY_SUMMARY, "waveforms.parquet"]);
+        assert_eq!(
+            std::fs::read(to.join("waveforms.parquet")).unwrap(),
+            b"rows"
+        );
+        Cache::at(&root).put(LIBRARY, "k2", &[&w]).unwrap();
+        let lib = copy_entry(&root, LIBRARY, "k2", &t.join("out2"), "")
+            .unwrap()
+            .unwrap();
+        assert_eq!((lib.runs, lib.signals), (0, 0));
+        assert!(copy_entry(&root, LIBRARY, "absent", &t.join("out3"), "")
+            .unwrap()
+            .is_none());
+        let _ = std::fs::remove_dir_all(&t);
+    }
+
+    /// A map kept is reused byte for byte under its key, and only under it. Plants (cargo
+    /// mutants): `reuse` as `Ok(true)` or `Ok(false)`, `keep` as `Ok(())` and `files` as an
+    /// empty list each fail it.
+    #[test]
+    fn a_kept_map_is_reused_under_its_key_only() {
+        let t = scratch("keep-reuse");
+        let (model, cache) = (t.join("model"), t.join("cache"));
+        std::fs::create_dir_all(&model).unwrap();
+        std::fs::write(model.join("model.json"), b"{\"nodes\": 4}").unwrap();
+        std::fs::write(model.join("codebook.bin"), [1u8, 2, 3]).unwrap();
+        assert!(!reuse(&cache, "k", &t.join("none")).unwrap());
+        keep(&cache, "k", &model).unwrap();
+        let again = t.join("again");
+        assert!(reuse(&cache, "k", &again).unwrap());
+        for f in ["model.json", "codebook.bin"] {
+            assert_eq!(
+                std::fs::read(again.join(f)).unwrap(),
+                std::fs::read(model.join(f)).unwrap(),
+                "{f}"
+            );
+        }
+        assert!(!reuse(&cache, "other", &t.join("other")).unwrap());
+        let _ = std::fs::remove_dir_all(&t);
+    }
+
     /// `job` with its configuration edited (for the plants below).
     fn edited(job: &RunJob, edit: impl FnOnce(&mut crate::config::PipelineConfig)) -> ValidConfig {
         job.config

@@ -74,8 +74,28 @@ impl MapRun {
         }
     }
 
+    /// The features stage's manifest.json names the run's map: `som_map` holds `entry`'s key
+    /// (an entry's folder is its key) and whether the run reused it.
+    fn manifest_names(&self, entry: &str, reused: bool) -> Result<(), String> {
+        let path = self.run.join("features/manifest.json");
+        let text =
+            std::fs::read_to_string(&path).map_err(|e| format!("{}: {e}", path.display()))?;
+        let m: serde_json::Value = serde_json::from_str(&text).map_err(|e| e.to_string())?;
+        let got = (
+            m["som_map"]["cache_key"].as_str(),
+            m["som_map"]["reused"].as_bool(),
+        );
+        if got != (Some(entry), Some(reused)) {
+            return Err(format!(
+                "manifest.json's som_map is {:?}, not ({entry}, {reused})",
+                m["som_map"]
+            ));
+        }
+        Ok(())
+    }
+
     /// The map was reused: no entry added or written again, the library's features never
-    /// computed, and the run's map an entry's. The entry's name.
+    /// computed, and the run's map an entry's, which the manifest names. The entry's name.
     fn reused(&self) -> Result<String, String> {
         let c = changed(&self.before, &self.after)?;
         if !c.is_empty() {
@@ -85,9 +105,11 @@ impl MapRun {
             return Err("the run computed the library's features: it trained".into());
         }
         let of_run = self.after.keys().find(|k| self.model_is(k).is_ok());
-        of_run
+        let k = of_run
             .cloned()
-            .ok_or_else(|| "the run's model.json is no entry's".into())
+            .ok_or_else(|| "the run's model.json is no entry's".to_string())?;
+        self.manifest_names(&k, true)?;
+        Ok(k)
     }
 
     /// The map was trained and kept: exactly one entry new or written again, the others
@@ -101,6 +123,7 @@ impl MapRun {
             return Err("the run did not compute the library's features: it did not train".into());
         }
         self.model_is(k)?;
+        self.manifest_names(k, false)?;
         Ok(k.clone())
     }
 }
