@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import os
 import subprocess
+import tempfile
 from pathlib import Path
 
 import numpy as np
@@ -28,8 +29,6 @@ def pytest_configure(config: pytest.Config) -> None:
         raise pytest.UsageError("AEPIPE_REQUIRE_ALL=1 needs pytest-timeout (the hang guard)")
     # The reference maps' cache of every aepipe the tests start (in process and as the
     # command) is the session's own, never the user's ~/.cache.
-    import tempfile
-
     os.environ["XDG_CACHE_HOME"] = tempfile.mkdtemp(prefix="aepipe-pytest-cache-")
 
 

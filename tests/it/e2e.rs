@@ -311,10 +311,7 @@ fn demo(out: &Path, args: &[&str]) -> String {
         .args(args)
         .arg("--out")
         .arg(out)
-        .env(
-            "XDG_CACHE_HOME",
-            Path::new(env!("CARGO_TARGET_TMPDIR")).join("xdg-cache"),
-        )
+        .env("XDG_CACHE_HOME", crate::test_cache())
         .output()
         .unwrap();
     let so = String::from_utf8_lossy(&o.stdout).to_string();

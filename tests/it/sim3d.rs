@@ -194,31 +194,7 @@ fn the_plucked_fibre_heard_in_space_rings_as_in_the_plane() {
 
 /// The layered network keeps the thesis's order of the mechanisms: at both sensors (on the
 /// sheet's surface, and above it) a fibre failure's dominant frequency lies above a bond
-/// failure's.
-#[test]
-fn in_the_layered_network_a_fibre_failure_rings_above_a_bond_failure() {
-    let heard = |name: &str| {
-        let m = scenario::build(name, &params(&[])).unwrap();
-        assert_eq!(m.dims(), 3);
-        let out = simulate(&m, &SimOptions::default()).unwrap();
-        let g = m.grid.as_ref().unwrap();
-        out.sensors
-            .iter()
-            .map(|s| {
-                let p = aepipe::sim::output::band_limited(s, g);
-                dominant_frequency(&p, out.sample_rate_hz)
-            })
-            .collect::<Vec<f64>>()
-    };
-    let bond = heard("network3d-bond-failure");
-    let fibre = heard("network3d-fibre-failure");
-    assert_eq!(bond.len(), 2);
-    for (b, f) in bond.iter().zip(&fibre) {
-        assert!(f > b, "bond {bond:?} Hz, fibre {fibre:?} Hz");
-    }
-}
-
-/// The layered network's frequencies are its fibres' own, not only in the right order. The
+/// failure's. And its frequencies are its fibres' own, not only in the right order. The
 /// freed 1 mm span of the 3-D bond failure is the plane mesh's (the same fibre, 14 springs of
 /// the same stiffness and mass, the same stretch), so at each 3-D sensor its dominant
 /// frequency is one of the span's modes: the plane mesh's fundamental (heard at the plane's
@@ -233,26 +209,15 @@ fn in_the_layered_network_a_fibre_failure_rings_above_a_bond_failure() {
 /// one record bin beyond 2.950 × f₁'s bound, fails the mode check (run by [`mode_of`] below).
 #[test]
 fn in_the_layered_network_each_mechanism_rings_at_its_fibres_modes() {
-    let run = |name: &str, p: &[(&str, f64)]| {
-        let m = scenario::build(name, &params(p)).unwrap();
-        let out = simulate(&m, &SimOptions::default()).unwrap();
-        let g = m.grid.clone().unwrap();
-        let f: Vec<f64> = out
-            .sensors
-            .iter()
-            .map(|s| {
-                let p = aepipe::sim::output::band_limited(s, &g);
-                dominant_frequency(&p, out.sample_rate_hz)
-            })
-            .collect();
-        let record_s = out.sensors[0].len() as f64 / out.sample_rate_hz;
-        (f, record_s)
-    };
-    let (plane, plane_t) = run("mesh3x3-bond-failure", &[("t2", -1.0)]);
+    let (plane, plane_t) = heard("mesh3x3-bond-failure", &[("t2", -1.0)], 2);
     let f1 = plane[0];
-    let (bond, t3) = run("network3d-bond-failure", &[]);
-    let (fibre, _) = run("network3d-fibre-failure", &[]);
-    let (plane_fibre, _) = run("structure2x1-fibre-failure", &[]);
+    let (bond, t3) = heard("network3d-bond-failure", &[], 3);
+    let (fibre, _) = heard("network3d-fibre-failure", &[], 3);
+    let (plane_fibre, _) = heard("structure2x1-fibre-failure", &[], 2);
+    assert_eq!(bond.len(), 2);
+    for (b, f) in bond.iter().zip(&fibre) {
+        assert!(f > b, "bond {bond:?} Hz, fibre {fibre:?} Hz");
+    }
     let ratio3 = (3.0 * std::f64::consts::PI / 28.0).sin() / (std::f64::consts::PI / 28.0).sin();
     let half_bin = 0.5 / plane_t.min(t3);
     eprintln!(
@@ -306,6 +271,24 @@ fn in_the_layered_network_each_mechanism_rings_at_its_fibres_modes() {
             "3-D fibre failure at {f} Hz: now inside the thesis's range; update the record"
         );
     }
+}
+
+/// Scenario `name` (its defaults, `p` set), a model of `dims` dimensions, simulated: each
+/// sensor's band-limited dominant frequency, and the record's length (s).
+fn heard(name: &str, p: &[(&str, f64)], dims: usize) -> (Vec<f64>, f64) {
+    let m = scenario::build(name, &params(p)).unwrap();
+    assert_eq!(m.dims(), dims, "{name}");
+    let out = simulate(&m, &SimOptions::default()).unwrap();
+    let g = m.grid.as_ref().unwrap();
+    let f = out
+        .sensors
+        .iter()
+        .map(|s| {
+            let p = aepipe::sim::output::band_limited(s, g);
+            dominant_frequency(&p, out.sample_rate_hz)
+        })
+        .collect();
+    (f, out.sensors[0].len() as f64 / out.sample_rate_hz)
 }
 
 fn khz(f: &[f64]) -> Vec<f64> {
