@@ -2,8 +2,8 @@
 //! the damage evolution (cumulative sources, b- and Ib-value, sentry function, load cycles
 //! with the Felicity ratio and Kaiser effect) and the energy power law.
 //!
-//! The tables are read with Polars (lazy scan, column selection); the statistics themselves
-//! are plain, tested Rust in [`stats`].
+//! The tables are read through `store::TableScan` (column selection, by row group); the
+//! statistics themselves are plain, tested Rust in [`stats`].
 
 pub mod cycles;
 pub mod evolution;

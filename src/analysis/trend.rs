@@ -12,7 +12,6 @@ use crate::model::columns as cols;
 use crate::store::spill::{Dec, Enc, Sorted, Sorter, Span, Spill};
 use crate::store::{ColType, ColumnSpec, Table, TableWriter, Value};
 use crate::store::{SourceRows, StoreError, TableScan};
-use polars::prelude::col;
 use std::path::{Path, PathBuf};
 
 #[derive(Debug, thiserror::Error)]
@@ -180,16 +179,7 @@ pub fn read_series(
         )
         .map_err(read)?;
         columns = tested_columns(&t, p, &columns)?;
-        let mut sel = vec![
-            col(cols::EXPERIMENT.name),
-            col(cols::CHANNEL.name),
-            col(cols::HIT.name),
-            col(cols::TIME_S.name),
-            col(cols::LOAD_N.name),
-        ];
-        sel.extend(columns.iter().map(|c| col(c.as_str())));
-        sel.extend(t.event_first_col());
-        let df = t.select(sel).map_err(read)?;
+        let df = t.columns(&series_columns(&t, &columns)).map_err(read)?;
         let keys = t.hit_keys(&df).map_err(read)?;
         let first = t.event_first(&df).map_err(read)?;
         let time = t.floats(&df, cols::TIME_S).map_err(read)?;
@@ -459,6 +449,21 @@ impl Spill for SeriesRow {
 
 /// The tested columns of the tables, checked (every `pr_*` column of the first table when
 /// none are named).
+/// What a trend series reads of a features table: the hit's key, time and load, the tested
+/// columns, and whether it is its event's first hit when the table says.
+fn series_columns<'a>(t: &TableScan, columns: &'a [String]) -> Vec<&'a str> {
+    let mut sel = vec![
+        cols::EXPERIMENT.name,
+        cols::CHANNEL.name,
+        cols::HIT.name,
+        cols::TIME_S.name,
+        cols::LOAD_N.name,
+    ];
+    sel.extend(columns.iter().map(String::as_str));
+    sel.extend(t.event_first_col());
+    sel
+}
+
 fn tested_columns(t: &TableScan, p: &Path, wanted: &[String]) -> Result<Vec<String>, TrendError> {
     let mut columns = wanted.to_vec();
     if columns.is_empty() {
@@ -524,17 +529,7 @@ fn sorted_series(
         )
         .map_err(read)?;
         columns = tested_columns(&t, p, &columns)?;
-        let mut sel = vec![
-            cols::EXPERIMENT.name,
-            cols::CHANNEL.name,
-            cols::HIT.name,
-            cols::TIME_S.name,
-            cols::LOAD_N.name,
-        ];
-        sel.extend(columns.iter().map(String::as_str));
-        if t.dtype(cols::EVENT_FIRST.name).is_some() {
-            sel.push(cols::EVENT_FIRST.name);
-        }
+        let sel = series_columns(&t, &columns);
         for batch in t.batches(&sel) {
             let (_, df) = batch.map_err(read)?;
             let keys = t.hit_keys(&df).map_err(read)?;

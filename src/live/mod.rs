@@ -578,14 +578,13 @@ fn class_points(
     features: &Path,
 ) -> Result<Vec<LivePoint>, WatchError> {
     use crate::store::TableScan;
-    use polars::prelude::col;
     let f = TableScan::open(features)?;
-    let df = f.select(vec![
-        col(cols::CHANNEL.name),
-        col(cols::HIT.name),
-        col(cols::TIME_S.name),
-        col(cols::LOAD_N.name),
-        col(cols::PEAK_AMPLITUDE_DB.name),
+    let df = f.columns(&[
+        cols::CHANNEL.name,
+        cols::HIT.name,
+        cols::TIME_S.name,
+        cols::LOAD_N.name,
+        cols::PEAK_AMPLITUDE_DB.name,
     ])?;
     let (fc, fh) = (f.i32s(&df, cols::CHANNEL)?, f.i64s(&df, cols::HIT)?);
     let (ft, fl) = (f.floats(&df, cols::TIME_S)?, f.floats(&df, cols::LOAD_N)?);
@@ -595,11 +594,7 @@ fn class_points(
         .filter_map(|i| Some(((fc[i]?, fh[i]?), (ft[i], fl[i], fa[i]))))
         .collect();
     let c = TableScan::open(classification)?;
-    let df = c.select(vec![
-        col(cols::CHANNEL.name),
-        col(cols::HIT.name),
-        col(cols::SOM_LABEL.name),
-    ])?;
+    let df = c.columns(&[cols::CHANNEL.name, cols::HIT.name, cols::SOM_LABEL.name])?;
     let (cc, ch, cl) = (
         c.i32s(&df, cols::CHANNEL)?,
         c.i64s(&df, cols::HIT)?,

@@ -1,6 +1,8 @@
 //! The one reader of the tables aepipe wrote, for the analysis side (trend, SOM, workflow,
-//! report): Polars lazy scans that read only the selected columns. The streaming write path
-//! (and the streaming ingest of `waveforms.parquet`) stays arrow-rs.
+//! report): arrow-rs reads the selected columns by row group and hands them to Polars
+//! frames without a copy (Polars' lazy engine is not built: it brought ~190 crates, an HTTP
+//! and TLS stack among them, for a filter and a select). The streaming write path (and the
+//! streaming ingest of `waveforms.parquet`) is arrow-rs too.
 //!
 //! Columns come back as plain vectors keyed by [`HitKey`], and the `tf_bins` fixed-size list
 //! (or any set of numeric columns) as an `ndarray` matrix, one row per hit.
@@ -25,25 +27,25 @@ pub struct SourceRows {
 }
 
 impl SourceRows {
-    /// The rule as a Polars predicate over a table's `event_first` and `zone`: a hit in no
-    /// event (`event_first` null: events not built) unless a guard suppressed it, or an
-    /// event's first hit unless its event lies outside the zone (those two exclusions only
-    /// with `exclude_outside`).
-    pub fn keep(&self) -> Expr {
-        let zone = |z: &str| {
-            col(cols::ZONE.name)
-                .eq(lit(z.to_string()))
-                .fill_null(lit(false))
-        };
-        let first = || col(cols::EVENT_FIRST.name);
-        if self.exclude_outside {
-            first()
-                .is_null()
-                .and(zone("guard").not())
-                .or(first().fill_null(lit(false)).and(zone("outside").not()))
-        } else {
-            first().is_null().or(first().fill_null(lit(false)))
+    /// The rule for one row, from its `event_first` and `zone`: a hit in no event
+    /// (`event_first` null: events not built) unless a guard suppressed it, or an event's
+    /// first hit unless its event lies outside the zone (those two exclusions only with
+    /// `exclude_outside`). A null zone is in no zone.
+    pub fn keeps(&self, event_first: Option<bool>, zone: Option<&str>) -> bool {
+        match event_first {
+            None => !(self.exclude_outside && zone == Some("guard")),
+            Some(true) => !(self.exclude_outside && zone == Some("outside")),
+            Some(false) => false,
         }
+    }
+
+    /// [`SourceRows::keeps`] of every row of a frame holding `event_first` and `zone`.
+    pub fn mask(&self, df: &DataFrame) -> PolarsResult<Vec<bool>> {
+        let first = df.column(cols::EVENT_FIRST.name)?.bool()?;
+        let zone = df.column(cols::ZONE.name)?.str()?;
+        Ok((0..df.height())
+            .map(|i| self.keeps(first.get(i), zone.get(i)))
+            .collect())
     }
 }
 
@@ -58,11 +60,11 @@ pub fn group_channel(channel: i32, event_first: Option<bool>) -> i32 {
     }
 }
 
-/// A lazily scanned table and its schema.
+/// An opened table and its schema, read by row group.
 pub struct TableScan {
     path: PathBuf,
     /// The row filter ([`TableScan::sources`]), applied to each batch.
-    filter: Option<Expr>,
+    filter: Option<SourceRows>,
     schema: SchemaRef,
     /// The file's footer, parsed once: batches are read by row group with arrow-rs from it
     /// (a Polars scan parses the footer again at every collect, and a footer grows with
@@ -112,20 +114,6 @@ impl TableScan {
             filter: None,
             schema,
             meta,
-        })
-    }
-
-    /// The table with its row filter, as a Polars scan (whole-table selections: small
-    /// tables, tests).
-    fn lf(&self) -> Result<LazyFrame, StoreError> {
-        let base = LazyFrame::scan_parquet(
-            PlRefPath::try_from_path(&self.path).map_err(|e| self.err(e))?,
-            ScanArgsParquet::default(),
-        )
-        .map_err(|e| self.err(e))?;
-        Ok(match &self.filter {
-            Some(f) => base.filter(f.clone()),
-            None => base,
         })
     }
 
@@ -216,10 +204,9 @@ impl TableScan {
             first += b.num_rows();
             let df = to_polars(&b).map_err(|x| read_err(&self.path, x))?;
             let df = match &self.filter {
-                Some(f) => df
-                    .lazy()
-                    .filter(f.clone())
-                    .collect()
+                Some(f) => f
+                    .mask(&df)
+                    .and_then(|m| df.filter(&BooleanChunked::from_slice("keep".into(), &m)))
                     .map_err(|x| read_err(&self.path, x))?,
                 None => df,
             };
@@ -235,8 +222,14 @@ impl TableScan {
         {
             return self;
         }
-        self.filter = Some(rows.keep());
+        self.filter = Some(rows);
         self
+    }
+
+    /// Whether each row of a frame holding `event_first` and `zone` counts under `rows`
+    /// (the rule [`TableScan::sources`] filters by, for a reader that keeps every row).
+    pub fn counted(&self, df: &DataFrame, rows: SourceRows) -> Result<Vec<bool>, StoreError> {
+        rows.mask(df).map_err(|e| self.err(e))
     }
 
     /// `event_first` of every row of a frame that selected it (all null when the table has
@@ -257,11 +250,11 @@ impl TableScan {
         Ok((0..b.len()).map(|i| b.get(i)).collect())
     }
 
-    /// `col("event_first")` when the table has it (for a selection list).
-    pub fn event_first_col(&self) -> Option<Expr> {
+    /// `"event_first"` when the table has it (for a selection list).
+    pub fn event_first_col(&self) -> Option<&'static str> {
         self.schema
             .get(cols::EVENT_FIRST.name)
-            .map(|_| col(cols::EVENT_FIRST.name))
+            .map(|_| cols::EVENT_FIRST.name)
     }
 
     /// Column names in table order.
@@ -282,11 +275,10 @@ impl TableScan {
     }
 
     /// The named columns of every row (the row filter applied), read batch by batch through
-    /// [`TableScan::batches`] and stacked into one chunk: the same frame as `select` of those
-    /// columns. Without a row filter and with rows, Polars' scan engine is not started (its
-    /// executor threads cost a small job ~10 ms); a filter is applied per batch by Polars, and
-    /// an empty table is read by `select` (for its column types).
+    /// [`TableScan::batches`] and stacked into one chunk; a table without rows gives the
+    /// columns with their types and no rows. Fails naming the first column the table lacks.
     pub fn columns(&self, names: &[&str]) -> Result<DataFrame, StoreError> {
+        self.require(names, "")?;
         let mut out: Option<DataFrame> = None;
         for b in self.batches(names) {
             let (_, df) = b?;
@@ -303,17 +295,17 @@ impl TableScan {
                 df.rechunk_mut();
                 Ok(df)
             }
-            // No rows: the columns with their types.
-            None => self.select(names.iter().map(|n| col(*n)).collect()),
+            None => {
+                let schema: Schema = names
+                    .iter()
+                    .filter_map(|n| {
+                        let t = self.schema.get(n)?;
+                        Some(Field::new((*n).into(), t.clone()))
+                    })
+                    .collect();
+                Ok(DataFrame::empty_with_schema(&schema))
+            }
         }
-    }
-
-    /// Read the selected expressions into memory.
-    pub fn select(&self, exprs: Vec<Expr>) -> Result<DataFrame, StoreError> {
-        self.lf()?
-            .select(exprs)
-            .collect()
-            .map_err(|e| read_err(&self.path, e))
     }
 
     fn err(&self, m: impl std::fmt::Display) -> StoreError {
@@ -579,4 +571,57 @@ fn polars_schema(schema: &arrow::datatypes::Schema) -> Result<SchemaRef, String>
         ));
     }
     Ok(std::sync::Arc::new(Schema::from_iter(fields)))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The source rule, row by row, written out by hand for every combination of
+    /// `event_first` and `zone`.
+    #[test]
+    fn the_source_rule_row_by_row() {
+        let zones = [None, Some("guard"), Some("outside"), Some("inside")];
+        // (event_first, [kept for each zone above]) without and with exclude_outside
+        let all = [
+            (None, [true; 4]),
+            (Some(false), [false; 4]),
+            (Some(true), [true; 4]),
+        ];
+        let zoned = [
+            (None, [true, false, true, true]),
+            (Some(false), [false; 4]),
+            (Some(true), [true, true, false, true]),
+        ];
+        for (exclude, table) in [(false, all), (true, zoned)] {
+            let rows = SourceRows {
+                exclude_outside: exclude,
+            };
+            for (first, kept) in table {
+                for (z, want) in zones.iter().zip(kept) {
+                    assert_eq!(rows.keeps(first, *z), want, "{exclude} {first:?} {z:?}");
+                }
+            }
+        }
+    }
+
+    /// The frame's mask is the rule of each row, nulls included.
+    #[test]
+    fn the_mask_applies_the_rule_to_each_row() {
+        let df = DataFrame::new_infer_height(vec![
+            Column::new(
+                cols::EVENT_FIRST.name.into(),
+                [None, Some(true), Some(true), Some(false), None],
+            ),
+            Column::new(
+                cols::ZONE.name.into(),
+                [Some("guard"), Some("outside"), None, Some("inside"), None],
+            ),
+        ])
+        .unwrap();
+        let m = |exclude_outside| SourceRows { exclude_outside }.mask(&df).unwrap();
+        let (t, f) = (true, false);
+        assert_eq!(m(false), [t, t, t, f, t]);
+        assert_eq!(m(true), [f, f, t, f, t]);
+    }
 }

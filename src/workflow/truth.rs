@@ -8,7 +8,7 @@ use crate::model::columns as cols;
 #[derive(Debug, Clone, PartialEq, Eq, PartialOrd, Ord)]
 struct Keyed {
     key: HitKey,
-    /// 0: the truth's mechanism, 1: the SOM's class.
+    /// 0: the truth's mechanism, 1: a key of the `within` table, 2: the label scored.
     from: u8,
     seq: u64,
     label: String,
@@ -57,15 +57,36 @@ fn push_labels(
     })
 }
 
+/// The sort's `from` of the `within` table's keys: after the truth's, before the labels'.
+const WITHIN: u8 = 1;
+
 /// Compare the SOM classes with `truth.parquet`: both sorted by hit on disk and joined.
 pub(super) fn score_truth(
     truth: &Path,
     classification: &Path,
 ) -> Result<TruthScore, WorkflowError> {
-    let dir = classification.parent().unwrap_or(Path::new("."));
+    score_labels(truth, classification, cols::SOM_LABEL.name, None)
+}
+
+/// Compare any label column of a hit table (the SOM's `som_label`, the features' ch. 4.7
+/// `criteria_label`) with `truth.parquet`'s mechanism: both sorted by hit on disk and
+/// joined.
+///
+/// With `within` (e.g. the SOM's `classification.parquet`), only the hits that table holds
+/// are scored, so that two labels are compared on the same hits.
+pub(super) fn score_labels(
+    truth: &Path,
+    table: &Path,
+    column: &str,
+    within: Option<&Path>,
+) -> Result<TruthScore, WorkflowError> {
+    let dir = table.parent().unwrap_or(Path::new("."));
     let mut sorter = crate::store::spill::Sorter::new(dir);
     push_labels(&mut sorter, truth, cols::MECHANISM.name, 0)?;
-    push_labels(&mut sorter, classification, cols::SOM_LABEL.name, 1)?;
+    if let Some(w) = within {
+        push_labels(&mut sorter, w, cols::SOM_LABEL.name, WITHIN)?;
+    }
+    push_labels(&mut sorter, table, column, 2)?;
     let sorted = sorter.finish()?;
     let mut s = TruthScore {
         path: truth.to_path_buf(),
@@ -75,10 +96,19 @@ pub(super) fn score_truth(
     };
     // A key's truth (the last, if a truth table repeated a key) then its classes.
     let mut mechanism: Option<(HitKey, String)> = None;
+    // The last key `within` holds.
+    let mut held: Option<HitKey> = None;
     for r in sorted.iter() {
         let r = r?;
         if r.from == 0 {
             mechanism = Some((r.key, r.label));
+            continue;
+        }
+        if r.from == WITHIN {
+            held = Some(r.key);
+            continue;
+        }
+        if within.is_some() && held.as_ref() != Some(&r.key) {
             continue;
         }
         let Some((_, m)) = mechanism.as_ref().filter(|(k, _)| *k == r.key) else {
@@ -192,7 +222,6 @@ type Truths = BTreeMap<(String, i64), (Option<f64>, String, Vec<HitKey>)>;
 /// The truth's sources with their position, kind and hits; None when the truth table has
 /// no source columns (nothing to score the events against).
 fn truth_sources(truth: &Path) -> Result<Option<Truths>, WorkflowError> {
-    use polars::prelude::col;
     let t = TableScan::open(truth)?;
     if t.require(
         &[
@@ -206,13 +235,13 @@ fn truth_sources(truth: &Path) -> Result<Option<Truths>, WorkflowError> {
     {
         return Ok(None);
     }
-    let df = t.select(vec![
-        col(cols::EXPERIMENT.name),
-        col(cols::CHANNEL.name),
-        col(cols::HIT.name),
-        col(cols::EVENT.name),
-        col(cols::SOURCE_X_M.name),
-        col(cols::SOURCE_KIND.name),
+    let df = t.columns(&[
+        cols::EXPERIMENT.name,
+        cols::CHANNEL.name,
+        cols::HIT.name,
+        cols::EVENT.name,
+        cols::SOURCE_X_M.name,
+        cols::SOURCE_KIND.name,
     ])?;
     let keys = t.hit_keys(&df)?;
     let src = t.i64s(&df, cols::EVENT)?;
@@ -235,26 +264,26 @@ fn feature_hits(
     features: &Path,
     rows: crate::store::SourceRows,
 ) -> Result<BTreeMap<HitKey, (Option<i64>, bool)>, WorkflowError> {
-    use polars::prelude::col;
     let f = TableScan::open(features)?;
     f.require(
         &[cols::EVENT.name, cols::EVENT_FIRST.name, cols::ZONE.name],
         "",
     )?;
-    let df = f.select(vec![
-        col(cols::EXPERIMENT.name),
-        col(cols::CHANNEL.name),
-        col(cols::HIT.name),
-        col(cols::EVENT.name),
-        rows.keep().alias("counts"),
+    let df = f.columns(&[
+        cols::EXPERIMENT.name,
+        cols::CHANNEL.name,
+        cols::HIT.name,
+        cols::EVENT.name,
+        cols::EVENT_FIRST.name,
+        cols::ZONE.name,
     ])?;
     let fk = f.hit_keys(&df)?;
     let fev = f.i64s(&df, cols::EVENT)?;
-    let counts = f.bools(&df, "counts")?;
+    let counts = f.counted(&df, rows)?;
     Ok(fk
         .into_iter()
         .enumerate()
-        .map(|(i, k)| (k, (fev[i], counts[i].unwrap_or(false))))
+        .map(|(i, k)| (k, (fev[i], counts[i])))
         .collect())
 }
 
@@ -264,13 +293,12 @@ type EventSizes = BTreeMap<(String, i64), (Option<f64>, usize)>;
 /// Each event of `events.parquet` by (experiment, event): its position and number of hits,
 /// to tell whether it holds exactly one source's hits and where it was located.
 fn event_sizes(events: &Path) -> Result<EventSizes, WorkflowError> {
-    use polars::prelude::col;
     let e = TableScan::open(events)?;
-    let df = e.select(vec![
-        col(cols::EXPERIMENT.name),
-        col(cols::EVENT.name),
-        col(cols::X_M.name),
-        col(cols::N_HITS.name),
+    let df = e.columns(&[
+        cols::EXPERIMENT.name,
+        cols::EVENT.name,
+        cols::X_M.name,
+        cols::N_HITS.name,
     ])?;
     let eexp = e.texts(&df, cols::EXPERIMENT)?;
     let eev = e.i64s(&df, cols::EVENT)?;
