@@ -51,6 +51,8 @@ pub struct DemoJob<'a> {
     pub threads: usize,
     /// Ask the classes about another model ([`CrossModel`]).
     pub cross_model: bool,
+    /// Write `root/run/report.html` (`false`: `--no-report`; nothing else changes).
+    pub report: bool,
     /// The reference maps' cache root (`None`: made anew).
     pub cache: Option<PathBuf>,
 }
@@ -61,7 +63,13 @@ pub fn run_demo(job: &DemoJob) -> Result<DemoResult, WorkflowError> {
     let id = "synthetic_notched_paper";
     let synth = crate::synth::synth_experiment(root, id, hits, seed, None, true)?;
     let data_dir = root.join("data");
-    let cfg = demo_config();
+    let cfg = if job.report {
+        demo_config()
+    } else {
+        let mut c = demo_config().into_inner();
+        c.report.enabled = false;
+        c.check()?
+    };
     let disc = crate::ingest::discover(std::slice::from_ref(&data_dir), &cfg.ingest);
     let inspect = disc
         .sources

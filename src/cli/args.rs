@@ -178,6 +178,46 @@ pub enum BenchCmd {
     /// The report's explorable charts at growing numbers of feature rows: the page's size,
     /// the time to build it, and in headless Chromium the time to first paint and to load
     Report(BenchReportArgs),
+    /// Leave one model family out: for each family (plane, 3-D) and each measurement chain, a
+    /// map trained on the other families classifies a test made from the one left out,
+    /// heard through the chain, at evaluation seeds; the map's and the ch. 4.7 criteria
+    /// label's recalls to the terminal and OUT/transfer.parquet
+    Transfer(BenchTransferArgs),
+}
+
+#[derive(clap::Args)]
+pub struct BenchTransferArgs {
+    /// Folder for the libraries, tests, runs and transfer.parquet
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Sources of each synthetic test
+    #[arg(long, default_value_t = 651)]
+    pub hits: usize,
+    /// Evaluation seeds, comma-separated (each test library's material draws and the
+    /// test's own); never used to choose anything
+    #[arg(long, value_delimiter = ',', default_values_t = crate::workflow::transfer::EVALUATION_SEEDS)]
+    pub seeds: Vec<u64>,
+    /// Chains by name, comma-separated (default: every chain of the file)
+    #[arg(long, value_delimiter = ',')]
+    pub chains: Vec<String>,
+    /// Chains file (default: the embedded pipelines/chains.toml)
+    #[arg(long)]
+    pub chain_file: Option<PathBuf>,
+    /// Material draws per grid point of the training libraries (default: each library
+    /// file's own)
+    #[arg(long)]
+    pub train_variants: Option<usize>,
+    /// Material draws per grid point of each test's library
+    #[arg(long, default_value_t = 1)]
+    pub test_variants: usize,
+    /// The tests' mechanism mix, by the truth's mechanism names (as synth-experiment's)
+    #[arg(long, default_value = crate::workflow::transfer::SHARES)]
+    pub shares: crate::synth::Shares,
+    #[arg(long, default_value_t = 0)]
+    pub threads: usize,
+    /// Make the maps and libraries anew instead of reusing the cached ones
+    #[arg(long)]
+    pub no_cache: bool,
 }
 
 #[derive(clap::Args)]
@@ -444,6 +484,13 @@ pub struct SynthExperimentArgs {
     /// for a test that holds enough fibre failures to measure their recall
     #[arg(long, default_value_t = crate::synth::Shares::default())]
     pub shares: crate::synth::Shares,
+    /// Record the test through this measurement chain (a sensor's response and the
+    /// preamplifier's band; default: flat, as the libraries are recorded), e.g. resonant-150k
+    #[arg(long)]
+    pub chain: Option<String>,
+    /// Chains file for --chain (default: the embedded pipelines/chains.toml)
+    #[arg(long, requires = "chain")]
+    pub chain_file: Option<PathBuf>,
 }
 
 #[derive(clap::Args)]
@@ -525,6 +572,10 @@ pub struct DemoArgs {
     /// Skip asking the classes about another model's signals (a 3-D library, ~35 s)
     #[arg(long)]
     pub no_cross_model: bool,
+    /// Write no HTML report (its ~8 s of pictures): the tables, run.json and the printed
+    /// figures are the same
+    #[arg(long)]
+    pub no_report: bool,
     /// Make the reference maps anew instead of reusing the cached ones
     #[arg(long)]
     pub no_cache: bool,

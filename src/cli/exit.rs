@@ -27,6 +27,23 @@ impl HasKind for UsageError {
     }
 }
 
+/// How a command that did not fail ended.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Outcome {
+    Success,
+    /// `--strict` and something was rejected (exit 2).
+    Rejected,
+}
+
+impl Outcome {
+    pub fn code(self) -> u8 {
+        match self {
+            Outcome::Success => 0,
+            Outcome::Rejected => STRICT,
+        }
+    }
+}
+
 pub const USAGE: u8 = 1;
 pub const STRICT: u8 = 2;
 pub const FAILED: u8 = 3;

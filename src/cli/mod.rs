@@ -4,10 +4,12 @@
 //! [`dispatch`].
 
 mod args;
+mod bench;
 mod commands;
 mod exit;
+mod inputs;
 mod print;
 
 pub use args::*;
-pub use commands::{dispatch, Outcome};
-pub use exit::{Failure, UsageError};
+pub use commands::dispatch;
+pub use exit::{Failure, Outcome, UsageError};

@@ -106,7 +106,9 @@ pub fn demo(d: &crate::demo::DemoResult, out: &Path) {
     for l in crate::workflow::headline(&d.run) {
         println!("{l}");
     }
-    println!("report: {}", out.join("run/report.html").display());
+    if d.run.config.report.enabled {
+        println!("report: {}", out.join("run/report.html").display());
+    }
     if let Some(c) = &d.cross {
         cross_model(c, &d.run, out);
     }

@@ -664,7 +664,10 @@ fn erroneous_records_are_recognised_on_held_out_seeds() {
     let (mut bf, mut er, mut all) = ((0, 0), (0, 0), (0, 0));
     for seed in ["101", "102", "103", "104", "105", "106", "107", "108"] {
         let out = t.path().join(seed);
-        let so = demo(&out, &["--seed", seed, "--no-cross-model"]);
+        let so = demo(&out, &["--seed", seed, "--no-cross-model", "--no-report"]);
+        // --no-report: the run's tables and figures without the page.
+        assert!(!out.join("run/report.html").exists() && !so.contains("report: "));
+        assert!(out.join("run/run.json").is_file());
         let line = |start: &str| -> String {
             so.lines()
                 .find(|l| l.starts_with(start))
@@ -733,7 +736,7 @@ fn reference_like_hits_of_unseen_seeds_are_seldom_novel() {
     let (mut novel_bf, mut all_bf) = (0usize, 0usize);
     for seed in ["41", "42"] {
         let out = t.path().join(seed);
-        let so = demo(&out, &["--seed", seed, "--no-cross-model"]);
+        let so = demo(&out, &["--seed", seed, "--no-cross-model", "--no-report"]);
         let threshold: f64 = so
             .lines()
             .find_map(|l| l.split_once("beyond quantisation error "))

@@ -340,6 +340,7 @@ fn the_demo_run_is_written_back_for_visualae() {
         "--hits",
         "150",
         "--no-cross-model",
+        "--no-report",
     ]);
     assert_eq!(code, 0, "{said}\n{err}");
     let run = root.join("run");
