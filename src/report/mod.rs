@@ -186,6 +186,7 @@ impl SourceScore {
 }
 
 /// Classification against the ground truth (`truth.parquet`).
+#[derive(Debug, Clone)]
 pub struct TruthScore {
     pub path: PathBuf,
     /// (SOM class, true mechanism) → hits.

@@ -6,6 +6,7 @@
 
 pub mod acoustic;
 pub mod acoustic3d;
+pub mod chain;
 pub mod convergence;
 pub mod decay;
 pub mod geometry;
@@ -55,6 +56,9 @@ pub enum SimError {
     /// The caller asked the job to stop ([`crate::util::JobControl`]).
     #[error("interrupted")]
     Cancelled,
+    /// A measurement chain could not be used (unknown, or not valid at the sample rate).
+    #[error(transparent)]
+    Chain(#[from] chain::ChainError),
 }
 
 impl crate::util::HasKind for SimError {
@@ -67,6 +71,7 @@ impl crate::util::HasKind for SimError {
                 crate::util::ErrorKind::Failed
             }
             SimError::Shards(e) => e.kind(),
+            SimError::Chain(_) => crate::util::ErrorKind::Usage,
         }
     }
 }

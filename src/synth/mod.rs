@@ -45,6 +45,9 @@ impl crate::util::HasKind for SynthError {
 }
 use std::f64::consts::PI;
 
+/// The synthetic tests' sample rate (the demo's Vallen acquisition), Hz.
+pub const SAMPLE_RATE_HZ: f64 = 10e6;
+
 /// Parameters of one synthetic hit.
 #[derive(Debug, Clone)]
 pub struct HitSpec {
@@ -64,7 +67,7 @@ impl HitSpec {
     pub fn new(mechanism: Mechanism) -> HitSpec {
         HitSpec {
             mechanism,
-            sample_rate_hz: 10e6,
+            sample_rate_hz: SAMPLE_RATE_HZ,
             n_samples: 4096,
             pretrigger: 500,
             amplitude_v: 0.01,
@@ -276,6 +279,10 @@ pub struct Experiment {
     pub energy_exponent: Option<f64>,
     /// The sources' mechanism mix.
     pub shares: loading::Shares,
+    /// The measurement chain every sensor hears through (None: the libraries' flat one).
+    /// Applied to the source's waveform before each sensor's attenuation and noise: the
+    /// sensor shapes the wave, its own noise is added after.
+    pub chain: Option<crate::sim::chain::Chain>,
 }
 
 /// Reference-library signals by mechanism, each cut to start a little before its trigger.
@@ -390,6 +397,7 @@ impl Experiment {
             cycles: 0,
             energy_exponent: None,
             shares: loading::Shares::default(),
+            chain: None,
         }
     }
 
@@ -479,6 +487,17 @@ impl Experiment {
         }
     }
 
+    /// `x` as the experiment's measurement chain delivers it (unchanged without one).
+    pub(crate) fn heard(&self, x: Vec<f32>) -> Vec<f32> {
+        match &self.chain {
+            Some(c) if !c.is_flat() => {
+                let y: Vec<f64> = x.iter().map(|&v| v as f64).collect();
+                c.apply(&y).into_iter().map(|v| v as f32).collect()
+            }
+            _ => x,
+        }
+    }
+
     fn one_sensor_hits(&self) -> impl Iterator<Item = (AeRecord, String)> + Send + '_ {
         let mut rng = Rng::new(self.seed);
         let design = self.cycle_design();
@@ -497,6 +516,8 @@ impl Experiment {
                 Some(lib) => from_library(lib, &spec, &mut rng),
                 None => (waveform(&spec, &mut rng), String::new(), false),
             };
+            // One sensor: its record, noise included, is heard through the chain.
+            let samples = self.heard(samples);
             let rec = AeRecord {
                 kind: crate::model::RecordKind::Hit,
                 experiment: self.id.clone(),
@@ -590,6 +611,22 @@ pub fn synth_test(
     library: Option<&std::path::Path>,
     progress: bool,
 ) -> Result<String, SynthError> {
+    synth_test_through(dir, id, hits, seed, shape, library, None, progress)
+}
+
+/// [`synth_test`] heard through a measurement chain (`synth-experiment --chain NAME`; None:
+/// flat, as the libraries are recorded).
+#[allow(clippy::too_many_arguments)]
+pub fn synth_test_through(
+    dir: &std::path::Path,
+    id: &str,
+    hits: usize,
+    seed: u64,
+    shape: Shape,
+    library: Option<&std::path::Path>,
+    chain: Option<&crate::sim::chain::Chain>,
+    progress: bool,
+) -> Result<String, SynthError> {
     let shape = shape.check()?;
     let t0 = std::time::Instant::now();
     let lib_path = match library {
@@ -605,13 +642,14 @@ pub fn synth_test(
             out.join("waveforms.parquet")
         }
     };
-    let lib = Library::read(&lib_path, 10e6)?;
+    let lib = Library::read(&lib_path, SAMPLE_RATE_HZ)?;
     let mut e = Experiment::new(id, hits, seed);
     e.library = Some(lib);
     e.strip = Some(Strip::demo());
     e.cycles = shape.cycles;
     e.energy_exponent = shape.energy_exponent;
     e.shares = shape.shares;
+    e.chain = chain.cloned();
     let data = dir.join("data");
     let truth = dir.join("truth.parquet");
     let n_hits = e.write_with_truth(&data, &truth)?;
@@ -628,6 +666,9 @@ pub fn synth_test(
     }
     if e.shares != loading::Shares::default() {
         stated += &format!("; mechanisms drawn as {}", e.shares);
+    }
+    if let Some(c) = &e.chain {
+        stated += &format!("; heard through the {} chain", c.name);
     }
     Ok(format!(
         "{hits} sources, {n_hits} hits (seed {seed}) from {} → {} (.pridb/.tradb) and {} in {:.1} s{stated}",

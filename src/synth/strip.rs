@@ -122,6 +122,9 @@ pub(super) fn strip_hits(e: &Experiment, strip: &Strip) -> Vec<SynthHit> {
             Some(lib) => from_library(lib, &spec, &mut rng),
             None => (waveform(&spec, &mut rng), String::new(), false),
         };
+        // The sensor and preamplifier shape the wave before each sensor's attenuation and
+        // noise (the same sensor model at both, so once per source).
+        let base = e.heard(base);
         let p = spec.pretrigger;
         let fs = spec.sample_rate_hz;
         // A hit from a clipped library record is clipped again at each sensor, after that

@@ -353,6 +353,7 @@ mod schema;
 pub mod series;
 mod sources;
 mod stages;
+pub mod transfer;
 mod truth;
 pub use headline::{headline, summary_json};
 pub use layout::RunDir;

@@ -29,6 +29,7 @@ pub const TABLES: &[&str] = &[
     "validity",
     "statistics",
     "series",
+    "transfer",
 ];
 
 /// The schema of a written table by name (one of [`TABLES`]).
@@ -64,6 +65,7 @@ pub fn table_schema(name: &str, cfg: &PipelineConfig) -> Option<crate::store::Ta
             crate::analysis::series::series_table(&crate::analysis::series::default_classes(), true)
                 .schema()
         }
+        "transfer" => super::transfer::transfer_table().schema(),
         _ => return None,
     })
 }

@@ -35,6 +35,7 @@ mod sim3d;
 mod sim_beyond;
 mod som;
 mod thesis;
+mod transfer;
 mod trend;
 mod trfdb;
 mod vendor;

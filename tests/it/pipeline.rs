@@ -320,7 +320,15 @@ fn every_shipped_pipeline_file_parses() {
     for e in std::fs::read_dir(&dir).unwrap().flatten() {
         if e.path().extension().is_some_and(|x| x == "toml") {
             let text = std::fs::read_to_string(e.path()).unwrap();
-            if text.lines().any(|l| l.trim() == "[reference]") {
+            if text.lines().any(|l| l.trim() == "[[chain]]") {
+                // Measurement chains (synth-experiment --chain, bench transfer), each
+                // checked at the synthetic tests' sample rate.
+                let f = aepipe::sim::chain::ChainFile::parse(&text).unwrap();
+                for c in &f.chain {
+                    c.check(aepipe::synth::SAMPLE_RATE_HZ)
+                        .unwrap_or_else(|err| panic!("{err}"));
+                }
+            } else if text.lines().any(|l| l.trim() == "[reference]") {
                 // A reference-library definition (aepipe reference), not a pipeline.
                 aepipe::sim::reference::ReferenceFile::read(&e.path())
                     .unwrap_or_else(|err| panic!("{err}"));
