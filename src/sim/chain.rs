@@ -208,7 +208,7 @@ impl ChainConfig {
                     r.peak_hz
                 )));
             }
-            if !(r.q.is_finite() && r.q > 0.0) || !(r.weight.is_finite() && r.weight > 0.0) {
+            if !(r.q.is_finite() && r.q > 0.0 && r.weight.is_finite() && r.weight > 0.0) {
                 return Err(bad(format!(
                     "resonance at {} Hz: q {} and weight {} must be positive",
                     r.peak_hz, r.q, r.weight
