@@ -447,8 +447,6 @@ impl Spill for SeriesRow {
     }
 }
 
-/// The tested columns of the tables, checked (every `pr_*` column of the first table when
-/// none are named).
 /// What a trend series reads of a features table: the hit's key, time and load, the tested
 /// columns, and whether it is its event's first hit when the table says.
 fn series_columns<'a>(t: &TableScan, columns: &'a [String]) -> Vec<&'a str> {
@@ -464,6 +462,8 @@ fn series_columns<'a>(t: &TableScan, columns: &'a [String]) -> Vec<&'a str> {
     sel
 }
 
+/// The tested columns of the tables, checked (every `pr_*` column of the first table when
+/// none are named).
 fn tested_columns(t: &TableScan, p: &Path, wanted: &[String]) -> Result<Vec<String>, TrendError> {
     let mut columns = wanted.to_vec();
     if columns.is_empty() {

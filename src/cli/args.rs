@@ -215,7 +215,8 @@ pub struct BenchTransferArgs {
     pub shares: crate::synth::Shares,
     #[arg(long, default_value_t = 0)]
     pub threads: usize,
-    /// Make the maps and libraries anew instead of reusing the cached ones
+    /// Make the maps and libraries anew (in OUT/cache, each map once) instead of reusing
+    /// the user's cached ones
     #[arg(long)]
     pub no_cache: bool,
 }

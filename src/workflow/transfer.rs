@@ -52,7 +52,8 @@ pub struct TransferJob<'a> {
     /// their recall).
     pub shares: crate::synth::Shares,
     pub threads: usize,
-    /// The reference maps' and libraries' cache (None: made anew).
+    /// The reference maps' and libraries' cache (None: made anew, in a fresh `out/cache`,
+    /// so that each family's map is still trained once, not once per test).
     pub cache: Option<PathBuf>,
 }
 
@@ -140,6 +141,16 @@ pub fn transfer(job: &TransferJob) -> Result<Vec<TransferRow>, WorkflowError> {
                 .map_err(|e| input(e.to_string()))
         })
         .collect::<Result<Vec<_>, _>>()?;
+    let cache = match &job.cache {
+        Some(c) => c.clone(),
+        None => {
+            let c = job.out.join("cache");
+            if c.exists() {
+                std::fs::remove_dir_all(&c).map_err(|e| input(format!("{}: {e}", c.display())))?;
+            }
+            c
+        }
+    };
     let fams = families();
     // Each family's training library, simulated (or copied from the cache) once.
     let mut training: Vec<PathBuf> = Vec::new();
@@ -149,7 +160,7 @@ pub fn transfer(job: &TransferJob) -> Result<Vec<TransferRow>, WorkflowError> {
             def.variants = v;
         }
         let dir = LibraryDir::new(job.out.join("libraries").join(name));
-        super::mapcache::library(job.cache.as_deref(), &def, &dir, false)?;
+        super::mapcache::library(Some(&cache), &def, &dir, false)?;
         training.push(dir.waveforms());
     }
     let mut rows = Vec::new();
@@ -168,7 +179,7 @@ pub fn transfer(job: &TransferJob) -> Result<Vec<TransferRow>, WorkflowError> {
             def.seed = seed;
             def.variants = job.test_variants;
             let lib = LibraryDir::new(cell_dir.join(format!("library-{seed}")));
-            super::mapcache::library(job.cache.as_deref(), &def, &lib, false)?;
+            super::mapcache::library(Some(&cache), &def, &lib, false)?;
             for (c, chain) in chains.iter().enumerate() {
                 let test = cell_dir.join(format!("{}-{seed}", chain.name));
                 crate::synth::synth_test_through(
@@ -184,7 +195,7 @@ pub fn transfer(job: &TransferJob) -> Result<Vec<TransferRow>, WorkflowError> {
                     Some(chain),
                     false,
                 )?;
-                let (map, criteria) = score(job, &test, &training[other])?;
+                let (map, criteria) = score(job, &cache, &test, &training[other])?;
                 match cells.get_mut(c) {
                     Some((m, cr)) => {
                         pool(m, map);
@@ -236,18 +247,14 @@ fn settings_digest(job: &TransferJob, chains: &[String]) -> String {
         "|{} {:?} {:?} {} {}",
         job.hits, job.seeds, job.train_variants, job.test_variants, job.shares
     );
-    sha2::Digest::finalize(<sha2::Sha256 as sha2::Digest>::new_with_prefix(
-        text.as_bytes(),
-    ))
-    .iter()
-    .map(|b| format!("{b:02x}"))
-    .collect()
+    crate::util::sha256_hex(text.as_bytes())
 }
 
 /// The demo's pipeline on `test` with a map trained on `library`: the map's and the
 /// criteria label's scores against the test's truth.
 fn score(
     job: &TransferJob,
+    cache: &Path,
     test: &Path,
     library: &Path,
 ) -> Result<(TruthScore, TruthScore), WorkflowError> {
@@ -260,7 +267,7 @@ fn score(
     let run = super::run(&super::RunJob {
         truth: Some(&truth),
         progress: false,
-        cache: job.cache.clone(),
+        cache: Some(cache.to_path_buf()),
         ..super::RunJob::new(
             &cfg,
             std::slice::from_ref(&data),

@@ -150,21 +150,46 @@ fn a_test_heard_through_a_resonant_sensor_has_its_spectrum_weighted_by_the_senso
     );
 }
 
-/// Truth mechanism of each (experiment, channel, hit) of a truth table.
-fn truth_of(path: &Path) -> BTreeMap<(String, String, String), String> {
+type HitKey = (String, String, String);
+
+/// `column` of each (experiment, channel, hit) of a table.
+fn labels(path: &Path, column: &str) -> BTreeMap<HitKey, String> {
     let (n, rows) = table_rows(path);
     let k = |c: &str| n.iter().position(|x| x == c).unwrap();
-    let (e, c, h, m) = (k("experiment"), k("channel"), k("hit"), k("mechanism"));
+    let (e, c, h, m) = (k("experiment"), k("channel"), k("hit"), k(column));
     rows.iter()
         .map(|r| ((r[e].clone(), r[c].clone(), r[h].clone()), r[m].clone()))
         .collect()
 }
 
+/// Per true mechanism (bond, fibre): (labelled it, held), over the hits `within` holds;
+/// and how many of those bond and fibre failures are labelled unlike_references.
+fn recalls(
+    truth: &BTreeMap<HitKey, String>,
+    label: &BTreeMap<HitKey, String>,
+    within: &BTreeMap<HitKey, String>,
+) -> (BTreeMap<&'static str, (usize, usize)>, usize) {
+    let mut rec: BTreeMap<&'static str, (usize, usize)> = BTreeMap::new();
+    let mut novel = 0;
+    for key in within.keys() {
+        let (Some(m), Some(l)) = (truth.get(key), label.get(key)) else {
+            continue;
+        };
+        for mech in ["bond_failure", "fibre_failure"] {
+            if m == mech {
+                let e = rec.entry(mech).or_default();
+                e.1 += 1;
+                e.0 += usize::from(l == mech);
+                novel += usize::from(l == "unlike_references");
+            }
+        }
+    }
+    (rec, novel)
+}
+
 /// `aepipe bench transfer` at a cheap scale: 120 sources a test, one evaluation seed
 /// (7401, written here before the first run), libraries of one material draw per grid point.
-/// Every cell is there (2 families × 3 chains), the table read back is the terminal's, and
-/// the criteria columns are recomputed here from each test's truth and features tables.
-///
+/// Every cell is there (2 families × 3 chains), each against the runs' own tables:
 /// The map's recalls and novel share are recomputed from each run's classification table,
 /// the criteria label's from its features table on the same hits.
 ///
@@ -213,95 +238,36 @@ fn the_leave_one_family_out_table_at_a_cheap_scale() {
             r[k("trained_on")],
             if fam == "plane" { "3d" } else { "plane" }
         );
-        // The criteria columns, recomputed from the cell's own tables.
+        // The map's columns from the cell's classification table, the criteria's from its
+        // features table on the same hits (those the map classified).
         let dir = out
             .join(format!("{fam}-left-out"))
             .join(format!("{chain}-7401"));
-        let truth = truth_of(&dir.join("truth.parquet"));
-        let (fn_, frows) = table_rows(&dir.join("run/features/features.parquet"));
-        let fk = |c: &str| fn_.iter().position(|x| x == c).unwrap();
-        // On the hits the map classified, as the map's own recalls are.
-        let (cn, crows) = table_rows(&dir.join("run/som/classification.parquet"));
-        let ck = |c: &str| cn.iter().position(|x| x == c).unwrap();
-        let classified: std::collections::BTreeSet<(String, String, String)> = crows
-            .iter()
-            .map(|c| {
-                (
-                    c[ck("experiment")].clone(),
-                    c[ck("channel")].clone(),
-                    c[ck("hit")].clone(),
-                )
-            })
-            .collect();
-        let mut rec: BTreeMap<&str, (usize, usize)> = BTreeMap::new();
-        for f in &frows {
-            let key = (
-                f[fk("experiment")].clone(),
-                f[fk("channel")].clone(),
-                f[fk("hit")].clone(),
-            );
-            if !classified.contains(&key) {
-                continue;
+        let truth = labels(&dir.join("truth.parquet"), "mechanism");
+        let som = labels(&dir.join("run/som/classification.parquet"), "som_label");
+        let criteria = labels(&dir.join("run/features/features.parquet"), "criteria_label");
+        let (map, novel) = recalls(&truth, &som, &som);
+        let (rec, _) = recalls(&truth, &criteria, &som);
+        let bf = map.values().map(|v| v.1).sum::<usize>();
+        for (prefix, tally) in [("", &map), ("criteria_", &rec)] {
+            for (col, m) in [
+                ("bond_recall", "bond_failure"),
+                ("fibre_recall", "fibre_failure"),
+            ] {
+                let want = tally[m].0 as f64 / tally[m].1 as f64;
+                let col = format!("{prefix}{col}");
+                assert!(
+                    (num(r, &col) - want).abs() < 1e-12,
+                    "{fam} {chain} {col}: {} vs {want}",
+                    num(r, &col),
+                );
             }
-            let Some(m) = truth.get(&key) else { continue };
-            for mech in ["bond_failure", "fibre_failure"] {
-                if m == mech {
-                    let e = rec.entry(mech).or_default();
-                    e.1 += 1;
-                    e.0 += usize::from(f[fk("criteria_label")] == mech);
-                }
-            }
-        }
-        // The map's, from its classification table.
-        let mut map: BTreeMap<&str, (usize, usize)> = BTreeMap::new();
-        let (mut novel, mut bf) = (0usize, 0usize);
-        for c in &crows {
-            let key = (
-                c[ck("experiment")].clone(),
-                c[ck("channel")].clone(),
-                c[ck("hit")].clone(),
-            );
-            let Some(m) = truth.get(&key) else { continue };
-            let label = &c[ck("som_label")];
-            for mech in ["bond_failure", "fibre_failure"] {
-                if m == mech {
-                    let e = map.entry(mech).or_default();
-                    e.1 += 1;
-                    e.0 += usize::from(label == mech);
-                    bf += 1;
-                    novel += usize::from(label == "unlike_references");
-                }
-            }
-        }
-        let m_of = |m: &str| map[m].0 as f64 / map[m].1 as f64;
-        for (col, m) in [
-            ("bond_recall", "bond_failure"),
-            ("fibre_recall", "fibre_failure"),
-        ] {
-            assert!(
-                (num(r, col) - m_of(m)).abs() < 1e-12,
-                "{fam} {chain} {col}: {} vs {}",
-                num(r, col),
-                m_of(m)
-            );
         }
         assert!(
             (num(r, "novel_share") - novel as f64 / bf as f64).abs() < 1e-12,
             "{fam} {chain}"
         );
         assert_eq!(num(r, "bond_fibre_hits"), bf as f64);
-        let r_of = |m: &str| rec[m].0 as f64 / rec[m].1 as f64;
-        for (col, m) in [
-            ("criteria_bond_recall", "bond_failure"),
-            ("criteria_fibre_recall", "fibre_failure"),
-        ] {
-            assert!(
-                (num(r, col) - r_of(m)).abs() < 1e-12,
-                "{fam} {chain} {col}: {} vs {}",
-                num(r, col),
-                r_of(m)
-            );
-        }
         let bal = num(r, "balanced_accuracy");
         let goal = bal >= 0.90
             && num(r, "bond_recall") >= 0.85
